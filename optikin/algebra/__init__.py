@@ -1,0 +1,45 @@
+"""Quaternion and dual-quaternion algebra for numpy arrays and CasADi symbols."""
+
+from optikin.algebra.dual_quaternion import (
+    dq_combined_conjugate,
+    dq_conjugate,
+    dq_dual_number_conjugate,
+    dq_exp,
+    dq_from_parts,
+    dq_from_rotation_translation,
+    dq_from_transform,
+    dq_log,
+    dq_multiply,
+    dq_norm_residual,
+    dq_parts,
+    dq_pose_error,
+    dq_power,
+    dq_rotation,
+    dq_sclerp,
+    dq_transform_point,
+    dq_translation,
+    transform_from_dq,
+)
+from optikin.algebra.quaternion import (
+    matrix_from_quat,
+    quat_angle,
+    quat_conjugate,
+    quat_exp,
+    quat_from_axis_angle,
+    quat_from_matrix,
+    quat_from_pure,
+    quat_from_rpy,
+    quat_hemisphere_continuous,
+    quat_inverse,
+    quat_log,
+    quat_multiply,
+    quat_norm,
+    quat_normalize,
+    quat_power,
+    quat_rotate,
+    quat_slerp,
+    quat_vector,
+    rpy_from_quat,
+)
+
+__all__ = [name for name in dir() if name.startswith(("quat_", "dq_", "matrix_", "rpy_", "transform_"))]

@@ -1,0 +1,230 @@
+"""Unit-quaternion algebra, written once for batched numpy arrays and CasADi symbols.
+
+Quaternions are Hamilton quaternions ``(w, x, y, z)``. numpy inputs carry the
+components on the last axis ``(..., 4)``; CasADi inputs carry them on the rows
+``(4, 1)`` or ``(4, N)`` (see :mod:`optikin.algebra.backend`).
+
+The logarithm follows Ude, Nemec, Petric & Morimoto (ICRA 2014), the form the
+quaternion DMPs of seed 000 (eqs. 17-23) are built on: for ``q = (cos a, sin a n)``,
+``log q = a n`` (half the rotation angle along the axis) and ``exp`` is its inverse.
+Both are exact and smooth at the identity.
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+from optikin.algebra import backend as B
+from optikin.algebra.backend import Array
+
+IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
+
+
+def quat_multiply(p: Array, q: Array) -> Array:
+    """Hamilton product ``p * q``."""
+    pw, px, py, pz = B.components(p, 4)
+    qw, qx, qy, qz = B.components(q, 4)
+    return B.stack(
+        [
+            pw * qw - px * qx - py * qy - pz * qz,
+            pw * qx + px * qw + py * qz - pz * qy,
+            pw * qy - px * qz + py * qw + pz * qx,
+            pw * qz + px * qy - py * qx + pz * qw,
+        ]
+    )
+
+
+def quat_conjugate(q: Array) -> Array:
+    w, x, y, z = B.components(q, 4)
+    return B.stack([w, -x, -y, -z])
+
+
+def quat_norm(q: Array) -> Array:
+    return B.sqrt(B.sum_squares(B.components(q, 4)))
+
+
+def quat_normalize(q: Array) -> Array:
+    w, x, y, z = B.components(q, 4)
+    n = quat_norm(q)
+    return B.stack([w / n, x / n, y / n, z / n])
+
+
+def quat_inverse(q: Array) -> Array:
+    """``q^-1 = q* / |q|^2`` (equals the conjugate for a unit quaternion)."""
+    w, x, y, z = B.components(q, 4)
+    n2 = B.sum_squares([w, x, y, z])
+    return B.stack([w / n2, -x / n2, -y / n2, -z / n2])
+
+
+def quat_from_pure(v: Array) -> Array:
+    """The pure quaternion ``(0, v)`` of a 3-vector."""
+    x, y, z = B.components(v, 3)
+    return B.stack([0.0 * x, x, y, z])
+
+
+def quat_vector(q: Array) -> Array:
+    """The vector part ``(x, y, z)``."""
+    return B.split(q, 1, 4)[1]
+
+
+def quat_exp(v: Array) -> Array:
+    """``exp(v) = (cos|v|, sin|v| v/|v|)`` of a 3-vector ``v`` (Ude et al. 2014, seed 000 eq. 23)."""
+    x, y, z = B.components(v, 3)
+    a2 = B.sum_squares([x, y, z])
+    s = B.sinc_of_square(a2)
+    return B.stack([B.cos_of_square(a2), s * x, s * y, s * z])
+
+
+def quat_log(q: Array) -> Array:
+    """``log q = a n`` for a unit ``q = (cos a, sin a n)``, with ``a`` in [0, pi].
+
+    Exact and smooth at the identity. At ``q = -1`` (a full turn) the axis is
+    undefined and the result is the zero vector's neighbour in no particular
+    direction; keep sequences in one hemisphere (:func:`quat_hemisphere_continuous`).
+    """
+    w, x, y, z = B.components(q, 4)
+    s2 = B.sum_squares([x, y, z])
+    # atan2(s, w) / s with s = |(x, y, z)|; near the identity, its series in s^2.
+    small = (s2 < B.SERIES_BAND**2) * (w > 0)
+    s = B.sqrt(B.where(small, 1.0, s2))
+    w_safe = B.where(small, w, 1.0)
+    t2 = s2 / (w_safe * w_safe)
+    series = (1.0 - t2 / 3.0 + t2 * t2 / 5.0) / w_safe
+    ratio = B.where(small, series, B.atan2(s, w) / s)
+    return B.stack([ratio * x, ratio * y, ratio * z])
+
+
+def quat_angle(q: Array) -> Array:
+    """Rotation angle in [0, pi] of a unit quaternion (either sign)."""
+    w, x, y, z = B.components(q, 4)
+    return 2.0 * B.atan2(B.sqrt(B.sum_squares([x, y, z])), B.fabs(w))
+
+
+def quat_power(q: Array, t: Array) -> Array:
+    """``q^t = exp(t log q)`` of a unit quaternion."""
+    return quat_exp(t * quat_log(q))
+
+
+def quat_from_axis_angle(axis: Array, angle: Array) -> Array:
+    """Rotation by ``angle`` about the unit vector ``axis``."""
+    x, y, z = B.components(axis, 3)
+    h = 0.5 * angle
+    s = B.sin(h)
+    return B.stack([B.cos(h), s * x, s * y, s * z])
+
+
+def quat_rotate(q: Array, v: Array) -> Array:
+    """Rotate the 3-vector ``v`` by the unit quaternion ``q`` (``q v q*``)."""
+    return quat_vector(quat_multiply(quat_multiply(q, quat_from_pure(v)), quat_conjugate(q)))
+
+
+def matrix_from_quat(q: Array) -> Array:
+    """Rotation matrix of a unit quaternion (seed 000 eq. 6, derived again).
+
+    numpy: ``(..., 4) -> (..., 3, 3)``; CasADi: ``(4, 1) -> (3, 3)``.
+    """
+    w, x, y, z = B.components(q, 4)
+    rows = [
+        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+    ]
+    if B.is_casadi(q):
+        if q.shape[1] != 1:
+            raise ValueError("matrix_from_quat takes one CasADi quaternion (4x1) at a time")
+        return ca.vertcat(*[ca.horzcat(*r) for r in rows])
+    return np.stack([np.stack(r, axis=-1) for r in rows], axis=-2)
+
+
+def quat_from_matrix(R: Array) -> Array:
+    """Unit quaternion (w >= 0) of a rotation matrix, by Shepperd's method.
+
+    Of the four algebraically equal formulas, the one with the largest pivot is
+    used, so the result is accurate for every rotation. numpy: ``(..., 3, 3)``;
+    CasADi: ``3 x 3``.
+    """
+    if B.is_casadi(R):
+        if R.shape != (3, 3):
+            raise ValueError(f"quat_from_matrix takes a 3x3 CasADi matrix, got {R.shape}")
+        m = [[R[i, j] for j in range(3)] for i in range(3)]
+    else:
+        R = np.asarray(R, dtype=float)
+        if R.shape[-2:] != (3, 3):
+            raise ValueError(f"expected rotation matrices of shape (..., 3, 3), got {R.shape}")
+        m = [[R[..., i, j] for j in range(3)] for i in range(3)]
+    trace = m[0][0] + m[1][1] + m[2][2]
+    pivots = [1 + trace, 1 + m[0][0] - m[1][1] - m[2][2], 1 - m[0][0] + m[1][1] - m[2][2],
+              1 - m[0][0] - m[1][1] + m[2][2]]
+    candidates = []
+    for k, pivot in enumerate(pivots):
+        r = B.sqrt(B.fmax(pivot, 1e-300))
+        inv = 0.5 / r
+        if k == 0:
+            c = [0.5 * r, (m[2][1] - m[1][2]) * inv, (m[0][2] - m[2][0]) * inv, (m[1][0] - m[0][1]) * inv]
+        elif k == 1:
+            c = [(m[2][1] - m[1][2]) * inv, 0.5 * r, (m[0][1] + m[1][0]) * inv, (m[0][2] + m[2][0]) * inv]
+        elif k == 2:
+            c = [(m[0][2] - m[2][0]) * inv, (m[0][1] + m[1][0]) * inv, 0.5 * r, (m[1][2] + m[2][1]) * inv]
+        else:
+            c = [(m[1][0] - m[0][1]) * inv, (m[0][2] + m[2][0]) * inv, (m[1][2] + m[2][1]) * inv, 0.5 * r]
+        candidates.append(c)
+    # Select the candidate of the largest pivot, component by component.
+    best, best_pivot = candidates[0], pivots[0]
+    for c, pivot in zip(candidates[1:], pivots[1:]):
+        take = pivot > best_pivot
+        best = [B.where(take, ci, bi) for ci, bi in zip(c, best)]
+        best_pivot = B.fmax(pivot, best_pivot)
+    sign = B.where(best[0] < 0, -1.0, 1.0)
+    return B.stack([sign * c for c in best])
+
+
+def quat_from_rpy(roll: Array, pitch: Array, yaw: Array) -> Array:
+    """Quaternion of ``R = Rz(yaw) Ry(pitch) Rx(roll)``, the convention of seed 000 eq. (30)."""
+    cr, sr = B.cos(0.5 * roll), B.sin(0.5 * roll)
+    cp, sp = B.cos(0.5 * pitch), B.sin(0.5 * pitch)
+    cy, sy = B.cos(0.5 * yaw), B.sin(0.5 * yaw)
+    return B.stack(
+        [
+            cr * cp * cy + sr * sp * sy,
+            sr * cp * cy - cr * sp * sy,
+            cr * sp * cy + sr * cp * sy,
+            cr * cp * sy - sr * sp * cy,
+        ]
+    )
+
+
+def rpy_from_quat(q: Array) -> Array:
+    """Roll, pitch, yaw of a unit quaternion, seed 000 eq. (30) (printed denominators garbled).
+
+    ``roll = atan2(2(w x + y z), 1 - 2(x^2 + y^2))``,
+    ``pitch = asin(2(w y - x z))`` (clipped to [-1, 1]),
+    ``yaw = atan2(2(w z + x y), 1 - 2(y^2 + z^2))``.
+    At pitch = +-90 degrees (gimbal lock) roll and yaw are not unique.
+    Returns ``(..., 3)`` for numpy, ``3 x N`` for CasADi.
+    """
+    w, x, y, z = B.components(q, 4)
+    roll = B.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
+    sin_pitch = B.clip(2 * (w * y - x * z), -1.0, 1.0)
+    pitch = ca.asin(sin_pitch) if B.is_casadi(sin_pitch) else np.arcsin(sin_pitch)
+    yaw = B.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+    return B.stack([roll, pitch, yaw])
+
+
+def quat_hemisphere_continuous(qs: np.ndarray) -> np.ndarray:
+    """Flip signs along a sequence ``(T, 4)`` so consecutive quaternions have a positive dot product."""
+    qs = np.array(qs, dtype=float)
+    if qs.ndim != 2 or qs.shape[1] != 4:
+        raise ValueError(f"expected a sequence of shape (T, 4), got {qs.shape}")
+    dots = np.einsum("ij,ij->i", qs[1:], qs[:-1])
+    flips = np.concatenate([[1.0], np.cumprod(np.where(dots < 0, -1.0, 1.0))])
+    return qs * flips[:, None]
+
+
+def quat_slerp(q0: Array, q1: Array, t: Array) -> Array:
+    """Spherical linear interpolation along the shorter arc: ``q0 (q0* q1)^t``."""
+    rel = quat_multiply(quat_conjugate(q0), q1)
+    w = B.components(rel, 4)[0]
+    sign = B.where(w < 0, -1.0, 1.0)
+    rel = B.stack([sign * c for c in B.components(rel, 4)])
+    return quat_multiply(q0, quat_power(rel, t))
