@@ -1,0 +1,161 @@
+"""Multi-section constant-curvature (CC) arm, seed 000 section II.
+
+Each section ``i`` has configuration ``(S_i, theta_i, phi_i)``: arc length,
+bending angle (``theta = kappa S``) and bending-plane angle. The section's
+rotation relative to its base is ``R = Rz(phi) Ry(theta) Rz(-phi)`` and its tip
+lies at
+
+    p = S [cos(phi) (1 - cos theta)/theta,  sin(phi) (1 - cos theta)/theta,  sin(theta)/theta].
+
+Seed 000 eq. (1) is garbled by extraction, and its eq. (2) (a 5th-order Taylor
+form to dodge the theta -> 0 singularity) bends the other way: it equals this
+convention with ``phi`` replaced by ``phi + pi`` (tested). Here the ratios are
+written as ``(1 - cos theta)/theta = theta (1 - cos theta)/theta^2`` and
+``sin(theta)/theta = sinc(theta)``, each switched to its series inside a tiny
+band, so values *and* derivatives are exact and finite for a straight section.
+
+The rotation is composed as a quaternion, ``q = (cos(theta/2), -sin(theta/2) sin(phi),
+sin(theta/2) cos(phi), 0)``, which is smooth everywhere: no matrix-to-quaternion
+branching in the symbolic graph.
+
+Section angles from an IMU quaternion (seed 000 eqs. 6-8, derived again): the
+section's tip z axis is ``R e_z = (sin theta cos phi, sin theta sin phi, cos theta)``,
+so ``theta = atan2(sqrt(R13^2 + R23^2), R33)`` and ``phi = atan2(R23, R13)``;
+a twist about the tip axis (which a CC section cannot make) is discarded.
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+from optikin.algebra import backend as B
+from optikin.algebra import quat_multiply, quat_rotate
+from optikin.algebra.backend import Array
+from optikin.arms.base import ArmModel
+
+DEFAULT_SECTION_LENGTH = 0.18
+"""Seed 000 section VII: two rods of 18 cm each."""
+DEFAULT_LENGTH_RANGE = (0.9, 1.1)
+"""Section length bounds as fractions of the nominal length (an assumption: Table 1 of seed 000 is lost)."""
+DEFAULT_THETA_MAX = 2.0 * np.pi / 3.0
+"""|theta| <= 120 degrees per section (an assumption, typical of cable-driven sections)."""
+
+
+def section_quaternion(theta: Array, phi: Array) -> Array:
+    """Rotation ``Rz(phi) Ry(theta) Rz(-phi)`` of one CC section as a unit quaternion."""
+    h = 0.5 * theta
+    s = B.sin(h)
+    return B.stack([B.cos(h), -s * B.sin(phi), s * B.cos(phi), 0.0 * theta])
+
+
+def section_position(length: Array, theta: Array, phi: Array) -> Array:
+    """Tip position of one CC section relative to its base, exact at ``theta = 0``."""
+    radial = length * theta * B.one_minus_cos_over_square(theta)
+    return B.stack([radial * B.cos(phi), radial * B.sin(phi), length * B.sinc(theta)])
+
+
+def section_angles_from_quaternion(q: Array) -> tuple[Array, Array]:
+    """``(theta, phi)`` of a CC section from its relative orientation quaternion (seed 000 eq. 8, derived again).
+
+    ``theta`` is in [0, pi]; ``phi`` in (-pi, pi] (0 when the section is straight).
+    """
+    w, x, y, z = B.components(q, 4)
+    r13 = 2 * (x * z + w * y)
+    r23 = 2 * (y * z - w * x)
+    r33 = 1 - 2 * (x * x + y * y)
+    theta = B.atan2(B.sqrt(r13 * r13 + r23 * r23), r33)
+    phi = B.atan2(r23, r13)
+    return theta, phi
+
+
+def relative_section_quaternions(imu_quaternions: np.ndarray) -> np.ndarray:
+    """Seed 000 eq. (7): each section's orientation relative to the previous section's tip.
+
+    ``imu_quaternions`` has shape ``(..., m, 4)``, each IMU reading in the base frame.
+    """
+    from optikin.algebra import quat_conjugate
+
+    Q = np.asarray(imu_quaternions, dtype=float)
+    previous = np.concatenate([np.broadcast_to([1.0, 0, 0, 0], Q[..., :1, :].shape), Q[..., :-1, :]], axis=-2)
+    return quat_multiply(quat_conjugate(previous), Q)
+
+
+class ConstantCurvatureArm(ArmModel):
+    """An ``m``-section constant-curvature arm, ``q = (S_1, theta_1, phi_1, ..., S_m, theta_m, phi_m)``.
+
+    Parameters
+    ----------
+    section_lengths:
+        Nominal length of each section in metres (default: two 18 cm sections, seed 000).
+    length_range:
+        Bounds of ``S_i`` as fractions of the nominal length.
+    theta_max:
+        Bound on ``|theta_i|`` in radians.
+    """
+
+    def __init__(
+        self,
+        section_lengths: tuple[float, ...] = (DEFAULT_SECTION_LENGTH, DEFAULT_SECTION_LENGTH),
+        length_range: tuple[float, float] = DEFAULT_LENGTH_RANGE,
+        theta_max: float = DEFAULT_THETA_MAX,
+        name: str = "cc",
+        backbone_points_per_section: int = 20,
+    ):
+        lengths = np.asarray(section_lengths, dtype=float)
+        if lengths.ndim != 1 or len(lengths) == 0 or np.any(lengths <= 0):
+            raise ValueError(f"section_lengths must be positive, got {section_lengths}")
+        lo, hi = length_range
+        if not 0 < lo <= hi:
+            raise ValueError(f"length_range must satisfy 0 < low <= high, got {length_range}")
+        if not 0 < theta_max <= np.pi:
+            raise ValueError(f"theta_max must be in (0, pi], got {theta_max}")
+        self.section_lengths = lengths
+        self.length_range = (float(lo), float(hi))
+        self.theta_max = float(theta_max)
+        m = len(lengths)
+        names = tuple(f"{v}{i + 1}" for i in range(m) for v in ("S", "theta", "phi"))
+        lower = np.ravel([[lo * L, -theta_max, -np.pi] for L in lengths])
+        upper = np.ravel([[hi * L, theta_max, np.pi] for L in lengths])
+        super().__init__(name, names, lower, upper, backbone_points_per_section)
+
+    @property
+    def n_sections(self) -> int:
+        return len(self.section_lengths)
+
+    def section_frames(self, q: Array) -> list[tuple[Array, Array]]:
+        """Chain the section transforms: ``p_i = p_{i-1} + R_{i-1} p_rel``, ``q_i = q_{i-1} q_rel`` (eq. 5).
+
+        Works on a CasADi column ``q`` and on a numpy batch ``(..., 3m)`` alike.
+        """
+        return self._chain(q, fractions=())[0]
+
+    def backbone_points(self, q: ca.SX, points_per_section: int) -> ca.SX:
+        """Points at equal arc-length fractions along every section, base point first."""
+        fractions = np.linspace(0.0, 1.0, points_per_section + 1)[1:]
+        return ca.horzcat(ca.DM.zeros(3), *self._chain(q, fractions)[1])
+
+    def _chain(self, q: Array, fractions) -> tuple[list[tuple[Array, Array]], list[Array]]:
+        """Section end frames and the points at ``fractions`` of every section."""
+        variables = B.components(q, self.n_config)
+        quat, pos = np.array([1.0, 0.0, 0.0, 0.0]), np.zeros(3)
+        frames, points = [], []
+        for i in range(self.n_sections):
+            S, theta, phi = variables[3 * i : 3 * i + 3]
+            points += [pos + quat_rotate(quat, section_position(f * S, f * theta, phi)) for f in fractions]
+            pos = pos + quat_rotate(quat, section_position(S, theta, phi))
+            quat = quat_multiply(quat, section_quaternion(theta, phi))
+            frames.append((quat, pos))
+        return frames, points
+
+    def straight_configuration(self) -> np.ndarray:
+        """All sections straight at their nominal lengths."""
+        return np.ravel([[L, 0.0, 0.0] for L in self.section_lengths])
+
+    def describe(self) -> dict:
+        return super().describe() | {
+            "kind": "constant_curvature",
+            "section_lengths": self.section_lengths.tolist(),
+            "length_range": list(self.length_range),
+            "theta_max": self.theta_max,
+        }

@@ -1,0 +1,111 @@
+"""The ``optikin`` command line: ``list``, ``show``, ``solve``.
+
+Every error caused by input (a malformed file, an unknown name, bad data, a
+failed solver) prints one line naming the file, field or sample and exits
+with status 2; a run with failed samples exits with status 1.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import yaml
+from rich.console import Console
+
+from optikin import __version__
+from optikin.errors import OptikinError
+
+EXIT_OK, EXIT_FAILED_SAMPLES, EXIT_BAD_INPUT = 0, 1, 2
+
+
+def _cmd_list(args: argparse.Namespace) -> int:
+    from optikin.report import print_listing
+    from optikin.spec import available, load_problem, load_solver
+
+    console = Console()
+    rows, broken = [], []
+    for name in available("problems"):
+        try:
+            spec, path = load_problem(name)
+            rows.append((name, spec.kind, spec.title))
+        except OptikinError as exc:
+            broken.append(str(exc))
+    print_listing("problems", rows, ("name", "kind", "title"), console)
+    if args.solvers:
+        srows = []
+        for name in available("solvers"):
+            try:
+                s, _ = load_solver(name)
+                srows.append((name, s.backend, s.title))
+            except OptikinError as exc:
+                broken.append(str(exc))
+        print_listing("solvers", srows, ("name", "backend", "title"), console)
+    for message in broken:
+        console.print(f"[red]invalid:[/red] {message}")
+    return EXIT_BAD_INPUT if broken else EXIT_OK
+
+
+def _cmd_show(args: argparse.Namespace) -> int:
+    from optikin.spec import load_problem, load_solver
+
+    spec, path = load_solver(args.name) if args.solver else load_problem(args.name)
+    data = spec.model_dump(mode="json")
+    print(f"# {path}")
+    print(json.dumps(data, indent=2) if args.json else yaml.safe_dump(data, sort_keys=False), end="")
+    return EXIT_OK
+
+
+def _cmd_solve(args: argparse.Namespace) -> int:
+    from optikin.progress import Progress
+    from optikin.report import print_result
+    from optikin.runner import solve
+
+    result, written = solve(args.problem, solver=args.solver, out=Path(args.out), figures=not args.no_figures,
+                            progress=Progress(enabled=not args.json))
+    if args.json:
+        print(json.dumps(result.summary(), indent=2))
+    else:
+        print_result(result)
+        Console().print(f"written to {written}")
+    return EXIT_OK if result.succeeded else EXIT_FAILED_SAMPLES
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="optikin", description=__doc__.splitlines()[0])
+    parser.add_argument("--version", action="version", version=f"optikin {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    p = sub.add_parser("list", help="named problems (and solver presets) with title and kind")
+    p.add_argument("--solvers", action="store_true", help="also list solver presets")
+    p.set_defaults(run=_cmd_list)
+
+    p = sub.add_parser("show", help="the validated spec of a named problem (or solver preset)")
+    p.add_argument("name", help="problem name or path to a problem file")
+    p.add_argument("--solver", action="store_true", help="NAME is a solver preset")
+    p.add_argument("--json", action="store_true", help="print JSON instead of YAML")
+    p.set_defaults(run=_cmd_show)
+
+    p = sub.add_parser("solve", help="solve a named problem and write its results")
+    p.add_argument("problem", help="problem name or path to a problem file")
+    p.add_argument("--solver", help="solver preset name or path (default: the problem's)")
+    p.add_argument("--out", default="results", help="output folder (default: ./results)")
+    p.add_argument("--json", action="store_true", help="print the result summary as JSON")
+    p.add_argument("--no-figures", action="store_true", help="skip drawing figures")
+    p.set_defaults(run=_cmd_solve)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return args.run(args)
+    except OptikinError as exc:
+        print(f"optikin: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+
+
+if __name__ == "__main__":
+    sys.exit(main())

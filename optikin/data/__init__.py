@@ -1,0 +1,1 @@
+"""Sources of samples: synthetic generators (seeded) and readers of recorded files."""

@@ -1,0 +1,39 @@
+"""Solver backends: one adapter module per backend, each registered by name.
+
+A preset in ``solvers/*.yaml`` names a backend and its options; a problem kind
+lists the backends it accepts. Backends of the same family share one calling
+convention (e.g. every ``evaluation`` backend offers ``evaluate(arm, name, Q)``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Callable
+
+from optikin.registry import BACKENDS
+from optikin.spec import SolverSpec
+
+
+@dataclass(frozen=True)
+class Backend:
+    """A registered backend: its family, a one-line summary, and how to build its adapter from a preset."""
+
+    name: str
+    family: str
+    summary: str
+    build: Callable[[SolverSpec], Any]
+
+
+def register_backend(name: str, family: str, summary: str) -> Callable:
+    """Decorator registering ``build(preset) -> adapter`` as backend ``name``."""
+
+    def add(build: Callable[[SolverSpec], Any]) -> Callable[[SolverSpec], Any]:
+        BACKENDS.register(name)(Backend(name, family, summary, build))
+        return build
+
+    return add
+
+
+def load_backends() -> None:
+    """Import every adapter module so its backends are registered."""
+    from optikin.solvers import evaluation  # noqa: F401
