@@ -61,5 +61,7 @@ def register_kind(kind: ProblemKind) -> ProblemKind:
 
 
 def load_kinds() -> None:
-    """Import every problem-kind module so it is registered."""
-    from optikin.problems import fk  # noqa: F401
+    """Import every problem-kind module in this package so it is registered."""
+    from optikin.solvers import _import_all
+
+    _import_all(__name__, __path__)

@@ -35,5 +35,14 @@ def register_backend(name: str, family: str, summary: str) -> Callable:
 
 
 def load_backends() -> None:
-    """Import every adapter module so its backends are registered."""
-    from optikin.solvers import evaluation  # noqa: F401
+    """Import every adapter module in this package so its backends are registered."""
+    _import_all(__name__, __path__)
+
+
+def _import_all(package: str, path) -> None:
+    import importlib
+    import pkgutil
+
+    for module in pkgutil.iter_modules(path):
+        if not module.name.startswith("_"):
+            importlib.import_module(f"{package}.{module.name}")
