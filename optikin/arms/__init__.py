@@ -6,13 +6,15 @@ import inspect
 from pathlib import Path
 
 from optikin.arms.base import ArmModel
+from optikin.arms.cbha import CBHAArm, CBHAGeometry
 from optikin.arms.constant_curvature import ConstantCurvatureArm
 from optikin.errors import SpecError
 from optikin.registry import ARMS
 
 ARMS.register("constant_curvature")(ConstantCurvatureArm)
+ARMS.register("cbha")(CBHAArm)
 
-__all__ = ["ArmModel", "ConstantCurvatureArm", "build_arm"]
+__all__ = ["ArmModel", "CBHAArm", "CBHAGeometry", "ConstantCurvatureArm", "build_arm"]
 
 
 def build_arm(arm_type: str, params: dict, path: str | Path = "<arm>") -> ArmModel:

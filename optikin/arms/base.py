@@ -129,10 +129,14 @@ class ArmModel(ABC):
         return self._function("backbone", pts, "points")
 
     # ------------------------------------------------------------------ numeric helpers
+    extra_function_names: tuple[str, ...] = ()
+    """Names of the arm's own cached Functions beyond :data:`FUNCTION_NAMES`."""
+
     def function(self, name: str) -> ca.Function:
-        """The Function called ``name`` (one of :data:`FUNCTION_NAMES`)."""
-        if name not in FUNCTION_NAMES:
-            raise KeyError(f"{self.name} has no function {name!r}; known: {', '.join(FUNCTION_NAMES)}")
+        """The Function called ``name``: one of :data:`FUNCTION_NAMES` or :attr:`extra_function_names`."""
+        known = FUNCTION_NAMES + self.extra_function_names
+        if name not in known:
+            raise KeyError(f"{self.name} has no function {name!r}; known: {', '.join(known)}")
         return getattr(self, name)
 
     def evaluate(self, name: str, configurations: np.ndarray) -> np.ndarray:

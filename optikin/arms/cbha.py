@@ -1,0 +1,461 @@
+"""The Compact Bionic Handling Assistant (CBHA) as 17 vertebrae and 16 3UPS-1UP platforms (seed 004).
+
+Seed 004 (Lakhal, Melingui & Merzouki, IEEE/ASME T-Mech 2016), section III,
+models the trunk as ``N = 17`` vertebrae; vertebrae ``k`` and ``k + 1`` form a
+parallel platform ``k`` whose central UP leg leaves three degrees of freedom,
+``(Z_k, theta_k, psi_k)``, and whose three UPS legs of lengths ``q_{m,k}`` are
+the tube segments. The pose of vertebra ``k + 1`` in the frame of vertebra
+``k`` is eq. (5): ``T = [Ry(theta_k) Rx(psi_k), (0, 0, Z_k)]``. ``theta_k`` is
+the pitch (about ``y_k``) and ``psi_k`` the roll (about ``x_k``); section IV
+calls ``psi_k`` "yaw", but the assumptions of section III exclude rotation
+about ``z_k``. Vertebra ``n`` carries the legs' attachment points on a circle of
+radius ``r_n`` (eq. 3), tapering from ``r_max`` at the base to ``r_min`` at the
+apex (eq. 2).
+
+Leg lengths are derived again from eqs. (3), (4) and (6): with the unit vectors
+``u_m`` of eq. (3), ``Q_{m,k} = T (r_{k+1} u_m) - r_k u_m`` and
+``q_{m,k} = |Q_{m,k}|``. Expanding ``|Q|^2`` gives
+
+    q_{m,k}^2 = Z^2 + r_k^2 + r_{k+1}^2 + 2 Z r_{k+1} (R u_m)_z - 2 r_k r_{k+1} u_m . R u_m,
+
+which is what eqs. (7)-(9) print (``r_k`` the lower, ``r_{k+1}`` the upper
+vertebra); :func:`printed_leg_lengths` transcribes them and the tests compare.
+
+Printed eq. (2), ``r_n = (k/N)(r_min - r_max) + r_max``, gives neither
+``r_1 = r_max`` nor, with ``k = n - 1``, ``r_N = r_min``; here
+``r_n = r_max + (n - 1)/(N - 1) (r_min - r_max)`` so the base vertebra has
+``r_max`` and the apex ``r_min`` as the text says.
+
+A vertebra is a plane in this model: the legs above and below vertebra ``n``
+both attach on the plane ``z = 0`` of its frame (eqs. 3-5), so there is no
+vertebra thickness; a real one is part of the inter-vertebra lengths of
+Table I as the seed measured them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass
+from functools import cached_property
+
+import casadi as ca
+import numpy as np
+
+from optikin.algebra import backend as B
+from optikin.algebra import (
+    dq_from_rotation_translation,
+    matrix_from_quat,
+    quat_from_axis_angle,
+    quat_multiply,
+    quat_rotate,
+)
+from optikin.algebra.backend import Array
+from optikin.arms.base import ArmModel
+from optikin.errors import InputDataError
+
+TABLE_I_LEG_MIN_MM = (8.5, 8.5, 8.5, 7.0, 7.0, 7.0, 8.5, 10.0, 6.5, 8.0, 8.0, 7.5, 7.5, 7.0, 7.0, 6.5)
+"""Seed 004 Table I: minimum elongation of inter-vertebra (platform) k = 1..16, millimetres."""
+TABLE_I_LEG_MAX_MM = (19.5, 19.5, 19.5, 16.5, 16.5, 16.5, 20.0, 22.0, 16.0, 20.5, 20.5, 19.0, 19.0, 18.0, 18.0, 16.0)
+"""Seed 004 Table I: maximum elongation of inter-vertebra (platform) k = 1..16, millimetres."""
+
+LEG_DIRECTIONS = np.array([[-1.0, 0.0, 0.0], [0.5, np.sqrt(3.0) / 2.0, 0.0], [0.5, -np.sqrt(3.0) / 2.0, 0.0]])
+"""Rows ``u_m``: the attachment points of eq. (3) are ``A_{m,n} = r_n u_m`` in the frame of vertebra ``n``."""
+
+CBHA_FUNCTION_NAMES = ("leg_lengths", "vertebra_positions", "vertebra_frames", "tube_points", "tube_lengths")
+
+
+@dataclass(frozen=True)
+class CBHAGeometry:
+    """Every constant of the CBHA model; lengths in metres.
+
+    Attributes
+    ----------
+    n_vertebrae:
+        ``N = 17`` (seed 004, section III-A).
+    r_max, r_min:
+        Circumradius of the leg triangle at the base and at the apex (eq. 2). Seed 004
+        gives no value and no published CBHA dimension was found, so both are assumptions.
+        ``r_max = 40 mm``: with it, Table I lets each section bend about 90-110 degrees in
+        a plane (8 platforms of 11-15 degrees). ``r_min = 29 mm``: the 3 degree taper Festo
+        describes for the bellows of its Bionic Handling Assistant ("Servopneumatics lets
+        robot mimic nature", Power & Motion) over the trunk's straight length at mid
+        elongation, ``sum_k (q_min + q_max)/2 = 210 mm``, i.e. ``0.21 tan 3 deg = 11 mm``.
+    leg_min, leg_max:
+        Limits of the 3 legs of platform ``k = 1..N-1``: seed 004 Table I, mm -> m.
+    platforms_per_section:
+        Platforms 1-8 form section 1, platforms 9-16 section 2 (seed 004 section IV-A).
+    tool_offset:
+        Distance of the tool point along the tip vertebra's z axis. Default 0: the seed
+        takes vertebra 17 as the tip and does not model the wrist and gripper.
+    """
+
+    n_vertebrae: int = 17
+    r_max: float = 0.040
+    r_min: float = 0.029
+    leg_min: tuple[float, ...] = tuple(v / 1000.0 for v in TABLE_I_LEG_MIN_MM)
+    leg_max: tuple[float, ...] = tuple(v / 1000.0 for v in TABLE_I_LEG_MAX_MM)
+    platforms_per_section: tuple[int, ...] = (8, 8)
+    tool_offset: float = 0.0
+
+    def __post_init__(self):
+        for name, kind in (("leg_min", float), ("leg_max", float), ("platforms_per_section", int)):
+            object.__setattr__(self, name, tuple(kind(v) for v in getattr(self, name)))
+        n_platforms = self.n_vertebrae - 1
+        if n_platforms < 1:
+            raise ValueError(f"n_vertebrae must be at least 2, got {self.n_vertebrae}")
+        if not 0 < self.r_min <= self.r_max:
+            raise ValueError(f"radii must satisfy 0 < r_min <= r_max, got r_min={self.r_min}, r_max={self.r_max}")
+        if len(self.leg_min) != n_platforms or len(self.leg_max) != n_platforms:
+            raise ValueError(f"leg_min and leg_max need one value per platform ({n_platforms})")
+        if sum(self.platforms_per_section) != n_platforms or min(self.platforms_per_section) < 1:
+            raise ValueError(f"platforms_per_section {self.platforms_per_section} must be positive "
+                             f"and add up to {n_platforms}")
+        step = abs(self.r_max - self.r_min) / n_platforms
+        for k, (lo, hi) in enumerate(zip(self.leg_min, self.leg_max), start=1):
+            if not step < lo <= hi:
+                raise ValueError(f"platform {k}: leg limits must satisfy |r_k - r_k+1| = {step:.4g} < "
+                                 f"leg_min <= leg_max, got [{lo}, {hi}]")
+        if not np.isfinite(self.tool_offset):
+            raise ValueError(f"tool_offset must be finite, got {self.tool_offset}")
+
+    @property
+    def n_platforms(self) -> int:
+        return self.n_vertebrae - 1
+
+    def vertebra_radius(self, n: int | np.ndarray) -> float | np.ndarray:
+        """``r_n = r_max + (n - 1)/(N - 1) (r_min - r_max)``, ``n = 1..N`` (seed 004 eq. 2, re-indexed).
+
+        The printed ``k/N`` would leave the base vertebra below ``r_max``; this form puts
+        ``r_max`` at vertebra 1 and ``r_min`` at vertebra ``N``, as the text defines them.
+        """
+        n_arr = np.asarray(n)
+        if np.any((n_arr < 1) | (n_arr > self.n_vertebrae)) or np.any(n_arr != np.round(n_arr)):
+            raise ValueError(f"vertebra index must be an integer in 1..{self.n_vertebrae}, got {n}")
+        r = self.r_max + (n_arr - 1) / (self.n_vertebrae - 1) * (self.r_min - self.r_max)
+        return float(r) if r.ndim == 0 else r
+
+    @property
+    def radii(self) -> np.ndarray:
+        """``r_1 .. r_N`` (eq. 2)."""
+        return self.vertebra_radius(np.arange(1, self.n_vertebrae + 1))
+
+
+# ---------------------------------------------------------------------------------------- one platform
+def _transform_entries(Z: Array, theta: Array, psi: Array) -> list[list[Array]]:
+    ct, st, cp, sp = B.cos(theta), B.sin(theta), B.cos(psi), B.sin(psi)
+    return [[ct, st * sp, st * cp, 0.0], [0.0, cp, -sp, 0.0], [-st, sp * ct, ct * cp, Z], [0.0, 0.0, 0.0, 1.0]]
+
+
+def platform_transform(Z: Array, theta: Array, psi: Array) -> Array:
+    """Seed 004 eq. (5): pose of vertebra ``k + 1`` in the frame of vertebra ``k``.
+
+    ``[Ry(theta) Rx(psi), (0, 0, Z); 0 0 0 1]``. CasADi inputs give a 4x4 CasADi matrix;
+    numpy inputs broadcast to ``(..., 4, 4)``.
+    """
+    rows = _transform_entries(Z, theta, psi)
+    if B.any_casadi(Z, theta, psi):
+        return ca.vertcat(*[ca.horzcat(*row) for row in rows])
+    entries = np.broadcast_arrays(*[e for row in rows for e in row])
+    return np.stack(entries, axis=-1).reshape(entries[0].shape + (4, 4))
+
+
+def platform_quaternion(theta: Array, psi: Array) -> Array:
+    """Unit quaternion of ``Ry(theta) Rx(psi)`` (eq. 5), composed from the two axis rotations.
+
+    Smooth in both angles; no matrix-to-quaternion branching.
+    """
+    return quat_multiply(quat_from_axis_angle(np.array([0.0, 1.0, 0.0]), theta),
+                         quat_from_axis_angle(np.array([1.0, 0.0, 0.0]), psi))
+
+
+def platform_leg_vectors(Z: Array, theta: Array, psi: Array, r_lower: Array, r_upper: Array) -> list[Array]:
+    """Seed 004 eq. (4): ``[Q_1, Q_2, Q_3]`` with ``Q_m = T (r_{k+1} u_m, 1) - (r_k u_m, 1)``.
+
+    ``r_lower = r_k`` (vertebra ``k``), ``r_upper = r_{k+1}``. The product with the matrix
+    ``T`` of eq. (5) is written out row by row (``A`` has no z component), so each ``Q_m`` is
+    a 3x1 CasADi vector or a numpy ``(..., 3)`` batch.
+    """
+    T = _transform_entries(Z, theta, psi)
+    return [B.stack([T[i][0] * r_upper * ux + T[i][1] * r_upper * uy + T[i][3] - r_lower * a
+                     for i, a in enumerate((ux, uy, 0.0))])
+            for ux, uy, _ in LEG_DIRECTIONS]
+
+
+def _platform_leg_lengths_function() -> ca.Function:
+    args = [ca.SX.sym(s) for s in ("Z", "theta", "psi", "r_k", "r_k1")]
+    lengths = ca.vertcat(*[ca.norm_2(Q) for Q in platform_leg_vectors(*args)])
+    return ca.Function("cbha_platform_leg_lengths", args, [lengths], ["Z", "theta", "psi", "r_k", "r_k1"], ["q"])
+
+
+PLATFORM_LEG_LENGTHS = _platform_leg_lengths_function()
+"""``(Z_k, theta_k, psi_k, r_k, r_{k+1}) -> (q_1, q_2, q_3)``: ``q_m = |Q_{m,k}|``, eqs. (3)-(6)."""
+
+
+def printed_leg_lengths(Z: Array, theta: Array, psi: Array, r_k: Array, r_k1: Array) -> tuple[Array, Array, Array]:
+    """Seed 004 eqs. (7)-(9) exactly as printed ("sqrt" split by the extraction), for cross-checks.
+
+    The model itself uses :data:`PLATFORM_LEG_LENGTHS`, derived from eqs. (3)-(6).
+    """
+    ct, st, cp, sp = B.cos(theta), B.sin(theta), B.cos(psi), B.sin(psi)
+    s3 = np.sqrt(3.0)
+    common = Z * Z + r_k1 * r_k1 + r_k * r_k
+    q1 = common + 2 * Z * r_k1 * st - 2 * r_k1 * r_k * ct
+    q2 = common + Z * r_k1 * (s3 * ct * sp - st) - r_k1 * r_k * (s3 / 2 * st * sp + 1.5 * cp + 0.5 * ct)
+    q3 = common - Z * r_k1 * (s3 * ct * sp + st) + r_k1 * r_k * (s3 / 2 * st * sp - 1.5 * cp - 0.5 * ct)
+    return B.sqrt(q1), B.sqrt(q2), B.sqrt(q3)
+
+
+def platform_bounds(geometry: CBHAGeometry) -> tuple[np.ndarray, np.ndarray]:
+    """Bounds ``(lower, upper)``, each ``(N-1, 3)``, on ``(Z_k, theta_k, psi_k)`` implied by Table I.
+
+    With ``d = r_k - r_{k+1}``, summing eq. (6) over the legs gives the identity
+
+        (q_1^2 + q_2^2 + q_3^2)/3 = Z^2 + d^2 + r_k r_{k+1} (2 - cos theta - cos psi).
+
+    * ``Z_k <= sqrt(q_max^2 - d^2)``: from the identity; reached by the straight pose at ``q_max``.
+    * ``Z_k >= sqrt(q_min^2 - d^2)``, the straight pose at ``q_min``. The legs alone do not
+      bound ``Z`` from below (``Z -> -Z`` at ``theta = psi = 0`` keeps every length); the bound
+      assumes every upper attachment point lies above the lower vertebra's plane
+      (``Q_{m,z} >= 0``). Then the lowest attachment point sits ``r_{k+1} |w|`` below the
+      centre, ``w = (R u_m)_z``, while its leg's horizontal offset grows only with ``w^2``, so
+      tilting raises ``Z``. That argument is exact for a tilt about a horizontal axis; for
+      ``Ry Rx`` the tests confirm it by constrained minimisation of ``Z`` on every platform.
+    * ``|theta_k|, |psi_k| <= arcsin(2 q_max / (3 r_{k+1}))``: the heights ``Q_{m,z}`` lie in
+      ``[0, q_max]`` and have mean ``Z``, so their spread ``sum_m (Q_{m,z} - Z)^2 = 1.5 r_{k+1}^2
+      sin^2(alpha)`` is at most ``2 q_max^2 / 3``, where ``cos(alpha) = cos(theta) cos(psi)`` is
+      the tilt. ``alpha >= |theta|, |psi|`` holds when both cosines are positive, which the
+      identity guarantees if ``q_max^2 - d^2 < r_k r_{k+1}``; otherwise the bound
+      ``arccos(1 - (q_max^2 - d^2) / (r_k r_{k+1}))`` from the identity alone is used.
+    """
+    r = geometry.radii
+    r_k, r_k1 = r[:-1], r[1:]
+    q_min, q_max = np.asarray(geometry.leg_min), np.asarray(geometry.leg_max)
+    d2 = (r_k - r_k1) ** 2
+    from_identity = np.arccos(np.clip(1.0 - (q_max**2 - d2) / (r_k * r_k1), -1.0, 1.0))
+    from_heights = np.arcsin(np.minimum(1.0, 2.0 * q_max / (3.0 * r_k1)))
+    tilt = np.where(from_identity < np.pi / 2, np.minimum(from_identity, from_heights), from_identity)
+    lower = np.column_stack([np.sqrt(q_min**2 - d2), -tilt, -tilt])
+    upper = np.column_stack([np.sqrt(q_max**2 - d2), tilt, tilt])
+    return lower, upper
+
+
+# ---------------------------------------------------------------------------------------- the arm
+class CBHAArm(ArmModel):
+    """The CBHA as a chain of 16 platforms, ``q = (Z_1, theta_1, psi_1, ..., Z_16, theta_16, psi_16)``.
+
+    Vertebra 1 is the base frame; vertebra ``k + 1`` is reached by the transforms of eq. (5)
+    of platforms ``1..k``. Section 1 ends at vertebra 9, section 2 (the tip) at vertebra 17,
+    plus :attr:`CBHAGeometry.tool_offset` along the tip's z axis. Bounds come from
+    :func:`platform_bounds`.
+
+    Besides the functions of :class:`ArmModel` (the CBHA's own are in :data:`CBHA_FUNCTION_NAMES`):
+
+    ======================  ==============================================================
+    ``leg_lengths``         q -> ``(q_{1,1}, q_{2,1}, q_{3,1}, q_{1,2}, ...)``, 3 (N-1)
+    ``vertebra_positions``  q -> centres of vertebrae 1..N in the base frame, 3 x N
+    ``vertebra_frames``     q -> poses of vertebrae 1..N as dual quaternions, 8 x N
+    ``tube_points``         q -> ``A_{m,n}`` in the base frame, 3 x 3N: tube 1's N points,
+                            then tube 2's, then tube 3's
+    ``tube_lengths``        q -> ``sum_k q_{m,k}`` over each section's platforms,
+                            (section, tube), 2 x 3
+    ======================  ==============================================================
+
+    Parameters
+    ----------
+    geometry:
+        A :class:`CBHAGeometry`, or a mapping of its fields (e.g. from a problem file).
+    name:
+        Identifier in problem files and reports.
+    backbone_points_per_section:
+        Points per section in :attr:`backbone`; the default, one per platform, gives the
+        vertebra centres exactly.
+    """
+
+    extra_function_names = CBHA_FUNCTION_NAMES
+
+    def __init__(self, geometry: CBHAGeometry | Mapping | None = None, name: str = "cbha",
+                 backbone_points_per_section: int = 8):
+        if geometry is None:
+            geometry = CBHAGeometry()
+        elif isinstance(geometry, Mapping):
+            geometry = CBHAGeometry(**geometry)
+        self.geometry = geometry
+        names = tuple(f"{v}{k}" for k in range(1, geometry.n_platforms + 1) for v in ("Z", "theta", "psi"))
+        self.leg_names = tuple(f"q{m}_{k}" for k in range(1, geometry.n_platforms + 1) for m in (1, 2, 3))
+        lower, upper = platform_bounds(geometry)
+        super().__init__(name, names, lower.ravel(), upper.ravel(), backbone_points_per_section)
+
+    @property
+    def n_sections(self) -> int:
+        return len(self.geometry.platforms_per_section)
+
+    @property
+    def section_end_vertebrae(self) -> tuple[int, ...]:
+        """0-based index of the vertebra that ends each section (8 and 16 by default)."""
+        return tuple(int(i) for i in np.cumsum(self.geometry.platforms_per_section))
+
+    # ------------------------------------------------------------------ kinematics
+    def vertebra_chain(self, q: Array) -> list[tuple[Array, Array]]:
+        """``(quaternion, position)`` of vertebrae 1..N in the base frame, by the chain of eq. (5).
+
+        ``p_{k+1} = p_k + R_k (0, 0, Z_k)``, ``R_{k+1} = R_k Ry(theta_k) Rx(psi_k)``; works on a
+        CasADi column and on a numpy batch ``(..., 3(N-1))``.
+        """
+        v = B.components(q, self.n_config)
+        zero = 0.0 * v[0]
+        quat, pos = B.stack([zero + 1.0, zero, zero, zero]), B.stack([zero, zero, zero])
+        frames = [(quat, pos)]
+        for k in range(self.geometry.n_platforms):
+            Z, theta, psi = v[3 * k: 3 * k + 3]
+            pos = pos + quat_rotate(quat, B.stack([zero, zero, Z]))
+            quat = quat_multiply(quat, platform_quaternion(theta, psi))
+            frames.append((quat, pos))
+        return frames
+
+    def section_frames(self, q: Array) -> list[tuple[Array, Array]]:
+        """Frames of vertebrae 9 and 17; the last is moved by the tool offset along its z axis."""
+        chain = self._chain_of(q)
+        frames = [chain[i] for i in self.section_end_vertebrae]
+        quat, pos = frames[-1]
+        if self.geometry.tool_offset != 0.0:
+            pos = pos + quat_rotate(quat, np.array([0.0, 0.0, self.geometry.tool_offset]))
+        return frames[:-1] + [(quat, pos)]
+
+    def backbone_points(self, q: ca.SX, points_per_section: int) -> ca.SX:
+        """The polyline through the vertebra centres, ``points_per_section`` points per section.
+
+        Point ``j`` of a section of ``P`` platforms lies at platform parameter ``j P / points``
+        along it, linearly interpolated between vertebra centres; a multiple of ``P`` gives
+        every centre. The tool offset is not part of the backbone.
+        """
+        centres = [pos for _, pos in self._chain_of(q)]
+        points, start = [centres[0]], 0
+        for P in self.geometry.platforms_per_section:
+            for j in range(1, points_per_section + 1):
+                i, rest = divmod(j * P, points_per_section)
+                if rest == 0:
+                    points.append(centres[start + i])
+                else:
+                    f = rest / points_per_section
+                    points.append((1.0 - f) * centres[start + i] + f * centres[start + i + 1])
+            start += P
+        return ca.horzcat(*points)
+
+    def leg_length_expressions(self, q: ca.SX) -> ca.SX:
+        """``q_{m,k}`` of every platform (eq. 6), ordered ``(q_{1,1}, q_{2,1}, q_{3,1}, q_{1,2}, ...)``."""
+        r = self.geometry.radii
+        return ca.vertcat(*[PLATFORM_LEG_LENGTHS(q[3 * k], q[3 * k + 1], q[3 * k + 2], r[k], r[k + 1])
+                            for k in range(self.geometry.n_platforms)])
+
+    # ------------------------------------------------------------------ extra Functions
+    @cached_property
+    def _chain_expr(self) -> list[tuple[ca.SX, ca.SX]]:
+        return self.vertebra_chain(self._q)
+
+    def _chain_of(self, q: Array) -> list[tuple[Array, Array]]:
+        """The chain of ``q``, built once for the arm's own symbol."""
+        return self._chain_expr if q is self._q else self.vertebra_chain(q)
+
+    @cached_property
+    def leg_lengths(self) -> ca.Function:
+        return self._function("leg_lengths", self.leg_length_expressions(self._q), "lengths")
+
+    @cached_property
+    def vertebra_positions(self) -> ca.Function:
+        return self._function("vertebra_positions", ca.horzcat(*[p for _, p in self._chain_expr]), "positions")
+
+    @cached_property
+    def vertebra_frames(self) -> ca.Function:
+        dqs = [dq_from_rotation_translation(quat, p) for quat, p in self._chain_expr]
+        return self._function("vertebra_frames", ca.horzcat(*dqs), "dq")
+
+    @cached_property
+    def tube_points(self) -> ca.Function:
+        r = self.geometry.radii
+        chain = self._chain_expr
+        offsets = [ca.mtimes(matrix_from_quat(quat), r[n] * LEG_DIRECTIONS.T) for n, (quat, _) in enumerate(chain)]
+        points = [p + offsets[n][:, m] for m in range(3) for n, (_, p) in enumerate(chain)]
+        return self._function("tube_points", ca.horzcat(*points), "points")
+
+    @cached_property
+    def tube_lengths(self) -> ca.Function:
+        legs = ca.reshape(self.leg_length_expressions(self._q), 3, self.geometry.n_platforms)  # tube x platform
+        bounds = (0,) + self.section_end_vertebrae
+        rows = [ca.sum2(legs[:, a:b]).T for a, b in zip(bounds[:-1], bounds[1:])]
+        return self._function("tube_lengths", ca.vertcat(*rows), "lengths")
+
+    # ------------------------------------------------------------------ legs and limits
+    def leg_limits(self) -> tuple[np.ndarray, np.ndarray]:
+        """Table I limits ``(min, max)`` in metres, one per leg in the order of :attr:`leg_lengths`."""
+        return np.repeat(self.geometry.leg_min, 3), np.repeat(self.geometry.leg_max, 3)
+
+    def check_leg_lengths(self, lengths: np.ndarray, source: str = "leg lengths",
+                          tolerance: float = 1e-9) -> np.ndarray:
+        """Return ``lengths`` as ``(N, 3(N_v - 1))`` metres, or raise naming the sample and the leg.
+
+        Rejects a wrong shape, non-finite values and lengths outside Table I (seed 004)
+        by more than ``tolerance``.
+        """
+        L = np.asarray(lengths, dtype=float)
+        L = L[None, :] if L.ndim == 1 else L
+        n_legs = len(self.leg_names)
+        if L.ndim != 2 or L.shape[1] != n_legs:
+            raise InputDataError(f"expected shape (N, {n_legs}) of leg lengths in metres, "
+                                 f"got {np.shape(lengths)}", source=source)
+        bad = ~np.isfinite(L)
+        if bad.any():
+            i, j = np.argwhere(bad)[0]
+            raise InputDataError(f"{L[i, j]} is not a finite number", source=source, sample=int(i),
+                                 field=self.leg_names[j])
+        lo, hi = self.leg_limits()
+        outside = (L < lo - tolerance) | (L > hi + tolerance)
+        if outside.any():
+            i, j = np.argwhere(outside)[0]
+            raise InputDataError(
+                f"{1000 * L[i, j]:.3f} mm outside the Table I limits [{1000 * lo[j]:.1f}, {1000 * hi[j]:.1f}] mm "
+                f"of platform {j // 3 + 1}, tube {j % 3 + 1}", source=source, sample=int(i), field=self.leg_names[j])
+        return L
+
+    def validate(self, configurations: np.ndarray, source: str = "configurations", check_bounds: bool = True,
+                 tolerance: float = 1e-12) -> np.ndarray:
+        """As :meth:`ArmModel.validate`; with ``check_bounds`` also every leg within Table I."""
+        Q = super().validate(configurations, source, check_bounds, tolerance)
+        if check_bounds:
+            self.check_leg_lengths(self.evaluate("leg_lengths", Q).reshape(len(Q), -1), source)
+        return Q
+
+    def straight_configuration(self, fraction: float = 0.5) -> np.ndarray:
+        """The straight pose with every leg at ``q_min + fraction (q_max - q_min)`` (Table I).
+
+        ``theta_k = psi_k = 0`` and ``Z_k = sqrt(q_k^2 - (r_k - r_{k+1})^2)``.
+        """
+        if not 0.0 <= fraction <= 1.0:
+            raise ValueError(f"fraction must be within [0, 1], got {fraction}")
+        g = self.geometry
+        legs = np.asarray(g.leg_min) + fraction * (np.asarray(g.leg_max) - np.asarray(g.leg_min))
+        Z = np.sqrt(legs**2 - np.diff(g.radii) ** 2)
+        return np.column_stack([Z, np.zeros_like(Z), np.zeros_like(Z)]).ravel()
+
+    def sample_configurations(self, n: int, rng: np.random.Generator) -> np.ndarray:
+        """``n`` configurations uniform over the feasible poses, platform by platform.
+
+        Each platform is drawn uniformly inside its bounds and redrawn until its three legs
+        are within Table I and their upper ends above the lower vertebra (the assumption of
+        :func:`platform_bounds`): the database generation of seed 004, Fig. 7.
+        """
+        g, r = self.geometry, self.geometry.radii
+        lower, upper = self.lower.reshape(-1, 3), self.upper.reshape(-1, 3)
+        out = np.empty((n, g.n_platforms, 3))
+        for k in range(g.n_platforms):
+            kept = np.empty((0, 3))
+            while len(kept) < n:
+                draw = rng.uniform(lower[k], upper[k], size=(max(4 * n, 64), 3))
+                Q = np.stack(platform_leg_vectors(*draw.T, r[k], r[k + 1]), axis=1)  # (draw, leg, xyz)
+                legs = np.linalg.norm(Q, axis=-1)
+                ok = np.all((legs >= g.leg_min[k]) & (legs <= g.leg_max[k]) & (Q[..., 2] >= 0.0), axis=1)
+                kept = np.vstack([kept, draw[ok]])
+            out[:, k] = kept[:n]
+        return out.reshape(n, -1)
+
+    def describe(self) -> dict:
+        return super().describe() | {"kind": "cbha", "geometry": asdict(self.geometry)}
