@@ -164,6 +164,11 @@ def one_minus_cos_over_square(x: Array) -> Array:
     return 0.5 * half * half
 
 
+def scale(t: Array, x: Array, n: int) -> Array:
+    """Every component of ``x`` times ``t``, where ``t`` has the batch shape (numpy) or is a row (CasADi)."""
+    return stack([t * c for c in components(x, n)])
+
+
 def sum_squares(parts: Sequence[Array]) -> Array:
     total = parts[0] * parts[0]
     for p in parts[1:]:

@@ -169,18 +169,21 @@ def dq_log(dq: Array) -> Array:
 
 
 def dq_power(dq: Array, t: Array) -> Array:
-    """``Q^t = exp(t log Q)``: the screw motion scaled by ``t``."""
-    return dq_exp(t * dq_log(dq))
+    """``Q^t = exp(t log Q)``: the screw motion scaled by ``t`` (a scalar or one exponent per element)."""
+    return dq_exp(B.scale(t, dq_log(dq), 6))
+
+
+def _relative_shortest(a: Array, b: Array) -> Array:
+    """``a* b``, sign-flipped into the hemisphere ``w >= 0`` (``Q`` and ``-Q`` are the same pose)."""
+    rel = dq_multiply(dq_conjugate(a), b)
+    return B.scale(B.where(B.components(rel, 8)[0] < 0, -1.0, 1.0), rel, 8)
 
 
 def dq_sclerp(a: Array, b: Array, t: Array) -> Array:
     """Screw linear interpolation ``a (a* b)^t`` along the shorter screw."""
-    rel = dq_multiply(dq_conjugate(a), b)
-    w = B.components(rel, 8)[0]
-    sign = B.where(w < 0, -1.0, 1.0)
-    return dq_multiply(a, dq_power(sign * rel, t))
+    return dq_multiply(a, dq_power(_relative_shortest(a, b), t))
 
 
 def dq_pose_error(actual: Array, desired: Array) -> Array:
-    """Pose error as the 6-vector ``log(actual* desired)`` (zero iff the poses agree)."""
-    return dq_log(dq_multiply(dq_conjugate(actual), desired))
+    """Pose error as the 6-vector ``log(actual* desired)``, zero iff the poses agree (either sign)."""
+    return dq_log(_relative_shortest(actual, desired))

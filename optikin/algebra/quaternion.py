@@ -80,19 +80,20 @@ def quat_log(q: Array) -> Array:
     """``log q = a n`` for a unit ``q = (cos a, sin a n)``, with ``a`` in [0, pi].
 
     Exact and smooth at the identity. At ``q = -1`` (a full turn) the axis is
-    undefined and the result is the zero vector's neighbour in no particular
-    direction; keep sequences in one hemisphere (:func:`quat_hemisphere_continuous`).
+    undefined: the result is ``(pi, 0, 0)``. Keep sequences in one hemisphere
+    (:func:`quat_hemisphere_continuous`) to stay away from it.
     """
     w, x, y, z = B.components(q, 4)
     s2 = B.sum_squares([x, y, z])
     # atan2(s, w) / s with s = |(x, y, z)|; near the identity, its series in s^2.
     small = (s2 < B.SERIES_BAND**2) * (w > 0)
-    s = B.sqrt(B.where(small, 1.0, s2))
+    full_turn = (s2 == 0) * (w < 0)
+    s = B.sqrt(B.where(small + full_turn, 1.0, s2))
     w_safe = B.where(small, w, 1.0)
     t2 = s2 / (w_safe * w_safe)
     series = (1.0 - t2 / 3.0 + t2 * t2 / 5.0) / w_safe
     ratio = B.where(small, series, B.atan2(s, w) / s)
-    return B.stack([ratio * x, ratio * y, ratio * z])
+    return B.stack([ratio * x + B.where(full_turn, np.pi, 0.0), ratio * y, ratio * z])
 
 
 def quat_angle(q: Array) -> Array:
@@ -102,8 +103,8 @@ def quat_angle(q: Array) -> Array:
 
 
 def quat_power(q: Array, t: Array) -> Array:
-    """``q^t = exp(t log q)`` of a unit quaternion."""
-    return quat_exp(t * quat_log(q))
+    """``q^t = exp(t log q)`` of a unit quaternion; ``t`` a scalar or one exponent per quaternion."""
+    return quat_exp(B.scale(t, quat_log(q), 3))
 
 
 def quat_from_axis_angle(axis: Array, angle: Array) -> Array:
@@ -224,7 +225,5 @@ def quat_hemisphere_continuous(qs: np.ndarray) -> np.ndarray:
 def quat_slerp(q0: Array, q1: Array, t: Array) -> Array:
     """Spherical linear interpolation along the shorter arc: ``q0 (q0* q1)^t``."""
     rel = quat_multiply(quat_conjugate(q0), q1)
-    w = B.components(rel, 4)[0]
-    sign = B.where(w < 0, -1.0, 1.0)
-    rel = B.stack([sign * c for c in B.components(rel, 4)])
-    return quat_multiply(q0, quat_power(rel, t))
+    sign = B.where(B.components(rel, 4)[0] < 0, -1.0, 1.0)
+    return quat_multiply(q0, quat_power(B.scale(sign, rel, 4), t))
