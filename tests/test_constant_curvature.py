@@ -206,3 +206,13 @@ def test_validate_names_sample_and_variable(arm):
 def test_invalid_geometry_rejected(bad):
     with pytest.raises(ValueError):
         ConstantCurvatureArm(**bad)
+
+
+def test_non_unit_imu_quaternion_is_rejected_naming_the_sample():
+    imu = np.tile([1.0, 0.0, 0.0, 0.0], (5, 2, 1))
+    imu[3, 1] = [0.9, 0.1, 0.0, 0.0]
+    with pytest.raises(InputDataError, match=r"imu.csv: sample 3: quaternion \[1\]: .* is not a unit quaternion"):
+        relative_section_quaternions(imu, source="imu.csv")
+    imu[3, 1] = [np.nan, 0, 0, 1]
+    with pytest.raises(InputDataError, match=r"sample 3: quaternion \[1\]"):
+        relative_section_quaternions(imu, source="imu.csv")

@@ -21,6 +21,7 @@ from optikin.algebra.dual_quaternion import (
     transform_from_dq,
 )
 from optikin.algebra.quaternion import (
+    check_unit_quaternions,
     matrix_from_quat,
     quat_angle,
     quat_conjugate,
@@ -42,4 +43,4 @@ from optikin.algebra.quaternion import (
     rpy_from_quat,
 )
 
-__all__ = [name for name in dir() if name.startswith(("quat_", "dq_", "matrix_", "rpy_", "transform_"))]
+__all__ = [name for name in dir() if name.startswith(("quat_", "dq_", "matrix_", "rpy_", "transform_", "check_"))]

@@ -17,6 +17,7 @@ import numpy as np
 
 from optikin.algebra import backend as B
 from optikin.algebra.backend import Array
+from optikin.errors import InputDataError
 
 IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
 
@@ -210,6 +211,29 @@ def rpy_from_quat(q: Array) -> Array:
     pitch = ca.asin(sin_pitch) if B.is_casadi(sin_pitch) else np.arcsin(sin_pitch)
     yaw = B.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
     return B.stack([roll, pitch, yaw])
+
+
+def check_unit_quaternions(q: np.ndarray, source: str = "quaternions", tolerance: float = 1e-6) -> np.ndarray:
+    """Return ``q`` as a float array ``(..., 4)``, or raise naming the first sample that is not a unit quaternion.
+
+    Rejects a wrong shape, NaN or infinite components, and ``| |q| - 1 | > tolerance``
+    (sensor quaternions are unit only to a few decimals; normalise them before use).
+    """
+    q = np.asarray(q, dtype=float)
+    if q.ndim == 0 or q.shape[-1] != 4:
+        raise InputDataError(f"expected quaternions of shape (..., 4) as (w, x, y, z), got {q.shape}", source=source)
+    flat = q.reshape(-1, 4)
+    bad = ~np.isfinite(flat).all(axis=1)
+    norm_error = np.abs(np.linalg.norm(flat, axis=1) - 1.0)
+    bad |= norm_error > tolerance
+    if bad.any():
+        i = int(np.argmax(bad))
+        index = np.unravel_index(i, q.shape[:-1]) if q.ndim > 1 else (0,)
+        rest = ", ".join(str(int(j)) for j in index[1:])
+        raise InputDataError(f"{flat[i].tolist()} is not a unit quaternion (| |q| - 1 | = {norm_error[i]:.3g}, "
+                             f"tolerance {tolerance:g})", source=source, sample=int(index[0]),
+                             field=f"quaternion [{rest}]" if rest else "")
+    return q
 
 
 def quat_hemisphere_continuous(qs: np.ndarray) -> np.ndarray:

@@ -30,7 +30,7 @@ import casadi as ca
 import numpy as np
 
 from optikin.algebra import backend as B
-from optikin.algebra import quat_multiply, quat_rotate
+from optikin.algebra import check_unit_quaternions, quat_conjugate, quat_multiply, quat_rotate
 from optikin.algebra.backend import Array
 from optikin.arms.base import ArmModel
 
@@ -69,14 +69,13 @@ def section_angles_from_quaternion(q: Array) -> tuple[Array, Array]:
     return theta, phi
 
 
-def relative_section_quaternions(imu_quaternions: np.ndarray) -> np.ndarray:
+def relative_section_quaternions(imu_quaternions: np.ndarray, source: str = "IMU quaternions") -> np.ndarray:
     """Seed 000 eq. (7): each section's orientation relative to the previous section's tip.
 
-    ``imu_quaternions`` has shape ``(..., m, 4)``, each IMU reading in the base frame.
+    ``imu_quaternions`` has shape ``(..., m, 4)``, each IMU reading in the base frame; a reading
+    that is not a unit quaternion is rejected, naming the sample.
     """
-    from optikin.algebra import quat_conjugate
-
-    Q = np.asarray(imu_quaternions, dtype=float)
+    Q = check_unit_quaternions(imu_quaternions, source)
     previous = np.concatenate([np.broadcast_to([1.0, 0, 0, 0], Q[..., :1, :].shape), Q[..., :-1, :]], axis=-2)
     return quat_multiply(quat_conjugate(previous), Q)
 
