@@ -1,4 +1,4 @@
-"""The ``optikin`` command line: ``list``, ``show``, ``solve``.
+"""The ``optikin`` command line: ``list``, ``show``, ``solve``, ``bench``.
 
 Every error caused by input (a malformed file, an unknown name, bad data, a
 failed solver) prints one line naming the file, field or sample and exits
@@ -95,6 +95,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print the result summary as JSON")
     p.add_argument("--no-figures", action="store_true", help="skip drawing figures")
     p.set_defaults(run=_cmd_solve)
+
+    from optikin import bench
+
+    p = sub.add_parser("bench", help="forward-kinematics throughput of every evaluation path against numpy")
+    bench.add_arguments(p)
+    p.set_defaults(run=bench.main)
     return parser
 
 

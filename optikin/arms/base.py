@@ -30,6 +30,7 @@ import casadi as ca
 import numpy as np
 
 from optikin.algebra import dq_from_rotation_translation, dq_translation, transform_from_dq
+from optikin.batch import batch_evaluate
 from optikin.errors import InputDataError
 
 FUNCTION_NAMES = ("fk_dq", "fk_position", "fk_transform", "section_dq", "jac_position", "jac_dq", "backbone")
@@ -96,7 +97,7 @@ class ArmModel(ABC):
         return [dq_from_rotation_translation(quat, p) for quat, p in self.section_frames(self._q)]
 
     def _function(self, name: str, out: ca.SX, out_name: str) -> ca.Function:
-        return ca.Function(f"{self.name}_{name}", [self._q], [out], ["q"], [out_name])
+        return ca.Function(f"{self.name}_{name}", [self._q], [out], ["q"], [out_name], {"cse": True})
 
     @cached_property
     def fk_dq(self) -> ca.Function:
@@ -142,17 +143,12 @@ class ArmModel(ABC):
     def evaluate(self, name: str, configurations: np.ndarray) -> np.ndarray:
         """Evaluate Function ``name`` on a batch ``(N, n_config)``; returns ``(N, *out_shape)``.
 
-        Uses ``Function.map(N)``: one call into CasADi for the whole batch.
+        One zero-copy call into CasADi for the whole batch (:func:`optikin.batch.batch_evaluate`).
         """
         Q = np.asarray(configurations, dtype=float)
         single = Q.ndim == 1
-        Q = np.atleast_2d(Q)
-        f = self.function(name)
-        rows, cols = f.size_out(0)
-        out = np.asarray(f.map(Q.shape[0])(Q.T))
-        # map returns rows x (cols * N): one block of columns per sample.
-        out = out.reshape(rows, cols, Q.shape[0], order="F").transpose(2, 0, 1)
-        if cols == 1:
+        out = batch_evaluate(self.function(name), np.atleast_2d(Q))
+        if out.shape[2] == 1:
             out = out[..., 0]
         return out[0] if single else out
 
