@@ -196,3 +196,13 @@ def test_cli_bad_input_exits_2_with_one_line_message(tmp_path):
     assert run.stderr.startswith("optikin: error: ") and "kind: unknown problem kind 'teleport'" in run.stderr
     assert "Traceback" not in run.stderr
     assert not (tmp_path / "o" / "small").exists()
+
+
+@pytest.mark.parametrize("name", ["cc-two-section-fk", "cbha-fk"])
+def test_shipped_fk_problems_run_end_to_end(name, tmp_path):
+    assert main(["solve", name, "--out", str(tmp_path)]) == EXIT_OK
+    summary = json.loads((tmp_path / name / "result.json").read_text())
+    assert summary["status_counts"] == {"ok": summary["samples"]}
+    numpy_row = next(row for row in summary["comparison"] if row["method"] == "numpy")
+    assert numpy_row["metrics"]["max |tip - numpy| [mm]"] < 1e-9
+    assert {"backbones.png", "tip.png"} <= set(summary["figures"])
