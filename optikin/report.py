@@ -41,7 +41,7 @@ def print_result(result: Result, console: Console | None = None) -> None:
             table.add_row(row.method, row.role, *(escape(_fmt(row.metrics.get(k, ""))) for k in keys))
         console.print(table)
     for note in result.notes:
-        console.print(f"note: {note}")
+        console.print(f"note: {escape(note)}")
 
 
 def print_listing(title: str, rows: list[tuple[str, ...]], columns: tuple[str, ...],

@@ -1,0 +1,1 @@
+"""Classical methods optikin compares its optimisation-based solutions with (seed literature baselines)."""

@@ -1,0 +1,100 @@
+"""The ``tracking`` problem kind end to end: shipped scenarios run (shortened), QP presets solve, bad input is named."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from optikin.errors import SpecError
+from optikin.runner import solve
+from optikin.spec import available, load_problem, project_root
+
+SCENARIOS = sorted(name for name in available("problems") if name.startswith("track-"))
+
+
+def shortened(tmp_path: Path, name: str, baselines: bool = False, **changes) -> Path:
+    """A copy of a shipped scenario at 100 Hz with short segments (and no baselines unless asked)."""
+    _, path = load_problem(name)
+    spec = yaml.safe_load(path.read_text())
+    spec["data"]["params"] |= {"rate": 100, "segment_time": 0.6, "hold": 0.6}
+    spec["options"] = spec.get("options") or {}
+    if not baselines:
+        spec["baselines"] = []
+    if "disturbance_window" in spec["options"].get("plant", {}):
+        spec["options"]["plant"]["disturbance_window"] = [0.3, 0.6]
+    for key, value in changes.items():
+        target = spec
+        *parents, leaf = key.split(".")
+        for part in parents:
+            target = target.setdefault(part, {})
+        target[leaf] = value
+    out = tmp_path / f"{name}.yaml"
+    out.write_text(yaml.safe_dump(spec))
+    return out
+
+
+def test_the_shipped_scenarios_cover_the_issue():
+    assert {"track-nominal", "track-into-limits", "track-start-outside", "track-model-mismatch",
+            "track-disturbance", "track-sensor-noise", "track-position"} <= set(SCENARIOS)
+
+
+@pytest.mark.parametrize("name", SCENARIOS)
+def test_every_scenario_runs_and_the_qp_never_takes_the_arm_outside_a_limit(tmp_path, name):
+    result, written = solve(str(shortened(tmp_path, name)), out=tmp_path / "out", figures=False)
+    assert (written / "result.json").is_file() and (written / "arrays.npz").is_file()
+    assert result.succeeded  # no QP failure on any step
+    q = result.arrays["q_qp"]
+    assert np.all(np.isfinite(q)) and len(q) == len(result.arrays["t"])
+    if name != "track-sensor-noise":  # with noise the limits hold on the measured configuration only
+        assert result.metrics["steps the controller kept or took outside"] == 0
+
+
+def test_nominal_scenario_compares_the_qp_with_every_baseline_and_draws_its_figures(tmp_path):
+    problem = shortened(tmp_path, "track-nominal", baselines=True, **{"data.params.hold": 2.0})
+    result, written = solve(str(problem), out=tmp_path / "out")
+    assert [row.role for row in result.comparison] == ["solver", "baseline", "baseline", "baseline"]
+    assert all(row.metrics["converged"] for row in result.comparison)
+    for figure in ("tracking", "errors", "limits", "lyapunov", "step_times"):
+        assert (written / f"{figure}.png").stat().st_size > 10_000
+    assert "gains_mrac" in result.arrays and result.arrays["gains_mrac"].shape[1] == 8
+
+
+@pytest.mark.parametrize("preset", ["qp-daqp", "qp-cvxpy"])
+def test_other_qp_presets_give_the_same_run(tmp_path, preset):
+    problem = str(shortened(tmp_path, "track-into-limits"))
+    reference, _ = solve(problem)
+    other, _ = solve(problem, solver=preset)
+    np.testing.assert_allclose(other.arrays["q_qp"], reference.arrays["q_qp"], atol=1e-5)
+
+
+@pytest.mark.parametrize("key,value,field", [
+    ("data.params.rate", 5000, "data.params.rate"),
+    ("data.params.waypoints", [[0.18, 0.1, 0.0]], "data.params.waypoints"),
+    ("data.params.speed", 1.0, "data.params.speed"),
+    ("options.fallback", "pray", "options.fallback"),
+    ("options.plant.wind", 3.0, "options.plant.wind"),
+    ("options.plant.length_scale", [1.05, 1.05, 1.05], "options.plant.length_scale"),
+    ("options.plant.configuration_noise", [0.1, 0.2], "options.plant.configuration_noise"),
+    ("options.mrac.gamma", 3.0, "options.mrac.gamma"),
+    ("options.start", [0.18, 0.1], "options.start"),
+    ("data.samples", 10, "data.samples"),
+])
+def test_bad_tracking_input_names_the_field(tmp_path, key, value, field):
+    with pytest.raises(SpecError) as error:
+        solve(str(shortened(tmp_path, "track-nominal", **{key: value})))
+    assert field in str(error.value)
+
+
+def test_a_qp_preset_with_an_unknown_solver_is_named(tmp_path):
+    preset = tmp_path / "qp-nothing.yaml"
+    preset.write_text("name: qp-nothing\nbackend: qp_qpsolvers\noptions: {solver: nothing}\n")
+    with pytest.raises(SpecError, match="qp-nothing: options: .*nothing"):
+        solve(str(shortened(tmp_path, "track-nominal")), solver=str(preset))
+
+
+def test_an_evaluation_preset_cannot_solve_a_tracking_problem(tmp_path):
+    with pytest.raises(SpecError, match="cannot solve kind 'tracking'"):
+        solve(str(shortened(tmp_path, "track-nominal")), solver=str(project_root() / "solvers/casadi-map.yaml"))
