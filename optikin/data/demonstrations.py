@@ -1,0 +1,397 @@
+"""Demonstrations to learn motions from (seed 000 secs. III-A and IV): synthetic sources and a CSV reader.
+
+Every source takes a seed and returns its recording with a
+:class:`PoseDemonstration` (times, tip positions, unit quaternions,
+hemisphere-continuous) to learn from.
+
+* :func:`smooth_pose_demonstration` -- a clean rest-to-rest pose motion
+  (minimum-jerk profile plus a smooth detour).
+* :func:`gimbal_demonstration` -- a motion through pitch +-90 degrees, where
+  the roll-pitch-yaw angles of eq. (30) jump (seed Figs. 13-14).
+* :func:`imu_interface_recording` -- the flexible teleoperation interface of
+  seed 000 sec. III-A: two 18 cm sections bent along a smooth human-like
+  motion, an MPU-6050-like IMU at each section tip sampled at 100 Hz (noise and
+  yaw drift), the relative quaternion of eq. (7), the section angles
+  (eq. 8, derived again in :mod:`optikin.arms.constant_curvature`) and the tip
+  pose from those angles as a dual quaternion (eqs. 9-10).
+* :func:`kinect_recording` -- the Kinect v2 capture of sec. IV: right-wrist
+  positions and left-wrist orientations at 30 frames per second with skeleton
+  jitter, calibrated into the 36 cm cube workspace, roll-pitch-yaw by eq. (30)
+  and smoothed by the moving-average filter of eq. (31).
+* :func:`read_csv` / :func:`write_csv` -- recorded demonstrations, columns
+  ``t,x,y,z,qw,qx,qy,qz`` (seconds, metres, unit quaternion ``(w, x, y, z)``);
+  :func:`resample_uniform` puts a recording with jittery time stamps on the
+  fixed step a DMP integrates with.
+
+The noise figures are assumptions stated where they are used; the seed gives
+none (its data came from hardware).
+"""
+
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy.interpolate import CubicSpline
+
+from optikin.algebra import (
+    dq_from_rotation_translation,
+    quat_exp,
+    quat_from_rpy,
+    quat_hemisphere_continuous,
+    quat_multiply,
+    quat_normalize,
+    quat_slerp,
+    rpy_from_quat,
+)
+from optikin.arms.constant_curvature import (
+    ConstantCurvatureArm,
+    relative_section_quaternions,
+    section_angles_from_quaternion,
+)
+from optikin.errors import InputDataError
+
+CSV_COLUMNS = ("t", "x", "y", "z", "qw", "qx", "qy", "qz")
+
+
+@dataclass(frozen=True)
+class PoseDemonstration:
+    """Times ``(N,)``, positions ``(N, 3)`` [m] and unit quaternions ``(N, 4)`` ``(w, x, y, z)`` of a tip."""
+
+    t: np.ndarray
+    position: np.ndarray
+    quaternion: np.ndarray
+
+    @property
+    def dual_quaternion(self) -> np.ndarray:
+        """``(N, 8)``: ``Q_r + eps 0.5 (0, p) Q_r`` (seed eqs. 9-10)."""
+        return dq_from_rotation_translation(self.quaternion, self.position)
+
+    @property
+    def pose(self) -> np.ndarray:
+        """``(N, 7)``: ``(x, y, z, qw, qx, qy, qz)``."""
+        return np.concatenate([self.position, self.quaternion], axis=1)
+
+
+def minimum_jerk(u: np.ndarray) -> np.ndarray:
+    """``10 u^3 - 15 u^4 + 6 u^5``: rises from 0 to 1 with zero velocity and acceleration at both ends."""
+    return u**3 * (10.0 - 15.0 * u + 6.0 * u * u)
+
+
+def _times(samples: int, rate: float) -> np.ndarray:
+    if samples < 3 or rate <= 0:
+        raise ValueError(f"need at least 3 samples at a positive rate, got {samples} at {rate} Hz")
+    return np.arange(samples) / rate
+
+
+def smooth_path(t: np.ndarray, low: np.ndarray, high: np.ndarray, via_points: int,
+                rng: np.random.Generator) -> np.ndarray:
+    """A human-like smooth path: a cubic spline through ``via_points + 2`` random points at equal times,
+    at rest at both ends (clamped), each coordinate drawn in ``[low, high]``. Returns ``(N, d)``."""
+    low, high = np.asarray(low, dtype=float), np.asarray(high, dtype=float)
+    knots = np.linspace(t[0], t[-1], via_points + 2)
+    points = rng.uniform(low, high, (knots.size, low.size))
+    return CubicSpline(knots, points, bc_type="clamped")(t)
+
+
+def smooth_pose_demonstration(samples: int = 1000, duration: float = 10.0, seed: int = 0,
+                              reach: float = 0.12, turn: float = 1.2,
+                              centre: tuple[float, float, float] = (0.0, 0.0, 0.30)) -> PoseDemonstration:
+    """A smooth rest-to-rest pose motion: minimum-jerk from start to goal plus a detour ``sin^2(pi u)``.
+
+    Start and goal positions are drawn in a cube of half-width ``reach``
+    about ``centre``; start and goal rotation vectors with norm up to ``turn``
+    rad; the detours are of the same size. Velocities vanish at both ends.
+    """
+    if samples < 3 or duration <= 0:
+        raise ValueError(f"need at least 3 samples over a positive duration, got {samples} over {duration}")
+    rng = np.random.default_rng(seed)
+    t = np.linspace(0.0, duration, samples)
+    u = t / duration
+    rise = minimum_jerk(u)[:, None]
+    detour = (np.sin(np.pi * u) ** 2)[:, None]
+    wiggle = (np.sin(np.pi * u) ** 2 * np.sin(2 * np.pi * u))[:, None]
+
+    p0, p1 = rng.uniform(-reach, reach, (2, 3)) + np.asarray(centre)
+    bend, twist = rng.uniform(-0.5 * reach, 0.5 * reach, (2, 3))
+    position = p0 + (p1 - p0) * rise + bend * detour + twist * wiggle
+
+    def rotation_vector() -> np.ndarray:
+        axis = rng.normal(size=3)
+        return axis / np.linalg.norm(axis) * rng.uniform(0.3, 1.0) * turn
+
+    r0, r1 = rotation_vector(), rotation_vector()
+    r_bend, r_twist = rng.uniform(-0.4 * turn, 0.4 * turn, (2, 3))
+    rotation = r0 + (r1 - r0) * rise + r_bend * detour + r_twist * wiggle
+    quaternion = quat_hemisphere_continuous(quat_exp(0.5 * rotation))
+    return PoseDemonstration(t=t, position=position, quaternion=quaternion)
+
+
+def gimbal_demonstration(samples: int = 1000, duration: float = 10.0, seed: int = 0, peak_pitch_deg: float = 120.0,
+                         reach: float = 0.1) -> PoseDemonstration:
+    """A rest-to-rest motion whose pitch (eq. 30) rises from -20 degrees through +90 (gimbal lock) to the peak.
+
+    Roll and yaw change smoothly too (random, up to 40 degrees); the position
+    is a smooth detour of size ``reach``. Past 90 degrees of pitch, eq. (30)
+    reports the same orientation with pitch folded back below 90 and roll and
+    yaw jumped by 180 degrees: the per-angle representation of seed Fig. 13.
+    """
+    rng = np.random.default_rng(seed)
+    t = np.linspace(0.0, duration, samples)
+    u = t / duration
+    rise = minimum_jerk(u)
+    detour = np.sin(np.pi * u) ** 2
+    roll = np.deg2rad(rng.uniform(-40, 40) * rise + rng.uniform(-15, 15) * detour)
+    yaw = np.deg2rad(rng.uniform(-40, 40) + rng.uniform(-40, 40) * rise)
+    pitch = np.deg2rad(-20.0 + (peak_pitch_deg + 20.0) * rise)
+    quaternion = quat_hemisphere_continuous(quat_from_rpy(roll, pitch, yaw))
+    p0, p1 = rng.uniform(-reach, reach, (2, 3)) + np.array([0.0, 0.0, 0.30])
+    position = p0 + (p1 - p0) * rise[:, None] + rng.uniform(-reach, reach, 3) * detour[:, None]
+    return PoseDemonstration(t=t, position=position, quaternion=quaternion)
+
+
+# ----------------------------------------------------------------------------- the IMU teleoperation interface
+
+
+@dataclass(frozen=True)
+class InterfaceRecording:
+    """The flexible interface of seed 000 sec. III-A, recorded by two IMUs.
+
+    ``configuration (N, 6)`` true ``(S, theta, phi)`` per section; ``imu (N, 2, 4)``
+    the IMU quaternions in the base frame; ``relative (N, 2, 4)`` each section
+    relative to its base (eq. 7); ``angles (N, 2, 2)`` the measured
+    ``(theta, phi)`` per section; ``demonstration`` the tip pose from the
+    measured angles at the nominal section lengths.
+    """
+
+    t: np.ndarray
+    configuration: np.ndarray
+    imu: np.ndarray
+    relative: np.ndarray
+    angles: np.ndarray
+    demonstration: PoseDemonstration
+
+
+def imu_interface_recording(samples: int = 1000, rate: float = 100.0, seed: int = 0, via_points: int = 2,
+                            theta_range: tuple[float, float] = (0.15, 1.2), noise_deg: float = 0.1,
+                            drift_deg_per_s: float = 0.02,
+                            section_lengths: tuple[float, float] = (0.18, 0.18)) -> InterfaceRecording:
+    """Two IMUs on the flexible interface, moved along a smooth human-like path, at ``rate`` Hz.
+
+    The section angles follow :func:`smooth_path` (``theta`` kept inside
+    ``theta_range`` so the bending plane stays defined). Each IMU reports its
+    section tip's orientation in the base frame as the MPU-6050's on-chip
+    fusion does, modelled as ``exp(n/2) exp(d(t)/2 z) q_true``: white noise
+    ``n`` of ``noise_deg`` per axis and a yaw drift ``d`` growing at
+    ``drift_deg_per_s`` (its accelerometer corrects roll and pitch, nothing
+    corrects yaw without a magnetometer; a random rate per IMU up to the given
+    value). Both figures are assumptions of typical fused-output behaviour
+    (the datasheet specifies the raw gyroscope, not the fused orientation).
+    """
+    rng = np.random.default_rng(seed)
+    t = _times(samples, rate)
+    arm = ConstantCurvatureArm(section_lengths=section_lengths)
+    lo, hi = theta_range
+    angles = smooth_path(t, [lo, -np.pi, lo, -np.pi], [hi, np.pi, hi, np.pi], via_points, rng)
+    angles[:, [0, 2]] = np.clip(angles[:, [0, 2]], lo, hi)
+    lengths = np.asarray(section_lengths, dtype=float)
+    configuration = np.column_stack([np.full(samples, lengths[0]), angles[:, 0], angles[:, 1],
+                                     np.full(samples, lengths[1]), angles[:, 2], angles[:, 3]])
+    frames = arm.section_frames(configuration)
+    true = np.stack([frames[0][0], frames[1][0]], axis=1)  # (N, 2, 4)
+
+    noise = np.deg2rad(noise_deg) * rng.normal(size=(samples, 2, 3))
+    rates = np.deg2rad(drift_deg_per_s) * rng.uniform(-1.0, 1.0, 2)
+    drift = np.zeros((samples, 2, 3))
+    drift[..., 2] = t[:, None] * rates[None, :]
+    imu = quat_multiply(quat_exp(0.5 * noise), quat_multiply(quat_exp(0.5 * drift), true))
+    imu = np.stack([quat_hemisphere_continuous(imu[:, i]) for i in range(2)], axis=1)
+
+    relative = relative_section_quaternions(imu, source="IMU quaternions")
+    theta, phi = section_angles_from_quaternion(relative)
+    measured = np.stack([theta, phi], axis=-1)  # (N, 2, 2)
+    phi_unwrapped = np.unwrap(phi, axis=0)
+    q_measured = np.column_stack([np.full(samples, lengths[0]), theta[:, 0], phi_unwrapped[:, 0],
+                                  np.full(samples, lengths[1]), theta[:, 1], phi_unwrapped[:, 1]])
+    tip_quaternion, tip_position = arm.section_frames(q_measured)[-1]
+    tip = PoseDemonstration(t=t, position=tip_position, quaternion=quat_hemisphere_continuous(tip_quaternion))
+    return InterfaceRecording(t=t, configuration=configuration, imu=imu, relative=relative, angles=measured,
+                              demonstration=tip)
+
+
+# ----------------------------------------------------------------------------- the Kinect v2 capture
+
+
+@dataclass(frozen=True)
+class KinectRecording:
+    """Kinect v2 wrist capture (seed 000 sec. IV).
+
+    ``wrist (N, 3)`` right-wrist positions in the camera frame [m],
+    ``orientation (N, 4)`` left-wrist quaternions in the camera frame,
+    ``position (N, 3)`` the wrist calibrated into the robot workspace,
+    ``rpy (N, 3)`` roll, pitch, yaw of the left wrist by eq. (30) (unwrapped),
+    ``filtered_position``/``filtered_rpy`` after the moving average of eq. (31),
+    ``demonstration`` the filtered pose.
+    """
+
+    t: np.ndarray
+    wrist: np.ndarray
+    orientation: np.ndarray
+    position: np.ndarray
+    rpy: np.ndarray
+    filtered_position: np.ndarray
+    filtered_rpy: np.ndarray
+    demonstration: PoseDemonstration
+
+
+def moving_average(x: np.ndarray, window: int) -> np.ndarray:
+    """Seed 000 eq. (31): ``o(i) = 1/M sum_{m=1..M} l(i - m)``, the mean of the ``M`` previous samples.
+
+    Causal, so it delays the signal by ``(M + 1)/2`` samples. The first
+    samples average the previous samples there are (``o(0) = l(0)``).
+    Works along the first axis of ``x``.
+    """
+    if window < 1:
+        raise ValueError(f"the moving-average window must be at least 1 sample, got {window}")
+    x = np.asarray(x, dtype=float)
+    sums = np.concatenate([np.zeros((1,) + x.shape[1:]), np.cumsum(x, axis=0)])
+    i = np.arange(x.shape[0])
+    first = np.maximum(i - window, 0)
+    count = np.maximum(i - first, 1).reshape((-1,) + (1,) * (x.ndim - 1))
+    out = (sums[np.maximum(i, 1)] - sums[first]) / count
+    out[0] = x[0]
+    return out
+
+
+def calibrate_to_cube(points: np.ndarray, edge: float, centre: np.ndarray) -> np.ndarray:
+    """Scale and shift points uniformly so their bounding box fits a cube of ``edge`` about ``centre``."""
+    low, high = points.min(axis=0), points.max(axis=0)
+    span = float(np.max(high - low))
+    scale = edge / span if span > 0 else 1.0
+    return np.asarray(centre) + (points - 0.5 * (low + high)) * scale
+
+
+CAMERA_TO_ROBOT = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
+"""Kinect camera axes (x right, y up, z away from the camera) to robot base axes (z up): a proper rotation."""
+
+
+def kinect_recording(samples: int = 300, rate: float = 30.0, seed: int = 0, via_points: int = 3,
+                     position_noise: float = 0.008, orientation_noise_deg: float = 3.0, window: int = 5,
+                     cube_edge: float = 0.36, workspace_centre: tuple[float, float, float] = (0.0, 0.0, 0.27),
+                     spine_shoulder: tuple[float, float, float] = (0.0, 0.35, 2.2)) -> KinectRecording:
+    """A Kinect v2 recording of the wrists moving along smooth human-like paths at ``rate`` frames per second.
+
+    Skeleton jitter is modelled as white noise of ``position_noise`` m per axis
+    on the right wrist and ``orientation_noise_deg`` per axis on the left
+    wrist's orientation (Kinect v2 joint jitter is of the order of a
+    centimetre and its wrist orientations are noisier still: assumptions).
+    The wrist is expressed relative to the spine-shoulder joint, turned into
+    robot axes (:data:`CAMERA_TO_ROBOT`) and scaled into the ``cube_edge``
+    cube (36 cm in the seed) about ``workspace_centre``. Orientations become
+    roll-pitch-yaw by eq. (30), are unwrapped and filtered by eq. (31) with
+    ``window`` samples, as are the positions.
+    """
+    rng = np.random.default_rng(seed)
+    t = _times(samples, rate)
+    shoulder = np.asarray(spine_shoulder, dtype=float)
+    reach = np.array([0.35, 0.30, 0.25])
+    wrist_true = shoulder + np.array([0.25, -0.1, -0.3]) + smooth_path(t, -reach, reach, via_points, rng)
+    turn = np.array([0.8, 0.6, 1.0])
+    rotation = smooth_path(t, -turn, turn, via_points, rng)
+    orientation_true = quat_exp(0.5 * rotation)
+
+    wrist = wrist_true + position_noise * rng.normal(size=wrist_true.shape)
+    jitter = np.deg2rad(orientation_noise_deg) * rng.normal(size=(samples, 3))
+    orientation = quat_hemisphere_continuous(quat_multiply(quat_exp(0.5 * jitter), orientation_true))
+
+    relative = (wrist - shoulder) @ CAMERA_TO_ROBOT.T
+    position = calibrate_to_cube(relative, cube_edge, np.asarray(workspace_centre, dtype=float))
+    rpy = np.unwrap(rpy_from_quat(orientation), axis=0)
+    filtered_position = moving_average(position, window)
+    filtered_rpy = moving_average(rpy, window)
+    quaternion = quat_hemisphere_continuous(quat_from_rpy(filtered_rpy[:, 0], filtered_rpy[:, 1], filtered_rpy[:, 2]))
+    return KinectRecording(t=t, wrist=wrist, orientation=orientation, position=position, rpy=rpy,
+                           filtered_position=filtered_position, filtered_rpy=filtered_rpy,
+                           demonstration=PoseDemonstration(t=t, position=filtered_position, quaternion=quaternion))
+
+
+# ----------------------------------------------------------------------------- recorded files
+
+
+def read_csv(path: str | Path, unit_tolerance: float = 1e-3) -> PoseDemonstration:
+    """A demonstration from a CSV file with a header naming (at least) ``t,x,y,z,qw,qx,qy,qz``.
+
+    Times in seconds (strictly increasing), positions in metres, quaternions
+    ``(w, x, y, z)`` unit to within ``unit_tolerance`` (then normalised; sensor
+    quaternions are unit to a few decimals). Other columns are ignored. Any
+    problem raises :class:`InputDataError` naming the file, row and column.
+    """
+    path = Path(path)
+    source = str(path)
+    try:
+        with path.open(newline="") as handle:
+            reader = csv.DictReader(handle)
+            header = [h.strip() for h in (reader.fieldnames or [])]
+            missing = [c for c in CSV_COLUMNS if c not in header]
+            if missing:
+                raise InputDataError(f"missing column(s) {', '.join(missing)}; expected {','.join(CSV_COLUMNS)}",
+                                     source=source, field=missing[0])
+            rows = []
+            for number, row in enumerate(reader):
+                values = []
+                for column in CSV_COLUMNS:
+                    text = (row.get(column) or "").strip()
+                    try:
+                        values.append(float(text))
+                    except ValueError:
+                        raise InputDataError(f"not a number: {text!r}", source=source, sample=number,
+                                             field=column) from None
+                rows.append(values)
+    except OSError as exc:
+        raise InputDataError(f"cannot read the file: {exc.strerror}", source=source) from None
+    data = np.array(rows, dtype=float).reshape(-1, len(CSV_COLUMNS))
+    if data.shape[0] < 3:
+        raise InputDataError(f"a demonstration needs at least 3 rows, got {data.shape[0]}", source=source)
+    bad = np.argwhere(~np.isfinite(data))
+    if bad.size:
+        raise InputDataError("value is not finite", source=source, sample=int(bad[0, 0]),
+                             field=CSV_COLUMNS[bad[0, 1]])
+    steps = np.diff(data[:, 0])
+    if np.any(steps <= 0):
+        k = int(np.flatnonzero(steps <= 0)[0]) + 1
+        raise InputDataError("times must increase strictly", source=source, sample=k, field="t")
+    norms = np.linalg.norm(data[:, 4:], axis=1)
+    off = np.flatnonzero(np.abs(norms - 1.0) > unit_tolerance)
+    if off.size:
+        raise InputDataError(f"quaternion norm {norms[off[0]]:.6f} is not 1", source=source, sample=int(off[0]),
+                             field="qw")
+    return PoseDemonstration(t=data[:, 0], position=data[:, 1:4],
+                             quaternion=quat_hemisphere_continuous(quat_normalize(data[:, 4:])))
+
+
+def write_csv(path: str | Path, demo: PoseDemonstration) -> None:
+    """Write a demonstration in the format :func:`read_csv` reads."""
+    with Path(path).open("w", newline="") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(CSV_COLUMNS)
+        for t, p, q in zip(demo.t, demo.position, demo.quaternion):
+            writer.writerow([repr(float(v)) for v in (t, *p, *q)])
+
+
+def resample_uniform(demo: PoseDemonstration, samples: int | None = None) -> PoseDemonstration:
+    """The demonstration at ``samples`` equally spaced times over its span (default: as many as it has).
+
+    Positions are interpolated linearly, orientations by slerp between the
+    neighbouring samples.
+    """
+    n = demo.t.size if samples is None else int(samples)
+    if n < 3:
+        raise ValueError(f"need at least 3 samples, got {n}")
+    t = np.linspace(demo.t[0], demo.t[-1], n)
+    k = np.clip(np.searchsorted(demo.t, t, side="right") - 1, 0, demo.t.size - 2)
+    u = (t - demo.t[k]) / (demo.t[k + 1] - demo.t[k])
+    position = demo.position[k] + u[:, None] * (demo.position[k + 1] - demo.position[k])
+    quaternion = quat_slerp(demo.quaternion[k], demo.quaternion[k + 1], u)
+    return PoseDemonstration(t=t, position=position, quaternion=quat_hemisphere_continuous(quaternion))

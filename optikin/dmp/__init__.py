@@ -1,0 +1,18 @@
+"""Dynamic movement primitives (seed 000 secs. III-C and IV): per angle, on unit quaternions, on dual quaternions.
+
+* :mod:`~optikin.dmp.spaces` -- the spaces a DMP moves in (gap and advance operations).
+* :mod:`~optikin.dmp.canonical`, :mod:`~optikin.dmp.basis` -- phase (eqs. 15, 25, 28) and forcing-term basis (13-14).
+* :mod:`~optikin.dmp.imitation`, :mod:`~optikin.dmp.regression` -- targets (16, 21-22) and weight fits.
+* :mod:`~optikin.dmp.rollout` -- the roll-out as one CasADi Function (11-12, 17-18, 23-28).
+* :mod:`~optikin.dmp.model` -- :class:`DMP`: imitate, roll out, generalise.
+* :mod:`~optikin.dmp.pose` -- the seed's dual-quaternion DMP and the sound variants.
+* :mod:`~optikin.dmp.tuning` -- gains by minimising the reproduction error (eq. 29).
+"""
+
+from optikin.dmp.gains import GAIN_NAMES, Gains, stable_bounds
+from optikin.dmp.model import DMP, Rollout
+from optikin.dmp.regression import Fit
+from optikin.dmp.spaces import Euclidean, Product, Space, UnitDualQuaternion, UnitQuaternion
+
+__all__ = ["DMP", "Euclidean", "Fit", "GAIN_NAMES", "Gains", "Product", "Rollout", "Space", "UnitDualQuaternion",
+           "UnitQuaternion", "stable_bounds"]

@@ -1,0 +1,87 @@
+"""Gaussian basis of the forcing term (seed 000 eqs. 13-14, 20).
+
+``f(s) = s sum_j w_j psi_j(s) / sum_j psi_j(s)`` with ``psi_j(s) = exp(-h_j (s - c_j)^2)``.
+(The extracted text of eqs. 13 and 20 prints the factor ``s`` inside and again
+outside the sum; the DMPs it cites (Ijspeert et al. 2013, Ude et al. 2014)
+have it once, which is what is used here.)
+
+The centres are the phase at equally spaced times of the demonstration and
+each width makes neighbouring Gaussians cross at ``overlap``:
+``h_j = -ln(overlap) / (c_{j+1} - c_j)^2`` (the last one repeats its
+neighbour). With the phase of eq. (15) the centres are
+``c_j = exp(-zeta j / (n - 1))``, the construction of movement_primitives'
+``ForcingTerm``, so learned weights are comparable with that library. With
+phase stopping (eq. 25) the demonstration's phase is no longer that
+exponential; :func:`centres_along` takes the centres from the phase the
+demonstration actually has, which covers both cases. Everything accepts
+CasADi symbols, so gains can be tuned through the basis
+(:mod:`optikin.dmp.tuning`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import casadi as ca
+import numpy as np
+
+from optikin.algebra import backend as B
+from optikin.algebra.backend import Array
+
+DEFAULT_OVERLAP = 0.8
+
+
+def centres_along(log_phase: Array, n_basis: int) -> Array:
+    """Centres at ``n_basis`` equally spaced times along a sampled phase, given as ``log s_0 .. log s_K``.
+
+    ``log s`` is interpolated linearly between samples, which is exact for the
+    phase of :mod:`optikin.dmp.canonical` (a constant rate over each step), so
+    with ``alpha = 0`` this returns ``exp(-zeta j / (n - 1))`` to rounding.
+    """
+    if n_basis < 2:
+        raise ValueError(f"a DMP needs at least 2 basis functions, got {n_basis}")
+    samples = log_phase.shape[0]
+    position = np.arange(n_basis) * (samples - 1) / (n_basis - 1)
+    lower = np.minimum(np.floor(position).astype(int), samples - 2)
+    fraction = position - lower
+    A = np.zeros((n_basis, samples))
+    A[np.arange(n_basis), lower] = 1.0 - fraction
+    A[np.arange(n_basis), lower + 1] = fraction
+    if B.is_casadi(log_phase):
+        return ca.exp(ca.mtimes(ca.sparsify(ca.DM(A)), log_phase))
+    return np.exp(A @ np.asarray(log_phase, dtype=float))
+
+
+def widths(c: Array, overlap: float = DEFAULT_OVERLAP) -> Array:
+    """``h_j = -ln(overlap) / (c_{j+1} - c_j)^2``, the last width equal to the one before."""
+    if not 0.0 < overlap < 1.0:
+        raise ValueError(f"the overlap of neighbouring basis functions must lie in (0, 1), got {overlap}")
+    log_overlap = -math.log(overlap)
+    if B.is_casadi(c):
+        h = log_overlap / (c[1:] - c[:-1]) ** 2
+        return ca.vertcat(h, h[-1])
+    h = log_overlap / np.diff(c) ** 2
+    return np.append(h, h[-1])
+
+
+def features(s: Array, c: Array, h: Array) -> Array:
+    """Rows ``s psi(s) / sum psi(s)`` of the design matrix: ``(K, n)`` for ``K`` phases.
+
+    numpy: ``s`` of shape ``(K,)``; CasADi: ``s`` a column ``K x 1`` (``1 x 1`` in a step).
+    ``f(s) = features(s) @ W.T`` for weights ``W`` of shape ``(dim, n)``.
+    """
+    if B.any_casadi(s, c, h):
+        rows = s.shape[0]
+        n = c.shape[0]
+        diff = ca.repmat(s, 1, n) - ca.repmat(ca.DM(c).T if not B.is_casadi(c) else c.T, rows, 1)
+        hh = ca.repmat(ca.DM(h).T if not B.is_casadi(h) else h.T, rows, 1)
+        psi = ca.exp(-hh * diff**2)
+        return ca.repmat(s / ca.sum2(psi), 1, n) * psi
+    s = np.asarray(s, dtype=float)
+    psi = np.exp(-h[None, :] * (s[:, None] - c[None, :]) ** 2)
+    return (s / psi.sum(axis=1))[:, None] * psi
+
+
+def activations(s: np.ndarray, c: np.ndarray, h: np.ndarray) -> np.ndarray:
+    """Unnormalised ``psi_j(s_k)``, ``(K, n)``: the local weights of locally weighted regression."""
+    return np.exp(-h[None, :] * (np.asarray(s, dtype=float)[:, None] - c[None, :]) ** 2)

@@ -1,0 +1,67 @@
+"""The gains of a DMP, named as in seed 000, and the bounds that keep the fixed-step roll-out stable.
+
+====================  =========================================================  ==========
+name                  role                                                       seed eq.
+====================  =========================================================  ==========
+``beta``              damping of the transformation system (``alpha_z`` in       11, 17
+                      Ijspeert et al. 2013, ``alpha_y`` in movement_primitives)
+``gamma``             spring to damping ratio (``beta_z``, ``beta_y``)           11, 17
+``zeta``              decay of the phase                                         15
+``beta_g0``           rate of the goal filter (``inf``: the goal jumps)          24
+``alpha_s``           coupling of the velocity to the goal and reference gaps    26, 27
+``alpha``             phase stopping by the goal and reference gaps              25, 28
+====================  =========================================================  ==========
+
+``beta = 4 gamma`` is critically damped; the defaults (25, 6.25, ``-ln 0.01``)
+are movement_primitives' so the two can be compared on the same data.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, replace
+
+import numpy as np
+
+GAIN_NAMES = ("beta", "gamma", "zeta", "beta_g0", "alpha_s", "alpha")
+
+
+@dataclass(frozen=True)
+class Gains:
+    beta: float = 25.0
+    gamma: float = 6.25
+    zeta: float = -math.log(0.01)
+    beta_g0: float = math.inf
+    alpha_s: float = 0.0
+    alpha: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name, value in asdict(self).items():
+            if not value >= 0 or (math.isinf(value) and name != "beta_g0"):
+                raise ValueError(f"DMP gain {name} must be finite and >= 0 (beta_g0 may be inf), got {value}")
+        if self.beta <= 0 or self.gamma <= 0 or self.zeta <= 0:
+            raise ValueError("DMP gains beta, gamma and zeta must be positive")
+
+    def vector(self) -> np.ndarray:
+        return np.array([getattr(self, n) for n in GAIN_NAMES], dtype=float)
+
+    def with_values(self, **values: float) -> "Gains":
+        return replace(self, **values)
+
+
+def stable_bounds(dt: float, tau: float, margin: float = 0.5) -> dict[str, tuple[float, float]]:
+    """Upper bounds on ``beta``, ``gamma`` and ``alpha_s`` under which the semi-implicit roll-out is stable.
+
+    Linearised about the goal, one gap component of the roll-out
+    (:mod:`optikin.dmp.imitation`) with ``k1 = beta dt / tau`` and
+    ``k2 = beta gamma (dt / tau)^2`` follows ``u' = (1 - k1) u - k2 e``,
+    ``e' = e + u'`` (``u = dt/tau eta``, ``e`` the error): the matrix
+    ``[[1-k1, -k2], [1-k1, 1-k2]]`` has determinant ``1 - k1`` and trace
+    ``2 - k1 - k2``, and the Jury conditions give ``0 < k1 < 2``,
+    ``0 < k2 < 4 - 2 k1``. ``beta <= margin tau/dt`` and
+    ``gamma <= 2 tau/dt`` keep ``k1 <= margin`` and ``k2 <= 2 margin``, inside
+    the region for ``margin <= 1``. The coupling ``alpha_s`` alone is a first
+    order step ``e' = (1 - alpha_s dt/tau) e``: stable below ``2 tau/dt``.
+    """
+    ratio = tau / dt
+    return {"beta": (1e-3, margin * ratio), "gamma": (1e-3, 2.0 * ratio), "alpha_s": (0.0, margin * ratio)}

@@ -1,0 +1,151 @@
+"""From a demonstration to the regression problem of the forcing-term weights (seed 000 eqs. 16, 21-22).
+
+The roll-out (:mod:`optikin.dmp.rollout`) integrates the DMP on the fixed step
+``dt`` of the demonstration, semi-implicitly (velocity first, then pose):
+
+    eta_{k+1} = eta_k + dt/tau [beta (gamma e_k - eta_k) + f_k]          (seed eqs. 11, 17)
+    y_{k+1}   = advance(y_k, dt/tau (eta_{k+1} + alpha_s e_k))            (seed eqs. 12, 18/23, 26)
+
+with ``e_k = gap(g, y_k)`` (``g - y`` per angle, ``2 log(g conj(y))`` on a
+quaternion). The target forces are this recursion solved for ``f_k`` along the
+demonstration ``y_0 .. y_{N-1}``, starting at rest (``eta_0 + alpha_s e_0 = 0``):
+
+    eta_{k+1} = tau/dt gap(y_{k+1}, y_k) - alpha_s e_k
+    f_k       = tau/dt (eta_{k+1} - eta_k) - beta (gamma e_k - eta_k),    k = 0 .. N-2.
+
+This is seed eq. (16) / (22) with the derivatives replaced by the differences
+the integrator uses, so a forcing term that matched the targets exactly would
+reproduce the demonstration exactly: what is left of the reproduction error is
+the regression's (seed eqs. 16 and 21 divide by ``g - y`` and by ``K_0``; the
+amplitude scaling here divides by the start-goal gap instead, as eq. (11) and
+Ude et al.'s ``D_0`` do, and only when asked).
+
+The gains enter linearly, so :func:`target_forces` and :func:`design_matrix`
+take CasADi symbols too (gain tuning differentiates through the regression).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from optikin.algebra import backend as B
+from optikin.algebra.backend import Array
+from optikin.dmp import basis
+from optikin.dmp.canonical import stopped_log_phase
+from optikin.dmp.spaces import Space, smooth_norm
+from optikin.errors import InputDataError
+
+UNIFORM_TOLERANCE = 1e-6
+"""Largest relative deviation of a sample interval from the mean that still counts as a fixed step."""
+
+
+@dataclass(frozen=True)
+class Demonstration:
+    """A demonstration prepared for imitation: samples, step, and the gains-free data of the targets."""
+
+    space: Space
+    t: np.ndarray  # (N,)
+    Y: np.ndarray  # (N, size), quaternion blocks sign-continuous
+    dt: float
+    tau: float
+    goal_gap: np.ndarray  # (N - 1, dim): e_k = gap(g, y_k)
+    step_rate: np.ndarray  # (N - 1, dim): tau/dt gap(y_{k+1}, y_k)
+
+    @property
+    def start(self) -> np.ndarray:
+        return self.Y[0]
+
+    @property
+    def goal(self) -> np.ndarray:
+        return self.Y[-1]
+
+
+def prepare(space: Space, t: np.ndarray, Y: np.ndarray, source: str = "demonstration") -> Demonstration:
+    """Check a demonstration (finite, fixed step, at least 3 samples) and compute its gap data.
+
+    Quaternion blocks are made sign-continuous along the demonstration; the
+    time constant ``tau`` is its duration.
+    """
+    t = np.asarray(t, dtype=float)
+    Y = np.asarray(Y, dtype=float)
+    if Y.ndim != 2 or Y.shape[1] != space.size:
+        raise InputDataError(f"expected samples of shape (N, {space.size}) for the space {space}, got {Y.shape}",
+                             source=source)
+    if t.shape != (Y.shape[0],):
+        raise InputDataError(f"expected {Y.shape[0]} times, got an array of shape {t.shape}", source=source,
+                             field="t")
+    if Y.shape[0] < 3:
+        raise InputDataError(f"a demonstration needs at least 3 samples, got {Y.shape[0]}", source=source)
+    for name, values in (("t", t[:, None]), ("y", Y)):
+        bad = np.flatnonzero(~np.isfinite(values).all(axis=1))
+        if bad.size:
+            raise InputDataError("value is not finite", source=source, sample=int(bad[0]), field=name)
+    steps = np.diff(t)
+    dt = float(steps.mean())
+    worst = int(np.argmax(np.abs(steps - dt)))
+    if dt <= 0 or abs(steps[worst] - dt) > UNIFORM_TOLERANCE * dt:
+        raise InputDataError(f"samples must be equally spaced in time (mean step {dt:.6g} s, this one "
+                             f"{steps[worst]:.6g} s); resample the demonstration first", source=source,
+                             sample=worst + 1, field="t")
+    Y = space.continuous(Y)
+    tau = float(t[-1] - t[0])
+    goal = Y[-1]
+    return Demonstration(space=space, t=t - t[0], Y=Y, dt=dt, tau=tau,
+                         goal_gap=np.asarray(space.gap(goal, Y[:-1])),
+                         step_rate=np.asarray(space.gap(Y[1:], Y[:-1])) * (tau / dt))
+
+
+def _lift(x: np.ndarray, *gains: Array) -> Array:
+    """``x`` as a CasADi DM when any gain is symbolic (numpy arrays do not mix with CasADi symbols)."""
+    return ca.DM(x) if B.any_casadi(*gains) else x
+
+
+def target_forces(demo: Demonstration, beta: Array, gamma: Array, alpha_s: Array = 0.0) -> Array:
+    """``f_k``, ``k = 0 .. N-2``, that make the discrete DMP reproduce the demonstration: ``(N - 1, dim)``.
+
+    The DMP starts at rest: ``eta_0 = -alpha_s e_0`` cancels the coupling
+    velocity, as the roll-out does.
+    """
+    E = _lift(demo.goal_gap, beta, gamma, alpha_s)
+    V = _lift(demo.step_rate, beta, gamma, alpha_s)
+    eta_next = V - alpha_s * E
+    if B.is_casadi(eta_next):
+        eta = ca.vertcat(-alpha_s * E[0, :], eta_next[:-1, :])
+    else:
+        eta = np.vstack([-alpha_s * E[:1], eta_next[:-1]])
+    return (demo.tau / demo.dt) * (eta_next - eta) - beta * (gamma * E - eta)
+
+
+def demonstration_log_phase(demo: Demonstration, zeta: Array, alpha: Array = 0.0) -> Array:
+    """``log s_k`` along the demonstration, ``k = 0 .. N-1`` (stopped by the goal gap when ``alpha > 0``, eq. 25)."""
+    return stopped_log_phase(demo.dt, demo.tau, zeta, alpha, smooth_norm(demo.goal_gap))
+
+
+def amplitude(space: Space, start: np.ndarray, goal: np.ndarray, scale: bool, source: str = "") -> np.ndarray:
+    """Per-component factor of the forcing term: ``gap(goal, start)`` (seed eqs. 11, 20) or ones.
+
+    A component with a vanishing start-goal gap cannot be scaled (eq. 16 would
+    divide by zero): that raises an :class:`InputDataError` naming it.
+    """
+    if not scale:
+        return np.ones(space.dim)
+    amp = np.asarray(space.gap(goal, start), dtype=float)
+    small = np.flatnonzero(np.abs(amp) < 1e-9)
+    if small.size:
+        raise InputDataError(f"start and goal coincide in gap component {int(small[0])}, so the forcing term "
+                             "cannot be scaled by the start-goal gap (seed eq. 11); use scale_by_amplitude=False",
+                             source=source, field=f"gap[{int(small[0])}]")
+    return amp
+
+
+def design_matrix(demo: Demonstration, n_basis: int, zeta: Array, alpha: Array = 0.0,
+                  overlap: float = basis.DEFAULT_OVERLAP) -> tuple[Array, Array, Array, Array]:
+    """``(X, s, c, h)``: the ``(N - 1, n)`` design matrix of eq. (13), the phase of its rows, centres and widths."""
+    log_s = demonstration_log_phase(demo, zeta, alpha)
+    c = basis.centres_along(log_s, n_basis)
+    h = basis.widths(c, overlap)
+    s = ca.exp(log_s[:-1, :]) if B.is_casadi(log_s) else np.exp(log_s[:-1])
+    return basis.features(s, c, h), s, c, h

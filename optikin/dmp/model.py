@@ -1,0 +1,220 @@
+"""A discrete DMP on any space of :mod:`optikin.dmp.spaces`: learn from a demonstration, roll out.
+
+>>> dmp = DMP(UnitQuaternion(), n_basis=50)
+>>> fit = dmp.imitate(t, Q)                                   # seed eqs. 21-22, least squares
+>>> out = dmp.rollout(goal=q_new, tau=2 * dmp.tau)            # new goal, twice as slow
+>>> out = dmp.rollout(goal_switches=[(1.5, q_new)])           # goal filter, eq. 24
+
+Per-angle DMPs (seed eqs. 11-16) are ``DMP(Euclidean(3))`` on roll-pitch-yaw,
+the quaternion DMP (eqs. 17-23) is ``DMP(UnitQuaternion())``, the pose DMPs
+are in :mod:`optikin.dmp.pose`. ``tau`` is the temporal scaling: the same
+weights replay the motion in ``tau`` seconds instead of the demonstration's.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Callable, Sequence
+
+import numpy as np
+
+from optikin.dmp import basis, regression
+from optikin.dmp.gains import Gains
+from optikin.dmp.imitation import Demonstration, amplitude, design_matrix, prepare, target_forces
+from optikin.dmp.rollout import input_size, rollout_function
+from optikin.dmp.spaces import Space
+from optikin.errors import InputDataError
+
+PerStep = np.ndarray | Callable[[np.ndarray], np.ndarray] | None
+
+
+@dataclass(frozen=True)
+class Rollout:
+    """A roll-out: times ``(K+1,)``, poses ``(K+1, size)``, velocities ``eta (K+1, dim)``, phase, filtered goal."""
+
+    t: np.ndarray
+    y: np.ndarray
+    eta: np.ndarray
+    phase: np.ndarray
+    goal: np.ndarray
+    seconds: float
+
+
+@dataclass(frozen=True)
+class RolloutPlan:
+    """Checked roll-out inputs: times, steps, time constants, start, goal, per-step inputs ``(K, nu)``.
+
+    ``start_coupling`` is ``e_0 + r_0`` (the gaps the coupling of eqs. 26-27
+    sees at the start); ``eta_0 = -alpha_s start_coupling`` starts at rest.
+    """
+
+    t: np.ndarray
+    steps: int
+    tau: float
+    dt: float
+    start: np.ndarray
+    goal: np.ndarray
+    final_goal: np.ndarray
+    inputs: np.ndarray
+    start_coupling: np.ndarray
+    amplitude: np.ndarray
+
+
+@dataclass(frozen=True)
+class RegressionProblem:
+    """The weight regression of one demonstration: ``X W^T ~ F`` with the phase and activations along it."""
+
+    demo: Demonstration
+    X: np.ndarray
+    F: np.ndarray
+    phase: np.ndarray
+    activations: np.ndarray
+    centres: np.ndarray
+    widths: np.ndarray
+
+
+class DMP:
+    """Discrete DMP (seed 000 eqs. 11-28) on ``space`` with ``n_basis`` Gaussians per gap component."""
+
+    def __init__(self, space: Space, n_basis: int = 50, gains: Gains = Gains(),
+                 overlap: float = basis.DEFAULT_OVERLAP, scale_by_amplitude: bool = False):
+        if n_basis < 2:
+            raise ValueError(f"a DMP needs at least 2 basis functions, got {n_basis}")
+        self.space = space
+        self.n_basis = int(n_basis)
+        self.gains = gains
+        self.overlap = float(overlap)
+        self.scale_by_amplitude = bool(scale_by_amplitude)
+        self.weights: np.ndarray | None = None
+        self.centres: np.ndarray | None = None
+        self.widths: np.ndarray | None = None
+        self.demo: Demonstration | None = None
+        self.fit: regression.Fit | None = None
+
+    # ------------------------------------------------------------------ learning
+    def regression_problem(self, t: np.ndarray, Y: np.ndarray, source: str = "demonstration") -> RegressionProblem:
+        """Design matrix and target forces of a demonstration under this DMP's gains (seed eqs. 16, 21-22)."""
+        demo = prepare(self.space, t, Y, source)
+        g = self.gains
+        X, s, c, h = design_matrix(demo, self.n_basis, g.zeta, g.alpha, self.overlap)
+        amp = amplitude(self.space, demo.start, demo.goal, self.scale_by_amplitude, source)
+        F = target_forces(demo, g.beta, g.gamma, g.alpha_s) / amp
+        return RegressionProblem(demo, X, F, s, basis.activations(s, c, h), c, h)
+
+    def imitate(self, t: np.ndarray, Y: np.ndarray, method: str = "lstsq", ridge: float = 0.0,
+                lower: float | np.ndarray | None = None, upper: float | np.ndarray | None = None,
+                source: str = "demonstration") -> regression.Fit:
+        """Learn the weights from samples ``Y (N, size)`` at equally spaced times ``t``; returns the fit."""
+        problem = self.regression_problem(t, Y, source)
+        if method == "lstsq":
+            if lower is not None or upper is not None:
+                raise ValueError("bounds on the weights need method='cvxpy'")
+            fit = regression.fit_lstsq(problem.X, problem.F, ridge)
+        elif method == "cvxpy":
+            fit = regression.fit_cvxpy(problem.X, problem.F, ridge, lower, upper)
+        elif method == "lwr":
+            fit = regression.fit_lwr(problem.phase, problem.activations, problem.X, problem.F)
+        else:
+            raise ValueError(f"unknown regression method {method!r}; choose from {regression.METHODS}")
+        self.weights, self.demo, self.fit = fit.weights, problem.demo, fit
+        self.centres, self.widths = problem.centres, problem.widths
+        return fit
+
+    @property
+    def tau(self) -> float:
+        return self._learned().tau
+
+    @property
+    def dt(self) -> float:
+        return self._learned().dt
+
+    def _learned(self) -> Demonstration:
+        if self.demo is None or self.weights is None:
+            raise RuntimeError("the DMP has not learned a demonstration yet: call imitate() first")
+        return self.demo
+
+    # ------------------------------------------------------------------ roll-out
+    def rollout(self, duration: float | None = None, *, tau: float | None = None, dt: float | None = None,
+                start: np.ndarray | None = None, goal: np.ndarray | None = None,
+                goal_switches: Sequence[tuple[float, np.ndarray]] = (), disturbance: PerStep = None,
+                reference: PerStep = None, gains: Gains | None = None, weights: np.ndarray | None = None) -> Rollout:
+        """Integrate the DMP from ``start`` at rest towards ``goal`` for ``duration`` seconds.
+
+        ``tau``: time scaling (default the demonstration's duration).
+        ``goal_switches``: ``(time, new goal)`` pairs; the goal moves to each new
+        goal through the filter of eq. (24) (rate ``gains.beta_g0``).
+        ``disturbance``: per-step force ``(K, dim)`` added to eq. (17), or a
+        function of the step times. ``reference``: per-step poses ``(K, size)``
+        the DMP is coupled to by eqs. (27)-(28), or a function of the times.
+        ``gains``/``weights`` override the learned ones (for tuning).
+        """
+        gains = gains or self.gains
+        W = self.weights if weights is None else np.asarray(weights, dtype=float)
+        plan = self.plan(duration, tau=tau, dt=dt, start=start, goal=goal, goal_switches=goal_switches,
+                         disturbance=disturbance, reference=reference)
+        space, size, dim = self.space, self.space.size, self.space.dim
+        x0 = np.concatenate([plan.start, -gains.alpha_s * plan.start_coupling, [1.0], plan.goal])
+        f = rollout_function(space, self.n_basis, plan.steps)
+        begin = time.perf_counter()
+        X = np.asarray(f(x0, plan.inputs.T, W, self.centres, self.widths, plan.amplitude, gains.vector(),
+                         plan.tau, plan.dt)).T
+        seconds = time.perf_counter() - begin
+        return Rollout(t=plan.t, y=X[:, :size], eta=X[:, size:size + dim], phase=X[:, size + dim],
+                       goal=X[:, size + dim + 1:], seconds=seconds)
+
+    def plan(self, duration: float | None = None, *, tau: float | None = None, dt: float | None = None,
+             start: np.ndarray | None = None, goal: np.ndarray | None = None,
+             goal_switches: Sequence[tuple[float, np.ndarray]] = (), disturbance: PerStep = None,
+             reference: PerStep = None) -> "RolloutPlan":
+        """The checked inputs of a roll-out (see :meth:`rollout`), before the gains and weights are chosen."""
+        demo = self._learned()
+        space = self.space
+        tau = demo.tau if tau is None else float(tau)
+        dt = demo.dt if dt is None else float(dt)
+        duration = tau if duration is None else float(duration)
+        if tau <= 0 or dt <= 0 or duration <= 0:
+            raise ValueError(f"tau, dt and duration must be positive (got {tau}, {dt}, {duration})")
+        steps = max(1, int(round(duration / dt)))
+        t = np.arange(steps + 1) * dt
+        y0 = demo.start if start is None else self._element(start, "start")
+        goal = space.align(demo.goal if goal is None else self._element(goal, "goal"), y0)
+
+        dim, size = space.dim, space.size
+        U = np.zeros((steps, input_size(space)))  # per step: (d, y_ref, m, g_new)
+        U[:, dim:dim + size] = y0  # a valid pose where no reference is given (m = 0)
+        U[:, dim + size + 1:] = goal
+        current = goal
+        for when, target in sorted(goal_switches, key=lambda pair: pair[0]):
+            current = space.align(self._element(target, "goal switch"), current)
+            U[t[:-1] >= when, dim + size + 1:] = current
+        if disturbance is not None:
+            U[:, :dim] = self._per_step(disturbance, t[:-1], dim, "disturbance")
+        if reference is not None:
+            U[:, dim:dim + size] = self._per_step(reference, t[:-1], size, "reference")
+            U[:, dim + size] = 1.0
+        # At rest: the velocity eta + alpha_s (e + r) of eqs. (26)-(27) vanishes at the start.
+        coupling = np.asarray(space.gap(goal, y0)) + U[0, dim + size] * np.asarray(space.gap(U[0, dim:dim + size], y0))
+        return RolloutPlan(t=t, steps=steps, tau=tau, dt=dt, start=y0, goal=goal, final_goal=current, inputs=U,
+                           start_coupling=coupling,
+                           amplitude=amplitude(space, y0, current, self.scale_by_amplitude, "rollout"))
+
+    def _element(self, x: np.ndarray, what: str) -> np.ndarray:
+        x = np.asarray(x, dtype=float)
+        if x.shape != (self.space.size,) or not np.isfinite(x).all():
+            raise InputDataError(f"expected {self.space.size} finite components for the space {self.space}, "
+                                 f"got {x.shape} {x if x.size <= 8 else ''}", field=what)
+        return x
+
+    @staticmethod
+    def _per_step(value: np.ndarray | Callable, t: np.ndarray, width: int, what: str) -> np.ndarray:
+        values = np.asarray(value(t) if callable(value) else value, dtype=float)
+        if values.ndim == 1 and width == 1:
+            values = values[:, None]
+        if values.ndim != 2 or values.shape[1] != width or values.shape[0] < t.size:
+            raise InputDataError(f"expected at least {t.size} rows of {width} values, got {values.shape}", field=what)
+        values = values[:t.size]
+        bad = np.flatnonzero(~np.isfinite(values).all(axis=1))
+        if bad.size:
+            raise InputDataError("value is not finite", sample=int(bad[0]), field=what)
+        return values

@@ -1,0 +1,106 @@
+"""Fitting the forcing-term weights: least squares posed in cvxpy, the closed form, and LWR.
+
+All three fit ``X W^T ~ F`` for the design matrix ``X`` (``K x n``, eq. 13)
+and target forces ``F`` (``K x dim``, eqs. 16, 22) and return a :class:`Fit`
+with the same residual measure and the wall time:
+
+* :func:`fit_cvxpy` -- every weight of every dimension at once,
+  ``min |X W^T - F|_F^2 + ridge |W|_F^2`` subject to optional bounds
+  ``lower <= W <= upper``: a convex QP (Clarabel by default, any cvxpy solver).
+* :func:`fit_lstsq` -- the closed form of the same problem without bounds
+  (``numpy.linalg.lstsq`` on ``[X; sqrt(ridge) I]``).
+* :func:`fit_lwr` -- locally weighted regression, one weight per basis
+  function from its own Gaussian-weighted fit (Ijspeert et al. 2013, eq. 2.14,
+  the regression the DMP literature uses): ``w_j = sum psi_j s f / sum psi_j s^2``.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import cvxpy as cp
+import numpy as np
+
+from optikin.errors import SolverError
+
+METHODS = ("lstsq", "cvxpy", "lwr")
+
+
+@dataclass(frozen=True)
+class Fit:
+    """Weights ``(dim, n)`` of one fit, its residual ``rms(X W^T - F)``, wall time and solver status."""
+
+    method: str
+    weights: np.ndarray
+    residual: float
+    seconds: float
+    status: str = "optimal"
+
+
+def _residual(X: np.ndarray, F: np.ndarray, W: np.ndarray) -> float:
+    return float(np.sqrt(np.mean((X @ W.T - F) ** 2)))
+
+
+def fit_lstsq(X: np.ndarray, F: np.ndarray, ridge: float = 0.0) -> Fit:
+    """Closed-form (ridge) least squares with ``numpy.linalg.lstsq``."""
+    start = time.perf_counter()
+    if ridge > 0:
+        n = X.shape[1]
+        A = np.vstack([X, np.sqrt(ridge) * np.eye(n)])
+        b = np.vstack([F, np.zeros((n, F.shape[1]))])
+    else:
+        A, b = X, F
+    W = np.linalg.lstsq(A, b, rcond=None)[0].T
+    seconds = time.perf_counter() - start
+    return Fit("lstsq", W, _residual(X, F, W), seconds)
+
+
+def fit_cvxpy(X: np.ndarray, F: np.ndarray, ridge: float = 0.0, lower: float | np.ndarray | None = None,
+              upper: float | np.ndarray | None = None, solver: str = "CLARABEL") -> Fit:
+    """All weights at once as a cvxpy least-squares problem with optional ridge term and bounds.
+
+    The data term is first reduced exactly to ``n`` rows with a thin QR
+    factorisation ``X = Q R``: ``|X W' - F|^2 = |R W' - Q'F|^2 + |F|^2 - |Q'F|^2``,
+    so cvxpy canonicalises an ``n``-row problem whatever the number of samples
+    (with the conditioning of ``X``, not of ``X'X``). The forces are scaled by
+    their largest magnitude (the weights and bounds with them), which keeps
+    the conic solver's tolerances relative to the data.
+    """
+    start = time.perf_counter()
+    scale = float(np.max(np.abs(F))) or 1.0
+    Q, R = np.linalg.qr(X)
+    W = cp.Variable((X.shape[1], F.shape[1]))
+    objective = cp.sum_squares(R @ W - Q.T @ (F / scale))
+    if ridge > 0:
+        objective = objective + ridge * cp.sum_squares(W)
+    constraints = []
+    if lower is not None:
+        constraints.append(W >= np.asarray(lower, dtype=float).T / scale)
+    if upper is not None:
+        constraints.append(W <= np.asarray(upper, dtype=float).T / scale)
+    problem = cp.Problem(cp.Minimize(objective), constraints)
+    try:
+        problem.solve(solver=solver)
+    except cp.error.SolverError as exc:
+        raise SolverError(f"cvxpy ({solver}) failed on the weight regression: {exc}") from None
+    if W.value is None or problem.status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE):
+        raise SolverError(f"cvxpy ({solver}) returned status {problem.status!r} on the weight regression")
+    weights = W.value.T * scale
+    seconds = time.perf_counter() - start
+    return Fit("cvxpy", weights, _residual(X, F, weights), seconds, str(problem.status))
+
+
+def fit_lwr(s: np.ndarray, psi: np.ndarray, X: np.ndarray, F: np.ndarray) -> Fit:
+    """Locally weighted regression: ``w_j = sum_k psi_jk s_k F_k / sum_k psi_jk s_k^2`` for each basis ``j``.
+
+    ``psi`` holds the unnormalised activations ``(K, n)``; ``X`` is only used
+    to report the residual on the same footing as the other fits.
+    """
+    start = time.perf_counter()
+    s = np.asarray(s, dtype=float)
+    weighted = psi * s[:, None]  # (K, n)
+    W = (weighted.T @ F) / (weighted.T @ s)[:, None]
+    W = W.T
+    seconds = time.perf_counter() - start
+    return Fit("lwr", W, _residual(X, F, W), seconds)

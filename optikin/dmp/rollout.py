@@ -1,0 +1,100 @@
+"""The DMP roll-out as one CasADi Function: the whole loop runs in CasADi's virtual machine.
+
+One step (seed 000 eqs. 11-12 / 17-18, 15, 23-28, in the gap units of
+:mod:`optikin.dmp.spaces`) on the state ``x = (y, eta, s, g)``:
+
+    e   = gap(g, y)                      goal gap (eq. 19: 2 log(g conj(y)))
+    r   = m gap(y_ref, y)                gap to a reference (eq. 27), m in {0, 1}
+    f   = a * (W psi(s)) s / sum psi(s)  forcing term (eqs. 13, 20), a the amplitude scaling
+    eta <- eta + dt/tau [beta (gamma e - eta) + f + d]                       (eqs. 11, 17; d a disturbance)
+    y   <- advance(y, dt/tau (eta + alpha_s (e + r)))                        (eqs. 12, 23, 26, 27)
+    s   <- s exp(-zeta dt / (tau (1 + alpha (|e| + |r|))))                   (eqs. 15, 25, 28)
+    g   <- advance(g, (1 - exp(-beta_g0 dt/tau)) gap(g_new, g))              (eq. 24)
+
+The pose update ``advance(y, v) = exp(v/2) y`` keeps a unit quaternion (or
+unit dual quaternion) unit to rounding; the goal filter and the phase are
+integrated exactly for gaps held over the step. The coupling uses the filtered
+goal ``g`` (the seed writes the new goal in eq. 26, which would make the
+velocity jump at a switch, what the filter is there to prevent), and eq. (28)'s
+denominator is read as the sum of the two gap norms.
+
+The loop is a ``mapaccum`` of the step wrapped in an MX Function per number of
+steps (cached): no Python runs per sample, and the same graph gives exact
+derivatives with respect to gains and weights for tuning
+(:mod:`optikin.dmp.tuning`).
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import casadi as ca
+
+from optikin.dmp.gains import GAIN_NAMES
+from optikin.dmp.spaces import Space, smooth_norm
+
+
+def state_size(space: Space) -> int:
+    """``(y, eta, s, g)``."""
+    return 2 * space.size + space.dim + 1
+
+
+def input_size(space: Space) -> int:
+    """Per-step inputs ``(d, y_ref, m, g_new)``."""
+    return space.dim + 2 * space.size + 1
+
+
+@lru_cache(maxsize=32)
+def step_function(space: Space, n_basis: int) -> ca.Function:
+    """One step of the roll-out, ``(x, u, W, c, h, amplitude, gains, tau, dt) -> x_next`` (SX)."""
+    size, dim = space.size, space.dim
+    x = ca.SX.sym("x", state_size(space))
+    u = ca.SX.sym("u", input_size(space))
+    W = ca.SX.sym("W", dim, n_basis)
+    c = ca.SX.sym("c", n_basis)
+    h = ca.SX.sym("h", n_basis)
+    amp = ca.SX.sym("amplitude", dim)
+    gains = ca.SX.sym("gains", len(GAIN_NAMES))
+    tau = ca.SX.sym("tau")
+    dt = ca.SX.sym("dt")
+    beta, gamma, zeta, beta_g0, alpha_s, alpha = (gains[i] for i in range(len(GAIN_NAMES)))
+
+    y, eta, s, g = x[:size], x[size:size + dim], x[size + dim], x[size + dim + 1:]
+    d, ref, m, g_new = u[:dim], u[dim:dim + size], u[dim + size], u[dim + size + 1:]
+
+    e = space.gap(g, y)
+    r = m * space.gap(ref, y)
+    psi = ca.exp(-h * (s - c) ** 2)
+    f = amp * ca.mtimes(W, psi) * (s / ca.sum1(psi))
+    eta_next = eta + dt / tau * (beta * (gamma * e - eta) + f + d)
+    y_next = space.advance(y, dt / tau * (eta_next + alpha_s * (e + r)))
+    s_next = s * ca.exp(-zeta * dt / (tau * (1.0 + alpha * (smooth_norm(e) + smooth_norm(r)))))
+    g_next = space.advance(g, (1.0 - ca.exp(-beta_g0 * dt / tau)) * space.gap(g_new, g))
+    return ca.Function(f"dmp_step_{n_basis}", [x, u, W, c, h, amp, gains, tau, dt],
+                       [ca.vertcat(y_next, eta_next, s_next, g_next)],
+                       ["x", "u", "W", "c", "h", "amplitude", "gains", "tau", "dt"], ["x_next"])
+
+
+@lru_cache(maxsize=64)
+def rollout_function(space: Space, n_basis: int, steps: int) -> ca.Function:
+    """``(x0, U, W, c, h, amplitude, gains, tau, dt) -> X``: ``steps`` steps, ``X`` of shape ``nx x (steps + 1)``.
+
+    ``U`` holds one column of per-step inputs per step; ``c`` and ``h`` are the
+    basis centres and widths learned with the weights.
+    """
+    if steps < 1:
+        raise ValueError(f"a roll-out needs at least one step, got {steps}")
+    step = step_function(space, n_basis)
+    loop = step.mapaccum("dmp_loop", steps)
+    x0 = ca.MX.sym("x0", state_size(space))
+    U = ca.MX.sym("U", input_size(space), steps)
+    W = ca.MX.sym("W", space.dim, n_basis)
+    amp = ca.MX.sym("amplitude", space.dim)
+    c = ca.MX.sym("c", n_basis)
+    h = ca.MX.sym("h", n_basis)
+    gains = ca.MX.sym("gains", len(GAIN_NAMES))
+    tau = ca.MX.sym("tau")
+    dt = ca.MX.sym("dt")
+    X = loop(x0, U, W, c, h, amp, gains, tau, dt)
+    return ca.Function(f"dmp_rollout_{n_basis}_{steps}", [x0, U, W, c, h, amp, gains, tau, dt], [ca.horzcat(x0, X)],
+                       ["x0", "U", "W", "c", "h", "amplitude", "gains", "tau", "dt"], ["X"])

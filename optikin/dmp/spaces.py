@@ -1,0 +1,228 @@
+"""The spaces a DMP moves in: vectors, unit quaternions, unit dual quaternions, and products of them.
+
+Every DMP of seed 000 (eqs. 11-12 per angle, eqs. 17-23 on a unit quaternion)
+has the same structure once two operations of its space are named:
+
+``gap(target, y)``
+    the error that drives the spring, in *gap units*: ``target - y`` for
+    vectors; ``2 log(target * conj(y))`` for quaternions (the rotation vector,
+    seed eq. 19, Ude et al. 2014); ``2 log(target * conj(y))`` in the dual
+    algebra for unit dual quaternions (rotation vector and screw translation).
+``advance(y, v)``
+    move ``y`` by a gap-unit step ``v``: ``y + v`` for vectors,
+    ``exp(v / 2) * y`` for quaternions (seed eq. 23) and dual quaternions.
+
+``gap(advance(y, v), y) = v`` (for rotations below a full turn), so the DMP of
+one space is written once (:mod:`optikin.dmp.rollout`) for all of them. Each
+operation accepts numpy batches (components on the last axis) and CasADi
+column vectors, like :mod:`optikin.algebra`.
+
+Quaternion parts of a state are unit on the demonstrations the seed uses; the
+seed also runs the quaternion DMP on ``Q_d`` (not unit): the same operations
+apply (``quat_log`` of a product is scale invariant and ``exp(v/2) * y`` keeps
+``|y|``), which is exactly why that variant cannot change ``|Q_d|``
+(:mod:`optikin.dmp.pose`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from optikin.algebra import (
+    dq_conjugate,
+    dq_exp,
+    dq_log,
+    dq_multiply,
+    quat_conjugate,
+    quat_exp,
+    quat_log,
+    quat_multiply,
+)
+from optikin.algebra import backend as B
+from optikin.algebra.backend import Array
+
+
+def _slice(x: Array, start: int, stop: int) -> Array:
+    return x[start:stop, :] if B.is_casadi(x) else np.asarray(x, dtype=float)[..., start:stop]
+
+
+def _join(parts: list[Array]) -> Array:
+    if B.any_casadi(*parts):
+        return ca.vertcat(*parts)
+    parts = [np.asarray(p, dtype=float) for p in parts]
+    batch = np.broadcast_shapes(*[np.shape(p)[:-1] for p in parts])
+    return np.concatenate([np.broadcast_to(p, batch + np.shape(p)[-1:]) for p in parts], axis=-1)
+
+
+class Space:
+    """A state space of a DMP: ``size`` stored components, ``dim`` gap (tangent) components."""
+
+    name: str
+    size: int
+    dim: int
+    quaternion_blocks: tuple[tuple[int, int], ...] = ()
+    """``(start, 4)`` of every 4-component block whose sign is free (q and -q are one rotation)."""
+
+    def gap(self, target: Array, y: Array) -> Array:
+        raise NotImplementedError
+
+    def advance(self, y: Array, v: Array) -> Array:
+        raise NotImplementedError
+
+    def align(self, x: np.ndarray, reference: np.ndarray) -> np.ndarray:
+        """``x`` with the sign of each quaternion block chosen to have a non-negative dot with ``reference``."""
+        x = np.array(x, dtype=float)
+        for start, length in self.quaternion_blocks:
+            block = slice(start, start + length)
+            dot = np.sum(x[..., block] * np.asarray(reference, dtype=float)[..., block], axis=-1)
+            x[..., block] *= np.where(dot < 0, -1.0, 1.0)[..., None]
+        return x
+
+    def continuous(self, Y: np.ndarray) -> np.ndarray:
+        """A sequence ``(T, size)`` with every quaternion block made sign-continuous along it."""
+        Y = np.array(Y, dtype=float)
+        for start, length in self.quaternion_blocks:
+            block = Y[:, start:start + length]
+            dots = np.einsum("ij,ij->i", block[1:], block[:-1])
+            flips = np.concatenate([[1.0], np.cumprod(np.where(dots < 0, -1.0, 1.0))])
+            Y[:, start:start + length] = block * flips[:, None]
+        return Y
+
+    def __repr__(self) -> str:
+        return self.name
+
+
+@dataclass(frozen=True, repr=False)
+class Euclidean(Space):
+    """``R^n`` (one DMP per degree of freedom, seed eqs. 11-12): ``gap = target - y``."""
+
+    n: int
+
+    @property
+    def name(self) -> str:  # type: ignore[override]
+        return f"R{self.n}"
+
+    @property
+    def size(self) -> int:  # type: ignore[override]
+        return self.n
+
+    @property
+    def dim(self) -> int:  # type: ignore[override]
+        return self.n
+
+    def gap(self, target: Array, y: Array) -> Array:
+        return target - y
+
+    def advance(self, y: Array, v: Array) -> Array:
+        return y + v
+
+
+@dataclass(frozen=True, repr=False)
+class UnitQuaternion(Space):
+    """``S^3`` (seed eqs. 17-23, Ude et al. 2014): ``gap = 2 log(target conj(y))``, ``advance = exp(v/2) y``."""
+
+    name = "S3"
+    size = 4
+    dim = 3
+    quaternion_blocks = ((0, 4),)
+
+    def gap(self, target: Array, y: Array) -> Array:
+        return 2.0 * quat_log(quat_multiply(target, quat_conjugate(y)))
+
+    def advance(self, y: Array, v: Array) -> Array:
+        return quat_multiply(quat_exp(0.5 * v), y)
+
+
+@dataclass(frozen=True, repr=False)
+class UnitDualQuaternion(Space):
+    """Unit dual quaternions (rigid poses): ``gap = 2 log(target y*)`` and ``advance = exp(v/2) y`` in the dual algebra.
+
+    The gap is the spatial screw from ``y`` to ``target``: the rotation vector
+    and, for a pure translation ``p``, the vector ``p`` itself. Because the
+    exponential of a pure dual vector is a unit dual quaternion and the product
+    of unit dual quaternions is unit, a roll-out stays a rigid pose
+    (``|Q_r| = 1``, ``Q_r . Q_d = 0``) to rounding, unlike two quaternion DMPs
+    on ``Q_r`` and ``Q_d``. The screw is taken about the world origin, so (as
+    for every spatial-frame dual-quaternion error) the translational gap of a
+    rotation grows with the distance of the motion from the origin.
+    """
+
+    name = "DQ"
+    size = 8
+    dim = 6
+    quaternion_blocks = ((0, 8),)
+
+    def gap(self, target: Array, y: Array) -> Array:
+        return 2.0 * dq_log(dq_multiply(target, dq_conjugate(y)))
+
+    def advance(self, y: Array, v: Array) -> Array:
+        return dq_multiply(dq_exp(0.5 * v), y)
+
+    def align(self, x: np.ndarray, reference: np.ndarray) -> np.ndarray:
+        """Flip the whole dual quaternion (``Q`` and ``-Q`` are one pose) by the sign of its real parts' dot."""
+        x = np.array(x, dtype=float)
+        dot = np.sum(x[..., :4] * np.asarray(reference, dtype=float)[..., :4], axis=-1)
+        return x * np.where(dot < 0, -1.0, 1.0)[..., None]
+
+    def continuous(self, Y: np.ndarray) -> np.ndarray:
+        Y = np.array(Y, dtype=float)
+        dots = np.einsum("ij,ij->i", Y[1:, :4], Y[:-1, :4])
+        flips = np.concatenate([[1.0], np.cumprod(np.where(dots < 0, -1.0, 1.0))])
+        return Y * flips[:, None]
+
+
+class Product(Space):
+    """The product of spaces, stored and stepped part by part (e.g. position x orientation)."""
+
+    def __init__(self, *parts: Space):
+        if not parts:
+            raise ValueError("a product space needs at least one part")
+        self.parts = tuple(parts)
+        self.name = " x ".join(p.name for p in parts)
+        self.size = sum(p.size for p in parts)
+        self.dim = sum(p.dim for p in parts)
+        blocks, offset = [], 0
+        for p in parts:
+            blocks += [(offset + start, length) for start, length in p.quaternion_blocks]
+            offset += p.size
+        self.quaternion_blocks = tuple(blocks)
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, Product) and self.parts == other.parts
+
+    def __hash__(self) -> int:
+        return hash(self.parts)
+
+    def _split(self, x: Array, sizes: list[int]) -> list[Array]:
+        out, offset = [], 0
+        for n in sizes:
+            out.append(_slice(x, offset, offset + n))
+            offset += n
+        return out
+
+    def gap(self, target: Array, y: Array) -> Array:
+        sizes = [p.size for p in self.parts]
+        return _join([p.gap(t, v) for p, t, v in zip(self.parts, self._split(target, sizes), self._split(y, sizes))])
+
+    def advance(self, y: Array, v: Array) -> Array:
+        ys = self._split(y, [p.size for p in self.parts])
+        vs = self._split(v, [p.dim for p in self.parts])
+        return _join([p.advance(a, b) for p, a, b in zip(self.parts, ys, vs)])
+
+    def align(self, x: np.ndarray, reference: np.ndarray) -> np.ndarray:
+        sizes = [p.size for p in self.parts]
+        xs, rs = self._split(x, sizes), self._split(reference, sizes)
+        return _join([p.align(a, r) for p, a, r in zip(self.parts, xs, rs)])
+
+    def continuous(self, Y: np.ndarray) -> np.ndarray:
+        return _join([p.continuous(part) for p, part in zip(self.parts, self._split(Y, [p.size for p in self.parts]))])
+
+
+def smooth_norm(e: Array, eps: float = 1e-12) -> Array:
+    """``sqrt(|e|^2 + eps^2) - eps``: the norm of a gap column (CasADi) or of each row (numpy), differentiable at 0."""
+    if B.is_casadi(e):
+        return ca.sqrt(ca.sumsqr(e) + eps * eps) - eps
+    return np.sqrt(np.sum(np.square(e), axis=-1) + eps * eps) - eps

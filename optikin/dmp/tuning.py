@@ -1,0 +1,189 @@
+"""DMP gains chosen by optimisation: the reproduction error of seed 000 eq. (29) as a CasADi Function.
+
+Seed 000 picks ``beta, gamma, zeta`` by a genetic algorithm minimising
+``FT = sum_i E_i^2`` (eq. 29), the squared error between demonstrated and
+reproduced ``Q_r`` (or ``Q_d``) over the components and samples, and
+``beta_g0, alpha_s`` by the same algorithm minimising the error between the
+roll-out and a new goal (Figs. 5-6). Here the whole chain
+
+    gains -> design matrix (phase, centres, widths) and target forces  (eqs. 13-16, 21-22, 25)
+          -> weights by least squares (normal equations, unit-norm columns, a 1e-10 ridge)
+          -> roll-out (:mod:`optikin.dmp.rollout`)                       (eqs. 11-12, 17-28)
+          -> mean over samples of sum_i E_i^2                            (eq. 29)
+
+is one CasADi graph of the gains' logarithms (positive gains, scale-free
+steps), so a gradient-based NLP solver gets exact derivatives
+(:func:`tune_gradient`, IPOPT with a limited-memory Hessian), and the GA
+baseline (:mod:`optikin.baselines.genetic`) evaluates the very same Function
+on a whole population at once (:func:`tune_genetic`).
+
+Scenarios: ``reproduction`` (the roll-out against the demonstration) and
+``goal`` (a switch to ``new_goal`` at ``switch_time``; the roll-out against
+the new goal from the switch on).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from optikin.baselines import genetic
+from optikin.dmp.gains import GAIN_NAMES, Gains, stable_bounds
+from optikin.dmp.imitation import design_matrix, target_forces
+from optikin.dmp.model import DMP
+from optikin.dmp.rollout import rollout_function
+from optikin.errors import SolverError
+
+SCENARIOS = ("reproduction", "goal")
+RIDGE = 1e-10
+"""Ridge weight of the regression inside the graph: keeps ``X'X`` invertible, far below the data's scale."""
+
+
+@dataclass(frozen=True)
+class TuningProblem:
+    """``objective(log gains) -> eq. (29)`` for the gains ``names``, with bounds and the starting point."""
+
+    names: tuple[str, ...]
+    objective: ca.Function
+    lower: np.ndarray  # bounds on the gains (not their logarithms)
+    upper: np.ndarray
+    initial: np.ndarray
+    fixed: Gains
+
+    def gains(self, values: np.ndarray) -> Gains:
+        return self.fixed.with_values(**{n: float(v) for n, v in zip(self.names, values)})
+
+    def error(self, values: np.ndarray) -> float:
+        return float(self.objective(np.log(np.asarray(values, dtype=float))))
+
+
+@dataclass(frozen=True)
+class TuningResult:
+    method: str
+    gains: Gains
+    error: float  # eq. (29) at the gains found
+    initial_error: float
+    seconds: float
+    evaluations: int
+    history: np.ndarray  # best error per iteration / generation
+    status: str
+
+
+def default_bounds(dmp: DMP, names: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """Bounds of the tuned gains.
+
+    Upper: :func:`~optikin.dmp.gains.stable_bounds` (``beta, gamma, alpha_s``),
+    ``zeta <= 15`` (phase 3e-7 at ``tau``), ``beta_g0 <= 0.5 tau/dt``.
+    Lower: the DMP must keep an attractor, or eq. (29) alone drives the spring
+    to zero and lets the forcing term do everything (a reproduction without
+    generalisation): ``beta >= 5`` (the damping settles in ``2 tau/beta <= 0.4 tau``),
+    ``gamma >= 1``, ``zeta >= 1`` (the forcing term fades to ``1/e`` by ``tau``).
+    """
+    stable = stable_bounds(dmp.dt, dmp.tau)
+    table = {"beta": (5.0, stable["beta"][1]), "gamma": (1.0, stable["gamma"][1]), "zeta": (1.0, 15.0),
+             "beta_g0": (0.1, 0.5 * dmp.tau / dmp.dt), "alpha_s": (1e-3, stable["alpha_s"][1]), "alpha": (1e-3, 100.0)}
+    return np.array([table[n][0] for n in names]), np.array([table[n][1] for n in names])
+
+
+def tuning_problem(dmp: DMP, t: np.ndarray, Y: np.ndarray, names: tuple[str, ...] = ("beta", "gamma", "zeta"),
+                   scenario: str = "reproduction", new_goal: np.ndarray | None = None,
+                   switch_time: float = 0.0, bounds: tuple[np.ndarray, np.ndarray] | None = None) -> TuningProblem:
+    """Build the objective of ``names`` for a demonstration ``(t, Y)``; other gains stay at ``dmp.gains``.
+
+    ``dmp`` supplies the space, basis size, overlap, amplitude scaling and the
+    fixed gains; it learns the demonstration here (with its current gains).
+    """
+    unknown = [n for n in names if n not in GAIN_NAMES]
+    if unknown or not names:
+        raise ValueError(f"tunable gains are {GAIN_NAMES}, got {names}")
+    if scenario not in SCENARIOS:
+        raise ValueError(f"unknown tuning scenario {scenario!r}; choose from {SCENARIOS}")
+    if scenario == "goal" and new_goal is None:
+        raise ValueError("the goal scenario needs new_goal")
+    dmp.imitate(t, Y)
+    demo = dmp.demo
+    space = dmp.space
+
+    log_gains = ca.MX.sym("log_gains", len(names))
+    value = {n: getattr(dmp.gains, n) for n in GAIN_NAMES}
+    value["beta_g0"] = min(value["beta_g0"], 1e12)  # exp(-beta_g0 dt / tau) = 0 without an inf in the graph
+    for i, n in enumerate(names):
+        value[n] = ca.exp(log_gains[i])
+
+    X, _, c, h = design_matrix(demo, dmp.n_basis, value["zeta"], value["alpha"], dmp.overlap)
+    scale = dmp.plan().amplitude  # the learned demonstration's start-goal scaling (ones when not scaling)
+    F = target_forces(demo, value["beta"], value["gamma"], value["alpha_s"]) / ca.repmat(ca.DM(scale).T,
+                                                                                         demo.Y.shape[0] - 1, 1)
+    # Normal equations on unit-norm columns (late basis functions have columns ~ s = 0.01 in size).
+    column = ca.sqrt(ca.sum1(X * X)).T
+    Xs = X / ca.repmat(column.T, X.shape[0], 1)
+    W = (ca.solve(ca.mtimes(Xs.T, Xs) + RIDGE * ca.DM.eye(dmp.n_basis), ca.mtimes(Xs.T, F))
+         / ca.repmat(column, 1, space.dim)).T
+
+    if scenario == "reproduction":
+        plan = dmp.plan()
+        reference = demo.Y
+        rows = slice(0, None)
+    else:
+        plan = dmp.plan(goal_switches=[(switch_time, new_goal)])
+        reference = np.broadcast_to(plan.final_goal, demo.Y.shape)
+        rows = slice(int(np.searchsorted(plan.t, switch_time)), None)
+    x0 = ca.vertcat(plan.start, -value["alpha_s"] * ca.DM(plan.start_coupling), 1.0, plan.goal)
+    gains_vector = ca.vertcat(*[value[n] for n in GAIN_NAMES])
+    rollout = rollout_function(space, dmp.n_basis, plan.steps)
+    states = rollout(x0, plan.inputs.T, W, c, h, plan.amplitude, gains_vector, plan.tau, plan.dt)
+    E = states[:space.size, rows] - ca.DM(reference[rows].T)
+    samples = reference[rows].shape[0]
+    objective = ca.Function("dmp_eq29", [log_gains], [ca.sumsqr(E) / samples], ["log_gains"], ["error"])
+
+    lower, upper = bounds if bounds is not None else default_bounds(dmp, names)
+    initial = np.clip([getattr(dmp.gains, n) for n in names], lower, upper)
+    return TuningProblem(tuple(names), objective, np.asarray(lower, float), np.asarray(upper, float), initial,
+                         dmp.gains)
+
+
+def tune_gradient(problem: TuningProblem, max_iterations: int = 60, tolerance: float = 1e-8,
+                  time_limit: float = 60.0) -> TuningResult:
+    """Minimise eq. (29) over the log-gains with IPOPT (exact gradient, limited-memory Hessian, box bounds)."""
+    p = ca.MX.sym("p", len(problem.names))
+    initial_error = problem.error(problem.initial)
+    scale = 1.0 / max(initial_error, 1e-300)
+    nlp = {"x": p, "f": scale * problem.objective(p)}
+    options = {"print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes",
+               "ipopt.hessian_approximation": "limited-memory", "ipopt.max_iter": int(max_iterations),
+               "ipopt.tol": float(tolerance), "ipopt.max_wall_time": float(time_limit)}
+    solver = ca.nlpsol("dmp_gain_tuning", "ipopt", nlp, options)
+    start = time.perf_counter()
+    solution = solver(x0=np.log(problem.initial), lbx=np.log(problem.lower), ubx=np.log(problem.upper))
+    seconds = time.perf_counter() - start
+    stats = solver.stats()
+    values = np.exp(np.asarray(solution["x"]).ravel())
+    error = problem.error(values)
+    if not math.isfinite(error):
+        raise SolverError(f"gain tuning ended at non-finite error ({stats.get('return_status')})")
+    history = np.asarray(stats.get("iterations", {}).get("obj", [scale * initial_error])) / scale
+    return TuningResult("ipopt", problem.gains(values), error, initial_error, seconds,
+                        int(stats.get("n_call_nlp_f", 0)) + int(stats.get("n_call_nlp_grad_f", 0)),
+                        np.minimum.accumulate(history), str(stats.get("return_status")))
+
+
+def tune_genetic(problem: TuningProblem, population: int = 20, generations: int = 15, seed: int = 0) -> TuningResult:
+    """Minimise eq. (29) with the GA baseline over the log-gains, evaluating each generation in one mapped call."""
+    mapped: dict[int, ca.Function] = {}
+
+    def batch(P: np.ndarray) -> np.ndarray:
+        f = mapped.get(len(P))
+        if f is None:
+            f = mapped[len(P)] = problem.objective.map(len(P), "serial")
+        return np.asarray(f(P.T)).ravel()
+
+    initial_error = problem.error(problem.initial)
+    found = genetic.minimise(batch, np.log(problem.lower), np.log(problem.upper), population=population,
+                             generations=generations, seed=seed, initial=np.log(problem.initial))
+    values = np.exp(found.x)
+    return TuningResult("genetic", problem.gains(values), found.value, initial_error, found.seconds,
+                        found.evaluations, found.history, "finished")

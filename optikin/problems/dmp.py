@@ -1,0 +1,498 @@
+"""Problem kind ``dmp``: learn a demonstrated motion with DMPs and generalise it (issue 5; seed 000 secs. III-IV).
+
+The methods under study are the weight regression posed in cvxpy (all weights
+at once, optional ridge and bounds) and the gain tuning by a gradient-based
+NLP (IPOPT through CasADi, :mod:`optikin.dmp.tuning`); the baselines, run on
+the same demonstration, are the closed-form fit (``lstsq``), locally weighted
+regression (``lwr``) and the seed's genetic algorithm (``genetic``). Each
+DMP representation listed in ``variants`` learns the demonstration and is
+rolled out: reproduction, and optionally a goal switch and a perturbation.
+
+Demonstrations (``data.source``, :mod:`optikin.data.demonstrations`)::
+
+    data:
+      source: imu        # imu | kinect | smooth | gimbal | csv
+      seed: 7
+      samples: 1000      # imu / kinect / smooth / gimbal
+      params: {...}      # the keyword arguments of the source's function (imu: the sections
+                         # default to the arm's); csv: {path: demo.csv (relative to the
+                         # problem file), samples: N (resample)}
+
+Options (all optional)::
+
+    variants: [cartesian]   # seed | dual-quaternion | cartesian | quaternion | rpy | position
+    n_basis: 50
+    gains: {beta: 25, gamma: 6.25, zeta: 4.6, beta_g0: .inf, alpha_s: 0, alpha: 0}
+    regression: {method: cvxpy, ridge: 0.0, bound: null}   # bound: |w| <= bound (cvxpy only)
+    goal_switches: [{time: 4.0, rotate: [rx, ry, rz], translate: [x, y, z]}]  # new goals relative to the last
+    disturbance: {start: 5.0, stop: 7.0, amplitude: 1.0, component: 0}       # step force in eq. (17)
+    couplings: {coupled: {alpha_s: 5.0, alpha: 5.0}}   # label -> gains of each coupled DMP run against
+                                                       # the plain one under the disturbance (eqs. 27-28);
+                                                       # each reports its peak and final deviation from
+                                                       # its own undisturbed roll-out
+    tuning: {gains: [beta, gamma, zeta], variant: quaternion, scenario: reproduction,
+             max_iterations: 60, population: 20, generations: 15}
+    settle: 5.0     # goal-switch roll-outs last settle x tau; the final errors measure convergence
+    tolerance: {position_mm: 0.01, orientation_mrad: 0.01}
+
+Per-roll-out status (one per variant and scenario): ``ok``; ``failed`` for a
+non-finite roll-out or a unit quaternion / dual quaternion off by more than
+1e-9; ``not_converged`` when a goal-switch roll-out ends farther than the
+tolerance from its goal.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from optikin import plots
+from optikin.algebra import (
+    dq_from_rotation_translation,
+    dq_norm_residual,
+    dq_rotation,
+    dq_translation,
+    quat_angle,
+    quat_conjugate,
+    quat_exp,
+    quat_from_rpy,
+    quat_multiply,
+    rpy_from_quat,
+)
+from optikin.data import demonstrations as sources
+from optikin.dmp import DMP, Euclidean, Gains, UnitQuaternion
+from optikin.dmp.gains import GAIN_NAMES
+from optikin.dmp.pose import POSE_VARIANTS, pose_dmp
+from optikin.dmp.regression import METHODS
+from optikin.dmp.tuning import SCENARIOS, tune_genetic, tune_gradient, tuning_problem
+from optikin.errors import InputDataError, OptikinError, SpecError
+from optikin.problems import ProblemContext, ProblemKind, register_kind
+from optikin.results import MethodRow, Result
+
+VARIANTS = ("seed", "dual-quaternion", "cartesian", "quaternion", "rpy", "position")
+SOURCES = ("imu", "kinect", "smooth", "gimbal", "csv")
+OPTION_DEFAULTS: dict[str, Any] = {
+    "variants": ["cartesian"], "n_basis": 50, "gains": {}, "regression": {}, "goal_switches": [],
+    "disturbance": None, "couplings": {"coupled": {"alpha_s": 5.0, "alpha": 5.0}}, "tuning": None, "settle": 5.0,
+    "tolerance": {"position_mm": 0.01, "orientation_mrad": 0.01},
+}
+REGRESSION_DEFAULTS = {"method": "cvxpy", "ridge": 0.0, "bound": None}
+TUNING_DEFAULTS = {"gains": ["beta", "gamma", "zeta"], "variant": None, "scenario": "reproduction",
+                   "max_iterations": 60, "population": 20, "generations": 15}
+DISTURBANCE_DEFAULTS = {"start": 5.0, "stop": 7.0, "amplitude": 1.0, "component": 0}
+MM, MRAD = 1e3, 1e3
+
+
+# ----------------------------------------------------------------------------- reading the problem file
+
+
+def _settings(ctx: ProblemContext, given: Any, defaults: dict, where: str) -> dict:
+    if not isinstance(given, dict):
+        raise ctx.error(where, f"expected a mapping with keys from {', '.join(defaults)}")
+    for key in given:
+        if key not in defaults:
+            raise ctx.error(f"{where}.{key}", f"unknown setting; known: {', '.join(defaults)}")
+    return {**defaults, **given}
+
+
+def _vector(ctx: ProblemContext, value: Any, n: int, field: str) -> np.ndarray:
+    try:
+        v = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ctx.error(field, f"expected {n} numbers, got {value!r}") from None
+    if v.shape != (n,) or not np.all(np.isfinite(v)):
+        raise ctx.error(field, f"expected {n} finite numbers, got {value!r}")
+    return v
+
+
+def load_demonstration(ctx: ProblemContext) -> tuple[sources.PoseDemonstration, Any]:
+    """The demonstration of ``data`` and the full recording it came from (``None`` for csv / smooth)."""
+    data = ctx.spec.data
+    params = dict(data.params)
+    makers = {"imu": sources.imu_interface_recording, "kinect": sources.kinect_recording,
+              "smooth": sources.smooth_pose_demonstration, "gimbal": sources.gimbal_demonstration}
+    if data.source == "csv":
+        p = _settings(ctx, params, {"path": None, "samples": None}, "data.params")
+        if p["path"] is None:
+            raise ctx.error("data.params.path", "required: the CSV file (columns t,x,y,z,qw,qx,qy,qz)")
+        path = Path(p["path"])
+        path = path if path.is_absolute() else ctx.path.parent / path
+        demo = sources.read_csv(path)
+        if p["samples"] is not None or not np.allclose(np.diff(demo.t), np.diff(demo.t).mean(), rtol=1e-6):
+            demo = sources.resample_uniform(demo, p["samples"])
+        return demo, None
+    if data.source not in makers:
+        raise ctx.error("data.source", f"unknown demonstration source {data.source!r}; known: {', '.join(SOURCES)}")
+    maker = makers[data.source]
+    known = [k for k in maker.__code__.co_varnames[:maker.__code__.co_argcount] if k not in ("samples", "seed")]
+    for key in params:
+        if key not in known:
+            raise ctx.error(f"data.params.{key}", f"unknown parameter of source {data.source!r}; known: "
+                                                  f"{', '.join(known)}")
+    if data.source == "imu" and "section_lengths" not in params and hasattr(ctx.arm, "section_lengths"):
+        params["section_lengths"] = tuple(ctx.arm.section_lengths)  # the interface has the arm's sections
+    try:
+        recording = maker(samples=data.samples, seed=data.seed, **params)
+    except (TypeError, ValueError) as exc:
+        raise ctx.error("data.params", str(exc)) from None
+    demo = recording if isinstance(recording, sources.PoseDemonstration) else recording.demonstration
+    return demo, recording
+
+
+# ----------------------------------------------------------------------------- variants
+
+
+def make_dmp(variant: str, n_basis: int, gains: Gains) -> DMP:
+    if variant in POSE_VARIANTS:
+        return pose_dmp(variant, n_basis=n_basis, gains=gains)
+    space = UnitQuaternion() if variant == "quaternion" else Euclidean(3)
+    return DMP(space, n_basis=n_basis, gains=gains)
+
+
+def variant_data(variant: str, position: np.ndarray, quaternion: np.ndarray,
+                 rpy_reference: np.ndarray | None = None) -> np.ndarray:
+    """Poses ``(..., size)`` in the state layout of a variant; ``rpy`` angles are unwrapped (near ``rpy_reference``)."""
+    if variant in ("seed", "dual-quaternion"):
+        return dq_from_rotation_translation(quaternion, position)
+    if variant == "cartesian":
+        return np.concatenate([position, quaternion], axis=-1)
+    if variant == "quaternion":
+        return quaternion
+    if variant == "position":
+        return position
+    rpy = rpy_from_quat(quaternion)
+    if rpy.ndim == 2:
+        return np.unwrap(rpy, axis=0)
+    return rpy + 2 * np.pi * np.round((rpy_reference - rpy) / (2 * np.pi))
+
+
+def variant_pose(variant: str, y: np.ndarray) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """``(positions, quaternions)`` of states of a variant (``None`` where it has none)."""
+    if variant in ("seed", "dual-quaternion"):
+        return dq_translation(y), dq_rotation(y)
+    if variant == "cartesian":
+        return y[..., :3], y[..., 3:]
+    if variant == "quaternion":
+        return None, y
+    if variant == "position":
+        return y, None
+    return None, quat_from_rpy(y[..., 0], y[..., 1], y[..., 2])
+
+
+def pose_errors(variant: str, y: np.ndarray, position: np.ndarray, quaternion: np.ndarray) -> dict[str, np.ndarray]:
+    """Per-sample position error [m] and orientation error [rad] of roll-out states against poses."""
+    p, q = variant_pose(variant, y)
+    errors = {}
+    if p is not None:
+        errors["position"] = np.linalg.norm(p - position, axis=-1)
+    if q is not None:
+        errors["orientation"] = quat_angle(quat_multiply(q, quat_conjugate(quaternion)))
+    return errors
+
+
+def unit_error(variant: str, y: np.ndarray) -> float:
+    """Largest departure from unit norm of the quaternion parts the variant should keep unit."""
+    if variant == "dual-quaternion":
+        n, d = dq_norm_residual(y)
+        return float(max(np.abs(n).max(), np.abs(d).max()))
+    if variant in ("seed", "quaternion"):
+        return float(np.abs(np.linalg.norm(y[..., :4], axis=-1) - 1).max())
+    if variant == "cartesian":
+        return float(np.abs(np.linalg.norm(y[..., 3:], axis=-1) - 1).max())
+    return 0.0
+
+
+def _summary(errors: dict[str, np.ndarray], prefix: str) -> dict[str, float]:
+    out = {}
+    if "position" in errors:
+        out[f"{prefix} position max [mm]"] = float(errors["position"].max() * MM)
+    if "orientation" in errors:
+        out[f"{prefix} orientation max [mrad]"] = float(errors["orientation"].max() * MRAD)
+    return out
+
+
+# ----------------------------------------------------------------------------- the run
+
+
+def run(ctx: ProblemContext) -> Result:
+    spec = ctx.spec
+    o = _settings(ctx, spec.options, OPTION_DEFAULTS, "options")
+    variants = list(o["variants"])
+    for i, v in enumerate(variants):
+        if v not in VARIANTS:
+            raise ctx.error(f"options.variants.{i}", f"unknown DMP variant {v!r}; known: {', '.join(VARIANTS)}")
+    if not variants:
+        raise ctx.error("options.variants", "list at least one DMP variant")
+    n_basis = int(o["n_basis"])
+    if n_basis < 2:
+        raise ctx.error("options.n_basis", "at least 2 basis functions")
+    gains_given = _settings(ctx, o["gains"], {n: None for n in GAIN_NAMES}, "options.gains")
+    try:
+        gains = Gains(**{k: float(v) for k, v in gains_given.items() if v is not None})
+    except (TypeError, ValueError) as exc:
+        raise ctx.error("options.gains", str(exc)) from None
+    regression = _settings(ctx, o["regression"], REGRESSION_DEFAULTS, "options.regression")
+    if regression["method"] not in METHODS:
+        raise ctx.error("options.regression.method", f"unknown method; known: {', '.join(METHODS)}")
+    bound = regression["bound"]
+    if bound is not None and regression["method"] != "cvxpy":
+        raise ctx.error("options.regression.bound", "bounds on the weights need method cvxpy")
+    settle = float(o["settle"])
+    tolerance = _settings(ctx, o["tolerance"], OPTION_DEFAULTS["tolerance"], "options.tolerance")
+
+    demo, recording = load_demonstration(ctx)
+    tau = float(demo.t[-1] - demo.t[0])
+    truth = _true_motion(ctx, recording)
+    final_rpy = np.unwrap(rpy_from_quat(demo.quaternion), axis=0)[-1]
+
+    def fit(dmp: DMP, variant: str, method: str, source: str):
+        kwargs = {"ridge": float(regression["ridge"])}
+        if method == "cvxpy" and bound is not None:
+            kwargs.update(lower=-float(bound), upper=float(bound))
+        if method == "lwr":
+            kwargs = {}
+        try:
+            return dmp.imitate(demo.t, variant_data(variant, demo.position, demo.quaternion), method=method,
+                               source=source, **kwargs)
+        except InputDataError:
+            raise
+        except OptikinError as exc:
+            raise SpecError(ctx.path, "options.regression", str(exc)) from None
+
+    source = f"{ctx.path.name}: data ({spec.data.source})"
+    models: dict[str, DMP] = {}
+    fits: dict[str, Any] = {}
+    rollouts: dict[tuple[str, str], np.ndarray] = {}
+    status: list[str] = []
+    labels: list[str] = []
+    metrics: dict[str, Any] = {"demonstration samples": int(demo.t.size), "demonstration duration [s]": tau}
+    comparison: list[MethodRow] = []
+    notes: list[str] = []
+
+    with ctx.progress.task(f"dmp: {len(variants)} variants", total=len(variants)) as advance:
+        for variant in variants:
+            dmp = make_dmp(variant, n_basis, gains)
+            fits[variant] = fit(dmp, variant, regression["method"], source)
+            models[variant] = dmp
+            out = dmp.rollout()
+            rollouts[(variant, "reproduction")] = out.y
+            errors = pose_errors(variant, out.y, demo.position, demo.quaternion)
+            row = {"fit residual": fits[variant].residual, "fit time [ms]": fits[variant].seconds * 1e3,
+                   "roll-out time [ms]": out.seconds * 1e3, **_summary(errors, "reproduction")}
+            if truth is not None:  # the recording's noise-free motion
+                row |= _summary(pose_errors(variant, out.y, *truth), "vs true motion")
+            row["unit-norm error"] = unit_error(variant, out.y)
+            labels.append(f"{variant}: reproduction")
+            status.append(_status(out.y, row["unit-norm error"]))
+            comparison.append(MethodRow(f"dmp {variant} ({regression['method']})", "solver", row))
+            advance()
+
+    # The regression methods compared on the first variant.
+    first = variants[0]
+    for method in spec.baselines:
+        if method not in ("lstsq", "lwr") or method == regression["method"]:
+            continue
+        dmp = make_dmp(first, n_basis, gains)
+        baseline_fit = fit(dmp, first, method, source)
+        out = dmp.rollout()
+        errors = pose_errors(first, out.y, demo.position, demo.quaternion)
+        comparison.append(MethodRow(f"dmp {first} ({method})", "baseline", {
+            "fit residual": baseline_fit.residual, "fit time [ms]": baseline_fit.seconds * 1e3,
+            "roll-out time [ms]": out.seconds * 1e3, **_summary(errors, "reproduction")}))
+
+    goals = _goal_switches(ctx, o["goal_switches"], demo, tau)
+    if goals:
+        for variant, dmp in models.items():
+            switches = [(when, variant_data(variant, p, q, final_rpy)) for when, p, q in goals]
+            out = dmp.rollout(duration=settle * tau, goal_switches=switches)
+            rollouts[(variant, "goal switch")] = out.y
+            _, p_goal, q_goal = goals[-1]
+            final = pose_errors(variant, out.y[-1:], p_goal, q_goal)
+            metrics |= {f"{variant}: goal switch final {k} [{'mm' if k == 'position' else 'mrad'}]":
+                        float(v[0] * (MM if k == "position" else MRAD)) for k, v in final.items()}
+            labels.append(f"{variant}: goal switch")
+            converged = (final.get("position", np.zeros(1))[0] * MM <= tolerance["position_mm"]
+                         and final.get("orientation", np.zeros(1))[0] * MRAD <= tolerance["orientation_mrad"])
+            state = _status(out.y, unit_error(variant, out.y))
+            status.append(state if state != "ok" or converged else "not_converged")
+
+    if o["disturbance"] is not None:
+        d = _settings(ctx, o["disturbance"], DISTURBANCE_DEFAULTS, "options.disturbance")
+        if not isinstance(o["couplings"], dict) or not o["couplings"]:
+            raise ctx.error("options.couplings", "expected a mapping label -> {alpha_s, alpha}")
+        couplings = {str(label): _settings(ctx, gains_of, {"alpha_s": 0.0, "alpha": 0.0}, f"options.couplings.{label}")
+                     for label, gains_of in o["couplings"].items()}
+        for variant in variants:
+            dim = models[variant].space.dim
+            component = int(d["component"])
+            if not 0 <= component < dim:
+                raise ctx.error("options.disturbance.component", f"must be in 0 .. {dim - 1} for {variant}")
+
+            def step(t, component=component, dim=dim):
+                force = np.zeros((t.size, dim))
+                force[(t >= d["start"]) & (t < d["stop"]), component] = float(d["amplitude"])
+                return force
+
+            reference = variant_data(variant, demo.position, demo.quaternion)
+            for label, extra in [("plain", {})] + list(couplings.items()):
+                dmp = make_dmp(variant, n_basis, gains.with_values(**{k: float(v) for k, v in extra.items()}))
+                fit(dmp, variant, regression["method"], source)
+                coupled_to = reference if extra else None
+                calm = dmp.rollout(reference=coupled_to)
+                out = dmp.rollout(disturbance=step, reference=coupled_to)
+                rollouts[(variant, f"perturbation {label}")] = out.y
+                # the disturbance's effect: the deviation from the same DMP's undisturbed roll-out
+                p_calm, q_calm = variant_pose(variant, calm.y)
+                deviation = pose_errors(variant, out.y, p_calm, q_calm)
+                for k, v in deviation.items():
+                    unit, scale = ("mm", MM) if k == "position" else ("mrad", MRAD)
+                    metrics[f"{variant}: perturbation {label} peak {k} deviation [{unit}]"] = float(v.max() * scale)
+                    metrics[f"{variant}: perturbation {label} final {k} deviation [{unit}]"] = float(v[-1] * scale)
+                labels.append(f"{variant}: perturbation {label}")
+                status.append(_status(out.y, unit_error(variant, out.y)))
+
+    if o["tuning"] is not None:
+        comparison += _tuning(ctx, o["tuning"], demo, variants, n_basis, gains, goals, final_rpy)
+
+    arrays: dict[str, np.ndarray] = {"t": demo.t, "demo_position": demo.position, "demo_quaternion": demo.quaternion}
+    for (variant, scenario), y in rollouts.items():
+        arrays[f"{variant}__{scenario.replace(' ', '_')}"] = y
+    if recording is not None and hasattr(recording, "imu"):
+        arrays |= {"imu": recording.imu, "relative": recording.relative, "section_angles": recording.angles}
+    if recording is not None and hasattr(recording, "filtered_rpy"):
+        arrays |= {"kinect_position": recording.position, "kinect_rpy": recording.rpy,
+                   "kinect_filtered_rpy": recording.filtered_rpy}
+    if "seed" in variants:
+        qd = rollouts[("seed", "reproduction")][:, 4:]
+        notes.append("seed variant: |Q_d| stays at its initial value "
+                     f"({np.linalg.norm(qd[0]):.4f}; demonstration ends at "
+                     f"{np.linalg.norm(demo.dual_quaternion[-1, 4:]):.4f}), so the tip cannot change its "
+                     "distance from the origin (optikin.dmp.pose)")
+    notes.append(f"labels of the per-roll-out status: {labels}")
+    return Result(problem=spec.name, kind=spec.kind, solver=f"{regression['method']} regression",
+                  title=spec.title, arm={"demonstration": spec.data.source}, status=status,
+                  timings={"fit [ms]": fits[first].seconds * 1e3}, metrics=metrics, comparison=comparison,
+                  arrays=arrays, figures=_figures(spec.name, demo, variants, rollouts), notes=notes)
+
+
+def _true_motion(ctx: ProblemContext, recording: Any) -> tuple[np.ndarray, np.ndarray] | None:
+    """The noise-free tip motion of an IMU recording (forward kinematics of its true configurations)."""
+    if not isinstance(recording, sources.InterfaceRecording):
+        return None
+    quaternion, position = ctx.arm.section_frames(recording.configuration)[-1]
+    sign = np.where(np.sum(quaternion * recording.demonstration.quaternion, axis=1) < 0, -1.0, 1.0)
+    return position, quaternion * sign[:, None]
+
+
+def _status(y: np.ndarray, unit: float) -> str:
+    return "ok" if np.isfinite(y).all() and unit < 1e-9 else "failed"
+
+
+def _goal_switches(ctx: ProblemContext, given: Any, demo, tau: float) -> list[tuple[float, np.ndarray, np.ndarray]]:
+    """``(time, position, quaternion)`` of each new goal, each relative to the goal before it."""
+    if not isinstance(given, list):
+        raise ctx.error("options.goal_switches", "expected a list of {time, rotate, translate}")
+    goals, position, quaternion = [], demo.position[-1], demo.quaternion[-1]
+    for i, item in enumerate(given):
+        s = _settings(ctx, item, {"time": None, "rotate": [0, 0, 0], "translate": [0, 0, 0]},
+                      f"options.goal_switches.{i}")
+        if s["time"] is None or not 0 <= float(s["time"]) <= 3 * tau:
+            raise ctx.error(f"options.goal_switches.{i}.time", f"required, within 0 .. {3 * tau:.3g} s")
+        position = position + _vector(ctx, s["translate"], 3, f"options.goal_switches.{i}.translate")
+        quaternion = quat_multiply(quat_exp(0.5 * _vector(ctx, s["rotate"], 3, f"options.goal_switches.{i}.rotate")),
+                                   quaternion)
+        goals.append((float(s["time"]), position, quaternion))
+    return goals
+
+
+def _tuning(ctx: ProblemContext, given: Any, demo, variants: list[str], n_basis: int, gains: Gains,
+            goals, final_rpy) -> list[MethodRow]:
+    s = _settings(ctx, given, TUNING_DEFAULTS, "options.tuning")
+    names = tuple(s["gains"])
+    for i, name in enumerate(names):
+        if name not in GAIN_NAMES:
+            raise ctx.error(f"options.tuning.gains.{i}", f"unknown gain {name!r}; known: {', '.join(GAIN_NAMES)}")
+    variant = s["variant"] or variants[0]
+    if variant not in VARIANTS:
+        raise ctx.error("options.tuning.variant", f"unknown DMP variant {variant!r}; known: {', '.join(VARIANTS)}")
+    if s["scenario"] not in SCENARIOS:
+        raise ctx.error("options.tuning.scenario", f"unknown scenario; known: {', '.join(SCENARIOS)}")
+    extra = {}
+    if s["scenario"] == "goal":
+        if not goals:
+            raise ctx.error("options.tuning.scenario", "the goal scenario needs options.goal_switches")
+        when, p, q = goals[0]
+        extra = {"new_goal": variant_data(variant, p, q, final_rpy), "switch_time": when}
+    dmp = make_dmp(variant, n_basis, gains)
+    problem = tuning_problem(dmp, demo.t, variant_data(variant, demo.position, demo.quaternion), names,
+                             scenario=s["scenario"], **extra)
+    rows = []
+    with ctx.progress.task(f"dmp: tuning {', '.join(names)}", total=2) as advance:
+        results = [tune_gradient(problem, max_iterations=int(s["max_iterations"]))]
+        advance()
+        if "genetic" in ctx.spec.baselines:
+            results.append(tune_genetic(problem, population=int(s["population"]),
+                                        generations=int(s["generations"]), seed=ctx.spec.data.seed))
+        advance()
+    for result in results:
+        metrics = {"eq. 29 error": result.error, "eq. 29 error at start": result.initial_error,
+                   "time [s]": result.seconds, "objective evaluations": result.evaluations,
+                   **{n: getattr(result.gains, n) for n in names}}
+        rows.append(MethodRow(f"tuning {variant} ({result.method})",
+                              "solver" if result.method == "ipopt" else "baseline", metrics))
+    return rows
+
+
+def _figures(name: str, demo, variants: list[str], rollouts: dict[tuple[str, str], np.ndarray]) -> dict:
+    figures = {}
+
+    def errors_figure(scenario: str):
+        def draw(path):
+            series = {}
+            for variant in variants:
+                y = rollouts.get((variant, scenario))
+                if y is None:
+                    continue
+                n = min(len(y), len(demo.t))
+                for k, v in pose_errors(variant, y[:n], demo.position[:n], demo.quaternion[:n]).items():
+                    unit = MM if k == "position" else MRAD
+                    series[f"{variant} {k}"] = v[:, None] * unit
+            plots.time_series(path, demo.t[:n], series, "[mm | mrad]", f"{name}: {scenario} error",
+                              labels=("error",))
+        return draw
+
+    def quaternion_figure(variant: str, scenario: str):
+        def draw(path):
+            y = rollouts[(variant, scenario)]
+            _, q = variant_pose(variant, y)
+            t = np.arange(len(y)) * (demo.t[1] - demo.t[0])
+            series = {f"{variant} Q_r": q}
+            if variant in ("seed", "dual-quaternion"):
+                series[f"{variant} Q_d"] = y[:, 4:]
+            if len(y) == len(demo.t):  # the demonstration above its reproduction
+                series = {"demonstration Q_r": demo.quaternion, **series}
+                if variant in ("seed", "dual-quaternion"):
+                    series = {"demonstration Q_d": demo.dual_quaternion[:, 4:], **series}
+            plots.time_series(path, t, series, "", f"{name}: {variant}, {scenario}", labels=("w", "x", "y", "z"))
+        return draw
+
+    figures["reproduction_error"] = errors_figure("reproduction")
+    for variant in variants:
+        if variant in ("position", "rpy"):
+            continue
+        for scenario in ("reproduction", "goal switch", "perturbation coupled"):
+            if (variant, scenario) in rollouts:
+                figures[f"{variant}_{scenario.replace(' ', '_')}"] = quaternion_figure(variant, scenario)
+    return figures
+
+
+register_kind(ProblemKind(
+    name="dmp",
+    summary="learn a demonstrated motion with DMPs (cvxpy regression, NLP gain tuning) and generalise it",
+    run=run,
+    backend_families=(),
+    default_solver=None,
+    baselines=("lstsq", "lwr", "genetic"),
+))

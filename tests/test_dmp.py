@@ -1,0 +1,357 @@
+"""Tests of the DMPs of `optikin.dmp` (seed 000 eqs. 11-28).
+
+Expected values come from outside the code under test: movement_primitives
+(basis, phase, DMP and CartesianDMP roll-outs on the same demonstration),
+pytransform3d (slerp for the goal filter), the closed-form response of a
+critically damped spring, the discrete recursion of a linear system written
+out with numpy matrix powers, and exact invariances (time scaling, norms).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import pytransform3d.rotations as pr
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from movement_primitives.dmp import DMP as MPDMP
+from movement_primitives.dmp import CartesianDMP
+from movement_primitives.dmp._forcing_term import ForcingTerm
+
+from optikin.algebra import (
+    dq_norm_residual,
+    dq_rotation,
+    dq_translation,
+    quat_angle,
+    quat_conjugate,
+    quat_exp,
+    quat_from_axis_angle,
+    quat_log,
+    quat_multiply,
+)
+from optikin.data.demonstrations import smooth_pose_demonstration
+from optikin.dmp import DMP, Euclidean, Gains, UnitQuaternion
+from optikin.dmp import basis
+from optikin.dmp.canonical import stopped_log_phase
+from optikin.dmp.imitation import demonstration_log_phase, prepare
+from optikin.dmp.pose import cartesian_dmp, dual_quaternion_dmp, seed_dual_quaternion_dmp
+from optikin.errors import InputDataError
+
+ZETA = -math.log(0.01)
+
+
+def rotation_error(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return quat_angle(quat_multiply(a, quat_conjugate(b)))
+
+
+@pytest.fixture(scope="module")
+def demo():
+    return smooth_pose_demonstration(samples=500, duration=5.0, seed=3)
+
+
+@pytest.fixture(scope="module")
+def quaternion_dmp(demo):
+    dmp = DMP(UnitQuaternion(), n_basis=30)
+    dmp.imitate(demo.t, demo.quaternion)
+    return dmp
+
+
+def random_quaternions(rng: np.random.Generator, n: int) -> np.ndarray:
+    q = rng.normal(size=(n, 4))
+    return q / np.linalg.norm(q, axis=1, keepdims=True)
+
+
+# ----------------------------------------------------------------------------- phase and basis
+
+
+def test_basis_matches_movement_primitives_forcing_term(demo):
+    """Centres, widths and forcing values equal movement_primitives' ForcingTerm on the same demonstration."""
+    prepared = prepare(Euclidean(3), demo.t, demo.position)
+    log_s = demonstration_log_phase(prepared, ZETA)
+    c = basis.centres_along(log_s, 20)
+    h = basis.widths(c)
+    reference = ForcingTerm(3, 20, demo.t[-1], 0.0, 0.8, ZETA)
+    np.testing.assert_allclose(c, reference.centers, rtol=1e-12)
+    np.testing.assert_allclose(h, reference.widths, rtol=1e-9)
+    reference.weights_ = np.random.default_rng(0).normal(size=(3, 20))
+    s = np.exp(log_s)
+    np.testing.assert_allclose(basis.features(s, c, h) @ reference.weights_.T, reference.forcing_term(s).T,
+                               rtol=1e-10, atol=1e-12)
+
+
+def test_phase_is_the_solution_of_the_canonical_system():
+    """alpha = 0: exp(-zeta t / tau) (eq. 15); a constant error e slows the rate to zeta / (1 + alpha e) (eq. 25)."""
+    dt, tau, k = 0.01, 2.0, np.arange(301)
+    np.testing.assert_allclose(np.exp(stopped_log_phase(dt, tau, 3.0, 0.0, np.zeros(300))),
+                               np.exp(-3.0 * k * dt / tau), rtol=1e-13)
+    np.testing.assert_allclose(np.exp(stopped_log_phase(dt, tau, 3.0, 4.0, np.full(300, 0.5))),
+                               np.exp(-3.0 / 3.0 * k * dt / tau), rtol=1e-13)
+
+
+# ----------------------------------------------------------------------------- dynamics against closed forms
+
+
+def _spring_rollout(space_dmp: DMP, dt: float, start, goal) -> tuple[np.ndarray, np.ndarray]:
+    """Roll out with zero weights: the transformation system alone, a critically damped spring."""
+    out = space_dmp.rollout(duration=space_dmp.tau, dt=dt, start=start, goal=goal,
+                            weights=np.zeros_like(space_dmp.weights))
+    return out.t, out.y
+
+
+def test_zero_weight_dmp_is_the_discrete_critically_damped_spring(demo):
+    """Per angle (eqs. 11-12) with f = 0: the roll-out equals the linear recursion written as matrix powers,
+    and converges at first order in dt to y(t) = g + (y0 - g)(1 + w t) exp(-w t), w = beta / (2 tau)."""
+    dmp = DMP(Euclidean(1), n_basis=5, gains=Gains(beta=20.0, gamma=5.0))
+    dmp.imitate(demo.t, demo.position[:, :1])
+    tau, y0, g = dmp.tau, np.array([0.3]), np.array([-0.2])
+
+    dt = 0.01
+    t, y = _spring_rollout(dmp, dt, y0, g)
+    k1, k2 = 20.0 * dt / tau, 100.0 * (dt / tau) ** 2
+    A = np.array([[1 - k1, -k2], [1 - k1, 1 - k2]])  # (u = dt/tau eta, e = y - g)
+    states = [np.linalg.matrix_power(A, n) @ np.array([0.0, y0[0] - g[0]]) for n in range(t.size)]
+    np.testing.assert_allclose(y[:, 0], g[0] + np.array(states)[:, 1], atol=1e-12)
+
+    w = 20.0 / (2 * tau)
+    errors = []
+    for dt in (0.01, 0.005):
+        t, y = _spring_rollout(dmp, dt, y0, g)
+        exact = g[0] + (y0[0] - g[0]) * (1 + w * t) * np.exp(-w * t)
+        errors.append(np.abs(y[:, 0] - exact).max())
+    assert errors[0] < 5e-3 and 1.8 < errors[0] / errors[1] < 2.2
+
+
+def test_single_axis_quaternion_dmp_follows_the_scalar_spring(quaternion_dmp):
+    """A rotation about one fixed axis reduces eqs. 17-18 to the scalar spring of eqs. 11-12 on the angle."""
+    dmp = quaternion_dmp
+    axis = np.array([2.0, -1.0, 2.0]) / 3.0
+    angle = 2.5
+    out = dmp.rollout(start=np.array([1.0, 0, 0, 0]), goal=quat_from_axis_angle(axis, angle), dt=0.001,
+                      weights=np.zeros_like(dmp.weights))
+    w = dmp.gains.beta / (2 * dmp.tau)
+    expected_angle = angle * (1 - (1 + w * out.t) * np.exp(-w * out.t))
+    rotation_vector = 2 * quat_log(out.y)
+    np.testing.assert_allclose(np.cross(rotation_vector, axis), 0.0, atol=1e-12)
+    assert np.abs(rotation_vector @ axis - expected_angle).max() < 2e-3
+
+
+# ----------------------------------------------------------------------------- unit norm and convergence
+
+
+@pytest.mark.parametrize("beta_g0", [math.inf, 8.0])
+def test_quaternion_rollouts_stay_unit_and_reach_random_goals(quaternion_dmp, beta_g0):
+    """|q| - 1 < 1e-12 along every roll-out and final error < 1e-6 rad, for random goals and mid-motion switches."""
+    rng = np.random.default_rng(11)
+    gains = quaternion_dmp.gains.with_values(beta_g0=beta_g0)
+    goals = random_quaternions(rng, 6)
+    for first, second in zip(goals[:3], goals[3:]):
+        out = quaternion_dmp.rollout(duration=6 * quaternion_dmp.tau, goal=first, gains=gains,
+                                     goal_switches=[(0.4 * quaternion_dmp.tau, second)])
+        assert np.abs(np.linalg.norm(out.y, axis=1) - 1).max() < 1e-12
+        assert np.abs(np.linalg.norm(out.goal, axis=1) - 1).max() < 1e-12
+        assert rotation_error(out.y[-1], second) < 1e-6
+
+
+unit_quaternions = st.lists(st.floats(-1, 1), min_size=4, max_size=4).map(np.array).filter(
+    lambda q: np.linalg.norm(q) > 0.1).map(lambda q: q / np.linalg.norm(q))
+
+
+@settings(max_examples=25, deadline=None)
+@given(first=unit_quaternions, second=unit_quaternions, switch=st.floats(0.0, 1.5), beta_g0=st.floats(5.0, 50.0))
+def test_any_goal_and_any_switch_keep_unit_norm_and_converge(quaternion_dmp, first, second, switch, beta_g0):
+    """beta_g0 >= 5: the filter's own gap, pi exp(-beta_g0 (6 - 1.5)), is below 1e-9 rad by the end."""
+    dmp = quaternion_dmp
+    out = dmp.rollout(duration=6 * dmp.tau, goal=first, goal_switches=[(switch * dmp.tau, second)],
+                      gains=dmp.gains.with_values(beta_g0=beta_g0))
+    assert np.abs(np.linalg.norm(out.y, axis=1) - 1).max() < 1e-12
+    assert rotation_error(out.y[-1], second) < 1e-6
+
+
+def test_dual_quaternion_rollouts_stay_unit_and_reach_random_poses(demo):
+    """The sound pose DMP stays a unit dual quaternion (|Q_r| = 1, Q_r . Q_d = 0) and reaches every goal pose."""
+    dmp = dual_quaternion_dmp(n_basis=30)
+    dmp.imitate(demo.t, demo.dual_quaternion)
+    rng = np.random.default_rng(5)
+    for q, p in zip(random_quaternions(rng, 3), rng.uniform(-0.2, 0.2, (3, 3))):
+        goal = np.concatenate([q, 0.5 * quat_multiply(np.concatenate([[0.0], p]), q)])
+        out = dmp.rollout(duration=6 * dmp.tau, goal=goal)
+        norm_error, orthogonality = dq_norm_residual(out.y)
+        assert np.abs(norm_error).max() < 1e-12 and np.abs(orthogonality).max() < 1e-12
+        assert rotation_error(dq_rotation(out.y[-1]), q) < 1e-6
+        assert np.linalg.norm(dq_translation(out.y[-1]) - p) < 1e-6
+
+
+def test_seed_variant_cannot_change_the_norm_of_q_d(demo):
+    """The seed's quaternion DMP on Q_d keeps |Q_d| = |p0|/2 (eq. 23 preserves norms), so it misses a goal at
+    another distance from the origin, where the sound variants reach it."""
+    dq = demo.dual_quaternion
+    assert abs(np.linalg.norm(dq[-1, 4:]) - np.linalg.norm(dq[0, 4:])) > 0.01  # the demonstration changes |p|
+    seed = seed_dual_quaternion_dmp(n_basis=30)
+    seed.imitate(demo.t, dq)
+    out = seed.rollout(duration=6 * seed.tau)
+    np.testing.assert_allclose(np.linalg.norm(out.y[:, 4:], axis=1), np.linalg.norm(dq[0, 4:]), rtol=1e-12)
+    assert np.linalg.norm(dq_translation(out.y[-1]) - demo.position[-1]) > 0.01
+    for sound in (dual_quaternion_dmp(n_basis=30), cartesian_dmp(n_basis=30)):
+        data = dq if sound.space.size == 8 else demo.pose
+        sound.imitate(demo.t, data)
+        final = sound.rollout(duration=6 * sound.tau).y[-1]
+        position = dq_translation(final) if sound.space.size == 8 else final[:3]
+        assert np.linalg.norm(position - demo.position[-1]) < 1e-6
+
+
+# ----------------------------------------------------------------------------- learning and generalisation
+
+
+@pytest.mark.parametrize("space,column", [(Euclidean(3), "rpy"), (UnitQuaternion(), "quaternion")])
+def test_reproduction_error_falls_as_the_basis_grows(demo, space, column):
+    data = demo.quaternion if column == "quaternion" else 2 * quat_log(demo.quaternion)
+    errors = []
+    for n in (4, 8, 16, 32):
+        dmp = DMP(space, n_basis=n)
+        dmp.imitate(demo.t, data)
+        y = dmp.rollout().y
+        errors.append((rotation_error(y, data) if column == "quaternion" else np.abs(y - data)).max())
+    assert all(a > 1.5 * b for a, b in zip(errors, errors[1:])), errors
+    assert errors[-1] < 1e-3
+
+
+def test_time_scaling_replays_the_same_motion_slower(quaternion_dmp):
+    """tau -> 2 tau with dt -> 2 dt gives the same samples: the roll-out depends on dt / tau only."""
+    original = quaternion_dmp.rollout()
+    slow = quaternion_dmp.rollout(tau=2 * quaternion_dmp.tau, dt=2 * quaternion_dmp.dt)
+    np.testing.assert_allclose(slow.t, 2 * original.t)
+    np.testing.assert_allclose(slow.y, original.y, atol=1e-13)
+
+
+def test_goal_filter_moves_the_goal_along_the_geodesic(quaternion_dmp):
+    """Eq. (24) integrated exactly: after a switch at t_s the goal is slerp(new, old, exp(-beta_g0 (t - t_s)/tau))."""
+    dmp, rng = quaternion_dmp, np.random.default_rng(2)
+    old, new = rng.normal(size=(2, 4))
+    old, new = old / np.linalg.norm(old), new / np.linalg.norm(new)
+    new = new if old @ new >= 0 else -new
+    switch, beta_g0 = 1.0 + 0.5 * dmp.dt, 6.0  # mid-step: the step from t_k = 1 + dt is the first to see it
+    out = dmp.rollout(goal=old, goal_switches=[(switch, new)], gains=dmp.gains.with_values(beta_g0=beta_g0))
+    k = int(np.flatnonzero(out.t >= switch)[0])
+    elapsed = out.t[k + 1:] - out.t[k]
+    expected = np.array([pr.quaternion_slerp(new, old, math.exp(-beta_g0 * e / dmp.tau)) for e in elapsed])
+    np.testing.assert_allclose(out.goal[k + 1:], expected, atol=1e-12)
+    np.testing.assert_allclose(out.goal[:k + 1], np.broadcast_to(old, (k + 1, 4)), atol=1e-15)
+    # The spring term gamma gap(g, y) of eq. (17) changes smoothly across the switch (no kink in eta);
+    # without the filter it jumps.
+    jump = dmp.rollout(goal=old, goal_switches=[(switch, new)])
+    window = slice(k - 2, k + 4)
+    kink = np.abs(np.diff(out.eta, 2, axis=0)[window]).max()
+    assert kink < 0.2 * np.abs(np.diff(jump.eta, 2, axis=0)[window]).max()
+
+
+def test_perturbation_recovery_by_coupling_to_the_reference(demo):
+    """A step disturbance (amplitude 1 from 40% to 56% of the motion, as seed Figs. 20-21 at 5-7 s of 12.5 s):
+    coupled to the reference (eq. 27) the DMP returns to it and ends much closer than the plain DMP, and still
+    converges to the goal."""
+    tau = demo.t[-1]
+
+    def step(t):
+        d = np.zeros((t.size, 3))
+        d[(t >= 0.4 * tau) & (t < 0.56 * tau), 0] = 1.0
+        return d
+
+    ends, peaks = {}, {}
+    for label, gains in (("plain", Gains()), ("coupled", Gains(alpha_s=5.0, alpha=5.0))):
+        dmp = DMP(UnitQuaternion(), n_basis=30, gains=gains)
+        dmp.imitate(demo.t, demo.quaternion)
+        out = dmp.rollout(disturbance=step, reference=demo.quaternion if label == "coupled" else None)
+        error = rotation_error(out.y, demo.quaternion)
+        peaks[label], ends[label] = error.max(), error[-1]
+        assert peaks[label] > 1e-3  # the disturbance did push the motion off
+        final = dmp.rollout(duration=6 * tau, disturbance=step).y[-1]
+        assert rotation_error(final, demo.quaternion[-1]) < 1e-6
+    assert peaks["coupled"] < peaks["plain"]
+    assert ends["coupled"] < 0.02 * peaks["coupled"] and ends["coupled"] < 0.2 * ends["plain"]
+
+
+def test_phase_stopping_holds_the_motion_while_the_robot_is_blocked(quaternion_dmp, demo):
+    """Eq. (28): with the reference held at the start pose (a blocked robot) the phase stays high and the DMP waits."""
+    dmp = quaternion_dmp
+    held = np.broadcast_to(demo.quaternion[0], demo.quaternion.shape)
+    free = dmp.rollout(reference=held, gains=dmp.gains.with_values(alpha_s=2.0))
+    stopped = dmp.rollout(reference=held, gains=dmp.gains.with_values(alpha_s=2.0, alpha=50.0))
+    assert free.phase[-1] < 0.02 and stopped.phase[-1] > 0.5
+    progress = rotation_error(demo.quaternion[-1], demo.quaternion[0])
+    assert rotation_error(stopped.y[-1], demo.quaternion[0]) < 0.5 * rotation_error(free.y[-1], demo.quaternion[0])
+    assert progress > 0.1
+
+
+# ----------------------------------------------------------------------------- cross-checks with movement_primitives
+
+
+def test_per_dof_dmp_agrees_with_movement_primitives(demo):
+    """Same demonstration, gains, basis: reproduction, a new goal and a doubled duration agree with
+    movement_primitives' DMP to within 1% of the change a generalisation makes."""
+    ours = DMP(Euclidean(3), n_basis=30)
+    ours.imitate(demo.t, demo.position)
+    theirs = MPDMP(n_dims=3, execution_time=demo.t[-1], dt=demo.t[1], n_weights_per_dim=30)
+    theirs.imitate(demo.t, demo.position)
+    n = demo.t.size  # open_loop() may add a sample past the end
+    base_ours, base_theirs = ours.rollout().y, theirs.open_loop()[1][:n]
+    assert np.abs(base_ours - demo.position).max() < 1e-5
+    assert np.abs(base_theirs - demo.position).max() < 2e-3
+
+    goal = demo.position[-1] + np.array([0.04, -0.03, 0.05])
+    theirs.configure(goal_y=goal)
+    shift_ours = ours.rollout(goal=goal).y - base_ours
+    shift_theirs = theirs.open_loop()[1][:n] - base_theirs
+    assert np.abs(shift_ours - shift_theirs).max() < 0.01 * np.abs(shift_theirs).max()
+
+    theirs.configure(goal_y=demo.position[-1])
+    theirs.execution_time_ = 2 * demo.t[-1]
+    slow_theirs = theirs.open_loop()[1]
+    slow_ours = ours.rollout(tau=2 * ours.tau).y
+    n = min(len(slow_ours), len(slow_theirs))
+    assert np.abs(slow_ours[:n] - slow_theirs[:n]).max() < 0.01 * np.ptp(demo.position, axis=0).max()
+
+
+def test_quaternion_dmp_agrees_with_movement_primitives_cartesian_dmp(demo):
+    """CartesianDMP (Ude et al. 2014 on the orientation) on the same pose demonstration: new goal pose and
+    new orientation move both by the same amount to within 1%."""
+    ours = cartesian_dmp(n_basis=30)
+    ours.imitate(demo.t, demo.pose)
+    theirs = CartesianDMP(execution_time=demo.t[-1], dt=demo.t[1], n_weights_per_dim=30)
+    theirs.imitate(demo.t, demo.pose)
+    n = demo.t.size  # open_loop() may add a sample past the end
+    base_ours, base_theirs = ours.rollout().y, theirs.open_loop()[1][:n]
+    assert rotation_error(base_ours[:, 3:], demo.quaternion).max() < 2e-4
+    assert rotation_error(base_theirs[:, 3:], demo.quaternion).max() < 2e-3
+
+    goal = np.concatenate([demo.position[-1] + 0.05,
+                           quat_multiply(quat_exp(np.array([0.2, -0.1, 0.25])), demo.quaternion[-1])])
+    theirs.configure(goal_y=goal)
+    moved_ours, moved_theirs = ours.rollout(goal=goal).y, theirs.open_loop()[1][:n]
+    turn_ours = 2 * quat_log(quat_multiply(moved_ours[:, 3:], quat_conjugate(base_ours[:, 3:])))
+    turn_theirs = 2 * quat_log(quat_multiply(moved_theirs[:, 3:], quat_conjugate(base_theirs[:, 3:])))
+    assert np.abs(turn_ours - turn_theirs).max() < 0.01 * np.abs(turn_theirs).max()
+    shift_ours, shift_theirs = moved_ours[:, :3] - base_ours[:, :3], moved_theirs[:, :3] - base_theirs[:, :3]
+    assert np.abs(shift_ours - shift_theirs).max() < 0.01 * np.abs(shift_theirs).max()
+
+
+# ----------------------------------------------------------------------------- bad input
+
+
+def test_bad_demonstrations_name_the_sample_and_field(demo):
+    dmp = DMP(UnitQuaternion(), n_basis=10)
+    t = demo.t.copy()
+    t[7] += 1e-3
+    with pytest.raises(InputDataError, match="sample 7.*t.*equally spaced"):
+        dmp.imitate(t, demo.quaternion)
+    Q = demo.quaternion.copy()
+    Q[12, 2] = np.nan
+    with pytest.raises(InputDataError, match="sample 12.*y"):
+        dmp.imitate(demo.t, Q)
+    with pytest.raises(InputDataError, match=r"shape \(N, 4\)"):
+        dmp.imitate(demo.t, demo.pose)
+    scaled = DMP(Euclidean(3), n_basis=10, scale_by_amplitude=True)
+    flat = demo.position.copy()
+    flat[:, 1] = 0.1
+    with pytest.raises(InputDataError, match=r"gap\[1\]"):
+        scaled.imitate(demo.t, flat)

@@ -1,0 +1,106 @@
+"""Gain tuning (`optikin.dmp.tuning`) and the GA baseline (`optikin.baselines.genetic`).
+
+The CasADi objective of eq. (29) is checked against the independent numpy path
+(``DMP.imitate`` with ``numpy.linalg.lstsq``, then a roll-out) and its exact
+gradient against central differences of that path; the GA against known
+minima of test functions.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from optikin.algebra import quat_exp, quat_multiply
+from optikin.baselines.genetic import minimise
+from optikin.data.demonstrations import smooth_pose_demonstration
+from optikin.dmp import DMP, Gains, UnitQuaternion
+from optikin.dmp.tuning import tune_genetic, tune_gradient, tuning_problem
+
+NAMES = ("beta", "gamma", "zeta")
+
+
+@pytest.fixture(scope="module")
+def demo():
+    return smooth_pose_demonstration(samples=300, duration=3.0, seed=3)
+
+
+@pytest.fixture(scope="module")
+def problem(demo):
+    return tuning_problem(DMP(UnitQuaternion(), n_basis=8), demo.t, demo.quaternion, NAMES)
+
+
+def numpy_error(demo, values: np.ndarray) -> float:
+    """Eq. (29) through the numpy path: learn with lstsq under these gains, roll out, mean over samples."""
+    dmp = DMP(UnitQuaternion(), n_basis=8, gains=Gains(**dict(zip(NAMES, values))))
+    dmp.imitate(demo.t, demo.quaternion)
+    return float(np.sum((dmp.rollout().y - dmp.demo.Y) ** 2) / demo.t.size)
+
+
+def test_objective_equals_the_numpy_path(demo, problem):
+    for values in ([25.0, 6.25, 4.6], [12.0, 30.0, 2.5], [80.0, 3.0, 7.0]):
+        assert problem.error(np.array(values)) == pytest.approx(numpy_error(demo, np.array(values)), rel=1e-6)
+
+
+def test_exact_gradient_matches_finite_differences_of_the_numpy_path(demo, problem):
+    import casadi as ca
+
+    p = ca.MX.sym("p", 3)
+    gradient = ca.Function("g", [p], [ca.gradient(problem.objective(p), p)])
+    point = np.log([20.0, 8.0, 4.0])
+    exact = np.asarray(gradient(point)).ravel()
+    h = 1e-5
+    numeric = [(numpy_error(demo, np.exp(point + h * e)) - numpy_error(demo, np.exp(point - h * e))) / (2 * h)
+               for e in np.eye(3)]
+    np.testing.assert_allclose(exact, numeric, rtol=1e-4, atol=1e-6 * np.abs(exact).max())
+
+
+def test_gradient_tuning_reaches_a_stationary_point_below_the_start(problem):
+    import casadi as ca
+
+    result = tune_gradient(problem)
+    assert result.status == "Solve_Succeeded"
+    assert result.error < 0.9 * result.initial_error
+    values = np.array([getattr(result.gains, n) for n in NAMES])
+    assert np.all(values >= problem.lower * (1 - 1e-9)) and np.all(values <= problem.upper * (1 + 1e-9))
+    p = ca.MX.sym("p", 3)
+    gradient = np.asarray(ca.Function("g", [p], [ca.gradient(problem.objective(p), p)])(np.log(values))).ravel()
+    interior = (values > problem.lower * 1.001) & (values < problem.upper * 0.999)
+    assert np.all(np.abs(gradient[interior]) < 1e-3 * result.initial_error)
+
+
+def test_genetic_tuning_improves_and_is_reproducible(problem):
+    first = tune_genetic(problem, population=10, generations=6, seed=4)
+    again = tune_genetic(problem, population=10, generations=6, seed=4)
+    assert first.error < first.initial_error
+    assert first.error == again.error and first.gains == again.gains
+    assert np.all(np.diff(first.history) <= 0)  # elitism: the best never gets worse
+    assert first.evaluations == 10 + 6 * 8
+
+
+def test_goal_scenario_tunes_the_generalisation_gains(demo):
+    new_goal = quat_multiply(quat_exp(np.array([0.3, -0.2, 0.1])), demo.quaternion[-1])
+    dmp = DMP(UnitQuaternion(), n_basis=8, gains=Gains(beta_g0=5.0, alpha_s=0.5))
+    problem = tuning_problem(dmp, demo.t, demo.quaternion, ("beta_g0", "alpha_s"), scenario="goal",
+                             new_goal=new_goal, switch_time=1.0)
+    result = tune_gradient(problem)
+    assert result.error < 0.8 * result.initial_error
+    # checked through the numpy path: learn under each set of gains, switch the goal, measure
+    for gains, expected in ((dmp.gains, result.initial_error), (result.gains, result.error)):
+        learner = DMP(UnitQuaternion(), n_basis=8, gains=gains)
+        learner.imitate(demo.t, demo.quaternion)
+        out = learner.rollout(goal_switches=[(1.0, new_goal)])
+        after = out.t >= 1.0
+        assert np.sum((out.y[after] - new_goal) ** 2) / after.sum() == pytest.approx(expected, rel=1e-5)
+
+
+def test_genetic_algorithm_finds_known_minima():
+    sphere = minimise(lambda X: np.sum((X - 0.3) ** 2, axis=1), -np.ones(4), np.ones(4), population=20,
+                      generations=40, seed=0)
+    np.testing.assert_allclose(sphere.x, 0.3, atol=5e-3)
+    rosenbrock = minimise(lambda X: (1 - X[:, 0]) ** 2 + 100 * (X[:, 1] - X[:, 0] ** 2) ** 2, [-2, -1], [2, 3],
+                          population=40, generations=150, seed=1)
+    np.testing.assert_allclose(rosenbrock.x, [1.0, 1.0], atol=2e-2)
+    assert rosenbrock.value < 1e-3
+    with pytest.raises(ValueError):
+        minimise(lambda X: X[:, 0], [1.0], [0.0])
