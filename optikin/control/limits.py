@@ -32,7 +32,7 @@ import casadi as ca
 import numpy as np
 
 from optikin.arms.base import ArmModel
-from optikin.control.fast import BufferedFunction
+from optikin.fastcall import BufferedFunction
 
 DEFAULT_RATE_LIMITS = {"S": 0.1, "theta": np.pi, "phi": 2.0 * np.pi}
 """Rate limits by variable prefix: m/s for lengths, rad/s for angles (assumed; seed 000 gives none)."""

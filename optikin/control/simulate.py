@@ -33,7 +33,7 @@ from optikin.algebra import dq_from_rotation_translation, dq_rotation, dq_transl
     quat_exp, quat_multiply
 from optikin.arms.base import ArmModel
 from optikin.control.base import Controller
-from optikin.control.fast import BufferedFunction
+from optikin.fastcall import BufferedFunction
 from optikin.control.limits import limit_excess, periodic_mask, wrap_periodic
 from optikin.control.reference import Reference
 from optikin.control.task import TASK_FUNCTIONS

@@ -1,7 +1,7 @@
 """The tracked task (tip position, or tip pose as a dual quaternion) and the data every controller needs per step.
 
 One CasADi Function, built from the arm's own ``fk_*`` / ``jac_*`` Functions and
-called through a buffer (:mod:`optikin.control.fast`), returns for the measured
+called through a buffer (:mod:`optikin.fastcall`), returns for the measured
 configuration ``q``, the measured task value ``x``, the reference ``x_ref`` and
 its rate ``xdot_ref``, the feedback gains ``k`` (diagonal of ``K``) and the
 damping ``lambda``:
@@ -26,7 +26,7 @@ import casadi as ca
 import numpy as np
 
 from optikin.arms.base import ArmModel
-from optikin.control.fast import BufferedFunction
+from optikin.fastcall import BufferedFunction
 
 Task = Literal["pose", "position"]
 TASK_FUNCTIONS = {"pose": ("fk_dq", "jac_dq"), "position": ("fk_position", "jac_position")}
