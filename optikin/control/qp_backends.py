@@ -108,7 +108,8 @@ class QpsolversBackend:
     """
 
     TIGHT: dict[str, dict[str, Any]] = {
-        "osqp": {"eps_abs": 1e-7, "eps_rel": 1e-7, "rho": 1.0, "polishing": False, "max_iter": 4000},
+        "osqp": {"eps_abs": 1e-7, "eps_rel": 1e-7, "rho": 1.0, "polishing": False, "max_iter": 4000,
+                 "raise_error": False},
         "proxqp": {"eps_abs": 1e-12, "eps_rel": 0.0},
         "clarabel": {"tol_gap_abs": 1e-10, "tol_gap_rel": 1e-10, "tol_feas": 1e-10},
         "scs": {"eps_abs": 1e-8, "eps_rel": 1e-8},
