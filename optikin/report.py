@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import shutil
 from typing import Any
 
 from rich.console import Console
@@ -19,9 +20,14 @@ def _fmt(value: Any) -> str:
     return str(value)
 
 
+def wide_console() -> Console:
+    """A console as wide as the terminal, or 160 columns when output is not a terminal."""
+    return Console(width=max(shutil.get_terminal_size((160, 24)).columns, 100))
+
+
 def print_result(result: Result, console: Console | None = None) -> None:
     """Status counts, metrics, and the comparison of methods as tables."""
-    console = console or Console()
+    console = console or wide_console()
     counts = ", ".join(f"{k}: {v}" for k, v in result.status_counts().items())
     console.print(f"[bold]{result.problem}[/bold] ({result.kind}, solver {result.solver}): "
                   f"{result.samples} samples, {counts}")
@@ -46,7 +52,7 @@ def print_result(result: Result, console: Console | None = None) -> None:
 
 def print_listing(title: str, rows: list[tuple[str, ...]], columns: tuple[str, ...],
                   console: Console | None = None) -> None:
-    console = console or Console()
+    console = console or wide_console()
     table = Table(title=title)
     for c in columns:
         table.add_column(c)

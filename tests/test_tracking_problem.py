@@ -19,7 +19,10 @@ def shortened(tmp_path: Path, name: str, baselines: bool = False, **changes) -> 
     """A copy of a shipped scenario at 100 Hz with short segments (and no baselines unless asked)."""
     _, path = load_problem(name)
     spec = yaml.safe_load(path.read_text())
-    spec["data"]["params"] |= {"rate": 100, "segment_time": 0.6, "hold": 0.6}
+    if spec["data"]["source"] == "dmp":
+        spec["data"]["params"] |= {"rate": 100, "demonstration_samples": 300, "basis": 20}
+    else:
+        spec["data"]["params"] |= {"rate": 100, "segment_time": 0.6, "hold": 0.6}
     spec["options"] = spec.get("options") or {}
     if not baselines:
         spec["baselines"] = []
@@ -38,7 +41,23 @@ def shortened(tmp_path: Path, name: str, baselines: bool = False, **changes) -> 
 
 def test_the_shipped_scenarios_cover_the_issue():
     assert {"track-nominal", "track-into-limits", "track-start-outside", "track-model-mismatch",
-            "track-disturbance", "track-sensor-noise", "track-position"} <= set(SCENARIOS)
+            "track-disturbance", "track-sensor-noise", "track-position", "track-dmp"} <= set(SCENARIOS)
+
+
+def test_dmp_reference_starts_at_the_demonstration_and_is_tracked_within_limits(tmp_path):
+    """The reference is a DMP roll-out of the IMU demonstration: it starts at the demonstration's first pose."""
+    from optikin.algebra import dq_translation
+    from optikin.data.demonstrations import imu_interface_recording
+
+    result, _ = solve(str(shortened(tmp_path, "track-dmp", baselines=True)), figures=False)
+    recording = imu_interface_recording(samples=300, seed=load_problem("track-dmp")[0].data.seed)
+    reference = result.arrays["reference"]
+    np.testing.assert_allclose(reference[0], recording.demonstration.dual_quaternion[0], atol=1e-9)
+    end_gap = np.linalg.norm(dq_translation(reference[-1]) - recording.demonstration.position[-1])
+    assert end_gap < 5e-3  # the roll-out lasts one tau, ending near the demonstrated goal
+    rows = {row.method: row.metrics for row in result.comparison}
+    assert rows["qp (osqp)"]["outside limits"] == 0
+    assert rows["qp (osqp)"]["rms [mm]"] < 5.0
 
 
 @pytest.mark.parametrize("name", SCENARIOS)

@@ -6,9 +6,12 @@ same reference, plant and noise draws, are the seed's MRAC (``mrac``,
 :mod:`optikin.baselines.mrac`), the plain pseudo-inverse (``pseudo_inverse``)
 and damped least squares (``damped_least_squares``).
 
-The reference (``data``, source ``waypoints``) is the forward kinematics of a
-minimum-jerk configuration path (:mod:`optikin.control.reference`); a DMP
-roll-out can replace it once those exist::
+The reference (``data``) is either the forward kinematics of a minimum-jerk
+configuration path (source ``waypoints``, :mod:`optikin.control.reference`) or
+the roll-out of a pose DMP learned from the flexible-interface IMU demonstration
+of seed 000 (source ``dmp``: params ``task``, ``rate``, ``variant``
+(dual-quaternion | cartesian | seed), ``basis``, ``demonstration_samples``,
+``hold``; the run starts from the interface's first configuration)::
 
     data:
       source: waypoints
@@ -51,13 +54,19 @@ from optikin.baselines.mrac import MRACController
 from optikin.baselines.pseudo_inverse import DampedLeastSquaresController, PseudoInverseController
 from optikin.control import figures
 from optikin.control.qp import FALLBACKS, QPController
-from optikin.control.reference import minimum_jerk_path, reference_from_configurations
+from optikin.algebra import dq_from_rotation_translation, quat_hemisphere_continuous
+from optikin.arms.constant_curvature import ConstantCurvatureArm
+from optikin.control.reference import Reference, minimum_jerk_path, reference_from_configurations
 from optikin.control.simulate import Plant, TrackingRun, simulate
 from optikin.control.task import TASK_FUNCTIONS, task_dimension
+from optikin.data.demonstrations import imu_interface_recording
+from optikin.dmp.pose import POSE_VARIANTS, from_variant, pose_dmp, to_variant
 from optikin.problems import ProblemContext, ProblemKind, register_kind
 from optikin.results import MethodRow, Result
 
 DATA_DEFAULTS = {"task": "pose", "rate": 500.0, "waypoints": None, "segment_time": 1.5, "hold": 1.0}
+DMP_DATA_DEFAULTS = {"task": "pose", "rate": 500.0, "variant": "dual-quaternion", "basis": 50,
+                     "demonstration_samples": 1000, "hold": 0.0}
 OPTION_DEFAULTS: dict[str, Any] = {
     "start": None, "start_offset": None, "gain": 10.0, "damping": 1e-4, "rate_limits": None,
     "limit_margin": 1e-9, "limit_gain": 1.0,
@@ -95,17 +104,52 @@ def _vector(ctx: ProblemContext, value, n: int, field: str, allow_scalar: bool =
 
 
 def _reference(ctx: ProblemContext):
-    spec, arm = ctx.spec, ctx.arm
-    if spec.data.source != "waypoints":
-        raise ctx.error("data.source", f"unknown reference source {spec.data.source!r}; known: waypoints")
+    """The reference and the configuration the run starts from (before ``options.start*``)."""
+    spec = ctx.spec
+    sources = {"waypoints": (_waypoint_reference, DATA_DEFAULTS), "dmp": (_dmp_reference, DMP_DATA_DEFAULTS)}
+    if spec.data.source not in sources:
+        raise ctx.error("data.source", f"unknown reference source {spec.data.source!r}; known: {', '.join(sources)}")
     if "samples" in spec.data.model_fields_set:
         raise ctx.error("data.samples", "not used by tracking: the run length follows from the path and rate")
-    p = _settings(ctx, spec.data.params, DATA_DEFAULTS, "data.params")
+    build, defaults = sources[spec.data.source]
+    p = _settings(ctx, spec.data.params, defaults, "data.params")
     if p["task"] not in TASK_FUNCTIONS:
         raise ctx.error("data.params.task", f"unknown task {p['task']!r}; known: {', '.join(TASK_FUNCTIONS)}")
     rate = float(p["rate"])
     if not 100.0 <= rate <= 1000.0:
         raise ctx.error("data.params.rate", f"control rate {rate} Hz outside 100 .. 1000 Hz")
+    return build(ctx, p, rate)
+
+
+def _dmp_reference(ctx: ProblemContext, p: dict, rate: float):
+    """A pose DMP learned from the flexible-interface demonstration (seed 000 sec. III), rolled out at ``rate``.
+
+    The demonstration is the IMU recording of :func:`optikin.data.demonstrations.imu_interface_recording`
+    (seeded by ``data.seed``); the DMP's roll-out is the tip reference, its derivative taken by
+    central differences; the run starts from the interface's true first configuration.
+    """
+    arm = ctx.arm
+    if not isinstance(arm, ConstantCurvatureArm) or arm.n_sections != 2:
+        raise ctx.error("arm", "the dmp reference source learns from the two-section interface: "
+                               "use a two-section constant_curvature arm")
+    if p["variant"] not in POSE_VARIANTS:
+        raise ctx.error("data.params.variant", f"unknown pose DMP variant {p['variant']!r}; known: "
+                                               f"{', '.join(POSE_VARIANTS)}")
+    recording = imu_interface_recording(samples=int(p["demonstration_samples"]), seed=ctx.spec.data.seed,
+                                        section_lengths=tuple(arm.section_lengths))
+    dmp = pose_dmp(p["variant"], n_basis=int(p["basis"]))
+    dmp.imitate(recording.t, to_variant(p["variant"], recording.demonstration.dual_quaternion),
+                source="IMU demonstration")
+    rollout = dmp.rollout(dmp.tau + float(p["hold"]), dt=1.0 / rate)
+    position, quaternion = from_variant(p["variant"], rollout.y)
+    value = (dq_from_rotation_translation(quat_hemisphere_continuous(quaternion), position)
+             if p["task"] == "pose" else position)
+    reference = Reference(rollout.t, value, np.gradient(value, rollout.t, axis=0), p["task"])
+    return reference, recording.configuration[0]
+
+
+def _waypoint_reference(ctx: ProblemContext, p: dict, rate: float):
+    arm = ctx.arm
     if p["waypoints"] is None:
         raise ctx.error("data.params.waypoints", "required: at least two configurations")
     try:
@@ -119,7 +163,7 @@ def _reference(ctx: ProblemContext):
         t, Q, Qdot = minimum_jerk_path(W, p["segment_time"], rate, float(p["hold"]))
     except ValueError as exc:
         raise ctx.error("data.params", str(exc)) from None
-    return reference_from_configurations(arm, t, Q, Qdot, p["task"]), W
+    return reference_from_configurations(arm, t, Q, Qdot, p["task"]), W[0]
 
 
 def _plant(ctx: ProblemContext, given: dict, n: int) -> Plant:
@@ -173,10 +217,10 @@ def _controllers(ctx: ProblemContext, o: dict, dt: float, task: str) -> dict[str
 
 def run(ctx: ProblemContext) -> Result:
     spec, arm = ctx.spec, ctx.arm
-    reference, waypoints = _reference(ctx)
+    reference, path_start = _reference(ctx)
     o = _settings(ctx, spec.options, OPTION_DEFAULTS, "options")
     n = arm.n_config
-    q0 = waypoints[0] if o["start"] is None else _vector(ctx, o["start"], n, "options.start")
+    q0 = path_start if o["start"] is None else _vector(ctx, o["start"], n, "options.start")
     if o["start_offset"] is not None:
         q0 = q0 + _vector(ctx, o["start_offset"], n, "options.start_offset")
     plant = _plant(ctx, o["plant"], n)
