@@ -17,7 +17,7 @@ from optikin.progress import SILENT, Progress
 from optikin.registry import BACKENDS, PROBLEM_KINDS
 from optikin.results import Result, write_result
 from optikin.solvers import Backend, load_backends
-from optikin.spec import ProblemSpec, load_problem, load_solver
+from optikin.spec import ProblemSpec, available, load_problem, load_solver
 
 
 def _kind_of(spec: ProblemSpec, path: Path) -> ProblemKind:
@@ -28,16 +28,33 @@ def _kind_of(spec: ProblemSpec, path: Path) -> ProblemKind:
         raise SpecError(path, "kind", str(exc)) from None
 
 
+def _check_baselines(spec: ProblemSpec, path: Path, kind: ProblemKind) -> None:
+    """Each baseline is one the kind implements, or a solver preset of a backend family the kind accepts."""
+    presets = available("solvers")
+    for i, baseline in enumerate(spec.baselines):
+        if baseline in kind.baselines:
+            continue
+        if baseline not in presets:
+            raise SpecError(path, f"baselines.{i}",
+                            f"{baseline!r} is neither a baseline of kind {kind.name!r} "
+                            f"(known: {', '.join(kind.baselines) or 'none'}) nor a solver preset")
+        preset, preset_path = load_solver(baseline)
+        try:
+            family = BACKENDS.get(preset.backend).family
+        except UnknownNameError as exc:
+            raise SpecError(preset_path, "backend", str(exc)) from None
+        if family not in kind.backend_families:
+            raise SpecError(path, f"baselines.{i}", f"solver preset {baseline!r} ({family}) cannot solve kind "
+                                                    f"{kind.name!r}, which takes {' or '.join(kind.backend_families)}")
+
+
 def solve(problem: str, solver: str | None = None, out: Path | None = None, figures: bool = True,
           progress: Progress = SILENT) -> tuple[Result, Path | None]:
     """Solve a named problem (or a path to one); returns the Result and where it was written."""
     load_backends()
     spec, path = load_problem(problem)
     kind = _kind_of(spec, path)
-    for i, baseline in enumerate(spec.baselines):
-        if baseline not in kind.baselines:
-            raise SpecError(path, f"baselines.{i}", f"{baseline!r} is not a baseline of kind {kind.name!r}; "
-                                                    f"known: {', '.join(kind.baselines) or 'none'}")
+    _check_baselines(spec, path, kind)
     preset_name = solver or spec.solver or kind.default_solver
     preset, preset_path, adapter = None, None, None
     if preset_name is not None:

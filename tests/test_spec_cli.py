@@ -70,7 +70,9 @@ def test_shipped_problems_and_solvers_validate():
         ({"type: constant_curvature": "type: octopus"}, "arm.type", "unknown arm 'octopus'"),
         ({"kind: fk": "kind: teleport"}, "kind", "unknown problem kind 'teleport'"),
         ({"source: random": "source: dreams"}, "data.source", "unknown configuration source 'dreams'"),
-        ({"baselines: [numpy]": "baselines: [numpy, oracle]"}, "baselines.1", "'oracle' is not a baseline"),
+        ({"baselines: [numpy]": "baselines: [numpy, oracle]"}, "baselines.1",
+         "'oracle' is neither a baseline of kind 'fk'"),
+        ({"baselines: [numpy]": "baselines: [qp-osqp]"}, "baselines.0", "solver preset 'qp-osqp' (qp) cannot solve"),
     ],
 )
 def test_bad_problem_fields_are_named(tmp_path, replace, field, message):

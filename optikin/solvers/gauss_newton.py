@@ -1,0 +1,312 @@
+"""Backend ``gauss_newton``: damped, projected Gauss-Newton on the CasADi Jacobian, one sample or a batch.
+
+Each iteration takes the Levenberg-Marquardt step of the linearised problem at
+``x`` (``J = dr/dx`` by CasADi's automatic differentiation), scaled by
+``D = W^2`` from the problem's redundancy weights (identity without them):
+
+    dx = -(J^T J + lam D)^-1 J^T r  =  -D^-1 J^T (J D^-1 J^T + lam I)^-1 r,
+    lam = mu ||r||^2 + 1e-10 tr(J D^-1 J^T)/m
+
+(the second, ``m x m`` form when there are fewer residuals than variables).
+``lam = mu ||r||^2`` is the choice of Yamashita & Fukushima (2001), which keeps
+quadratic convergence where ``J`` loses rank; the small floor keeps the system
+regular. As ``lam -> 0`` the step is the weighted minimum-norm (pseudo-inverse)
+correction, so on a redundant problem the iteration lands on the solution
+reached by minimum-norm corrections from the start point: start from the rest
+configuration for "closest to rest", from the previous solution along a
+trajectory for "closest to previous" (to first order). ``x_ref`` is not used.
+Bounds: variables at a bound whose step points outward are frozen and the step
+recomputed once (one active-set pass), then the point is clipped; angles with a
+full-turn range are wrapped instead. A step is accepted when it lowers ``||r||``
+(or reaches the tolerance); then ``mu`` shrinks ten-fold, else it grows
+ten-fold and the step is recomputed (Nocedal & Wright 2006, sec. 10.3; Wampler
+1986 and Nakamura & Hanafusa 1986 for damped least-squares inverse kinematics).
+
+Gauss-Newton converges slowly to a minimum with a large residual (a target
+outside the workspace): after ``SLOW_STEPS`` accepted steps in a row that each
+keep more than ``SLOW_PROGRESS`` of ``||r||``, a sample switches to the Newton
+model ``J^T J + sum_i r_i Hess r_i`` of ``1/2 ||r||^2`` (same damping; the
+structured switch of Fletcher & Xu 1987), which reaches the stationary point
+that flags the target ``unreachable``. Option ``second_order: false`` turns this off.
+
+The step, ``||r||`` and a stationarity measure are one CasADi Function, so a
+single solve costs one zero-copy ``Function.buffer()`` call per iteration, and
+the batched path (:meth:`GaussNewton.solve_many` on independent samples) maps
+that Function over all samples at once (:func:`optikin.batch.batched`), or
+calls it compiled to C with one C loop over the samples (``compile: true``,
+:class:`optikin.codegen.CompiledFunction`), with the acceptance rule vectorised
+in numpy.
+
+Preset options: ``damping`` (initial mu), ``damping_min``, ``damping_max``
+(give up above it), ``second_order``, ``compile``, ``flags`` (C compiler flags), ``batch`` (use
+the batched path for independent samples).
+"""
+
+from __future__ import annotations
+
+import time
+
+import casadi as ca
+import numpy as np
+
+from optikin.batch import batched
+from optikin.codegen import CompiledFunction
+from optikin.solvers import register_backend
+from optikin.solvers.nonlinear import BatchReport, BufferedCall, LeastSquaresProblem, NonlinearAdapter, SolveReport
+
+
+LAMBDA_FLOOR = 1e-10
+"""Smallest Levenberg parameter, relative to ``tr(J D^-1 J^T)/m``. CasADi solves the step's
+linear system by an unpivoted symbolic QR, which loses the step when ``J`` is singular (the
+pose Jacobian of a two-section CC arm has rank 5) and the system is nearly so; 1e-10 keeps it
+regular and costs nothing visible in the convergence (a linear rate of about 1e-10/sigma_min^2)."""
+
+
+def step_function(problem: LeastSquaresProblem, second_order: bool = False) -> ca.Function:
+    """``[x; p; mu] -> [x_new; ||r(x)||; stationarity]`` (module docstring).
+
+    ``second_order`` adds ``S = sum_i r_i Hess r_i`` to ``J^T J`` (the Newton model of
+    ``1/2 ||r||^2``). One packed input and output, so a batch is one array in and one array
+    out, for :class:`~optikin.solvers.evaluation.CompiledFunction` and
+    :func:`~optikin.solvers.evaluation.batched`.
+    """
+    x, p, r, J = problem.symbols
+    n, m = problem.n, problem.m
+    mu = ca.SX.sym("mu")
+    lower, upper = ca.DM(problem.lower), ca.DM(problem.upper)
+    periodic = ca.DM(problem.periodic.astype(float))
+    scaling = ca.DM.ones(n) if problem.weights is None else ca.DM(problem.weights**2)
+    lower_active, upper_active = problem.active_bounds(x)
+    g = ca.mtimes(J.T, r)
+    rn = ca.norm_2(r)
+    # Levenberg parameter mu ||r||^2 (Yamashita & Fukushima 2001: quadratic convergence without full rank),
+    # plus a floor relative to the trace of J D^-1 J^T that keeps the linear system regular (LAMBDA_FLOOR).
+    trace = ca.dot(ca.sum1(J * J).T, 1 / scaling)
+    lam = mu * rn * rn + LAMBDA_FLOOR * trace / m
+
+    def full_direction(H):
+        def direction(free):
+            F = ca.diag(free)
+            A = ca.mtimes(F, ca.mtimes(H, F)) + ca.diag(1 - free) + lam * ca.diag(scaling)
+            return -free * ca.solve(A, free * g)
+        return direction
+
+    if m < n:
+        def gauss_newton(free):
+            mf = free / scaling
+            A = ca.mtimes(J, ca.mtimes(ca.diag(mf), J.T)) + lam * ca.DM.eye(m)
+            return -mf * ca.mtimes(J.T, ca.solve(A, r))
+    else:
+        gauss_newton = full_direction(ca.mtimes(J.T, J))
+
+    direction = full_direction(ca.hessian(0.5 * ca.sumsqr(r), x)[0]) if second_order else gauss_newton
+
+    first = direction(ca.DM.ones(n))
+    blocked = ca.logic_or(ca.logic_and(lower_active, first < 0), ca.logic_and(upper_active, first > 0))
+    moved = x + direction(1 - blocked)
+    span = upper - lower
+    wrapped = moved - span * ca.floor((moved - lower) / span)
+    x_new = ca.if_else(periodic, wrapped, ca.fmin(ca.fmax(moved, lower), upper))
+    outward = ca.logic_or(ca.logic_and(lower_active, g > 0), ca.logic_and(upper_active, g < 0))
+    stationarity = ca.norm_2(ca.if_else(outward, 0, g)) / (ca.norm_fro(J) * rn + 1e-300)
+    return ca.Function(f"{problem.name}_{'newton' if second_order else 'gn'}_step", [ca.vertcat(x, p, mu)],
+                       [ca.vertcat(x_new, rn, stationarity)], ["x_p_mu"], ["x_new_info"])
+
+
+SLOW_PROGRESS = 0.9
+SLOW_STEPS = 3
+"""``SLOW_STEPS`` accepted steps in a row that each leave more than ``SLOW_PROGRESS`` of ``||r||``
+switch the sample to the second-order model (a large-residual minimum, e.g. a target outside
+the workspace)."""
+
+
+class GaussNewton(NonlinearAdapter):
+    """Damped projected Gauss-Newton (module docstring)."""
+
+    defaults = {"damping": 10.0, "damping_min": 1e-12, "damping_max": 1e12, "second_order": True,
+                "compile": False, "flags": ["-O3"], "batch": True}
+
+    def __init__(self, preset):
+        super().__init__(preset)
+        if not isinstance(self.options["flags"], list):
+            raise self.option_error("flags", "expected a list of compiler flags")
+        for key in ("damping", "damping_min", "damping_max"):
+            if self.options[key] <= 0:
+                raise self.option_error(key, "must be positive")
+
+    # ------------------------------------------------------------------ Functions
+    def _key(self, what: str, second_order: bool) -> tuple:
+        return (what, second_order, self.options["compile"], tuple(self.options["flags"]))
+
+    def _function(self, problem: LeastSquaresProblem, second_order: bool) -> ca.Function:
+        key = self._key("gn_function", second_order)
+        if key not in problem.cache:
+            problem.cache[key] = step_function(problem, second_order)
+        return problem.cache[key]
+
+    def _compiled(self, problem: LeastSquaresProblem, second_order: bool) -> CompiledFunction:
+        key = self._key("gn_compiled", second_order)
+        if key not in problem.cache:
+            f = self._function(problem, second_order)
+            problem.cache[key] = CompiledFunction(f, tuple(self.options["flags"]))
+        return problem.cache[key]
+
+    def step(self, problem: LeastSquaresProblem, second_order: bool = False) -> ca.Function:
+        """A step Function of ``problem`` (compiled when the preset says so), built once."""
+        if self.options["compile"]:
+            return self._compiled(problem, second_order).external
+        return self._function(problem, second_order)
+
+    def _single(self, problem: LeastSquaresProblem, second_order: bool):
+        """``(x, p, mu) -> (x_new, info)`` for one sample through ``Function.buffer()`` (views: copy to keep)."""
+        key = self._key("gn_single", second_order)
+        if key not in problem.cache:
+            call = BufferedCall(self.step(problem, second_order))
+            n, n_p = problem.n, problem.n_data
+            packed, out = call.args[0], call.results[0]
+            x_new, info = out[:n], out[n:]
+
+            def single(x, p, mu):
+                packed[:n] = x
+                packed[n:n + n_p] = p
+                packed[-1] = mu
+                call._trigger()
+                return x_new, info
+
+            problem.cache[key] = single
+        return problem.cache[key]
+
+    def _batch(self, problem: LeastSquaresProblem, second_order: bool):
+        """``(X, P, mu) -> (X_new, info (2, N))`` over the rows of ``X``: one call into CasADi (or C)."""
+        key = self._key("gn_batch", second_order)
+        if key not in problem.cache:
+            if self.options["compile"]:
+                runner = self._compiled(problem, second_order).raw
+            else:
+                runner = batched(self._function(problem, second_order)).raw
+            n = problem.n
+
+            def batch(X, P, mu):
+                out = runner(np.concatenate([X, P, mu[:, None]], axis=1))
+                return out[:, :n], out[:, n:].T.copy()
+
+            problem.cache[key] = batch
+        return problem.cache[key]
+
+    def _stop_tolerance(self, problem: LeastSquaresProblem) -> float:
+        return min(problem.tolerance, self.limits.tolerance)
+
+    # ------------------------------------------------------------------ one sample
+    def solve(self, problem: LeastSquaresProblem, x0: np.ndarray, p: np.ndarray,
+              x_ref: np.ndarray | None = None) -> SolveReport:
+        started = time.perf_counter()
+        steps = (self._single(problem, False),
+                 self._single(problem, True) if self.options["second_order"] else self._single(problem, False))
+        tol, stat_tol = self._stop_tolerance(problem), problem.stationarity_tolerance
+        mu, mu_min, mu_max = self.options["damping"], self.options["damping_min"], self.options["damping_max"]
+        deadline = started + self.limits.time_limit
+        x = problem.project(x0)
+        so, slow = 0, 0
+        proposal, info = (a.copy() for a in steps[so](x, p, mu))
+        calls = 1
+        while calls < self.limits.max_iterations:
+            rn, stationarity = info
+            if not rn > tol or stationarity <= stat_tol or mu > mu_max or time.perf_counter() > deadline:
+                break
+            trial_mu = max(mu * 0.1, mu_min)
+            next_proposal, trial = steps[so](proposal, p, trial_mu)
+            calls += 1
+            if trial[0] < rn or trial[0] <= tol:
+                slow = slow + 1 if trial[0] > SLOW_PROGRESS * rn else 0
+                so = max(so, int(slow >= SLOW_STEPS))
+                x, info, proposal, mu = proposal, trial.copy(), next_proposal.copy(), trial_mu
+            elif calls < self.limits.max_iterations:
+                mu *= 10.0
+                proposal, info = (a.copy() for a in steps[so](x, p, mu))
+                calls += 1
+        elapsed = time.perf_counter() - started
+        if not np.isfinite(info[0]) or problem.constraints is not None:
+            return self.finish(problem, x, p, calls, started)
+        # x is inside the bounds (projected by every step) and info holds its ||r|| and stationarity.
+        status, rn, message = problem.status_of(float(info[0]), float(info[1]), elapsed, self.limits.time_limit)
+        return SolveReport(x, status, calls, rn, elapsed, message)
+
+    # ------------------------------------------------------------------ many independent samples at once
+    def solve_many(self, problem: LeastSquaresProblem, X0: np.ndarray, P: np.ndarray, warm_start: bool = False,
+                   x_ref: np.ndarray | None = None) -> BatchReport:
+        if warm_start or not self.options["batch"]:
+            return super().solve_many(problem, X0, P, warm_start, x_ref)
+        return self.solve_batch(problem, X0, P)
+
+    def solve_batch(self, problem: LeastSquaresProblem, X0: np.ndarray, P: np.ndarray) -> BatchReport:
+        """All samples at once: one batched step evaluation per iteration, acceptance vectorised.
+
+        Every sample follows the rule of :meth:`solve` (the results agree to rounding); a sample
+        whose last trial was rejected spends its next evaluation on a new proposal from its
+        accepted point. Only running samples are evaluated. The time limit applies to the
+        batch as a whole: ``limits.time_limit`` per sample.
+        """
+        started = time.perf_counter()
+        P = np.atleast_2d(np.asarray(P, dtype=float))
+        N, n = len(P), problem.n
+        X = problem.project(np.broadcast_to(np.asarray(X0, dtype=float), (N, n)))
+        tol, stat_tol = self._stop_tolerance(problem), problem.stationarity_tolerance
+        mu_min, mu_max = self.options["damping_min"], self.options["damping_max"]
+        deadline = started + self.limits.time_limit * N
+        gauss_newton = self._batch(problem, False)
+        newton = self._batch(problem, True) if self.options["second_order"] else gauss_newton
+
+        def evaluate(X_, P_, mu_, so_):
+            """Each sample with its model: Gauss-Newton, or Newton once switched (``so_``)."""
+            if not so_.any():
+                return gauss_newton(X_, P_, mu_)
+            out_x, out_info = np.empty_like(X_), np.empty((2, len(X_)))
+            for model, rows in ((gauss_newton, ~so_), (newton, so_)):
+                if rows.any():
+                    out_x[rows], out_info[:, rows] = model(X_[rows], P_[rows], mu_[rows])
+            return out_x, out_info
+
+        mu = np.full(N, float(self.options["damping"]))
+        so = np.zeros(N, dtype=bool)
+        slow = np.zeros(N, dtype=int)
+        proposal, info = evaluate(X, P, mu, so)
+        calls = np.ones(N, dtype=int)
+        testing = np.ones(N, dtype=bool)  # next evaluation: test ``proposal`` (else re-propose from X)
+        idx = np.arange(N)
+        timed_out = False
+        while True:
+            # Samples still running: not solved, not stationary, not stuck, under the iteration limit.
+            rn, stationarity = info[0, idx], info[1, idx]
+            idx = idx[(rn > tol) & (stationarity > stat_tol) & (mu[idx] <= mu_max)
+                      & (calls[idx] < self.limits.max_iterations)]
+            if idx.size == 0:
+                break
+            if time.perf_counter() > deadline:
+                timed_out = True
+                break
+            test, mu_i, rn = testing[idx], mu[idx], info[0, idx]
+            trial_mu = np.where(test, np.maximum(mu_i * 0.1, mu_min), mu_i)
+            at = np.where(test[:, None], proposal[idx], X[idx])
+            new_proposal, new_info = evaluate(at, P[idx], trial_mu, so[idx])
+            calls[idx] += 1
+            accept = test & ((new_info[0] < rn) | (new_info[0] <= tol))
+            reject = test & ~accept
+            update = accept | ~test
+            slow[idx] = np.where(accept, np.where(new_info[0] > SLOW_PROGRESS * rn, slow[idx] + 1, 0), slow[idx])
+            so[idx[slow[idx] >= SLOW_STEPS]] = True
+            X[idx[accept]] = proposal[idx[accept]]
+            info[:, idx[update]] = new_info[:, update]
+            proposal[idx[update]] = new_proposal[update]
+            mu[idx] = np.where(accept, trial_mu, np.where(reject, mu_i * 10.0, mu_i))
+            testing[idx] = ~reject
+
+        limited = np.zeros(N, dtype=bool)
+        limited[idx] = timed_out
+        elapsed = time.perf_counter() - started
+        status, residual, messages = problem.classify_many(X, P, limited=limited)
+        return BatchReport(x=X, status=status, iterations=calls, residual=residual,
+                           time=np.full(N, elapsed / N), messages=messages, batched=True)
+
+
+register_backend("gauss_newton", "nonlinear",
+                 "damped projected Gauss-Newton on CasADi Jacobians; batched over samples")(GaussNewton)

@@ -1,0 +1,146 @@
+"""Backends ``ipopt`` and ``sqpmethod``: the problem as an NLP through CasADi ``nlpsol``.
+
+With at most as many residuals as variables the residuals become equality
+constraints (ANCHORS.md: ``nlpsol`` leaves ``g`` unbounded unless ``lbg``/``ubg``
+are given, so both are set to zero) and the objective states the redundancy
+preference,
+
+    min 1/2 sum_i W_i^2 dist(x_i, x_ref,i)^2   s.t.   r(x, p) = 0,   lower <= x <= upper,
+
+with ``dist^2 = 2 (1 - cos(x - x_ref))`` for angles that wrap (their bounds are
+widened by a full turn and the result wrapped back); without weights the
+objective is zero. With more residuals than variables it is
+``min 1/2 ||r(x, p)||^2`` within the bounds. A problem's ``constraints``
+(e.g. CBHA leg lengths within Table I) are added as inequality rows of ``g``.
+
+Preset options: ``settings``, a mapping handed to the plugin (IPOPT options
+for ``ipopt``; ``sqpmethod`` options such as ``qpsol``, ``hessian_approximation``
+for ``sqpmethod``); unknown names are reported with the preset field.
+The returned point is clipped to the bounds (IPOPT relaxes them by
+``bound_relax_factor``, 1e-8) and then classified by its own residual.
+``limits.max_iterations`` becomes ``max_iter``; ``limits.time_limit`` becomes
+IPOPT's ``max_wall_time`` (``sqpmethod`` has no time limit: its iteration limit
+bounds the time, and a slower solve is reported ``timeout``).
+"""
+
+from __future__ import annotations
+
+import re
+import time
+
+import casadi as ca
+import numpy as np
+
+from optikin.errors import SolverError
+from optikin.solvers import register_backend
+from optikin.solvers.nonlinear import BufferedCall, LeastSquaresProblem, NonlinearAdapter, SolveReport
+
+QUIET_QP = {"print_iter": False, "print_header": False, "error_on_fail": False}
+
+
+def nlp_of(problem: LeastSquaresProblem) -> tuple[dict, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(nlp dict, lbx, ubx, lbg, ubg)`` (module docstring); parameters are ``(p, x_ref)``."""
+    x, p, r, _ = problem.symbols
+    x_ref = ca.SX.sym("x_ref", problem.n)
+    if problem.m <= problem.n:
+        if problem.weights is None:
+            f = ca.SX(0)
+        else:
+            periodic = ca.DM(problem.periodic.astype(float))
+            d2 = ca.if_else(periodic, 2 * (1 - ca.cos(x - x_ref)), (x - x_ref) ** 2)
+            f = 0.5 * ca.dot(ca.DM(problem.weights**2), d2)
+        g, lbg, ubg = r, np.zeros(problem.m), np.zeros(problem.m)
+    else:
+        f, g, lbg, ubg = 0.5 * ca.sumsqr(r), ca.SX(0, 1), np.zeros(0), np.zeros(0)
+    if problem.constraints is not None:
+        g = ca.vertcat(g, problem.constraints(x))
+        lbg, ubg = np.concatenate([lbg, problem.constraint_lower]), np.concatenate([ubg, problem.constraint_upper])
+    span = problem.upper - problem.lower
+    lbx = np.where(problem.periodic, problem.lower - span, problem.lower)
+    ubx = np.where(problem.periodic, problem.upper + span, problem.upper)
+    return {"x": x, "p": ca.vertcat(p, x_ref), "f": f, "g": g}, lbx, ubx, lbg, ubg
+
+
+class NlpsolAdapter(NonlinearAdapter):
+    """A CasADi ``nlpsol`` plugin (module docstring); subclasses set :attr:`plugin`."""
+
+    plugin = ""
+    defaults = {"settings": {}}
+
+    def __init__(self, preset):
+        super().__init__(preset)
+        self._validate_settings()
+
+    def plugin_options(self) -> dict:
+        raise NotImplementedError
+
+    def _validate_settings(self) -> None:
+        """Build the plugin once on a one-variable NLP so a bad setting fails here, naming the field."""
+        x = ca.SX.sym("x")
+        self._build("optikin_check", {"x": x, "f": x * x, "g": x})
+
+    def _build(self, name: str, nlp: dict) -> ca.Function:
+        try:
+            return ca.nlpsol(name, self.plugin, nlp, self.plugin_options())
+        except RuntimeError as exc:
+            text = str(exc)
+            match = re.search(r"(?:Unknown option|No such IPOPT option):?\s*'?([A-Za-z_0-9.]+)", text)
+            if match:
+                raise self.option_error(f"settings.{match.group(1)}",
+                                        f"not an option of {self.plugin}: {text.strip().splitlines()[-1]}") from None
+            raise SolverError(f"{self.preset.name}: building {self.plugin} failed: {text}") from None
+
+    def solver(self, problem: LeastSquaresProblem) -> tuple[BufferedCall, np.ndarray, np.ndarray, np.ndarray,
+                                                          np.ndarray]:
+        key = ("nlpsol", self)
+        if key not in problem.cache:
+            nlp, lbx, ubx, lbg, ubg = nlp_of(problem)
+            call = BufferedCall(self._build(f"{problem.name}_{self.plugin}", nlp))
+            problem.cache[key] = (call, lbx, ubx, lbg, ubg)
+        return problem.cache[key]
+
+    def solve(self, problem: LeastSquaresProblem, x0: np.ndarray, p: np.ndarray,
+              x_ref: np.ndarray | None = None) -> SolveReport:
+        started = time.perf_counter()
+        call, lbx, ubx, lbg, ubg = self.solver(problem)
+        x0 = np.asarray(x0, dtype=float)
+        reference = x0 if x_ref is None else np.asarray(x_ref, dtype=float)
+        try:
+            # nlpsol inputs: x0, p, lbx, ubx, lbg, ubg, lam_x0, lam_g0
+            x = call(x0, np.concatenate([np.ravel(p), reference]), lbx, ubx, lbg, ubg,
+                     np.zeros(problem.n), np.zeros(len(lbg)))[0].copy()
+            # IPOPT relaxes bounds by up to 1e-8 (bound_relax_factor); put the point back inside.
+            x = np.where(problem.periodic, x, np.clip(x, problem.lower, problem.upper))
+        except RuntimeError as exc:
+            return self.finish(problem, x0, p, 0, started, error=f"{self.plugin}: {exc}")
+        try:
+            iterations = call.stats().get("iter_count", -1)
+        except RuntimeError:  # some failures leave no statistics
+            iterations = -1
+        return self.finish(problem, x, p, iterations, started)
+
+
+class Ipopt(NlpsolAdapter):
+    plugin = "ipopt"
+
+    def plugin_options(self) -> dict:
+        settings = {"print_level": 0, "sb": "yes", "tol": self.limits.tolerance,
+                    "max_iter": self.limits.max_iterations, "max_wall_time": self.limits.time_limit}
+        settings.update(self.options["settings"])
+        return {"ipopt": settings, "print_time": False, "error_on_fail": False, "show_eval_warnings": False}
+
+
+class Sqpmethod(NlpsolAdapter):
+    plugin = "sqpmethod"
+
+    def plugin_options(self) -> dict:
+        options = {"qpsol": "qrqp", "qpsol_options": dict(QUIET_QP), "max_iter": self.limits.max_iterations,
+                   "print_header": False, "print_iteration": False, "print_status": False,
+                   "tol_pr": self.limits.tolerance}
+        options.update(self.options["settings"])
+        options.update({"print_time": False, "error_on_fail": False, "show_eval_warnings": False})
+        return options
+
+
+register_backend("ipopt", "nonlinear", "interior point (IPOPT) through CasADi nlpsol")(Ipopt)
+register_backend("sqpmethod", "nonlinear", "CasADi's SQP method (qrqp QPs) through nlpsol")(Sqpmethod)

@@ -1,0 +1,401 @@
+"""The ``nonlinear`` backend family: bounded nonlinear least squares ``min 1/2 ||r(x, p)||^2``.
+
+A :class:`LeastSquaresProblem` carries a CasADi residual ``r(x, p)`` (``p``
+holds the data of one sample, e.g. a target position), the bounds of ``x``,
+which variables are angles that wrap (a full-turn range), the tolerance on
+``||r||`` that counts as solved, and an optional redundancy preference: among
+the configurations with ``r = 0`` prefer the one closest to a reference
+``x_ref`` in the weighted norm ``||W (x - x_ref)||``.
+
+Every adapter of the family offers
+
+``solve(problem, x0, p, x_ref=None) -> SolveReport``
+    one solve from ``x0`` (``x_ref`` defaults to ``x0``);
+``solve_many(problem, X0, P, warm_start=False, x_ref=None) -> BatchReport``
+    many samples; with ``warm_start`` sample ``k`` starts from the solution of
+    sample ``k - 1`` (a trajectory), and ``x_ref=None`` then means "closest to
+    the previous solution".
+
+How a solve went is decided here, by the same rule for every backend, from
+the returned point alone (a backend's own success flag is not trusted:
+CasADi's Newton rootfinder can return a non-converged iterate silently):
+
+``ok``             ``||r|| <= tolerance`` and ``x`` inside the bounds;
+``unreachable``    ``||r|| > tolerance`` at a stationary point of ``||r||^2``
+                   within the bounds (the projected gradient ``J^T r`` vanishes):
+                   the closest reachable configuration, e.g. a target outside
+                   the workspace;
+``timeout``        the preset's ``limits.time_limit`` was exceeded;
+``failed``         non-finite values, a point outside the bounds, or a solver error;
+``not_converged``  anything else (e.g. the iteration limit was reached).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from functools import cached_property
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from optikin.batch import batched
+from optikin.errors import SpecError
+from optikin.spec import SolverSpec, available
+
+FAMILY = "nonlinear"
+BOUND_TOLERANCE = 1e-9
+"""How far (relative to the variable's range) a returned point may sit outside the bounds."""
+
+
+@dataclass(eq=False)
+class LeastSquaresProblem:
+    """``min 1/2 ||r(x, p)||^2`` subject to ``lower <= x <= upper``.
+
+    Parameters
+    ----------
+    residual:
+        CasADi Function ``(x, p) -> r`` built from SX expressions.
+    lower, upper:
+        Bounds of ``x``. Periodic variables are wrapped into ``[lower, upper)`` instead of clipped.
+    periodic:
+        Mask of the variables that are angles with a full-turn range.
+    tolerance:
+        ``||r||`` at or below which a sample counts as solved (units of ``r``).
+    weights:
+        Diagonal ``W`` of the redundancy preference ``||W (x - x_ref)||``; ``None``: no preference.
+    stationarity_tolerance:
+        ``||P J^T r|| / (||J||_F ||r||)`` below which an unsolved point counts as a stationary point
+        of the residual (``P`` drops the components blocked by active bounds).
+    constraints, constraint_lower, constraint_upper, constraint_names:
+        Optional limits ``constraint_lower <= c(x) <= constraint_upper`` on a CasADi Function
+        ``c(x)`` (e.g. the CBHA's leg lengths within Table I). The NLP backends impose them;
+        every backend's result is checked against them and reported ``failed`` outside.
+    """
+
+    residual: ca.Function
+    lower: np.ndarray
+    upper: np.ndarray
+    periodic: np.ndarray
+    tolerance: float = 1e-10
+    weights: np.ndarray | None = None
+    stationarity_tolerance: float = 1e-5
+    name: str = "least_squares"
+    variable_names: tuple[str, ...] = ()
+    constraints: ca.Function | None = None
+    constraint_lower: np.ndarray | None = None
+    constraint_upper: np.ndarray | None = None
+    constraint_names: tuple[str, ...] = ()
+    cache: dict[Any, Any] = field(default_factory=dict, repr=False)
+
+    def __post_init__(self) -> None:
+        self.lower = np.asarray(self.lower, dtype=float)
+        self.upper = np.asarray(self.upper, dtype=float)
+        self.periodic = np.asarray(self.periodic, dtype=bool)
+        if self.weights is not None:
+            self.weights = np.asarray(self.weights, dtype=float)
+            if self.weights.shape != (self.n,) or np.any(self.weights <= 0):
+                raise ValueError(f"{self.name}: weights must be {self.n} positive numbers")
+        if not self.variable_names:
+            self.variable_names = tuple(f"x{i}" for i in range(self.n))
+        if self.constraints is not None:
+            k = self.constraints.size1_out(0)
+            self.constraint_lower = np.broadcast_to(np.asarray(self.constraint_lower, dtype=float), (k,))
+            self.constraint_upper = np.broadcast_to(np.asarray(self.constraint_upper, dtype=float), (k,))
+            self.constraint_names = self.constraint_names or tuple(f"c{i}" for i in range(k))
+
+    # ------------------------------------------------------------------ sizes and symbols
+    @property
+    def n(self) -> int:
+        return self.residual.size1_in(0)
+
+    @property
+    def n_data(self) -> int:
+        return self.residual.size1_in(1)
+
+    @property
+    def m(self) -> int:
+        return self.residual.size1_out(0)
+
+    @cached_property
+    def symbols(self) -> tuple[ca.SX, ca.SX, ca.SX, ca.SX]:
+        """``x, p, r(x, p), J(x, p)`` as SX."""
+        x = ca.SX.sym("x", self.n)
+        p = ca.SX.sym("p", self.n_data)
+        r = self.residual(x, p)
+        return x, p, r, ca.jacobian(r, x)
+
+    @cached_property
+    def residual_jacobian(self) -> ca.Function:
+        """``(x, p) -> (r, J)``."""
+        x, p, r, J = self.symbols
+        return ca.Function(f"{self.name}_rJ", [x, p], [r, ca.densify(J)], ["x", "p"], ["r", "J"])
+
+    @cached_property
+    def check(self) -> ca.Function:
+        """``(x, p) -> [||r||, stationarity, bound violation]`` (see the class docstring)."""
+        x, p, r, J = self.symbols
+        rn = ca.norm_2(r)
+        g = ca.mtimes(J.T, r)
+        lower_active, upper_active = self.active_bounds(x)
+        # A descent step -g that would leave the box is blocked by the bound.
+        blocked = ca.logic_or(ca.logic_and(lower_active, g > 0), ca.logic_and(upper_active, g < 0))
+        projected = ca.if_else(blocked, 0, g)
+        stationarity = ca.norm_2(projected) / (ca.norm_fro(J) * rn + 1e-300)
+        span = self.upper - self.lower
+        outside = ca.fmax(ca.DM(self.lower) - x, x - ca.DM(self.upper)) / ca.DM(span)
+        outside = ca.mmax(ca.if_else(ca.DM(self.periodic), 0, outside))
+        if self.constraints is not None:
+            c = self.constraints(x)
+            span = ca.DM(np.maximum(self.constraint_upper - self.constraint_lower, 1e-300))
+            violation = ca.fmax(ca.DM(self.constraint_lower) - c, c - ca.DM(self.constraint_upper)) / span
+            outside = ca.fmax(outside, ca.mmax(violation))
+        return ca.Function(f"{self.name}_check", [x, p], [ca.vertcat(rn, stationarity, outside)])
+
+    @cached_property
+    def packed_check(self) -> ca.Function:
+        """:attr:`check` with one packed input ``[x; p]`` (for zero-copy batches)."""
+        x, p, _, _ = self.symbols
+        return ca.Function(f"{self.name}_check_packed", [ca.vertcat(x, p)], [self.check(x, p)])
+
+    def active_bounds(self, x: ca.SX, margin: float = 1e-12) -> tuple[ca.SX, ca.SX]:
+        """Masks of the non-periodic variables at their lower / upper bound."""
+        span = ca.DM(self.upper - self.lower)
+        fixed = ca.DM(~self.periodic)
+        return (ca.logic_and(fixed, x <= ca.DM(self.lower) + margin * span),
+                ca.logic_and(fixed, x >= ca.DM(self.upper) - margin * span))
+
+    # ------------------------------------------------------------------ numeric helpers
+    def fast(self, name: str) -> "BufferedCall":
+        """A zero-copy caller of the Function attribute ``name`` (built once per problem)."""
+        key = ("buffered", name)
+        if key not in self.cache:
+            self.cache[key] = BufferedCall(getattr(self, name))
+        return self.cache[key]
+
+    def project(self, x: np.ndarray) -> np.ndarray:
+        """Wrap periodic variables into ``[lower, upper)`` and clip the others to the bounds."""
+        x = np.array(x, dtype=float)
+        if x.ndim == 1 and ((x >= self.lower) & (x <= self.upper)).all():
+            return x  # the common case, a warm start: nothing to do
+        span = self.upper - self.lower
+        wrapped = self.lower + np.mod(x - self.lower, span)
+        return np.where(self.periodic, wrapped, np.clip(x, self.lower, self.upper))
+
+    def wrap(self, x: np.ndarray) -> np.ndarray:
+        """Wrap periodic variables only (a point outside the bounds stays outside)."""
+        x = np.array(x, dtype=float)
+        wrapped = self.lower + np.mod(x - self.lower, self.upper - self.lower)
+        return np.where(self.periodic, wrapped, x)
+
+    def classify(self, x: np.ndarray, p: np.ndarray, elapsed: float, time_limit: float,
+                 error: str = "") -> tuple[str, float, str]:
+        """``(status, ||r||, message)`` of a returned point ``x`` (module docstring)."""
+        if error:
+            return "failed", float("nan"), error
+        x = self.wrap(x)
+        if not np.all(np.isfinite(x)):
+            return "failed", float("nan"), "non-finite solution"
+        rn, stationarity, outside = self.fast("check")(x, p)[0]
+        if not np.isfinite(rn):
+            return "failed", float("nan"), "non-finite residual"
+        if outside > BOUND_TOLERANCE:
+            return "failed", float(rn), self.violation_message(x)
+        return self.status_of(float(rn), float(stationarity), elapsed, time_limit)
+
+    def violation_message(self, x: np.ndarray) -> str:
+        """Which bound or constraint ``x`` violates most (relative to its range)."""
+        bounds = np.maximum(self.lower - x, x - self.upper) / (self.upper - self.lower) * ~self.periodic
+        worst = int(np.argmax(bounds))
+        message = f"{self.variable_names[worst]} = {x[worst]:.6g} outside its bounds"
+        if self.constraints is not None:
+            c = np.asarray(self.constraints(x)).ravel()
+            violation = np.maximum(self.constraint_lower - c, c - self.constraint_upper) / np.maximum(
+                self.constraint_upper - self.constraint_lower, 1e-300)
+            j = int(np.argmax(violation))
+            if violation[j] > bounds[worst]:
+                message = (f"{self.constraint_names[j]} = {c[j]:.6g} outside "
+                           f"[{self.constraint_lower[j]:.6g}, {self.constraint_upper[j]:.6g}]")
+        return message
+
+    def status_of(self, rn: float, stationarity: float, elapsed: float, time_limit: float) -> tuple[str, float, str]:
+        """:meth:`classify` of a finite point inside the bounds whose ``||r||`` and stationarity are known."""
+        if rn <= self.tolerance:
+            return "ok", rn, ""
+        if elapsed > time_limit:
+            return "timeout", rn, f"time limit {time_limit:g} s exceeded"
+        if stationarity <= self.stationarity_tolerance:
+            return "unreachable", rn, "stationary point of the residual: closest reachable configuration"
+        return "not_converged", rn, ""
+
+    def classify_many(self, X: np.ndarray, P: np.ndarray, limited: np.ndarray | None = None
+                      ) -> tuple[list[str], np.ndarray, list[str]]:
+        """:meth:`classify` for a batch (rows of ``X`` and ``P``); ``limited`` marks samples cut off by a limit."""
+        X = self.wrap(X)
+        N = len(X)
+        finite = np.all(np.isfinite(X), axis=1)
+        packed = np.concatenate([np.where(finite[:, None], X, self.lower), np.asarray(P, dtype=float)], axis=1)
+        rn, stationarity, outside = batched(self.packed_check).raw(packed).T
+        rn = np.where(finite, rn, np.nan)
+        status, messages = [], []
+        for i in range(N):
+            if not np.isfinite(rn[i]):
+                status.append("failed"), messages.append("non-finite solution")
+            elif outside[i] > BOUND_TOLERANCE:
+                status.append("failed"), messages.append(self.violation_message(X[i]))
+            elif rn[i] <= self.tolerance:
+                status.append("ok"), messages.append("")
+            elif limited is not None and limited[i]:
+                status.append("timeout"), messages.append("")
+            elif stationarity[i] <= self.stationarity_tolerance:
+                status.append("unreachable"), messages.append("closest reachable configuration")
+            else:
+                status.append("not_converged"), messages.append("")
+        return status, rn, messages
+
+
+class BufferedCall:
+    """Calls of a CasADi Function through ``Function.buffer()`` (about 1 us instead of about 12 us).
+
+    Inputs are copied into preallocated arrays; the outputs returned are those arrays themselves,
+    overwritten by the next call (copy what you keep). Dense inputs and outputs only.
+    """
+
+    def __init__(self, f: ca.Function):
+        for i in range(f.n_out()):
+            if not f.sparsity_out(i).is_dense():
+                raise ValueError(f"{f.name()}: output {i} is sparse; densify it before buffering")
+        self._buffer, self._trigger = f.buffer()
+        self.args = [np.zeros(f.numel_in(i)) for i in range(f.n_in())]
+        self.results = [np.zeros(f.numel_out(i)) for i in range(f.n_out())]
+        for i, a in enumerate(self.args):
+            self._buffer.set_arg(i, memoryview(a))
+        for i, r in enumerate(self.results):
+            self._buffer.set_res(i, memoryview(r))
+
+    def __call__(self, *args: Any) -> list[np.ndarray]:
+        for slot, value in zip(self.args, args):
+            slot[:] = np.ravel(value, order="F")
+        self._trigger()
+        return self.results
+
+    def stats(self) -> dict[str, Any]:
+        """The Function's statistics of the last buffered call (iterations of a solver, ...)."""
+        return self._buffer.stats()
+
+
+@dataclass
+class SolveReport:
+    """Outcome of one solve: the point, its status, iterations, ``||r||`` and wall time [s]."""
+
+    x: np.ndarray
+    status: str
+    iterations: int
+    residual: float
+    time: float
+    message: str = ""
+
+    @property
+    def ok(self) -> bool:
+        return self.status == "ok"
+
+
+@dataclass
+class BatchReport:
+    """Outcome of many solves; ``time`` is per sample [s] (a batched path reports total / N)."""
+
+    x: np.ndarray
+    status: list[str]
+    iterations: np.ndarray
+    residual: np.ndarray
+    time: np.ndarray
+    messages: list[str]
+    batched: bool = False
+
+    @classmethod
+    def of(cls, reports: list[SolveReport], n: int) -> "BatchReport":
+        return cls(
+            x=np.array([r.x for r in reports]).reshape(len(reports), n),
+            status=[r.status for r in reports],
+            iterations=np.array([r.iterations for r in reports], dtype=int),
+            residual=np.array([r.residual for r in reports]),
+            time=np.array([r.time for r in reports]),
+            messages=[r.message for r in reports],
+        )
+
+    def __len__(self) -> int:
+        return len(self.status)
+
+
+def preset_path(preset: SolverSpec) -> str:
+    """The file a preset most likely came from, for error messages."""
+    return str(available("solvers").get(preset.name, f"solver preset {preset.name!r}"))
+
+
+class NonlinearAdapter:
+    """Common part of the ``nonlinear`` adapters: option checking, limits, the sample loop.
+
+    Subclasses set :attr:`defaults` (the accepted ``options`` of the preset and their default
+    values) and implement :meth:`solve`.
+    """
+
+    defaults: dict[str, Any] = {}
+    untyped: tuple[str, ...] = ()
+    """Options whose type is checked by the subclass (e.g. a number or a keyword)."""
+
+    def __init__(self, preset: SolverSpec):
+        self.preset = preset
+        self.limits = preset.limits
+        self.options = self.checked_options(preset)
+
+    def checked_options(self, preset: SolverSpec) -> dict[str, Any]:
+        """The preset's options merged over :attr:`defaults`; unknown or mistyped ones name the field."""
+        options = dict(self.defaults)
+        for key, value in preset.options.items():
+            if key not in self.defaults:
+                known = ", ".join(self.defaults) or "none"
+                raise SpecError(preset_path(preset), f"options.{key}",
+                                f"unknown option of backend {preset.backend!r}; known: {known}")
+            default = self.defaults[key]
+            if key in self.untyped:
+                pass
+            elif isinstance(default, bool) and not isinstance(value, bool):
+                raise SpecError(preset_path(preset), f"options.{key}", f"expected true or false, got {value!r}")
+            if isinstance(default, (int, float)) and not isinstance(default, bool):
+                if isinstance(value, bool) or not isinstance(value, (int, float)):
+                    raise SpecError(preset_path(preset), f"options.{key}", f"expected a number, got {value!r}")
+            if isinstance(default, dict) and not isinstance(value, dict):
+                raise SpecError(preset_path(preset), f"options.{key}", f"expected a mapping, got {value!r}")
+            options[key] = value
+        return options
+
+    def option_error(self, key: str, message: str) -> SpecError:
+        return SpecError(preset_path(self.preset), f"options.{key}", message)
+
+    def solve(self, problem: LeastSquaresProblem, x0: np.ndarray, p: np.ndarray,
+              x_ref: np.ndarray | None = None) -> SolveReport:
+        raise NotImplementedError
+
+    def solve_many(self, problem: LeastSquaresProblem, X0: np.ndarray, P: np.ndarray, warm_start: bool = False,
+                   x_ref: np.ndarray | None = None) -> BatchReport:
+        """Solve every row of ``P``; see the module docstring for ``warm_start`` and ``x_ref``."""
+        P = np.atleast_2d(np.asarray(P, dtype=float))
+        X0 = np.broadcast_to(np.asarray(X0, dtype=float), (len(P), problem.n))
+        reports: list[SolveReport] = []
+        previous = None
+        for k in range(len(P)):
+            start = X0[k] if previous is None else previous
+            report = self.solve(problem, start, P[k], x_ref)
+            reports.append(report)
+            if warm_start and np.all(np.isfinite(report.x)):
+                previous = report.x
+        return BatchReport.of(reports, problem.n)
+
+    def finish(self, problem: LeastSquaresProblem, x: np.ndarray, p: np.ndarray, iterations: int,
+               started: float, error: str = "") -> SolveReport:
+        """Classify the returned point and package the report."""
+        elapsed = time.perf_counter() - started
+        x = problem.wrap(np.asarray(x, dtype=float).ravel())
+        status, rn, message = problem.classify(x, p, elapsed, self.limits.time_limit, error)
+        return SolveReport(x, status, int(iterations), rn, elapsed, message)

@@ -1,0 +1,175 @@
+"""Backends ``lm`` and ``trf``: ``scipy.optimize.least_squares`` with the CasADi residual and Jacobian.
+
+``lm`` is MINPACK's Levenberg-Marquardt, which takes no bounds: bounded
+variables are solved for through the smooth map ``x = lower + (upper - lower)
+(1 + sin z)/2`` (the transform MINUIT and lmfit use for bounded LM fits);
+``trf`` is scipy's trust-region reflective method with the bounds. Periodic
+angles are left free and wrapped afterwards. Variables are scaled by the
+problem's weights (``x_scale: weights``, the default), i.e. by their ranges.
+
+Redundancy: scipy's steps from the start point are (scaled) minimum-norm
+corrections, so like ``gauss_newton`` the answer is the solution reached from
+``x0``. ``regularisation > 0`` appends Tikhonov rows ``sqrt(regularisation)
+W (x - x_ref)`` instead (periodic differences wrapped): a pull towards ``x_ref``
+that leaves ``||r||`` at about ``regularisation`` times the weighted distance
+and slows convergence (off by default). MINPACK needs as many rows as
+variables; an underdetermined residual is padded with rows of zeros.
+
+Residual and Jacobian come from one zero-copy CasADi call per new ``x``. The
+iteration limit is scipy's ``max_nfev`` (``limits.max_iterations``); the time
+limit is enforced inside the residual callback, which stops the solve and
+keeps the best point seen.
+
+Preset options: ``ftol``, ``xtol``, ``gtol``, ``x_scale`` (``weights``, ``jac``
+or a number), ``regularisation``, and for ``trf`` ``tr_solver``.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from optikin.solvers import register_backend
+from optikin.solvers.nonlinear import LeastSquaresProblem, NonlinearAdapter, SolveReport
+
+
+class _TimeLimit(Exception):
+    pass
+
+
+class _Residual:
+    """``fun`` and ``jac`` for scipy with one CasADi evaluation per distinct ``x``; keeps the best point."""
+
+    def __init__(self, problem: LeastSquaresProblem, p: np.ndarray, x_ref: np.ndarray, regularisation: float,
+                 deadline: float, transform: bool = False):
+        self.call = problem.fast("residual_jacobian")
+        self.transformed = ~problem.periodic if transform else np.zeros(problem.n, dtype=bool)
+        self.problem, self.p, self.x_ref, self.deadline = problem, np.ravel(p), x_ref, deadline
+        n, m = problem.n, problem.m
+        if problem.weights is not None and m < n:
+            self.rows = np.sqrt(regularisation) * problem.weights
+        elif m < n:
+            self.rows = np.zeros(n)
+        else:
+            self.rows = None
+        self.z = None
+        self.evaluations = 0
+        self.best_x, self.best_cost = None, np.inf
+
+    def to_x(self, z: np.ndarray) -> np.ndarray:
+        """Solver variables -> configuration (the sine map on bounded variables)."""
+        lo, span = self.problem.lower, self.problem.upper - self.problem.lower
+        return np.where(self.transformed, lo + 0.5 * span * (1.0 + np.sin(z)), z)
+
+    def to_z(self, x: np.ndarray) -> np.ndarray:
+        lo, span = self.problem.lower, self.problem.upper - self.problem.lower
+        ratio = np.clip(2.0 * (x - lo) / span - 1.0, -1.0, 1.0)
+        return np.where(self.transformed, np.arcsin(ratio), x)
+
+    def _evaluate(self, z: np.ndarray) -> None:
+        if self.z is not None and np.array_equal(z, self.z):
+            return
+        if self.z is not None and time.perf_counter() > self.deadline:
+            raise _TimeLimit
+        x = self.to_x(z)
+        r, J = self.call(x, self.p)
+        self.evaluations += 1
+        self.z = z.copy()
+        self.r = r.copy()
+        self.J = J.reshape(self.problem.n, self.problem.m).T.copy()  # column-major m x n
+        dx_dz = np.where(self.transformed, 0.5 * (self.problem.upper - self.problem.lower) * np.cos(z), 1.0)
+        self.J *= dx_dz
+        cost = float(self.r @ self.r)
+        if cost < self.best_cost:
+            self.best_x, self.best_cost = x, cost
+        if self.rows is not None:
+            d = x - self.x_ref
+            d = np.where(self.problem.periodic, np.arctan2(np.sin(d), np.cos(d)), d)
+            self.r = np.concatenate([self.r, self.rows * d])
+            self.J = np.vstack([self.J, np.diag(self.rows * dx_dz)])
+
+    def fun(self, x: np.ndarray) -> np.ndarray:
+        self._evaluate(x)
+        return self.r
+
+    def jac(self, x: np.ndarray) -> np.ndarray:
+        self._evaluate(x)
+        return self.J
+
+
+class ScipyLeastSquares(NonlinearAdapter):
+    """``scipy.optimize.least_squares`` with method :attr:`method` (module docstring)."""
+
+    method = ""
+    defaults = {"ftol": 1e-15, "xtol": 1e-15, "gtol": 1e-15, "x_scale": "weights", "regularisation": 0.0}
+    transform_bounds = False
+    untyped = ("x_scale",)
+
+    def __init__(self, preset):
+        super().__init__(preset)
+        for key in ("ftol", "xtol", "gtol"):
+            if not self.options[key] >= np.finfo(float).eps:
+                raise self.option_error(key, f"must be at least machine epsilon {np.finfo(float).eps:.3g}")
+        x_scale = self.options["x_scale"]
+        if not (x_scale in ("jac", "weights") or (isinstance(x_scale, (int, float)) and not isinstance(x_scale, bool)
+                                     and x_scale > 0)):
+            raise self.option_error("x_scale", f"expected 'weights', 'jac' or a positive number, got {x_scale!r}")
+        if self.options["regularisation"] < 0:
+            raise self.option_error("regularisation", "must be non-negative")
+
+    def extra(self, problem: LeastSquaresProblem) -> dict:
+        return {}
+
+    def x_scale(self, residual: _Residual) -> np.ndarray | str | float:
+        """Scale of the solver variables: the variables' ranges (``1/W``), 1 for sine-mapped ones."""
+        scale = self.options["x_scale"]
+        if scale != "weights":
+            return scale
+        problem = residual.problem
+        ranges = np.ones(problem.n) if problem.weights is None else 1.0 / problem.weights
+        return np.where(residual.transformed, 1.0, ranges)
+
+    def solve(self, problem: LeastSquaresProblem, x0: np.ndarray, p: np.ndarray,
+              x_ref: np.ndarray | None = None) -> SolveReport:
+        started = time.perf_counter()
+        x0 = problem.project(x0)
+        reference = x0 if x_ref is None else np.asarray(x_ref, dtype=float)
+        residual = _Residual(problem, p, reference, self.options["regularisation"],
+                             started + self.limits.time_limit, transform=self.transform_bounds)
+        o = self.options
+        try:
+            result = least_squares(residual.fun, residual.to_z(x0), jac=residual.jac, method=self.method,
+                                   ftol=o["ftol"], xtol=o["xtol"], gtol=o["gtol"], x_scale=self.x_scale(residual),
+                                   max_nfev=self.limits.max_iterations, **self.extra(problem))
+            x, iterations = residual.to_x(result.x), result.nfev
+        except _TimeLimit:
+            x, iterations = residual.best_x, residual.evaluations
+        except (ValueError, np.linalg.LinAlgError) as exc:
+            return self.finish(problem, x0, p, 0, started, error=f"least_squares ({self.method}): {exc}")
+        return self.finish(problem, problem.project(x), p, iterations, started)
+
+
+class LevenbergMarquardt(ScipyLeastSquares):
+    method = "lm"
+    transform_bounds = True
+
+
+class TrustRegionReflective(ScipyLeastSquares):
+    method = "trf"
+    defaults = {**ScipyLeastSquares.defaults, "tr_solver": "exact"}
+
+    def __init__(self, preset):
+        super().__init__(preset)
+        if self.options["tr_solver"] not in ("exact", "lsmr"):
+            raise self.option_error("tr_solver", "must be 'exact' or 'lsmr'")
+
+    def extra(self, problem: LeastSquaresProblem) -> dict:
+        lower = np.where(problem.periodic, -np.inf, problem.lower)
+        upper = np.where(problem.periodic, np.inf, problem.upper)
+        return {"bounds": (lower, upper), "tr_solver": self.options["tr_solver"]}
+
+
+register_backend("lm", "nonlinear", "scipy least_squares, MINPACK Levenberg-Marquardt")(LevenbergMarquardt)
+register_backend("trf", "nonlinear", "scipy least_squares, trust-region reflective with bounds")(TrustRegionReflective)
