@@ -49,6 +49,9 @@ class ArmModel(ABC):
         Bounds of each configuration variable (SI units).
     backbone_points_per_section:
         Resolution of :attr:`backbone`.
+    periodic:
+        One flag per variable: True for angles the kinematics are 2 pi-periodic in
+        (solvers and controllers wrap them instead of clipping at the bounds).
     """
 
     def __init__(
@@ -58,6 +61,7 @@ class ArmModel(ABC):
         lower: np.ndarray,
         upper: np.ndarray,
         backbone_points_per_section: int = 20,
+        periodic: tuple[bool, ...] | None = None,
     ):
         self.name = name
         self.config_names = tuple(config_names)
@@ -69,6 +73,9 @@ class ArmModel(ABC):
             bad = [n for n, lo, hi in zip(self.config_names, self.lower, self.upper) if lo > hi]
             raise ValueError(f"{name}: lower bound above upper bound for {', '.join(bad)}")
         self.backbone_points_per_section = int(backbone_points_per_section)
+        self.periodic = np.zeros(self.n_config, dtype=bool) if periodic is None else np.asarray(periodic, dtype=bool)
+        if self.periodic.shape != (self.n_config,):
+            raise ValueError(f"{name}: periodic must have one flag per configuration variable")
 
     @property
     def n_config(self) -> int:
@@ -195,6 +202,7 @@ class ArmModel(ABC):
             "config_names": list(self.config_names),
             "lower": self.lower.tolist(),
             "upper": self.upper.tolist(),
+            "periodic": self.periodic.tolist(),
         }
 
     def transform_of(self, q: np.ndarray) -> np.ndarray:

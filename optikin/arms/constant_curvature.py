@@ -116,7 +116,8 @@ class ConstantCurvatureArm(ArmModel):
         names = tuple(f"{v}{i + 1}" for i in range(m) for v in ("S", "theta", "phi"))
         lower = np.ravel([[lo * L, -theta_max, -np.pi] for L in lengths])
         upper = np.ravel([[hi * L, theta_max, np.pi] for L in lengths])
-        super().__init__(name, names, lower, upper, backbone_points_per_section)
+        periodic = tuple(v == "phi" for _ in range(m) for v in ("S", "theta", "phi"))
+        super().__init__(name, names, lower, upper, backbone_points_per_section, periodic)
 
     @property
     def n_sections(self) -> int:

@@ -39,9 +39,9 @@ DEFAULT_RATE_LIMITS = {"S": 0.1, "theta": np.pi, "phi": 2.0 * np.pi}
 
 
 def periodic_mask(arm: ArmModel, names: Sequence[str] | None = None) -> np.ndarray:
-    """True for periodic variables: ``names`` if given, else every variable named ``phi*``."""
+    """True for periodic variables: ``names`` if given, else the arm's own :attr:`ArmModel.periodic` flags."""
     if names is None:
-        return np.array([name.startswith("phi") for name in arm.config_names])
+        return arm.periodic.copy()
     unknown = sorted(set(names) - set(arm.config_names))
     if unknown:
         raise ValueError(f"{arm.name} has no variables {unknown}; known: {', '.join(arm.config_names)}")

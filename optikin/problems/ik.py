@@ -106,11 +106,6 @@ def tip_residual(arm: ArmModel, target: str, orientation_length: float) -> ca.Fu
     return ca.Function(f"{arm.name}_ik_pose", [q, p], [r], ["q", "dq"], ["r"])
 
 
-def periodic_mask(arm: ArmModel) -> np.ndarray:
-    """Variables whose range is a full turn are angles that wrap (the CC bending-plane angles phi_i)."""
-    return np.isclose(arm.upper - arm.lower, 2.0 * np.pi)
-
-
 def rest_configuration(arm: ArmModel) -> np.ndarray:
     """Straight at nominal lengths when the arm defines it, else the middle of the bounds."""
     straight = getattr(arm, "straight_configuration", None)
@@ -218,7 +213,7 @@ def build_problem(arm: ArmModel, settings: Settings) -> LeastSquaresProblem | li
         lower, upper = arm.leg_limits()
         limits = {"constraints": arm.leg_lengths, "constraint_lower": lower, "constraint_upper": upper,
                   "constraint_names": arm.leg_names}
-    return LeastSquaresProblem(residual, arm.lower, arm.upper, periodic_mask(arm), tolerance=settings.tolerance,
+    return LeastSquaresProblem(residual, arm.lower, arm.upper, arm.periodic, tolerance=settings.tolerance,
                                weights=settings.weights, name=f"{arm.name}_ik_{settings.target}",
                                variable_names=arm.config_names, **limits)
 
