@@ -66,8 +66,11 @@ def _integrate(values: Array, weights: np.ndarray) -> Array:
     return values @ weights
 
 
-def _rotation_rate_coefficients(curve: PHQuintic) -> tuple[list[Array], list[Array]]:
-    """Cubic Bernstein coefficients of ``g_j(t), g_k(t)``, the ``j, k`` parts of ``G = A* A'``.
+def rotation_rate_coefficients(curve: PHQuintic) -> tuple[list[Array], list[Array], list[Array]]:
+    """Cubic Bernstein coefficients of ``g_i(t), g_j(t), g_k(t)``, the vector part of ``G = A* A'``.
+
+    ``2 (g_i, g_j, g_k) / sigma`` is the angular velocity of the Euler-Rodrigues frame
+    ``A/|A|`` in its own axes: ``g_i`` its twist about the tangent, ``g_j, g_k`` the bending.
 
     ``A = sum A_i b_i^2``, ``A' = E_0 b_0^1 + E_1 b_1^1`` (``E_0 = 2(A1 - A0)``,
     ``E_1 = 2(A2 - A1)``) and ``b_i^2 b_l^1 = C(2,i) C(1,l) / C(3,i+l) b_{i+l}^3``.
@@ -75,19 +78,17 @@ def _rotation_rate_coefficients(curve: PHQuintic) -> tuple[list[Array], list[Arr
     A = [quat_conjugate(curve.A0), quat_conjugate(curve.A1), quat_conjugate(curve.A2)]
     E = [2.0 * (curve.A1 - curve.A0), 2.0 * (curve.A2 - curve.A1)]
 
-    def jk(P, C):
-        _, _, j, k = B.components(quat_multiply(P, C), 4)
-        return j, k
+    def ijk(P, C):
+        _, i, j, k = B.components(quat_multiply(P, C), 4)
+        return i, j, k
 
     terms = [
-        [(1.0, jk(A[0], E[0]))],
-        [(1.0 / 3.0, jk(A[0], E[1])), (2.0 / 3.0, jk(A[1], E[0]))],
-        [(2.0 / 3.0, jk(A[1], E[1])), (1.0 / 3.0, jk(A[2], E[0]))],
-        [(1.0, jk(A[2], E[1]))],
+        [(1.0, ijk(A[0], E[0]))],
+        [(1.0 / 3.0, ijk(A[0], E[1])), (2.0 / 3.0, ijk(A[1], E[0]))],
+        [(2.0 / 3.0, ijk(A[1], E[1])), (1.0 / 3.0, ijk(A[2], E[0]))],
+        [(1.0, ijk(A[2], E[1]))],
     ]
-    gj = [sum(c * v[0] for c, v in m) for m in terms]
-    gk = [sum(c * v[1] for c, v in m) for m in terms]
-    return gj, gk
+    return tuple([sum(c * v[axis] for c, v in m) for m in terms] for axis in range(3))
 
 
 @lru_cache(maxsize=None)
@@ -111,7 +112,7 @@ def bending_energy(curve: PHQuintic, nodes: int = DEFAULT_NODES) -> Array:
     and evaluated at the nodes by constant matrices.
     """
     _, w = gauss_legendre_unit(nodes)
-    gj, gk = _rotation_rate_coefficients(curve)
+    _, gj, gk = rotation_rate_coefficients(curve)
     gj, gk = _at_nodes(gj, 3, nodes), _at_nodes(gk, 3, nodes)
     sigma = _at_nodes(curve.speed_coefficients(), 4, nodes)
     density = 4.0 * (gj * gj + gk * gk) / (sigma * sigma * sigma)

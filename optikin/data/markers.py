@@ -1,0 +1,475 @@
+"""Motion-capture measurements of a CBHA backbone: a synthetic recorder and a CSV reader.
+
+Seed 002 (section IV) tracks the CBHA with an OptiTrack system (four Prime13
+cameras, 240 frames per second): markers at the start and end of the arm and at
+three intermediate points, the end poses giving the PH curve's data and the
+intermediate markers the check of its shape (section V.A); wire potentiometers
+give the tube lengths (section V.B, Table II).
+
+:func:`synthetic_recording` plays the same experiment on the CBHA vertebra model
+(:class:`optikin.arms.cbha.CBHAArm`, seed 004):
+
+* **motion**: the arm is driven as the real one is, by its tubes. Each section ``s``
+  and tube ``m`` has an elongation fraction ``f_sm(t)`` in ``[0, 1]``, a sinusoid of
+  random frequency and phase (seeded); every leg ``(m, k)`` of the section's
+  platforms then has length ``q_min,k + f_sm (q_max,k - q_min,k)``, within Table I
+  by construction, and each platform's pose ``(Z_k, theta_k, psi_k)`` is solved from
+  its three legs (Newton on seed 004 eqs. 3-6). So every posture is admissible
+  (checked again with :meth:`CBHAArm.validate`) and the motion is smooth;
+* **frames**: 240 Hz; one posture is kept every ``stride`` frames (default 24, so
+  100 postures span about 10 s) and time-stamped ``frame / 240``;
+* **markers**: the end poses are rigid bodies of three markers each, on the tubes'
+  attachment points of the base and tip vertebrae (``r_n u_m``, eq. 3), fitted by
+  the least-squares rotation (Kabsch / Horn) as motion-capture software does: the
+  position is the vertebra centre (the three ``u_m`` add to zero), the rotation the
+  vertebra frame (z along the backbone). Intermediate markers sit on the backbone
+  at vertebrae 5, 9 and 13 (about a quarter, half and three quarters of the way).
+  Every marker gets isotropic Gaussian noise, ``0.3 mm`` standard deviation per
+  coordinate (seeded);
+* **reference tube lengths**: the model's ``tube_lengths`` (section 1 and the whole
+  tube, as the seed's six potentiometers), noise-free;
+* **truth**: configurations, vertebra centres and backbone length, for honest
+  comparisons of the PH backbone with the model's.
+
+:func:`synthetic_rope_chain` records the closed chain of section IV.B: two such arms
+and the rope they hold, hanging as an exact catenary.
+
+Problem files name a source in ``data.source`` (:data:`MARKER_SOURCES`): ``synthetic``
+or ``csv``.
+
+CSV files (:func:`read_marker_csv`, :func:`write_marker_csv`) have a header row and
+one row per posture, all lengths in metres, quaternions ``(w, x, y, z)``:
+
+=====================================  =========================================================
+``t``                                  time, seconds
+``base_x, base_y, base_z``             base rigid body: position (the backbone's start point)
+``base_qw, base_qx, base_qy, base_qz`` base rigid body: orientation; its z axis is the backbone's
+                                       start direction, its x axis the reference of the tube angles
+``tip_x ... tip_qz``                   tip rigid body, the same eight columns
+``m1_x, m1_y, m1_z``, ``m2_...``       intermediate markers from base to tip (at least one)
+``L1, L2, L3``                         optional: whole tube lengths (potentiometers)
+``S1_L1, S1_L2, S1_L3``                optional: tube lengths of section 1
+=====================================  =========================================================
+
+Other columns are ignored. Quaternions within 1e-3 of unit length are normalised;
+anything else (missing column, empty or non-numeric cell, non-unit quaternion) raises
+:class:`InputDataError` naming the file, the row (``sample`` counts data rows from 0;
+the message gives the line) and the column.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass, field
+from functools import lru_cache
+from pathlib import Path
+from typing import Callable
+
+import casadi as ca
+import numpy as np
+
+from optikin.algebra import quat_from_axis_angle, quat_from_matrix, quat_multiply, quat_normalize, quat_rotate
+from optikin.arms.base import ArmModel
+from optikin.arms.cbha import LEG_DIRECTIONS, PLATFORM_LEG_LENGTHS, CBHAArm
+from optikin.curves.catenary import catenary
+from optikin.data.configurations import _params
+from optikin.errors import InputDataError, SpecError
+from optikin.registry import Registry
+from optikin.spec import DataSpec
+
+FRAME_RATE = 240.0
+"""Frames per second of the seed's OptiTrack Prime13 cameras (seed 002 section IV)."""
+MARKER_NOISE = 0.3e-3
+"""Standard deviation of each marker coordinate, metres."""
+INTERMEDIATE_VERTEBRAE = (5, 9, 13)
+"""1-based vertebrae carrying the three intermediate markers (base: 1, tip: 17)."""
+QUATERNION_TOLERANCE = 1e-3
+"""| |q| - 1 | accepted in a CSV file before normalising."""
+
+POSE_COLUMNS = ("x", "y", "z", "qw", "qx", "qy", "qz")
+
+
+@dataclass
+class CBHATruth:
+    """What the synthetic recorder knows and a real recording does not."""
+
+    configurations: np.ndarray  # (N, 48)
+    vertebrae: np.ndarray  # (N, 17, 3) vertebra centres
+    backbone_length: np.ndarray  # (N,) sum of Z_k: the polyline through the vertebra centres
+    marker_truth: np.ndarray  # (N, K, 3) intermediate markers without noise
+
+
+@dataclass
+class MarkerRecording:
+    """End poses, intermediate markers and (optionally) reference tube lengths of ``N`` postures.
+
+    Positions in metres, quaternions ``(w, x, y, z)`` (rigid-body orientation: z along
+    the backbone). ``tube_lengths`` are whole tubes ``(N, 3)``, ``section_tube_lengths``
+    section 1 ``(N, 3)``.
+    """
+
+    t: np.ndarray
+    base_position: np.ndarray
+    base_orientation: np.ndarray
+    tip_position: np.ndarray
+    tip_orientation: np.ndarray
+    markers: np.ndarray
+    tube_lengths: np.ndarray | None = None
+    section_tube_lengths: np.ndarray | None = None
+    source: str = ""
+    truth: CBHATruth | None = field(default=None, repr=False)
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+    @property
+    def base_direction(self) -> np.ndarray:
+        """Unit start tangents ``(N, 3)``: the base z axes."""
+        return quat_rotate(self.base_orientation, np.array([0.0, 0.0, 1.0]))
+
+    @property
+    def tip_direction(self) -> np.ndarray:
+        """Unit end tangents ``(N, 3)``: the tip z axes."""
+        return quat_rotate(self.tip_orientation, np.array([0.0, 0.0, 1.0]))
+
+    @property
+    def base_normal(self) -> np.ndarray:
+        """Reference normals of the tube angles ``(N, 3)``: the base x axes."""
+        return quat_rotate(self.base_orientation, np.array([1.0, 0.0, 0.0]))
+
+    def with_fixed_base(self) -> "MarkerRecording":
+        """The base pose averaged over the recording (seed 002: the base is fixed), noise reduced by sqrt(N)."""
+        q = self.base_orientation * np.where(self.base_orientation @ self.base_orientation[0] < 0, -1.0, 1.0)[:, None]
+        mean_q = quat_normalize(q.mean(axis=0))
+        n = len(self)
+        return MarkerRecording(self.t, np.tile(self.base_position.mean(axis=0), (n, 1)), np.tile(mean_q, (n, 1)),
+                               self.tip_position, self.tip_orientation, self.markers, self.tube_lengths,
+                               self.section_tube_lengths, self.source, self.truth)
+
+    def take(self, index) -> "MarkerRecording":
+        """The postures ``index`` (a slice or an index array)."""
+        pick = lambda a: None if a is None else a[index]  # noqa: E731
+        truth = None
+        if self.truth is not None:
+            tr = self.truth
+            truth = CBHATruth(tr.configurations[index], tr.vertebrae[index], tr.backbone_length[index],
+                              tr.marker_truth[index])
+        return MarkerRecording(self.t[index], self.base_position[index], self.base_orientation[index],
+                               self.tip_position[index], self.tip_orientation[index], self.markers[index],
+                               pick(self.tube_lengths), pick(self.section_tube_lengths), self.source, truth)
+
+
+# ------------------------------------------------------------------------------ the CBHA driven by its tubes
+@lru_cache(maxsize=None)
+def _platform_newton_step() -> ca.Function:
+    """``(x = (Z, theta, psi), q_target, r_k, r_k1) -> (x - J^-1 (q(x) - q_target), max |q(x) - q_target|)``."""
+    x, target = ca.SX.sym("x", 3), ca.SX.sym("q", 3)
+    r_k, r_k1 = ca.SX.sym("r_k"), ca.SX.sym("r_k1")
+    q = PLATFORM_LEG_LENGTHS(x[0], x[1], x[2], r_k, r_k1)
+    residual = q - target
+    step = ca.solve(ca.jacobian(q, x), residual)
+    return ca.Function("cbha_platform_newton", [x, target, r_k, r_k1], [x - step, ca.mmax(ca.fabs(residual))])
+
+
+def platform_poses_from_legs(legs: np.ndarray, r_lower: np.ndarray, r_upper: np.ndarray,
+                             iterations: int = 30, tolerance: float = 1e-13) -> np.ndarray:
+    """``(Z, theta, psi)`` of platforms from their three leg lengths (seed 004 eqs. 3-6), by Newton.
+
+    ``legs`` ``(M, 3)``, radii ``(M,)``; starts from the straight pose at the mean leg
+    length. Raises ``ValueError`` if a platform does not converge (legs no platform can have).
+    """
+    legs = np.asarray(legs, dtype=float)
+    M = legs.shape[0]
+    mean = legs.mean(axis=1)
+    x = np.column_stack([np.sqrt(np.maximum(mean**2 - (r_lower - r_upper) ** 2, 1e-12)), np.zeros(M), np.zeros(M)])
+    step = _platform_newton_step().map(M)
+    for _ in range(iterations):
+        x_new, residual = step(x.T, legs.T, r_lower[None, :], r_upper[None, :])
+        x = np.asarray(x_new).T
+        if float(np.max(np.asarray(residual))) < tolerance:
+            break
+    final = np.asarray(step(x.T, legs.T, r_lower[None, :], r_upper[None, :])[1]).ravel()
+    if not np.all(final < 1e-10):
+        raise ValueError(f"platform legs not reachable: residual {final.max():.3g} m")
+    return x
+
+
+def tube_fractions(n_sections: int, t: np.ndarray, rng: np.random.Generator, frequency: tuple[float, float],
+                   amplitude: float) -> np.ndarray:
+    """Elongation fractions ``(N, sections, 3)`` in ``[0, 1]``: ``1/2 + amplitude/2 sin(2 pi nu t + phase)``."""
+    nu = rng.uniform(frequency[0], frequency[1], (n_sections, 3))
+    phase = rng.uniform(-np.pi, np.pi, (n_sections, 3))
+    return 0.5 + 0.5 * amplitude * np.sin(2 * np.pi * nu * t[:, None, None] + phase)
+
+
+def configurations_from_fractions(arm: CBHAArm, fractions: np.ndarray) -> np.ndarray:
+    """Configurations ``(N, 48)`` of tube elongation fractions ``(N, sections, 3)`` (module docstring)."""
+    g = arm.geometry
+    N = fractions.shape[0]
+    section_of = np.repeat(np.arange(arm.n_sections), g.platforms_per_section)
+    lo, hi = np.asarray(g.leg_min), np.asarray(g.leg_max)
+    legs = lo[None, :, None] + fractions[:, section_of, :] * (hi - lo)[None, :, None]  # (N, platform, tube)
+    r = g.radii
+    r_lower = np.tile(r[:-1], N)
+    r_upper = np.tile(r[1:], N)
+    poses = platform_poses_from_legs(legs.reshape(-1, 3), r_lower, r_upper)
+    return poses.reshape(N, -1)
+
+
+# ------------------------------------------------------------------------------ the recorder
+def kabsch_rotation(local: np.ndarray, measured: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Least-squares rigid fit ``measured ~ R local + p`` (Kabsch 1976), batched.
+
+    ``local`` ``(K, 3)`` points in the body frame, centred; ``measured`` ``(N, K, 3)``.
+    Returns ``(R (N, 3, 3), p (N, 3))``.
+    """
+    p = measured.mean(axis=1)
+    H = np.einsum("ki,nkj->nij", local, measured - p[:, None, :])
+    U, _, Vt = np.linalg.svd(H)
+    d = np.sign(np.linalg.det(np.einsum("nij,njk->nik", Vt.transpose(0, 2, 1), U.transpose(0, 2, 1))))
+    D = np.zeros((len(d), 3, 3))
+    D[:, 0, 0] = D[:, 1, 1] = 1.0
+    D[:, 2, 2] = d
+    R = np.einsum("nij,njk,nkl->nil", Vt.transpose(0, 2, 1), D, U.transpose(0, 2, 1))
+    return R, p
+
+
+def synthetic_recording(arm: CBHAArm, samples: int = 100, rng: np.random.Generator | None = None, *,
+                        noise: float = MARKER_NOISE, rate: float = FRAME_RATE, stride: int = 24,
+                        frequency: tuple[float, float] = (0.05, 0.2), amplitude: float = 0.9,
+                        intermediate: tuple[int, ...] = INTERMEDIATE_VERTEBRAE,
+                        source: str = "synthetic CBHA recording") -> MarkerRecording:
+    """Record ``samples`` postures of the CBHA moved by its tubes (module docstring)."""
+    rng = rng if rng is not None else np.random.default_rng(0)
+    n_vertebrae = arm.geometry.n_vertebrae
+    bad = [v for v in intermediate if not (isinstance(v, (int, np.integer)) and 1 < v < n_vertebrae)]
+    if bad or not intermediate:
+        raise ValueError(f"intermediate markers need vertebrae strictly between 1 and {n_vertebrae}, got {intermediate}")
+    if not (noise >= 0 and rate > 0 and stride >= 1 and 0 <= amplitude <= 1):
+        raise ValueError("need noise >= 0, rate > 0, stride >= 1 and amplitude in [0, 1]")
+    t = np.arange(samples) * stride / rate
+    Q = configurations_from_fractions(arm, tube_fractions(arm.n_sections, t, rng, frequency, amplitude))
+    Q = arm.validate(Q, source=source)
+    vertebrae = arm.evaluate("vertebra_positions", Q).transpose(0, 2, 1)  # (N, 17, 3)
+    tube_pts = arm.evaluate("tube_points", Q).reshape(samples, 3, 3, n_vertebrae)  # (N, xyz, tube, vertebra)
+    lengths = arm.evaluate("tube_lengths", Q)  # (N, section, tube)
+
+    def rigid_body(n: int):
+        local = arm.geometry.vertebra_radius(n + 1) * LEG_DIRECTIONS  # (3 markers, xyz), centred
+        measured = tube_pts[:, :, :, n].transpose(0, 2, 1) + noise * rng.standard_normal((samples, 3, 3))
+        R, p = kabsch_rotation(local, measured)
+        return p, quat_from_matrix(R)
+
+    base_p, base_q = rigid_body(0)
+    tip_p, tip_q = rigid_body(n_vertebrae - 1)
+    index = np.asarray(intermediate) - 1
+    marker_truth = vertebrae[:, index, :]
+    markers = marker_truth + noise * rng.standard_normal(marker_truth.shape)
+    truth = CBHATruth(Q, vertebrae, Q.reshape(samples, -1, 3)[:, :, 0].sum(axis=1), marker_truth)
+    return MarkerRecording(t, base_p, base_q, tip_p, tip_q, markers, lengths.sum(axis=1), lengths[:, 0, :],
+                           source, truth)
+
+
+# ------------------------------------------------------------------------------ CSV files
+def _header(n_markers: int, lengths: bool, section: bool) -> list[str]:
+    cols = ["t"] + [f"{body}_{c}" for body in ("base", "tip") for c in POSE_COLUMNS]
+    cols += [f"m{k}_{c}" for k in range(1, n_markers + 1) for c in "xyz"]
+    if lengths:
+        cols += ["L1", "L2", "L3"]
+    if section:
+        cols += ["S1_L1", "S1_L2", "S1_L3"]
+    return cols
+
+
+def write_marker_csv(recording: MarkerRecording, path: Path) -> Path:
+    """Write ``recording`` in the documented columns (module docstring), full precision."""
+    n, K = len(recording), recording.markers.shape[1]
+    columns = [recording.t[:, None], recording.base_position, recording.base_orientation, recording.tip_position,
+               recording.tip_orientation, recording.markers.reshape(n, 3 * K)]
+    if recording.tube_lengths is not None:
+        columns.append(recording.tube_lengths)
+    if recording.section_tube_lengths is not None:
+        columns.append(recording.section_tube_lengths)
+    table = np.hstack(columns)
+    path = Path(path)
+    with open(path, "w", newline="") as fh:
+        writer = csv.writer(fh)
+        writer.writerow(_header(K, recording.tube_lengths is not None, recording.section_tube_lengths is not None))
+        writer.writerows([[repr(float(v)) for v in row] for row in table])
+    return path
+
+
+def read_marker_csv(path: Path) -> MarkerRecording:
+    """Read a recording from a CSV file in the documented columns (module docstring)."""
+    path = Path(path)
+    source = str(path)
+    try:
+        with open(path, newline="") as fh:
+            rows = list(csv.reader(fh))
+    except OSError as exc:
+        raise InputDataError(f"cannot read: {exc.strerror or exc}", source=source) from None
+    if not rows:
+        raise InputDataError("empty file", source=source)
+    header = [h.strip() for h in rows[0]]
+    n_markers = 0
+    while all(f"m{n_markers + 1}_{c}" in header for c in "xyz"):
+        n_markers += 1
+    required = _header(max(n_markers, 1), False, False)
+    missing = [c for c in required if c not in header]
+    if missing:
+        raise InputDataError(f"missing column(s) {', '.join(missing)} (intermediate markers m1_x, m1_y, m1_z, ... "
+                             f"are numbered from 1); header is {', '.join(header)}", source=source, field=missing[0])
+    has_lengths = all(c in header for c in ("L1", "L2", "L3"))
+    has_section = all(c in header for c in ("S1_L1", "S1_L2", "S1_L3"))
+    wanted = _header(n_markers, has_lengths, has_section)
+    index = [header.index(c) for c in wanted]
+    data = rows[1:]
+    if not data:
+        raise InputDataError("no data rows", source=source)
+    values = np.empty((len(data), len(wanted)))
+    for i, row in enumerate(data):
+        for k, j in enumerate(index):
+            cell = row[j].strip() if j < len(row) else ""
+            try:
+                value = float(cell)
+            except ValueError:
+                value = math.nan
+            if not math.isfinite(value):
+                shown = repr(cell) if cell else "an empty cell"
+                raise InputDataError(f"{shown} is not a finite number (line {i + 2})", source=source, sample=i,
+                                     field=wanted[k])
+            values[i, k] = value
+    column = {name: values[:, k] for k, name in enumerate(wanted)}
+
+    def stacked(names):
+        return np.column_stack([column[c] for c in names])
+
+    def orientation(body):
+        names = [f"{body}_{c}" for c in ("qw", "qx", "qy", "qz")]
+        q = stacked(names)
+        error = np.abs(np.linalg.norm(q, axis=1) - 1.0)
+        if np.any(error > QUATERNION_TOLERANCE):
+            i = int(np.argmax(error > QUATERNION_TOLERANCE))
+            raise InputDataError(f"{q[i].tolist()} is not a unit quaternion (| |q| - 1 | = {error[i]:.3g} > "
+                                 f"{QUATERNION_TOLERANCE:g}; line {i + 2})", source=source, sample=i,
+                                 field=", ".join(names))
+        return quat_normalize(q)
+
+    n = len(data)
+    markers = stacked([f"m{k}_{c}" for k in range(1, n_markers + 1) for c in "xyz"]).reshape(n, n_markers, 3)
+    return MarkerRecording(
+        t=column["t"], base_position=stacked(["base_x", "base_y", "base_z"]), base_orientation=orientation("base"),
+        tip_position=stacked(["tip_x", "tip_y", "tip_z"]), tip_orientation=orientation("tip"), markers=markers,
+        tube_lengths=stacked(["L1", "L2", "L3"]) if has_lengths else None,
+        section_tube_lengths=stacked(["S1_L1", "S1_L2", "S1_L3"]) if has_section else None, source=source)
+
+
+# ------------------------------------------------------------------------------ sources of problem files
+MarkerSource = Callable[[ArmModel, DataSpec, Path], MarkerRecording]
+MARKER_SOURCES: Registry[MarkerSource] = Registry("marker source")
+
+
+@MARKER_SOURCES.register("synthetic")
+def synthetic_source(arm: ArmModel, data: DataSpec, path: Path) -> MarkerRecording:
+    """:func:`synthetic_recording` of ``data.samples`` postures seeded by ``data.seed``.
+
+    params: ``noise`` (m, default 0.3e-3), ``rate`` (Hz, 240), ``stride`` (frames, 24),
+    ``frequency`` (``[low, high]`` Hz, ``[0.05, 0.2]``), ``amplitude`` (0.9),
+    ``intermediate`` (vertebrae, ``[5, 9, 13]``).
+    """
+    p = _params(data, path, {"noise": MARKER_NOISE, "rate": FRAME_RATE, "stride": 24, "frequency": [0.05, 0.2],
+                             "amplitude": 0.9, "intermediate": list(INTERMEDIATE_VERTEBRAE)})
+    if not isinstance(arm, CBHAArm):
+        raise SpecError(path, "arm.type", f"source 'synthetic' records a CBHA; got arm {arm.name!r}")
+    try:
+        frequency = tuple(float(f) for f in p["frequency"])
+        if len(frequency) != 2 or not 0 <= frequency[0] <= frequency[1]:
+            raise ValueError("frequency must be [low, high] with 0 <= low <= high")
+        return synthetic_recording(arm, data.samples, np.random.default_rng([data.seed, 0]), noise=float(p["noise"]),
+                                   rate=float(p["rate"]), stride=int(p["stride"]), frequency=frequency,
+                                   amplitude=float(p["amplitude"]), intermediate=tuple(int(v) for v in p["intermediate"]),
+                                   source=f"{Path(path).name}: synthetic")
+    except (TypeError, ValueError) as exc:
+        raise SpecError(path, "data.params", str(exc)) from None
+
+
+@MARKER_SOURCES.register("csv")
+def csv_source(arm: ArmModel, data: DataSpec, path: Path) -> MarkerRecording:
+    """:func:`read_marker_csv` of ``params.file`` (relative to the problem file), first ``data.samples`` rows."""
+    p = _params(data, path, {"file": None})
+    if not p["file"]:
+        raise SpecError(path, "data.params.file", "required by source 'csv'")
+    recording = read_marker_csv((Path(path).parent / str(p["file"])).resolve())
+    return recording.take(slice(0, data.samples))
+
+
+# ------------------------------------------------------------------------------ two arms holding a rope
+@dataclass
+class RopeChainRecording:
+    """Seed 002 section IV.B: CBHA 1 (A -> B), a rope (B -> C), CBHA 2 (C -> D), in one world frame.
+
+    ``arm1``, ``arm2`` are the arms' recordings (arm 2 already placed at its base);
+    the rope hangs between the true tips. ``rope_markers`` ``(N, K, 3)`` are its
+    intermediate markers, ``rope_directions`` ``(N, 2, 3)`` its unit end directions
+    from B towards C, estimated from a marker ``end_offset`` along the rope from each
+    end; ``rope_truth`` ``(N, M, 3)`` dense points of the exact catenary.
+    """
+
+    arm1: MarkerRecording
+    arm2: MarkerRecording
+    rope_length: float
+    rope_markers: np.ndarray
+    rope_directions: np.ndarray
+    rope_truth: np.ndarray
+    rope_marker_truth: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.arm1)
+
+
+def placed(recording: MarkerRecording, rotation: np.ndarray, translation: np.ndarray) -> MarkerRecording:
+    """``recording`` seen from a world frame in which its base frame is rotated by ``rotation`` and moved by ``translation``."""
+    move = lambda p: quat_rotate(rotation, p) + translation  # noqa: E731
+    truth = recording.truth
+    if truth is not None:
+        truth = CBHATruth(truth.configurations, move(truth.vertebrae), truth.backbone_length, move(truth.marker_truth))
+    return MarkerRecording(recording.t, move(recording.base_position), quat_multiply(rotation, recording.base_orientation),
+                           move(recording.tip_position), quat_multiply(rotation, recording.tip_orientation),
+                           move(recording.markers), recording.tube_lengths, recording.section_tube_lengths,
+                           recording.source, truth)
+
+
+def synthetic_rope_chain(arm: CBHAArm, samples: int, rng: np.random.Generator, *, base_distance: float = 0.25,
+                         rope_length: float = 0.65, rope_marker_fractions: tuple[float, ...] = (0.25, 0.5, 0.75),
+                         end_offset: float = 0.02, noise: float = MARKER_NOISE, truth_points: int = 200,
+                         source: str = "synthetic rope chain", **arm_options) -> RopeChainRecording:
+    """Two CBHAs on one horizontal line, ``base_distance`` apart, upright, facing each other, holding a rope.
+
+    Each arm moves as in :func:`synthetic_recording` (independent seeds); the rope is
+    the inextensible catenary of ``rope_length`` between the true tips
+    (:func:`optikin.curves.catenary.catenary`). Raises :class:`InputDataError` naming
+    the posture where the tips are farther apart than the rope is long.
+    """
+    if not 0 < end_offset < rope_length / 2 or not all(0 < f < 1 for f in rope_marker_fractions):
+        raise ValueError("need 0 < end_offset < rope_length / 2 and rope marker fractions within (0, 1)")
+    arm1 = synthetic_recording(arm, samples, rng, noise=noise, source=f"{source}: CBHA 1", **arm_options)
+    arm2 = placed(synthetic_recording(arm, samples, rng, noise=noise, source=f"{source}: CBHA 2", **arm_options),
+                  quat_from_axis_angle(np.array([0.0, 0.0, 1.0]), np.pi), np.array([base_distance, 0.0, 0.0]))
+    B, C = arm1.truth.vertebrae[:, -1], arm2.truth.vertebrae[:, -1]
+    s_markers = rope_length * np.asarray(rope_marker_fractions)
+    s_truth = np.linspace(0.0, rope_length, truth_points)
+    truth, marker_truth, near = [], [], []
+    for i in range(samples):
+        rope = catenary(B[i], C[i], rope_length, source=source)
+        truth.append(rope.points(s_truth))
+        marker_truth.append(rope.points(s_markers))
+        near.append(rope.points(np.array([end_offset, rope_length - end_offset])))
+    truth, marker_truth, near = np.array(truth), np.array(marker_truth), np.array(near)
+    near = near + noise * rng.standard_normal(near.shape)
+    start = near[:, 0] - arm1.tip_position
+    end = arm2.tip_position - near[:, 1]
+    directions = np.stack([start / np.linalg.norm(start, axis=1, keepdims=True),
+                           end / np.linalg.norm(end, axis=1, keepdims=True)], axis=1)
+    markers = marker_truth + noise * rng.standard_normal(marker_truth.shape)
+    return RopeChainRecording(arm1, arm2, float(rope_length), markers, directions, truth, marker_truth)

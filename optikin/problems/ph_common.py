@@ -1,0 +1,320 @@
+"""What the PH problem kinds share: options, end data from markers, the methods and their energy gaps.
+
+The kinds ``ph_shape`` (seed 002 section V.A), ``ph_ik`` (V.B, Tables II-III) and
+``ph_chain`` (V.C) all rebuild backbones as minimum-energy PH quintics from end
+poses (:mod:`optikin.curves.min_energy`) with the ``ph`` backends
+(:mod:`optikin.solvers.ph_backends`): the problem's solver and every ``ph`` preset
+listed in ``baselines`` solve the same samples in the same run, and each method's
+energy gap (to the lowest energy any method found for the sample) and time per
+sample are reported.
+
+Options shared by the three kinds (all optional)::
+
+    twist_weight: 0.0     # E = int kappa^2 ds + twist_weight int tau^2 ds
+    nodes: 16             # Gauss-Legendre nodes of the energy
+    free_speeds: false    # false: end speeds = backbone length (the seed's setting);
+                          # true: speeds free, arc length held to the backbone length
+    length: arc           # backbone length: arc | markers | model | a number (metres)
+    fixed_base: true      # average the base pose over the recording (seed 002: the base is fixed)
+
+``length``: seed 002 builds the PH curve from the end poses alone, so the default
+estimates the length from them: ``arc`` is the circular arc leaving ``p0`` along
+``t0`` and reaching ``p1`` along ``t1`` in the plane of the chord (``c (D/2) /
+sin(D/2)``, ``c`` the chord, ``D`` the sum of the angles of the two tangents with
+it); ``markers`` the polyline through all markers (a lower bound; uses the
+intermediate markers); ``model`` the vertebra model's true backbone length (an
+oracle, synthetic recordings only).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from optikin.curves.bernstein import bernstein_basis
+from optikin.curves.energy import DEFAULT_NODES
+from optikin.curves.min_energy import EnergySettings, ShapeData, ShapeEnergyModel, ShapeSolution
+from optikin.curves.ph_quintic import PHQuintic
+from optikin.data.markers import MARKER_SOURCES, MarkerRecording
+from optikin.errors import InputDataError, SpecError
+from optikin.problems import ProblemContext
+from optikin.registry import BACKENDS
+from optikin.results import MethodRow
+from optikin.solvers.ph_backends import FAMILY, PHAdapter
+from optikin.spec import load_problem, load_solver
+
+PH_PRESETS = ("ph-newton", "ph-newton-compiled", "ph-ipopt", "ph-ipopt-cold", "ph-grid")
+"""Solver presets of the ``ph`` family shipped with optikin; any may be a solver or a baseline."""
+
+LENGTH_MODES = ("arc", "markers", "model")
+COMMON_DEFAULTS: dict[str, Any] = {"twist_weight": 0.0, "nodes": DEFAULT_NODES, "free_speeds": False,
+                                   "length": "arc", "fixed_base": True}
+MM = 1e3
+
+
+# ------------------------------------------------------------------------------ options
+@dataclass(frozen=True)
+class PHSettings:
+    energy: EnergySettings
+    free_speeds: bool
+    length: str | float
+    fixed_base: bool
+
+
+def check_options(ctx: ProblemContext, defaults: dict[str, Any]) -> dict[str, Any]:
+    """The problem's options over ``defaults``; unknown keys are errors naming the field."""
+    for key in ctx.spec.options:
+        if key not in defaults:
+            raise ctx.error(f"options.{key}", f"unknown option of kind {ctx.spec.kind!r}; known: {', '.join(defaults)}")
+    return {**defaults, **ctx.spec.options}
+
+
+def ph_settings(ctx: ProblemContext, options: dict[str, Any]) -> PHSettings:
+    """Checked shared options (module docstring)."""
+    for key in ("free_speeds", "fixed_base"):
+        if not isinstance(options[key], bool):
+            raise ctx.error(f"options.{key}", f"must be true or false, got {options[key]!r}")
+    twist = options["twist_weight"]
+    if not (isinstance(twist, (int, float)) and not isinstance(twist, bool) and twist >= 0 and math.isfinite(twist)):
+        raise ctx.error("options.twist_weight", f"must be a non-negative number, got {twist!r}")
+    nodes = options["nodes"]
+    if not (isinstance(nodes, int) and not isinstance(nodes, bool) and 2 <= nodes <= 200):
+        raise ctx.error("options.nodes", f"must be an integer in [2, 200], got {nodes!r}")
+    length = options["length"]
+    if isinstance(length, bool) or not (length in LENGTH_MODES or (isinstance(length, (int, float)) and length > 0)):
+        raise ctx.error("options.length", f"must be one of {', '.join(LENGTH_MODES)} or a positive length in metres, "
+                                          f"got {length!r}")
+    return PHSettings(EnergySettings(float(twist), nodes), options["free_speeds"],
+                      float(length) if not isinstance(length, str) else length, options["fixed_base"])
+
+
+def load_recording(ctx: ProblemContext) -> MarkerRecording:
+    """The recording of ``data.source`` (``synthetic`` or ``csv``, :mod:`optikin.data.markers`)."""
+    try:
+        source = MARKER_SOURCES.get(ctx.spec.data.source)
+    except Exception as exc:
+        raise SpecError(ctx.path, "data.source", str(exc)) from None
+    return source(ctx.arm, ctx.spec.data, ctx.path)
+
+
+# ------------------------------------------------------------------------------ end data
+def arc_length_estimate(p0: np.ndarray, t0: np.ndarray, p1: np.ndarray, t1: np.ndarray) -> np.ndarray:
+    """``c (D/2) / sin(D/2)``: chord ``c``, ``D`` the sum of the tangents' angles with the chord (module docstring).
+
+    Exact for a planar circular arc (where both angles are half the bend).
+    """
+    chord = p1 - p0
+    c = np.linalg.norm(chord, axis=-1)
+    u = chord / np.maximum(c, 1e-300)[..., None]
+    D = (np.arccos(np.clip(np.sum(t0 * u, axis=-1), -1.0, 1.0)) + np.arccos(np.clip(np.sum(t1 * u, axis=-1), -1.0, 1.0)))
+    half = 0.5 * D
+    return c * np.where(half > 1e-8, half / np.maximum(np.sin(half), 1e-300), 1.0 + half**2 / 6.0)
+
+
+def backbone_lengths(recording: MarkerRecording, mode: str | float, source: str) -> np.ndarray:
+    """One backbone length per posture by ``mode`` (module docstring)."""
+    n = len(recording)
+    if not isinstance(mode, str):
+        return np.full(n, float(mode))
+    if mode == "arc":
+        return arc_length_estimate(recording.base_position, recording.base_direction, recording.tip_position,
+                                   recording.tip_direction)
+    if mode == "markers":
+        points = np.concatenate([recording.base_position[:, None], recording.markers, recording.tip_position[:, None]], 1)
+        return np.linalg.norm(np.diff(points, axis=1), axis=2).sum(axis=1)
+    if recording.truth is None:
+        raise InputDataError("length 'model' needs a synthetic recording (the vertebra model's backbone length)",
+                             source=source, field="length")
+    return recording.truth.backbone_length.copy()
+
+
+def end_data(recording: MarkerRecording, lengths: np.ndarray, source: str) -> list[ShapeData]:
+    """One :class:`ShapeData` per posture: base pose to tip pose, backbone length ``lengths``.
+
+    A length shorter than the chord is raised to it (an estimate cannot be shorter than the chord).
+    """
+    chord = np.linalg.norm(recording.tip_position - recording.base_position, axis=1)
+    lengths = np.maximum(lengths, chord * (1.0 + 1e-9))
+    return [ShapeData.checked(recording.base_position[i], recording.base_direction[i], recording.tip_position[i],
+                              recording.tip_direction[i], length=lengths[i], source=source, sample=i)
+            for i in range(len(recording))]
+
+
+# ------------------------------------------------------------------------------ methods
+@dataclass
+class MethodRun:
+    """One ``ph`` method over all samples."""
+
+    name: str
+    role: str
+    solutions: list[ShapeSolution]
+    build_seconds: float
+    adapter: PHAdapter
+    model: ShapeEnergyModel
+
+    @property
+    def compiled(self) -> bool:
+        return bool(self.adapter.options.get("compile", False))
+
+    @property
+    def energies(self) -> np.ndarray:
+        return np.array([s.energy for s in self.solutions])
+
+    @property
+    def seconds(self) -> np.ndarray:
+        return np.array([s.seconds for s in self.solutions])
+
+    @property
+    def iterations(self) -> np.ndarray:
+        return np.array([s.iterations for s in self.solutions])
+
+    @property
+    def status(self) -> list[str]:
+        return [s.status for s in self.solutions]
+
+
+def ph_methods(ctx: ProblemContext, others: tuple[str, ...] = ()) -> list[tuple[str, str, PHAdapter]]:
+    """``(preset name, role, adapter)``: the problem's solver, then every baseline not already listed.
+
+    ``others`` are baseline names the kind runs itself (not ``ph`` presets).
+    """
+    methods = [(ctx.solver.name, "solver", ctx.adapter)]
+    for i, name in enumerate(ctx.spec.baselines):
+        if name in [m[0] for m in methods] or name in others:
+            continue
+        preset, _ = load_solver(name)
+        backend = BACKENDS.get(preset.backend)
+        if backend.family != FAMILY:
+            raise SpecError(ctx.path, f"baselines.{i}", f"preset {name!r} ({preset.backend}) is not a {FAMILY} backend")
+        methods.append((name, "baseline", backend.build(preset)))
+    return methods
+
+
+def solve_methods(ctx: ProblemContext, settings: PHSettings, samples: list[ShapeData], label: str = "",
+                  others: tuple[str, ...] = ()) -> dict[str, MethodRun]:
+    """Every ``ph`` method on ``samples`` (in order); models are built (and compiled) before the clock starts."""
+    runs: dict[str, MethodRun] = {}
+    methods = ph_methods(ctx, others)
+    with ctx.progress.task(f"{ctx.spec.kind}{label}: {len(samples)} samples x {len(methods)} methods",
+                           total=len(methods)) as advance:
+        for name, role, adapter in methods:
+            tic = time.perf_counter()
+            model = adapter.model(settings.energy, settings.free_speeds)
+            adapter.solve(model, samples[:1])  # build nlpsol / compile Newton outside the timing
+            build = time.perf_counter() - tic
+            runs[name] = MethodRun(name, role, adapter.solve(model, samples), build, adapter, model)
+            advance()
+    return runs
+
+
+def energy_gaps(runs: dict[str, MethodRun]) -> dict[str, np.ndarray]:
+    """Per method, ``E - E_best`` per sample (``E_best``: the lowest energy any method found), NaN where failed."""
+    E = np.array([[e if s == "ok" else np.nan for e, s in zip(r.energies, r.status)] for r in runs.values()])
+    with np.errstate(all="ignore"):
+        best = np.nanmin(np.where(np.isfinite(E), E, np.nan), axis=0)
+    return {name: E[k] - best for k, name in enumerate(runs)}
+
+
+def method_rows(runs: dict[str, MethodRun], extra: dict[str, dict[str, Any]] | None = None) -> list[MethodRow]:
+    """One comparison row per method: statuses, energy gap, iterations, time per sample (+ ``extra`` metrics)."""
+    gaps = energy_gaps(runs)
+    rows = []
+    for name, run in runs.items():
+        gap, E = gaps[name], run.energies
+        relative = gap / np.where(np.abs(E) > 0, np.abs(E), 1.0)
+        finite = np.isfinite(gap)
+        status = np.array(run.status)
+        metrics: dict[str, Any] = {
+            "ok": f"{int((status == 'ok').sum())}/{len(status)}",
+            "max energy gap": float(np.max(gap[finite])) if finite.any() else math.nan,
+            "samples with relative gap > 1e-6": int(np.sum(relative[finite] > 1e-6)),
+            "median iterations": float(np.median(run.iterations)),
+            "median time per sample [us]": float(np.median(run.seconds) * 1e6),
+            "mean time per sample [us]": float(np.mean(run.seconds) * 1e6),
+            "fallbacks": int(sum(bool(s.notes) and s.method == "newton" for s in run.solutions)),
+        }
+        metrics.update((extra or {}).get(name, {}))
+        rows.append(MethodRow(name, run.role, metrics))
+    return rows
+
+
+# ------------------------------------------------------------------------------ curves and distances
+def curve_batch(solutions: list[ShapeSolution], samples: list[ShapeData]) -> PHQuintic:
+    """The solutions' curves as one numpy batch ``(N, ...)``; failed samples get NaN coefficients."""
+    curves = []
+    for sol, data in zip(solutions, samples):
+        if np.all(np.isfinite(sol.x)):
+            curves.append(sol.curve(data))
+        else:
+            nan = np.full(4, np.nan)
+            curves.append(PHQuintic(data.p0, nan, nan, nan))
+    return PHQuintic(*(np.stack([getattr(c, k) for c in curves]) for k in ("p0", "A0", "A1", "A2")))
+
+
+def distances_to_curves(curves: PHQuintic, points: np.ndarray, coarse: int = 401, refine: int = 10) -> np.ndarray:
+    """Distance of each point ``(N, K, 3)`` to curve ``n`` of the batch: ``(N, K)``.
+
+    The closest of ``coarse`` samples, then Newton on ``(r(t) - p) . r'(t) = 0`` kept
+    within ``[0, 1]`` (end points included); curves and derivatives in Bernstein form.
+    """
+    P = np.stack(curves.control_points(), axis=1)  # (N, 6, 3)
+    W = np.stack(curves.hodograph_coefficients(), axis=1)  # (N, 5, 3): r' (quartic)
+    dW = 4.0 * (W[:, 1:] - W[:, :-1])  # (N, 4, 3): r'' (cubic)
+
+    def at(coefficients, t):
+        basis = np.stack(bernstein_basis(coefficients.shape[1] - 1, t), axis=-1)  # (N, K, degree + 1)
+        return np.einsum("nkj,njc->nkc", basis, coefficients)
+
+    t = np.linspace(0.0, 1.0, coarse)
+    samples = curves.point(t)  # (N, T, 3)
+    d2 = np.sum((points[:, :, None, :] - samples[:, None, :, :]) ** 2, axis=-1)  # (N, K, T)
+    tk = t[np.argmin(d2, axis=-1)]  # (N, K)
+    for _ in range(refine):
+        diff, d1 = at(P, tk) - points, at(W, tk)
+        g = np.sum(diff * d1, axis=-1)
+        h = np.sum(d1 * d1, axis=-1) + np.sum(diff * at(dW, tk), axis=-1)
+        step = np.where(h > 0, g / np.where(h > 0, h, 1.0), 0.0)
+        tk = np.clip(tk - step, 0.0, 1.0)
+        if not np.any(np.abs(step) > 1e-15):
+            break
+    return np.linalg.norm(at(P, tk) - points, axis=-1)
+
+
+def summary_of(values_mm: np.ndarray) -> dict[str, float]:
+    """Min / mean / max of finite values (Table II style)."""
+    v = values_mm[np.isfinite(values_mm)]
+    if v.size == 0:
+        return {"min": math.nan, "avg": math.nan, "max": math.nan}
+    return {"min": float(v.min()), "avg": float(v.mean()), "max": float(v.max())}
+
+
+# ------------------------------------------------------------------------------ smaller runs of shipped problems
+def problem_variant(name: str, directory: Path, *, samples: int | None = None, solver: str | None = None,
+                    baselines: list[str] | None = None, options: dict[str, Any] | None = None,
+                    data_params: dict[str, Any] | None = None) -> Path:
+    """A copy of problem ``name`` in ``directory`` with fewer samples, another solver, baselines or options.
+
+    For notebooks and tests that run a shipped problem on a small setting; the copy
+    keeps the name (the file stem must equal it). Returns the new file's path.
+    """
+    _, path = load_problem(name)
+    raw = yaml.safe_load(path.read_text())
+    if samples is not None:
+        raw["data"]["samples"] = int(samples)
+    if solver is not None:
+        raw["solver"] = solver
+    if baselines is not None:
+        raw["baselines"] = list(baselines)
+    raw["options"] = {**raw.get("options", {}), **(options or {})}
+    raw["data"]["params"] = {**raw["data"].get("params", {}), **(data_params or {})}
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    out = directory / f"{raw['name']}.yaml"
+    out.write_text(yaml.safe_dump(raw, sort_keys=False))
+    return out

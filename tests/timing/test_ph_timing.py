@@ -1,0 +1,149 @@
+"""Time per sample of minimum-energy PH shape reconstruction along a 100-posture trajectory (pytest-benchmark).
+
+Skipped in the normal run (``--benchmark-skip`` in pyproject's addopts); run with
+
+    OPENBLAS_NUM_THREADS=1 pytest tests/timing/test_ph_timing.py --benchmark-only \
+        --benchmark-columns=median,iqr,min,max,rounds
+
+The data: the recording of ``problems/cbha-ph-shape.yaml`` (100 postures of the CBHA
+vertebra model driven by its tubes, end poses from motion-capture rigid bodies with
+0.3 mm marker noise, the base pose averaged), end speeds set to the arc-length
+estimate of the end poses (the seed's setting; group "given speeds") or left free
+with the model's backbone length held (group "free speeds"). Each benchmarked path
+solves the samples in trajectory order, one round per sample (the first sample of a
+pass is a cold start, every later one is warm-started from the previous solution
+where the method warm-starts), after one untimed pass that builds and compiles; the
+median is the time per sample. ``extra_info``: the largest energy gap to a cold,
+three-start IPOPT reference solved once per sample, the number of samples whose
+relative gap exceeds 1e-6, and the speed-up over the grid (given speeds). The
+compiled Newton paths take about 8 s (given speeds) and 25-60 s (free speeds) to
+compile the first time; the libraries are cached on disk afterwards.
+
+``ph-ik`` adds the tube lengths (one call of the compiled tube-length Function) to
+the compiled given-speed Newton: the time per sample of the PH inverse kinematics
+of seed 002 Table III (0.27 ms there). The Newton-Raphson comparator of that table
+belongs to the inverse-kinematics work; it will join here through
+:func:`optikin.problems.ph_ik.newton_raphson_tube_lengths` (a hook, not filled yet).
+The grid of the free-speed group is 24 x 24 angles x 5 speed ratios (the 64 x 64 x 9
+of ``ph-grid`` costs about 3 s per sample there).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from threadpoolctl import threadpool_limits
+
+from optikin.arms.cbha import CBHAArm
+from optikin.curves.min_energy import EnergySettings, ShapeEnergyModel
+from optikin.curves.tubes import TubeLayout
+from optikin.data.markers import MARKER_SOURCES
+from optikin.fastcall import BufferedFunction
+from optikin.problems.ph_common import backbone_lengths, end_data
+from optikin.problems.ph_ik import tube_length_function
+from optikin.spec import load_problem
+
+GROUPS = {False: "PH shape, 100-posture CBHA trajectory, given speeds (seed setting): time per sample",
+          True: "PH shape, 100-posture CBHA trajectory, free speeds, length held: time per sample"}
+_grid_median: dict[bool, float] = {}
+
+
+@pytest.fixture(scope="module", autouse=True)
+def one_blas_thread():
+    with threadpool_limits(limits=1):
+        yield
+
+
+@pytest.fixture(scope="module")
+def recording():
+    spec, path = load_problem("cbha-ph-shape")
+    return MARKER_SOURCES.get("synthetic")(CBHAArm(), spec.data, path).with_fixed_base()
+
+
+@pytest.fixture(scope="module", params=[False, True], ids=["given-speeds", "free-speeds"])
+def case(request, recording):
+    free = request.param
+    lengths = backbone_lengths(recording, "model" if free else "arc", "timing")
+    samples = end_data(recording, lengths, "timing")
+    reference = ShapeEnergyModel(EnergySettings(), free_speeds=free)
+    energies = np.array([reference.solve_nlp(d, starts=3).energy for d in samples])
+    return free, samples, energies, recording.base_normal
+
+
+def _bench(benchmark, case, name, solve_one, warm=True):
+    free, samples, reference, _ = case
+    n = len(samples)
+    solutions = [None] * n
+    state = {"k": 0, "previous": None}
+
+    def step():
+        k = state["k"] % n
+        state["k"] += 1
+        sol = solve_one(samples[k], state["previous"] if (warm and k > 0) else None)
+        state["previous"] = sol.x if sol.status == "ok" else None
+        solutions[k] = sol
+
+    for _ in range(n):  # builds, compiles, warms caches
+        step()
+    benchmark.group = GROUPS[free]
+    benchmark.pedantic(step, rounds=n, iterations=1, warmup_rounds=0)
+    energies = np.array([s.energy for s in solutions])
+    gap = energies - reference
+    median = benchmark.stats.stats.median
+    benchmark.extra_info.update({
+        "median per sample [us]": median * 1e6,
+        "max energy gap": float(np.max(gap)),
+        "samples with relative gap > 1e-6": int(np.sum(gap > 1e-6 * np.abs(reference))),
+        "not ok": int(sum(s.status != "ok" for s in solutions)),
+        "newton fallbacks": int(sum(bool(s.notes) and s.method == "newton" for s in solutions)),
+    })
+    if name == "grid":
+        _grid_median[free] = median
+    elif free in _grid_median:
+        benchmark.extra_info["speed-up over grid"] = _grid_median[free] / median
+    assert np.all(np.isfinite(energies))
+    return solutions
+
+
+def test_grid(benchmark, case):
+    model = ShapeEnergyModel(EnergySettings(), free_speeds=case[0])
+    n, n_ratio = (64, 9) if not case[0] else (24, 5)  # free speeds: 24 x 24 x 5 with a secant on the length
+    _bench(benchmark, case, "grid", lambda d, x0: model.solve_grid(d, n=n, n_ratio=n_ratio), warm=False)
+
+
+def test_ipopt_cold(benchmark, case):
+    model = ShapeEnergyModel(EnergySettings(), free_speeds=case[0])
+    _bench(benchmark, case, "ipopt cold", lambda d, x0: model.solve_nlp(d, starts=3), warm=False)
+
+
+def test_ipopt_warm(benchmark, case):
+    model = ShapeEnergyModel(EnergySettings(), free_speeds=case[0])
+    _bench(benchmark, case, "ipopt warm",
+           lambda d, x0: model.solve_nlp(d, x0) if x0 is not None else model.solve_nlp(d, starts=3))
+
+
+@pytest.mark.parametrize("compiled", [False, True], ids=["vm", "compiled"])
+def test_newton(benchmark, case, compiled):
+    model = ShapeEnergyModel(EnergySettings(), free_speeds=case[0], compile=compiled)
+    _bench(benchmark, case, f"newton {'compiled' if compiled else 'vm'}", lambda d, x0: model.solve_newton(d, x0))
+
+
+def test_ph_ik_compiled(benchmark, case):
+    """Compiled Newton plus the compiled tube-length Function: PH inverse kinematics per sample (given speeds)."""
+    free, samples, _, normals = case
+    if free:
+        pytest.skip("the seed's setting (given speeds) only")
+    model = ShapeEnergyModel(EnergySettings(), compile=True)
+    tubes = BufferedFunction(tube_length_function(model, TubeLayout()), compiled=True)
+    index = {id(d): i for i, d in enumerate(samples)}
+
+    def solve_one(data, x0):
+        sol = model.solve_newton(data, x0)
+        tubes.inputs[0][:] = sol.x
+        tubes.inputs[1][:] = data.parameters()
+        tubes.inputs[2][:] = normals[index[id(data)]]
+        tubes()
+        return sol
+
+    _bench(benchmark, case, "ph-ik", solve_one)
+
