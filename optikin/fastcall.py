@@ -1,4 +1,4 @@
-"""Calling a small CasADi Function from a control loop without the Python overhead of ``f(x)``.
+"""Calling a small CasADi Function from Python without the overhead of ``f(x)``.
 
 ``f(q)`` converts its arguments to ``DM`` and its results back, about 12 us for a
 two-section arm; ``Function.buffer()`` evaluates in place on numpy arrays
@@ -6,9 +6,17 @@ allocated once, about 0.5 us with CasADi's SX virtual machine and about 0.2 us
 once code-generated and compiled (``../shared/ANCHORS.md``, "Calling CasADi
 from Python"). Outputs are densified first, so every array holds all entries of
 its matrix in column-major order.
+
+Two ways to call, same arrays: write the inputs in place and call with no
+arguments (control loops, :mod:`optikin.control`, :mod:`optikin.curves`), or pass
+the arguments, which are copied in (the solvers of :mod:`optikin.solvers`).
+Either way the outputs returned are the preallocated arrays themselves,
+overwritten by the next call: copy what you keep.
 """
 
 from __future__ import annotations
+
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -17,12 +25,14 @@ import numpy as np
 class BufferedFunction:
     """A CasADi Function bound to preallocated numpy arrays.
 
-    Write the inputs into :attr:`inputs` (in place), call the object, read :attr:`outputs`.
+    Write the inputs into :attr:`inputs` (in place) or pass them to the call, call the
+    object, read :attr:`outputs` (also returned by the call).
 
     Parameters
     ----------
     function:
-        Any CasADi Function; its outputs are densified.
+        Any CasADi Function (including solvers: ``nlpsol``, ``rootfinder``); its outputs
+        are densified.
     compiled:
         Generate C code, compile it with gcc and call the compiled library
         (built once, cached on disk by content) instead of the SX virtual machine.
@@ -43,8 +53,22 @@ class BufferedFunction:
         for i, array in enumerate(self.outputs):
             self._buffer.set_res(i, memoryview(array))
 
-    def __call__(self) -> None:
+    def __call__(self, *args: Any) -> list[np.ndarray]:
+        """Evaluate; arguments given (the first ones, in order) are copied into :attr:`inputs` first.
+
+        An argument is flattened in column-major order, as CasADi stores matrices; inputs not
+        given keep their contents. Returns :attr:`outputs`.
+        """
+        if len(args) > len(self.inputs):
+            raise TypeError(f"{self.function.name()}: {len(args)} arguments for {len(self.inputs)} inputs")
+        for slot, value in zip(self.inputs, args):
+            slot[:] = np.ravel(value, order="F")
         self._trigger()
+        return self.outputs
+
+    def stats(self) -> dict[str, Any]:
+        """The Function's statistics of the last call (e.g. ``iter_count`` of a solver)."""
+        return self._buffer.stats()
 
     def output_matrix(self, i: int) -> np.ndarray:
         """Output ``i`` as a ``rows x cols`` view (no copy) of its column-major buffer."""
@@ -53,9 +77,13 @@ class BufferedFunction:
 
 
 def _densified(f: ca.Function) -> ca.Function:
-    """``f`` with every output dense (structural zeros stored), so buffers have fixed layouts."""
+    """``f`` with every output dense (structural zeros stored), so buffers have fixed layouts.
+
+    An SX Function is wrapped with SX symbols, anything else (a solver, an external) with MX.
+    """
     if all(f.sparsity_out(i).is_dense() for i in range(f.n_out())):
         return f
-    args = [ca.SX.sym(f.name_in(i), f.sparsity_in(i)) for i in range(f.n_in())]
+    symbol = ca.SX if f.is_a("SXFunction") else ca.MX
+    args = [symbol.sym(f.name_in(i), f.sparsity_in(i)) for i in range(f.n_in())]
     outs = [ca.densify(o) for o in f(*args)]
     return ca.Function(f"{f.name()}_dense", args, outs, f.name_in(), f.name_out())

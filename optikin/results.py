@@ -33,7 +33,7 @@ class MethodRow:
     """One compared method (the solver under study or a baseline) and its summary metrics."""
 
     method: str
-    role: str  # "solver" or "baseline"
+    role: str  # "solver", "baseline" or "variant" (another formulation solved by the same solver)
     metrics: dict[str, float | int | str]
 
 

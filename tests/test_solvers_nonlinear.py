@@ -66,6 +66,24 @@ def test_redundant_solution_is_the_weighted_closest_point(backend):
     np.testing.assert_allclose(report.x, expected, atol=1e-9)
 
 
+@pytest.mark.parametrize("backend", BACKEND_NAMES)
+def test_penalised_problem_reaches_the_closed_form_minimiser(backend):
+    """``min 1/2 (sum x - p)^2 + lam/2 ||W (x - x_ref)||^2`` (seed 004 eq. (11) on a plane), not exact:
+    setting the gradient to zero gives ``x = x_ref + W^-2 (p - sum x_ref) / (lam + sum W^-2)``."""
+    weights, x_ref, lam, p = np.array([1.0, 2.0, 4.0]), np.array([0.5, -1.0, 2.0]), 0.3, 3.0
+    x = ca.SX.sym("x", 3)
+    rows = ca.vertcat(ca.sum1(x) - p, np.sqrt(lam) * weights * (x - x_ref))
+    problem = LeastSquaresProblem(ca.Function("penalised_plane", [x, ca.SX.sym("p", 0)], [rows]), [-10.0] * 3,
+                                  [10.0] * 3, [False] * 3, tolerance=1e-11, weights=weights,
+                                  stationarity_tolerance=1e-10, exact=False, name="penalised_plane")
+    m_inv = 1.0 / weights**2
+    expected = x_ref + m_inv * (p - x_ref.sum()) / (lam + m_inv.sum())
+    report = adapter(backend).solve(problem, np.array([1.0, 1.0, 1.0]), np.zeros(0))
+    assert report.status == "ok", (backend, report)
+    np.testing.assert_allclose(report.x, expected, atol=1e-9)
+    assert report.residual > 0.1  # the minimum is not a root: an exact problem would call it unreachable
+
+
 @pytest.mark.parametrize("backend", ("lm", "trf"))
 def test_least_squares_backends_solve_the_redundant_problem(backend):
     report = adapter(backend).solve(plane(np.ones(3)), np.zeros(3), np.array([3.0]))

@@ -36,7 +36,18 @@ default the inverse ranges of the variables):
 ``previous``      closest to the previous solution along a trajectory (to the start
                   point for independent targets);
 ``minimum_norm``  the solution reached by weighted minimum-norm corrections from
-                  the start point (the pseudo-inverse Newton-Raphson iteration).
+                  the start point (the pseudo-inverse Newton-Raphson iteration);
+``penalty``       seed 004 eq. (11): no exact constraint, the tip error plus
+                  ``penalty`` (lambda) times a squared norm is minimised
+                  (``penalty_on: configuration``, the weighted distance to ``rest``;
+                  or ``position``, the tip's distance to the base, as printed);
+                  see :mod:`optikin.problems.ik_formulation`. A sample is ``ok``
+                  at a stationary point of that cost; its tip error is reported
+                  beside (in general larger than ``tolerance``).
+
+On a CBHA, ``elongation: distributed`` adds the elongation distribution of seed
+004 section IV (every inter-vertebra a fixed fraction of its section's tube
+length, from Table I; :mod:`optikin.problems.ik_cbha`) to any of these.
 
 Backends that minimise a distance (``newton`` through the optimality system,
 ``ipopt``, ``sqpmethod``) do so exactly, with ``q_ref`` the rest configuration or
@@ -56,62 +67,70 @@ Targets outside the workspace end as ``unreachable`` at the closest
 configuration the backend found, with its residual: never ``ok``.
 
 Every backend listed in ``baselines`` (solver presets of the ``nonlinear``
-family) solves the same targets in the same run; each row of the comparison
-reports the success rate on reachable targets, how unreachable targets were
-flagged, residuals, the tip error recomputed independently with ``fk_dq``,
-iterations and time per solve.
+family) solves the same targets in the same run, and so does the problem's
+solver on each of the ``variants`` (other formulations of the same targets,
+e.g. the penalty of eq. (11) beside the exact tip with the closest-to-rest
+choice). Each row of the comparison reports the success rate on reachable
+targets, how unreachable targets were flagged, residuals, the tip error
+recomputed independently with ``fk_dq`` (and how many samples reach the target
+within ``tolerance``), the weighted distance from ``rest``, on a CBHA the margin
+of the legs to Table I and their deviation from the elongation distribution,
+iterations and time per solve (arrays per row: solutions, statuses, residuals,
+times, iterations, these checks and, on a CBHA, the six tube lengths, the output
+of seed 004's inverse model); the figure ``comparison`` draws the tip errors,
+times and (CBHA) leg margins of every row.
 
 Options: ``target``, ``redundancy``, ``rest``, ``weights``, ``start`` (``rest`` or
 a configuration), ``restarts`` (default 2), ``tolerance`` (``||r||`` in metres
-counted as solved, default 1e-10), ``orientation_length``.
+counted as solved, default 1e-10), ``orientation_length``, ``penalty`` (lambda,
+default 1e-6: m^2 on the configuration, a pure number on the position),
+``penalty_on`` (``configuration`` or ``position``), ``elongation`` (``free`` or
+``distributed``), ``variants`` (``{label: {option: value}}`` over the options
+``redundancy``, ``penalty``, ``penalty_on``, ``elongation``, ``rest``, ``weights``,
+``tolerance``, ``orientation_length``).
 """
 
 from __future__ import annotations
 
+import re
 import time
+from collections.abc import Mapping
 from typing import Any, Callable
 
-import casadi as ca
 import numpy as np
 
 from optikin import plots
-from optikin.algebra import dq_rotation, dq_translation, quat_angle, quat_conjugate, quat_multiply
+from optikin.algebra import dq_translation, quat_angle, quat_conjugate, quat_multiply
 from optikin.arms.base import ArmModel
-from optikin.arms.cbha import CBHAArm, printed_leg_lengths
+from optikin.arms.cbha import CBHAArm
 from optikin.data.targets import TARGET_KINDS, TARGET_SOURCES, Targets, reach_bound
 from optikin.errors import SpecError
 from optikin.problems import ProblemContext, ProblemKind, register_kind
-from optikin.problems.ik_platform import platform_problems, solve_platforms
+from optikin.problems.ik_cbha import distribution_deviation, leg_checks, leg_margins
+from optikin.problems.ik_figures import draw_comparison
+from optikin.problems.ik_formulation import (
+    ELONGATIONS,
+    PENALTY_READINGS,
+    REDUNDANCY_CHOICES,
+    Formulation,
+    build_problem,
+    rest_configuration,
+)
+from optikin.problems.ik_platform import solve_platforms
 from optikin.registry import BACKENDS
 from optikin.results import MethodRow, Result
 from optikin.solvers.nonlinear import FAMILY, BatchReport, LeastSquaresProblem, NonlinearAdapter
 from optikin.spec import load_solver
 
-REDUNDANCY_CHOICES = ("rest", "previous", "minimum_norm")
 DEFAULTS: dict[str, Any] = {"target": "position", "redundancy": "rest", "rest": None, "weights": None,
-                            "start": "rest", "restarts": 2, "tolerance": 1e-10, "orientation_length": None}
+                            "start": "rest", "restarts": 2, "tolerance": 1e-10, "orientation_length": None,
+                            "penalty": 1e-6, "penalty_on": "configuration", "elongation": "free", "variants": {}}
+FORMULATION_KEYS = ("redundancy", "penalty", "penalty_on", "elongation", "rest", "weights", "tolerance",
+                    "orientation_length")
+"""Options a variant may change (the targets, start and restarts are shared by every row)."""
 
 
-# --------------------------------------------------------------------------------------- the problem
-def tip_residual(arm: ArmModel, target: str, orientation_length: float) -> ca.Function:
-    """``r(q, target)``: the tip position error; for poses also ``2 L vec(q_target^-1 q_tip)``."""
-    q = ca.SX.sym("q", arm.n_config)
-    quat, position = arm.section_frames(q)[-1]
-    if target == "position":
-        p = ca.SX.sym("p", 3)
-        return ca.Function(f"{arm.name}_ik_position", [q, p], [position - p], ["q", "p"], ["r"])
-    p = ca.SX.sym("dq", 8)
-    error = quat_multiply(quat_conjugate(dq_rotation(p)), quat)
-    r = ca.vertcat(position - dq_translation(p), orientation_length * 2.0 * error[1:])
-    return ca.Function(f"{arm.name}_ik_pose", [q, p], [r], ["q", "dq"], ["r"])
-
-
-def rest_configuration(arm: ArmModel) -> np.ndarray:
-    """Straight at nominal lengths when the arm defines it, else the middle of the bounds."""
-    straight = getattr(arm, "straight_configuration", None)
-    return straight() if callable(straight) else 0.5 * (arm.lower + arm.upper)
-
-
+# --------------------------------------------------------------------------------------- checks of answers
 def tip_errors(arm: ArmModel, targets: Targets, X: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
     """Position error [m] and, for poses, rotation error [rad] of solutions ``X``, recomputed with ``fk_dq``."""
     finite = np.all(np.isfinite(X), axis=1)
@@ -126,19 +145,17 @@ def tip_errors(arm: ArmModel, targets: Targets, X: np.ndarray) -> tuple[np.ndarr
     return position_error, angle
 
 
-def leg_checks(arm: ArmModel, targets: Targets, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Largest leg-length error per sample by the printed eqs. (7)-(9) of seed 004 (an independent
-    transcription), and whether every leg lies within Table I."""
-    Z, theta, psi = np.moveaxis(X.reshape(len(X), -1, 3), 2, 0)
-    radii = arm.geometry.radii
-    legs = np.stack(printed_leg_lengths(Z, theta, psi, radii[:-1], radii[1:]), axis=2).reshape(len(X), -1)
-    lo, hi = arm.leg_limits()
-    return np.abs(legs - targets.values).max(axis=1), np.all((legs >= lo - 1e-12) & (legs <= hi + 1e-12), axis=1)
+def rest_distances(arm: ArmModel, formulation: Formulation, X: np.ndarray) -> np.ndarray:
+    """``||W dist(q, q_rest)||`` per solution (chord distance ``2 sin(d/2)`` for angles that wrap)."""
+    d = X - formulation.rest
+    with np.errstate(invalid="ignore"):  # a failed sample's NaN stays NaN
+        d = np.where(arm.periodic, 2.0 * np.sin(d / 2.0), d)
+    return np.linalg.norm(formulation.weights * d, axis=1)
 
 
 # --------------------------------------------------------------------------------------- options
 class Settings:
-    """The validated ``options`` of an ``ik`` problem file."""
+    """The validated ``options`` of an ``ik`` problem file: the formulation, its variants, starts and restarts."""
 
     def __init__(self, ctx: ProblemContext):
         arm = ctx.arm
@@ -148,85 +165,122 @@ class Settings:
         o = {**DEFAULTS, **ctx.spec.options}
         if o["target"] not in TARGET_KINDS:
             raise ctx.error("options.target", f"{o['target']!r} is not one of {', '.join(TARGET_KINDS)}")
-        if o["redundancy"] not in REDUNDANCY_CHOICES:
-            raise ctx.error("options.redundancy",
-                            f"{o['redundancy']!r} is not one of {', '.join(REDUNDANCY_CHOICES)}")
         if o["target"] == "legs" and not isinstance(arm, CBHAArm):
             raise ctx.error("options.target", f"leg-length targets need a cbha arm, not {ctx.spec.arm.type!r}")
         self.target: str = o["target"]
-        self.redundancy: str = o["redundancy"]
-        self.rest = self._configuration(ctx, "rest", o["rest"], rest_configuration(arm))
-        self.start = self.rest if o["start"] == "rest" else self._configuration(ctx, "start", o["start"], None)
-        weights = 1.0 / (arm.upper - arm.lower) if o["weights"] is None else o["weights"]
-        self.weights = self._vector(ctx, "weights", weights)
-        if np.any(self.weights <= 0):
-            raise ctx.error("options.weights", "every weight must be positive")
+        self.formulation = self._formulation(ctx, o, {})
+        self.start = self.rest if o["start"] == "rest" else self._configuration(ctx, "options.start", o["start"])
         self.restarts = o["restarts"]
         if isinstance(self.restarts, bool) or not isinstance(self.restarts, int) or self.restarts < 0:
             raise ctx.error("options.restarts", f"expected a count >= 0, got {self.restarts!r}")
-        self.tolerance = self._positive(ctx, "tolerance", o["tolerance"])
-        self.orientation_length = 1.0
+        if not isinstance(o["variants"], Mapping):
+            raise ctx.error("options.variants", f"expected a mapping of label to options, got {o['variants']!r}")
+        self.variants: dict[str, Formulation] = {}
+        for label, overrides in o["variants"].items():
+            where = f"options.variants.{label}"
+            if not isinstance(overrides, Mapping):
+                raise ctx.error(where, f"expected a mapping of options, got {overrides!r}")
+            for key in overrides:
+                if key not in FORMULATION_KEYS:
+                    raise ctx.error(f"{where}.{key}", f"a variant may set only {', '.join(FORMULATION_KEYS)}")
+            self.variants[str(label)] = self._formulation(ctx, {**o, **overrides}, overrides, where)
+
+    @property
+    def rest(self) -> np.ndarray:
+        return self.formulation.rest
+
+    @property
+    def redundancy(self) -> str:
+        return self.formulation.redundancy
+
+    @property
+    def tolerance(self) -> float:
+        return self.formulation.tolerance
+
+    def _formulation(self, ctx: ProblemContext, o: dict, overrides: Mapping, where: str = "") -> Formulation:
+        """A :class:`Formulation` from options ``o``; errors name ``where.key`` for keys in ``overrides``."""
+        arm = ctx.arm
+
+        def field(key: str) -> str:
+            return f"{where}.{key}" if key in overrides else f"options.{key}"
+
+        if o["redundancy"] not in REDUNDANCY_CHOICES:
+            raise ctx.error(field("redundancy"), f"{o['redundancy']!r} is not one of {', '.join(REDUNDANCY_CHOICES)}")
+        if o["penalty_on"] not in PENALTY_READINGS:
+            raise ctx.error(field("penalty_on"), f"{o['penalty_on']!r} is not one of {', '.join(PENALTY_READINGS)}")
+        if o["elongation"] not in ELONGATIONS:
+            raise ctx.error(field("elongation"), f"{o['elongation']!r} is not one of {', '.join(ELONGATIONS)}")
+        if o["elongation"] == "distributed" and not isinstance(arm, CBHAArm):
+            raise ctx.error(field("elongation"), f"the elongation distribution needs a cbha arm, "
+                                                 f"not {ctx.spec.arm.type!r}")
+        if self.target == "legs" and (o["elongation"] != "free" or o["redundancy"] == "penalty"):
+            key = "elongation" if o["elongation"] != "free" else "redundancy"
+            raise ctx.error(field(key), "leg-length targets have a unique solution: no penalty, no distribution")
+        rest = self._configuration(ctx, field("rest"), o["rest"]) if o["rest"] is not None else rest_configuration(arm)
+        weights = 1.0 / (arm.upper - arm.lower) if o["weights"] is None else o["weights"]
+        weights = self._vector(ctx, field("weights"), weights)
+        if np.any(weights <= 0):
+            raise ctx.error(field("weights"), "every weight must be positive")
+        orientation_length = 1.0
         if self.target == "pose":
             length = reach_bound(arm) if o["orientation_length"] is None else o["orientation_length"]
-            self.orientation_length = self._positive(ctx, "orientation_length", length)
+            orientation_length = self._positive(ctx, field("orientation_length"), length)
+        return Formulation(target=self.target, redundancy=o["redundancy"], rest=rest, weights=weights,
+                           tolerance=self._positive(ctx, field("tolerance"), o["tolerance"]),
+                           orientation_length=orientation_length,
+                           penalty=self._positive(ctx, field("penalty"), o["penalty"]),
+                           penalty_on=o["penalty_on"], elongation=o["elongation"])
 
     @staticmethod
-    def _positive(ctx: ProblemContext, key: str, value: Any) -> float:
+    def _positive(ctx: ProblemContext, field: str, value: Any) -> float:
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:
-            raise ctx.error(f"options.{key}", f"expected a positive number, got {value!r}")
+            raise ctx.error(field, f"expected a positive number, got {value!r}")
         return float(value)
 
     @staticmethod
-    def _vector(ctx: ProblemContext, key: str, value: Any) -> np.ndarray:
+    def _vector(ctx: ProblemContext, field: str, value: Any) -> np.ndarray:
         try:
             v = np.asarray(value, dtype=float)
         except (TypeError, ValueError):
-            raise ctx.error(f"options.{key}", f"expected {ctx.arm.n_config} numbers, got {value!r}") from None
+            raise ctx.error(field, f"expected {ctx.arm.n_config} numbers, got {value!r}") from None
         if v.shape != (ctx.arm.n_config,) or not np.all(np.isfinite(v)):
-            raise ctx.error(f"options.{key}",
-                            f"expected {ctx.arm.n_config} numbers ({', '.join(ctx.arm.config_names)}), got {value!r}")
+            raise ctx.error(field, f"expected {ctx.arm.n_config} numbers ({', '.join(ctx.arm.config_names)}), "
+                                   f"got {value!r}")
         return v
 
-    def _configuration(self, ctx: ProblemContext, key: str, value: Any, default: np.ndarray | None) -> np.ndarray:
-        if value is None:
-            return default
-        q = self._vector(ctx, key, value)
+    def _configuration(self, ctx: ProblemContext, field: str, value: Any) -> np.ndarray:
+        q = self._vector(ctx, field, value)
         span = ctx.arm.upper - ctx.arm.lower
         outside = (q < ctx.arm.lower - 1e-12 * span) | (q > ctx.arm.upper + 1e-12 * span)
         if outside.any():
             j = int(np.argmax(outside))
-            raise ctx.error(f"options.{key}", f"{ctx.arm.config_names[j]} = {q[j]:.6g} outside its bounds "
-                                              f"[{ctx.arm.lower[j]:.6g}, {ctx.arm.upper[j]:.6g}]")
+            raise ctx.error(field, f"{ctx.arm.config_names[j]} = {q[j]:.6g} outside its bounds "
+                                   f"[{ctx.arm.lower[j]:.6g}, {ctx.arm.upper[j]:.6g}]")
         return q
 
 
-def build_problem(arm: ArmModel, settings: Settings) -> LeastSquaresProblem | list[LeastSquaresProblem]:
-    """The least-squares problem of the target kind; for CBHA leg lengths, one per platform.
-
-    A CBHA's leg lengths must stay within Table I (seed 004): they are the problem's constraints.
-    """
-    if settings.target == "legs":
-        return platform_problems(arm, settings.tolerance)
-    residual = tip_residual(arm, settings.target, settings.orientation_length)
-    limits = {}
-    if isinstance(arm, CBHAArm):
-        lower, upper = arm.leg_limits()
-        limits = {"constraints": arm.leg_lengths, "constraint_lower": lower, "constraint_upper": upper,
-                  "constraint_names": arm.leg_names}
-    return LeastSquaresProblem(residual, arm.lower, arm.upper, arm.periodic, tolerance=settings.tolerance,
-                               weights=settings.weights, name=f"{arm.name}_ik_{settings.target}",
-                               variable_names=arm.config_names, **limits)
-
-
 # --------------------------------------------------------------------------------------- solving
-def adapters(ctx: ProblemContext) -> list[tuple[str, str, NonlinearAdapter]]:
-    """``(preset name, role, adapter)``: the problem's solver, then each baseline preset not already listed."""
-    methods = [(ctx.solver.name, "solver", ctx.adapter)]
+class Method:
+    """One row of the comparison: a backend on a formulation of the targets."""
+
+    def __init__(self, name: str, role: str, adapter: NonlinearAdapter, formulation: Formulation,
+                 problem: LeastSquaresProblem | list[LeastSquaresProblem]):
+        self.name, self.role, self.adapter, self.formulation, self.problem = name, role, adapter, formulation, problem
+
+
+def methods_of(ctx: ProblemContext, settings: Settings) -> list[Method]:
+    """The problem's solver, each baseline preset not already listed, then the solver on each variant."""
+    problem = build_problem(ctx.arm, settings.formulation)
+    methods = [Method(ctx.solver.name, "solver", ctx.adapter, settings.formulation, problem)]
     for name in ctx.spec.baselines:
-        if name in [m[0] for m in methods]:
+        if name in [m.name for m in methods]:
             continue
         preset, _ = load_solver(name)  # the runner checked that it is a preset of this kind's family
-        methods.append((name, "baseline", BACKENDS.get(preset.backend).build(preset)))
+        methods.append(Method(name, "baseline", BACKENDS.get(preset.backend).build(preset), settings.formulation,
+                              problem))
+    for label, formulation in settings.variants.items():
+        methods.append(Method(f"{ctx.solver.name} [{label}]", "variant", ctx.adapter, formulation,
+                              build_problem(ctx.arm, formulation)))
     return methods
 
 
@@ -240,10 +294,10 @@ def solver_of(adapter: NonlinearAdapter, problem: LeastSquaresProblem | list[Lea
     return lambda X0, P, warm, x_ref: adapter.solve_many(problem, X0, P, warm_start=warm, x_ref=x_ref)
 
 
-def solve_targets(solve: Solve, targets: Targets, settings: Settings, ctx: ProblemContext,
-                  arm: ArmModel) -> BatchReport:
+def solve_targets(solve: Solve, targets: Targets, settings: Settings, formulation: Formulation,
+                  ctx: ProblemContext, arm: ArmModel) -> BatchReport:
     """Solve every target (module docstring): warm-started along a trajectory, batched and retried otherwise."""
-    x_ref = settings.rest if settings.redundancy == "rest" else None
+    x_ref = formulation.rest if formulation.redundancy == "rest" else None
     if targets.trajectory:
         return solve(settings.start, targets.values, True, x_ref)
     report = solve(settings.start, targets.values, False, x_ref)
@@ -281,24 +335,65 @@ def nearest_solutions(values: np.ndarray, X: np.ndarray, solved: np.ndarray, ret
     return X[candidates[np.argmin(distance, axis=1)]]
 
 
-def method_metrics(report: BatchReport, targets: Targets, arm: ArmModel, wall: float) -> dict[str, Any]:
+# --------------------------------------------------------------------------------------- reporting
+def array_key(method: str) -> str:
+    """A method's name as part of an array name: ``gauss-newton [penalty 1e-6]`` -> ``gauss-newton_penalty_1e-6``."""
+    return re.sub(r"[^A-Za-z0-9.+-]+", "_", method).strip("_")
+
+
+def _stat(f: Callable[[np.ndarray], float], values: np.ndarray) -> float:
+    """``f`` over the finite values, NaN when there are none."""
+    values = values[np.isfinite(values)]
+    return float(f(values)) if values.size else float("nan")
+
+
+def answer_checks(arm: ArmModel, targets: Targets, formulation: Formulation, X: np.ndarray) -> dict[str, np.ndarray]:
+    """Per-sample checks of the solutions, independent of the solver's own residual (module docstring)."""
+    if targets.kind == "legs":
+        leg_error, within = leg_checks(arm, targets.values, X)
+        return {"leg_error": leg_error, "within_table_i": within}
+    position_error, angle_error = tip_errors(arm, targets, X)
+    checks = {"tip_error": position_error, "rest_distance": rest_distances(arm, formulation, X)}
+    if angle_error is not None:
+        checks["angle_error"] = angle_error
+    if isinstance(arm, CBHAArm):
+        checks["leg_margin"] = leg_margins(arm, X)
+        checks["distribution_deviation"] = distribution_deviation(arm, X)
+        # seed 004's inverse model ends with the tube lengths (section, tube), "summing the elongations"
+        finite = np.all(np.isfinite(X), axis=1)
+        tubes = arm.evaluate("tube_lengths", np.where(finite[:, None], X, rest_configuration(arm)))
+        checks["tube_lengths"] = np.where(finite[:, None], tubes.reshape(len(X), -1), np.nan)
+    return checks
+
+
+def method_metrics(report: BatchReport, targets: Targets, formulation: Formulation, checks: dict[str, np.ndarray],
+                   wall: float) -> dict[str, Any]:
     status = np.array(report.status)
     ok = status == "ok"
     reachable = targets.reachable
     metrics: dict[str, Any] = {
+        "formulation": formulation.label(),
         "success [%]": 100.0 * ok[reachable].mean() if reachable.any() else float("nan"),
-        "median residual": float(np.median(report.residual[ok])) if ok.any() else float("nan"),
-        "max residual": float(np.max(report.residual[ok])) if ok.any() else float("nan"),
+        "median residual": _stat(np.median, report.residual[ok]),
+        "max residual": _stat(np.max, report.residual[ok]),
     }
     if targets.kind == "legs":
-        leg_error, within = leg_checks(arm, targets, report.x)
-        metrics["max leg error ok, eqs. (7)-(9) [m]"] = float(np.max(leg_error[ok])) if ok.any() else float("nan")
-        metrics["ok within Table I"] = f"{int(within[ok].sum())}/{int(ok.sum())}"
+        metrics["max leg error ok, eqs. (7)-(9) [m]"] = _stat(np.max, checks["leg_error"][ok])
+        metrics["ok within Table I"] = f"{int(checks['within_table_i'][ok].sum())}/{int(ok.sum())}"
     else:
-        position_error, angle_error = tip_errors(arm, targets, report.x)
-        metrics["max tip error ok [m]"] = float(np.max(position_error[ok])) if ok.any() else float("nan")
-        if angle_error is not None:
-            metrics["max angle error ok [rad]"] = float(np.max(angle_error[ok])) if ok.any() else float("nan")
+        tip_error = checks["tip_error"]
+        metrics["max tip error ok [m]"] = _stat(np.max, tip_error[ok])
+        metrics["median tip error [m]"] = _stat(np.median, tip_error)
+        within = reachable & (tip_error <= formulation.tolerance)
+        metrics["tip within tolerance [%]"] = 100.0 * within.sum() / max(int(reachable.sum()), 1)
+        if "angle_error" in checks:
+            metrics["max angle error ok [rad]"] = _stat(np.max, checks["angle_error"][ok])
+        metrics["median distance from rest"] = _stat(np.median, checks["rest_distance"])
+        if "leg_margin" in checks:
+            metrics["min leg margin [mm]"] = _stat(np.min, checks["leg_margin"]) * 1e3
+            metrics["median leg margin [mm]"] = _stat(np.median, checks["leg_margin"]) * 1e3
+            metrics["median deviation from distribution [mm]"] = _stat(np.median,
+                                                                       checks["distribution_deviation"]) * 1e3
     if (~reachable).any():
         metrics["unreachable flagged"] = f"{int((status[~reachable] == 'unreachable').sum())}/{int((~reachable).sum())}"
         metrics["unreachable reported ok"] = int(ok[~reachable].sum())
@@ -320,31 +415,33 @@ def run(ctx: ProblemContext) -> Result:
     except Exception as exc:
         raise SpecError(ctx.path, "data.source", str(exc)) from None
     targets = source(arm, spec.data, ctx.path, settings.target)
-    problem = build_problem(arm, settings)
-    methods = adapters(ctx)
+    methods = methods_of(ctx, settings)
 
     reports: dict[str, BatchReport] = {}
+    checks: dict[str, dict[str, np.ndarray]] = {}
     comparison = []
     with ctx.progress.task(f"ik: {len(targets)} targets x {len(methods)} methods", total=len(methods)) as advance:
-        for name, role, adapter in methods:
-            solve = solver_of(adapter, problem)
+        for method in methods:
+            solve = solver_of(method.adapter, method.problem)
             solve(settings.start, targets.values[:1], False, None)  # build (and compile) before timing
             started = time.perf_counter()
-            report = solve_targets(solve, targets, settings, ctx, arm)
+            report = solve_targets(solve, targets, settings, method.formulation, ctx, arm)
             wall = time.perf_counter() - started
-            reports[name] = report
-            comparison.append(MethodRow(name, role, method_metrics(report, targets, arm, wall)))
+            reports[method.name] = report
+            checks[method.name] = answer_checks(arm, targets, method.formulation, report.x)
+            metrics = method_metrics(report, targets, method.formulation, checks[method.name], wall)
+            comparison.append(MethodRow(method.name, method.role, metrics))
             advance()
 
     main = reports[ctx.solver.name]
-    if targets.kind == "legs":
-        error = leg_checks(arm, targets, main.x)[0]
-    else:
-        error = tip_errors(arm, targets, main.x)[0]
+    error = checks[ctx.solver.name]["leg_error" if targets.kind == "legs" else "tip_error"]
     arrays = {"targets": targets.values, "reachable": targets.reachable, "true_configurations": targets.configurations,
               "solutions": main.x, "error": error}
-    arrays |= {f"residual_{name}": r.residual for name, r in reports.items()}
-    arrays |= {f"status_{name}": np.array(r.status) for name, r in reports.items()}
+    for name, r in reports.items():
+        key = array_key(name)
+        arrays |= {f"residual_{key}": r.residual, f"status_{key}": np.array(r.status), f"solutions_{key}": r.x,
+                   f"time_{key}": r.time, f"iterations_{key}": r.iterations}
+        arrays |= {f"{check}_{key}": values for check, values in checks[name].items()}
     if targets.t is not None:
         arrays["t"] = targets.t
     metrics = {
@@ -372,6 +469,8 @@ def run(ctx: ProblemContext) -> Result:
     figures = {"targets": draw_targets}
     if targets.t is not None:
         figures["trajectory"] = draw_trajectory
+    if targets.kind != "legs":
+        figures["comparison"] = lambda path: draw_comparison(path, spec.name, reports, checks)
     notes = []
     for name, r in reports.items():
         for status in ("failed", "timeout"):

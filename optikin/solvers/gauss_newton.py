@@ -28,6 +28,8 @@ keep more than ``SLOW_PROGRESS`` of ``||r||``, a sample switches to the Newton
 model ``J^T J + sum_i r_i Hess r_i`` of ``1/2 ||r||^2`` (same damping; the
 structured switch of Fletcher & Xu 1987), which reaches the stationary point
 that flags the target ``unreachable``. Option ``second_order: false`` turns this off.
+The Newton step Function is built the first time a sample needs it: for the whole
+CBHA it is about fifty times the size of the Gauss-Newton step.
 
 The step, ``||r||`` and a stationarity measure are one CasADi Function, so a
 single solve costs one zero-copy ``Function.buffer()`` call per iteration, and
@@ -52,7 +54,8 @@ import numpy as np
 from optikin.batch import batched
 from optikin.codegen import CompiledFunction
 from optikin.solvers import register_backend
-from optikin.solvers.nonlinear import BatchReport, BufferedCall, LeastSquaresProblem, NonlinearAdapter, SolveReport
+from optikin.fastcall import BufferedFunction
+from optikin.solvers.nonlinear import BatchReport, LeastSquaresProblem, NonlinearAdapter, SolveReport
 
 
 LAMBDA_FLOOR = 1e-10
@@ -136,7 +139,7 @@ class GaussNewton(NonlinearAdapter):
 
     # ------------------------------------------------------------------ Functions
     def _key(self, what: str, second_order: bool) -> tuple:
-        return (what, second_order, self.options["compile"], tuple(self.options["flags"]))
+        return (what, second_order, self.options["compile"], *self.options["flags"])
 
     def _function(self, problem: LeastSquaresProblem, second_order: bool) -> ca.Function:
         key = self._key("gn_function", second_order)
@@ -158,23 +161,25 @@ class GaussNewton(NonlinearAdapter):
         return self._function(problem, second_order)
 
     def _single(self, problem: LeastSquaresProblem, second_order: bool):
-        """``(x, p, mu) -> (x_new, info)`` for one sample through ``Function.buffer()`` (views: copy to keep)."""
+        """``(x, p, mu) -> (x_new, [||r(x)||, stationarity])`` for one sample through a
+        :class:`~optikin.fastcall.BufferedFunction`; ``x_new`` is a view of its output (copy to keep)."""
         key = self._key("gn_single", second_order)
         if key not in problem.cache:
-            call = BufferedCall(self.step(problem, second_order))
+            call = BufferedFunction(self.step(problem, second_order))
             n, n_p = problem.n, problem.n_data
-            packed, out = call.args[0], call.results[0]
+            packed, out = call.inputs[0], call.outputs[0]
             x_new, info = out[:n], out[n:]
 
             def single(x, p, mu):
                 packed[:n] = x
                 packed[n:n + n_p] = p
                 packed[-1] = mu
-                call._trigger()
-                return x_new, info
+                call()
+                return x_new, info.tolist()
 
             problem.cache[key] = single
         return problem.cache[key]
+
 
     def _batch(self, problem: LeastSquaresProblem, second_order: bool):
         """``(X, P, mu) -> (X_new, info (2, N))`` over the rows of ``X``: one call into CasADi (or C)."""
@@ -200,35 +205,38 @@ class GaussNewton(NonlinearAdapter):
     def solve(self, problem: LeastSquaresProblem, x0: np.ndarray, p: np.ndarray,
               x_ref: np.ndarray | None = None) -> SolveReport:
         started = time.perf_counter()
-        steps = (self._single(problem, False),
-                 self._single(problem, True) if self.options["second_order"] else self._single(problem, False))
+        gauss_newton = step = self._single(problem, False)
         tol, stat_tol = self._stop_tolerance(problem), problem.stationarity_tolerance
         mu, mu_min, mu_max = self.options["damping"], self.options["damping_min"], self.options["damping_max"]
+        max_calls = self.limits.max_iterations
         deadline = started + self.limits.time_limit
         x = problem.project(x0)
-        so, slow = 0, 0
-        proposal, info = (a.copy() for a in steps[so](x, p, mu))
+        slow = 0
+        proposal, (rn, stationarity) = step(x, p, mu)
+        proposal = proposal.copy()
         calls = 1
-        while calls < self.limits.max_iterations:
-            rn, stationarity = info
+        while calls < max_calls:
             if not rn > tol or stationarity <= stat_tol or mu > mu_max or time.perf_counter() > deadline:
                 break
             trial_mu = max(mu * 0.1, mu_min)
-            next_proposal, trial = steps[so](proposal, p, trial_mu)
+            next_proposal, (trial_rn, trial_stationarity) = step(proposal, p, trial_mu)
             calls += 1
-            if trial[0] < rn or trial[0] <= tol:
-                slow = slow + 1 if trial[0] > SLOW_PROGRESS * rn else 0
-                so = max(so, int(slow >= SLOW_STEPS))
-                x, info, proposal, mu = proposal, trial.copy(), next_proposal.copy(), trial_mu
-            elif calls < self.limits.max_iterations:
+            if trial_rn < rn or trial_rn <= tol:
+                slow = slow + 1 if trial_rn > SLOW_PROGRESS * rn else 0
+                if slow >= SLOW_STEPS and step is gauss_newton and self.options["second_order"]:
+                    step = self._single(problem, True)  # built on first use: much larger than a Gauss-Newton step
+                x, proposal, mu = proposal, next_proposal.copy(), trial_mu
+                rn, stationarity = trial_rn, trial_stationarity
+            elif calls < max_calls:
                 mu *= 10.0
-                proposal, info = (a.copy() for a in steps[so](x, p, mu))
+                proposal, (rn, stationarity) = step(x, p, mu)
+                proposal = proposal.copy()
                 calls += 1
         elapsed = time.perf_counter() - started
-        if not np.isfinite(info[0]) or problem.constraints is not None:
+        if not np.isfinite(rn) or problem.constraints is not None:
             return self.finish(problem, x, p, calls, started)
-        # x is inside the bounds (projected by every step) and info holds its ||r|| and stationarity.
-        status, rn, message = problem.status_of(float(info[0]), float(info[1]), elapsed, self.limits.time_limit)
+        # x is inside the bounds (projected by every step) and (rn, stationarity) are its own.
+        status, rn, message = problem.status_of(rn, stationarity, elapsed, self.limits.time_limit)
         return SolveReport(x, status, calls, rn, elapsed, message)
 
     # ------------------------------------------------------------------ many independent samples at once
@@ -254,12 +262,12 @@ class GaussNewton(NonlinearAdapter):
         mu_min, mu_max = self.options["damping_min"], self.options["damping_max"]
         deadline = started + self.limits.time_limit * N
         gauss_newton = self._batch(problem, False)
-        newton = self._batch(problem, True) if self.options["second_order"] else gauss_newton
 
         def evaluate(X_, P_, mu_, so_):
-            """Each sample with its model: Gauss-Newton, or Newton once switched (``so_``)."""
+            """Each sample with its model: Gauss-Newton, or Newton once switched (``so_``; built on first use)."""
             if not so_.any():
                 return gauss_newton(X_, P_, mu_)
+            newton = self._batch(problem, True)
             out_x, out_info = np.empty_like(X_), np.empty((2, len(X_)))
             for model, rows in ((gauss_newton, ~so_), (newton, so_)):
                 if rows.any():
@@ -293,7 +301,8 @@ class GaussNewton(NonlinearAdapter):
             reject = test & ~accept
             update = accept | ~test
             slow[idx] = np.where(accept, np.where(new_info[0] > SLOW_PROGRESS * rn, slow[idx] + 1, 0), slow[idx])
-            so[idx[slow[idx] >= SLOW_STEPS]] = True
+            if self.options["second_order"]:
+                so[idx[slow[idx] >= SLOW_STEPS]] = True
             X[idx[accept]] = proposal[idx[accept]]
             info[:, idx[update]] = new_info[:, update]
             proposal[idx[update]] = new_proposal[update]

@@ -9,7 +9,9 @@ conditions for ``min 1/2 sum W_i^2 dist(x_i, x_ref,i)^2 s.t. r(x, p) = 0``,
 
 a square system in ``(x, y)`` whose Jacobian CasADi differentiates exactly
 (``dist`` is ``x - x_ref``, and ``2 sin((x - x_ref)/2)`` for angles that wrap, so
-``grad`` of its square is ``sin(x - x_ref)``). Newton's method knows no bounds:
+``grad`` of its square is ``sin(x - x_ref)``). A problem that is not exact (a
+penalised one, e.g. seed 004 eq. 11) is solved through ``J^T r = 0``, the
+stationarity of ``1/2 ||r||^2``, whose Jacobian is the full Hessian. Newton's method knows no bounds:
 a root outside them is reported ``failed``. ANCHORS.md: the rootfinder may
 return a non-converged iterate silently, so every result is classified from
 its own residual (:mod:`optikin.solvers.nonlinear`).
@@ -28,7 +30,8 @@ import numpy as np
 
 from optikin.errors import SolverError
 from optikin.solvers import register_backend
-from optikin.solvers.nonlinear import BufferedCall, LeastSquaresProblem, NonlinearAdapter, SolveReport
+from optikin.fastcall import BufferedFunction
+from optikin.solvers.nonlinear import LeastSquaresProblem, NonlinearAdapter, SolveReport
 
 PLUGINS = ("newton", "fast_newton")
 
@@ -37,6 +40,8 @@ def optimality_system(problem: LeastSquaresProblem) -> tuple[ca.SX, ca.SX, ca.SX
     """``(z, parameters, G(z))``: the square system Newton solves (module docstring)."""
     x, p, r, J = problem.symbols
     x_ref = ca.SX.sym("x_ref", problem.n)
+    if not problem.exact:
+        return x, ca.vertcat(p, x_ref), ca.mtimes(J.T, r)
     if problem.m == problem.n:
         return x, ca.vertcat(p, x_ref), r
     if problem.m > problem.n:
@@ -62,7 +67,7 @@ class Newton(NonlinearAdapter):
         if self.options["plugin"] not in PLUGINS:
             raise self.option_error("plugin", f"{self.options['plugin']!r} is not one of {', '.join(PLUGINS)}")
 
-    def rootfinder(self, problem: LeastSquaresProblem) -> BufferedCall:
+    def rootfinder(self, problem: LeastSquaresProblem) -> BufferedFunction:
         key = ("rootfinder", self)
         if key not in problem.cache:
             z, parameters, G = optimality_system(problem)
@@ -76,7 +81,7 @@ class Newton(NonlinearAdapter):
                 solver = ca.rootfinder(f"{problem.name}_newton", self.options["plugin"], g, opts)
             except RuntimeError as exc:
                 raise SolverError(f"{self.preset.name}: building the rootfinder failed: {exc}") from None
-            problem.cache[key] = BufferedCall(solver)
+            problem.cache[key] = BufferedFunction(solver)
         return problem.cache[key]
 
     def solve(self, problem: LeastSquaresProblem, x0: np.ndarray, p: np.ndarray,
@@ -85,7 +90,7 @@ class Newton(NonlinearAdapter):
         call = self.rootfinder(problem)
         x0 = np.asarray(x0, dtype=float)
         reference = x0 if x_ref is None else np.asarray(x_ref, dtype=float)
-        z0 = np.concatenate([x0, np.zeros(len(call.args[0]) - problem.n)])
+        z0 = np.concatenate([x0, np.zeros(len(call.inputs[0]) - problem.n)])
         try:
             z = call(z0, np.concatenate([np.ravel(p), reference]))[0]
         except RuntimeError as exc:

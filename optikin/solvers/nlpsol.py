@@ -9,15 +9,20 @@ preference,
 
 with ``dist^2 = 2 (1 - cos(x - x_ref))`` for angles that wrap (their bounds are
 widened by a full turn and the result wrapped back); without weights the
-objective is zero. With more residuals than variables it is
+objective is zero. With more residuals than variables, or for a problem that
+is not exact (a penalised one, :mod:`optikin.solvers.nonlinear`), it is
 ``min 1/2 ||r(x, p)||^2`` within the bounds. A problem's ``constraints``
 (e.g. CBHA leg lengths within Table I) are added as inequality rows of ``g``.
 
 Preset options: ``settings``, a mapping handed to the plugin (IPOPT options
 for ``ipopt``; ``sqpmethod`` options such as ``qpsol``, ``hessian_approximation``
 for ``sqpmethod``); unknown names are reported with the preset field.
-The returned point is clipped to the bounds (IPOPT relaxes them by
-``bound_relax_factor``, 1e-8) and then classified by its own residual.
+IPOPT runs with ``bound_relax_factor: 0``: with its default (1e-8 relative) a
+solution at a bound (e.g. ``theta`` at its limit) came back outside it, and once
+put back inside missed the target by about 2e-9 m, above the 1e-10 m tolerance (92
+of the first 300 targets of the warm-started CC trajectory). The returned point is
+still clipped to the bounds (a preset may relax them again) and then classified by
+its own residual.
 ``limits.max_iterations`` becomes ``max_iter``; ``limits.time_limit`` becomes
 IPOPT's ``max_wall_time`` (``sqpmethod`` has no time limit: its iteration limit
 bounds the time, and a slower solve is reported ``timeout``).
@@ -33,7 +38,8 @@ import numpy as np
 
 from optikin.errors import SolverError
 from optikin.solvers import register_backend
-from optikin.solvers.nonlinear import BufferedCall, LeastSquaresProblem, NonlinearAdapter, SolveReport
+from optikin.fastcall import BufferedFunction
+from optikin.solvers.nonlinear import LeastSquaresProblem, NonlinearAdapter, SolveReport
 
 QUIET_QP = {"print_iter": False, "print_header": False, "error_on_fail": False}
 
@@ -42,7 +48,7 @@ def nlp_of(problem: LeastSquaresProblem) -> tuple[dict, np.ndarray, np.ndarray, 
     """``(nlp dict, lbx, ubx, lbg, ubg)`` (module docstring); parameters are ``(p, x_ref)``."""
     x, p, r, _ = problem.symbols
     x_ref = ca.SX.sym("x_ref", problem.n)
-    if problem.m <= problem.n:
+    if problem.exact and problem.m <= problem.n:
         if problem.weights is None:
             f = ca.SX(0)
         else:
@@ -90,12 +96,12 @@ class NlpsolAdapter(NonlinearAdapter):
                                         f"not an option of {self.plugin}: {text.strip().splitlines()[-1]}") from None
             raise SolverError(f"{self.preset.name}: building {self.plugin} failed: {text}") from None
 
-    def solver(self, problem: LeastSquaresProblem) -> tuple[BufferedCall, np.ndarray, np.ndarray, np.ndarray,
+    def solver(self, problem: LeastSquaresProblem) -> tuple[BufferedFunction, np.ndarray, np.ndarray, np.ndarray,
                                                           np.ndarray]:
         key = ("nlpsol", self)
         if key not in problem.cache:
             nlp, lbx, ubx, lbg, ubg = nlp_of(problem)
-            call = BufferedCall(self._build(f"{problem.name}_{self.plugin}", nlp))
+            call = BufferedFunction(self._build(f"{problem.name}_{self.plugin}", nlp))
             problem.cache[key] = (call, lbx, ubx, lbg, ubg)
         return problem.cache[key]
 
@@ -109,7 +115,7 @@ class NlpsolAdapter(NonlinearAdapter):
             # nlpsol inputs: x0, p, lbx, ubx, lbg, ubg, lam_x0, lam_g0
             x = call(x0, np.concatenate([np.ravel(p), reference]), lbx, ubx, lbg, ubg,
                      np.zeros(problem.n), np.zeros(len(lbg)))[0].copy()
-            # IPOPT relaxes bounds by up to 1e-8 (bound_relax_factor); put the point back inside.
+            # A preset may let IPOPT relax the bounds (bound_relax_factor); put the point back inside.
             x = np.where(problem.periodic, x, np.clip(x, problem.lower, problem.upper))
         except RuntimeError as exc:
             return self.finish(problem, x0, p, 0, started, error=f"{self.plugin}: {exc}")
@@ -124,7 +130,7 @@ class Ipopt(NlpsolAdapter):
     plugin = "ipopt"
 
     def plugin_options(self) -> dict:
-        settings = {"print_level": 0, "sb": "yes", "tol": self.limits.tolerance,
+        settings = {"print_level": 0, "sb": "yes", "tol": self.limits.tolerance, "bound_relax_factor": 0.0,
                     "max_iter": self.limits.max_iterations, "max_wall_time": self.limits.time_limit}
         settings.update(self.options["settings"])
         return {"ipopt": settings, "print_time": False, "error_on_fail": False, "show_eval_warnings": False}

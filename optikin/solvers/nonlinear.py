@@ -7,6 +7,13 @@ which variables are angles that wrap (a full-turn range), the tolerance on
 the configurations with ``r = 0`` prefer the one closest to a reference
 ``x_ref`` in the weighted norm ``||W (x - x_ref)||``.
 
+A problem is *exact* (the default) when its solutions have ``r = 0``: inverse
+kinematics as root finding. A problem with ``exact=False`` is a minimisation
+whose minimum need not be zero, e.g. a tip error plus a penalty as in seed 004
+eq. (11): its solution is the stationary point of ``1/2 ||r||^2`` and the
+backends treat it so (the NLP backends minimise ``1/2 ||r||^2`` instead of
+imposing ``r = 0``; Newton solves ``J^T r = 0``).
+
 Every adapter of the family offers
 
 ``solve(problem, x0, p, x_ref=None) -> SolveReport``
@@ -20,11 +27,13 @@ How a solve went is decided here, by the same rule for every backend, from
 the returned point alone (a backend's own success flag is not trusted:
 CasADi's Newton rootfinder can return a non-converged iterate silently):
 
-``ok``             ``||r|| <= tolerance`` and ``x`` inside the bounds;
-``unreachable``    ``||r|| > tolerance`` at a stationary point of ``||r||^2``
-                   within the bounds (the projected gradient ``J^T r`` vanishes):
-                   the closest reachable configuration, e.g. a target outside
-                   the workspace;
+``ok``             ``||r|| <= tolerance`` and ``x`` inside the bounds; for a problem
+                   that is not exact, also a stationary point of ``||r||^2``
+                   within the bounds (its minimiser);
+``unreachable``    an exact problem with ``||r|| > tolerance`` at a stationary point of
+                   ``||r||^2`` within the bounds (the projected gradient ``J^T r``
+                   vanishes): the closest reachable configuration, e.g. a target
+                   outside the workspace;
 ``timeout``        the preset's ``limits.time_limit`` was exceeded;
 ``failed``         non-finite values, a point outside the bounds, or a solver error;
 ``not_converged``  anything else (e.g. the iteration limit was reached).
@@ -42,6 +51,7 @@ import numpy as np
 
 from optikin.batch import batched
 from optikin.errors import SpecError
+from optikin.fastcall import BufferedFunction
 from optikin.spec import SolverSpec, available
 
 FAMILY = "nonlinear"
@@ -67,7 +77,11 @@ class LeastSquaresProblem:
         Diagonal ``W`` of the redundancy preference ``||W (x - x_ref)||``; ``None``: no preference.
     stationarity_tolerance:
         ``||P J^T r|| / (||J||_F ||r||)`` below which an unsolved point counts as a stationary point
-        of the residual (``P`` drops the components blocked by active bounds).
+        of the residual (``P`` drops the components blocked by active bounds; limits on
+        ``constraints`` are not accounted for).
+    exact:
+        True: a solution has ``r = 0`` (root finding). False: a solution minimises
+        ``1/2 ||r||^2`` and is ``ok`` at a stationary point (module docstring).
     constraints, constraint_lower, constraint_upper, constraint_names:
         Optional limits ``constraint_lower <= c(x) <= constraint_upper`` on a CasADi Function
         ``c(x)`` (e.g. the CBHA's leg lengths within Table I). The NLP backends impose them;
@@ -81,6 +95,7 @@ class LeastSquaresProblem:
     tolerance: float = 1e-10
     weights: np.ndarray | None = None
     stationarity_tolerance: float = 1e-5
+    exact: bool = True
     name: str = "least_squares"
     variable_names: tuple[str, ...] = ()
     constraints: ca.Function | None = None
@@ -167,11 +182,11 @@ class LeastSquaresProblem:
                 ca.logic_and(fixed, x >= ca.DM(self.upper) - margin * span))
 
     # ------------------------------------------------------------------ numeric helpers
-    def fast(self, name: str) -> "BufferedCall":
+    def fast(self, name: str) -> BufferedFunction:
         """A zero-copy caller of the Function attribute ``name`` (built once per problem)."""
         key = ("buffered", name)
         if key not in self.cache:
-            self.cache[key] = BufferedCall(getattr(self, name))
+            self.cache[key] = BufferedFunction(getattr(self, name))
         return self.cache[key]
 
     def project(self, x: np.ndarray) -> np.ndarray:
@@ -184,9 +199,10 @@ class LeastSquaresProblem:
         return np.where(self.periodic, wrapped, np.clip(x, self.lower, self.upper))
 
     def wrap(self, x: np.ndarray) -> np.ndarray:
-        """Wrap periodic variables only (a point outside the bounds stays outside)."""
+        """Wrap periodic variables only (a point outside the bounds stays outside; NaN stays NaN)."""
         x = np.array(x, dtype=float)
-        wrapped = self.lower + np.mod(x - self.lower, self.upper - self.lower)
+        with np.errstate(invalid="ignore"):
+            wrapped = self.lower + np.mod(x - self.lower, self.upper - self.lower)
         return np.where(self.periodic, wrapped, x)
 
     def classify(self, x: np.ndarray, p: np.ndarray, elapsed: float, time_limit: float,
@@ -226,6 +242,8 @@ class LeastSquaresProblem:
         if elapsed > time_limit:
             return "timeout", rn, f"time limit {time_limit:g} s exceeded"
         if stationarity <= self.stationarity_tolerance:
+            if not self.exact:
+                return "ok", rn, ""
             return "unreachable", rn, "stationary point of the residual: closest reachable configuration"
         return "not_converged", rn, ""
 
@@ -248,41 +266,13 @@ class LeastSquaresProblem:
                 status.append("ok"), messages.append("")
             elif limited is not None and limited[i]:
                 status.append("timeout"), messages.append("")
+            elif stationarity[i] <= self.stationarity_tolerance and not self.exact:
+                status.append("ok"), messages.append("")
             elif stationarity[i] <= self.stationarity_tolerance:
                 status.append("unreachable"), messages.append("closest reachable configuration")
             else:
                 status.append("not_converged"), messages.append("")
         return status, rn, messages
-
-
-class BufferedCall:
-    """Calls of a CasADi Function through ``Function.buffer()`` (about 1 us instead of about 12 us).
-
-    Inputs are copied into preallocated arrays; the outputs returned are those arrays themselves,
-    overwritten by the next call (copy what you keep). Dense inputs and outputs only.
-    """
-
-    def __init__(self, f: ca.Function):
-        for i in range(f.n_out()):
-            if not f.sparsity_out(i).is_dense():
-                raise ValueError(f"{f.name()}: output {i} is sparse; densify it before buffering")
-        self._buffer, self._trigger = f.buffer()
-        self.args = [np.zeros(f.numel_in(i)) for i in range(f.n_in())]
-        self.results = [np.zeros(f.numel_out(i)) for i in range(f.n_out())]
-        for i, a in enumerate(self.args):
-            self._buffer.set_arg(i, memoryview(a))
-        for i, r in enumerate(self.results):
-            self._buffer.set_res(i, memoryview(r))
-
-    def __call__(self, *args: Any) -> list[np.ndarray]:
-        for slot, value in zip(self.args, args):
-            slot[:] = np.ravel(value, order="F")
-        self._trigger()
-        return self.results
-
-    def stats(self) -> dict[str, Any]:
-        """The Function's statistics of the last buffered call (iterations of a solver, ...)."""
-        return self._buffer.stats()
 
 
 @dataclass
@@ -388,7 +378,7 @@ class NonlinearAdapter:
             start = X0[k] if previous is None else previous
             report = self.solve(problem, start, P[k], x_ref)
             reports.append(report)
-            if warm_start and np.all(np.isfinite(report.x)):
+            if warm_start and (report.status != "failed" or np.all(np.isfinite(report.x))):
                 previous = report.x
         return BatchReport.of(reports, problem.n)
 

@@ -16,6 +16,10 @@ against scipy ``least_squares`` measured in the same session.
 * ``batched`` group: independent random reachable targets, cold-started from the
   home configuration, Gauss-Newton over all of them at once (CasADi VM and
   compiled C), against a Python loop of scipy ``lm`` over a tenth of them.
+* ``cbha`` groups (seed 004): the 16 platforms of 200 random admissible postures
+  from their leg lengths (eqs. (7)-(9)), and the whole CBHA's tip position -> 48
+  variables closest to rest with every leg within Table I, cold-started from rest
+  (scipy ``lm`` first; IPOPT on a quarter of the targets).
 """
 
 from __future__ import annotations
@@ -24,8 +28,10 @@ import numpy as np
 import pytest
 
 from optikin.arms import ConstantCurvatureArm
+from optikin.arms.cbha import CBHAArm
 from optikin.data.configurations import smooth_trajectory
-from optikin.problems.ik import periodic_mask, tip_residual
+from optikin.problems.ik_formulation import Formulation, build_problem, rest_configuration, tip_residual
+from optikin.problems.ik_platform import platform_problems, solve_platforms
 from optikin.registry import BACKENDS
 from optikin.solvers import load_backends
 from optikin.solvers.nonlinear import LeastSquaresProblem
@@ -50,7 +56,7 @@ def arm():
 
 
 def problem_of(arm, target: str) -> LeastSquaresProblem:
-    return LeastSquaresProblem(tip_residual(arm, target, 0.396), arm.lower, arm.upper, periodic_mask(arm),
+    return LeastSquaresProblem(tip_residual(arm, target, 0.396), arm.lower, arm.upper, arm.periodic,
                                tolerance=1e-10, weights=1.0 / (arm.upper - arm.lower), name=f"timing_{target}",
                                variable_names=arm.config_names)
 
@@ -112,3 +118,57 @@ def test_batched_throughput(benchmark, independent, preset):
     elif "batch" in _lm_per_solve:
         benchmark.extra_info["speed-up vs scipy lm loop"] = round(rate * _lm_per_solve["batch"], 1)
     assert report.status.count("ok") >= 0.999 * len(P)
+
+
+CBHA_TARGETS = 200
+
+
+@pytest.fixture(scope="module")
+def cbha():
+    arm = CBHAArm()
+    Q = arm.sample_configurations(CBHA_TARGETS, np.random.default_rng(5))
+    rest = rest_configuration(arm)
+    tip = build_problem(arm, Formulation("position", "rest", rest, 1.0 / (arm.upper - arm.lower), 1e-10))
+    return arm, rest, tip, arm.evaluate("fk_position", Q), arm.evaluate("leg_lengths", Q).reshape(len(Q), -1)
+
+
+@pytest.mark.parametrize("preset", ["lm", "gauss-newton", "gauss-newton-compiled"])
+def test_cbha_platforms(benchmark, cbha, preset):
+    arm, rest, _, _, legs = cbha
+    problems, solver = platform_problems(arm, 1e-12), adapter(preset)
+    solve_platforms(solver, problems, legs[:2], rest)
+
+    def run():
+        return solve_platforms(solver, problems, legs, rest)
+
+    benchmark.group = f"ik cbha platforms (16 per posture), {len(legs)} postures"
+    report = benchmark.pedantic(run, rounds=3, warmup_rounds=0, iterations=1)
+    per_posture = benchmark.stats.stats.median / len(legs)
+    benchmark.extra_info.update({"median per posture [us]": round(per_posture * 1e6, 1),
+                                 "solved": f"{report.status.count('ok')}/{len(legs)}", "batched": report.batched})
+    if preset == "lm":
+        _lm_per_solve["cbha platforms"] = per_posture
+    elif "cbha platforms" in _lm_per_solve:
+        benchmark.extra_info["speed-up vs scipy lm"] = round(_lm_per_solve["cbha platforms"] / per_posture, 1)
+    assert report.status.count("ok") == len(legs)
+
+
+@pytest.mark.parametrize("preset", ["lm", "gauss-newton", "ipopt"])
+def test_cbha_tip(benchmark, cbha, preset):
+    arm, rest, problem, tips, _ = cbha
+    solver = adapter(preset)
+    P = tips[: CBHA_TARGETS // 4] if preset == "ipopt" else tips
+    solver.solve_many(problem, rest, P[:2], x_ref=rest)
+
+    def run():
+        return solver.solve_many(problem, rest, P, x_ref=rest)
+
+    benchmark.group = "ik cbha tip position -> 48 variables, closest to rest, cold start"
+    report = benchmark.pedantic(run, rounds=3 if preset != "ipopt" else 1, warmup_rounds=0, iterations=1)
+    per_solve = benchmark.stats.stats.median / len(P)
+    benchmark.extra_info.update({"median per solve [us]": round(per_solve * 1e6, 1), "targets": len(P),
+                                 "solved": f"{report.status.count('ok')}/{len(P)}", "batched": report.batched})
+    if preset == "lm":
+        _lm_per_solve["cbha tip"] = per_solve
+    elif "cbha tip" in _lm_per_solve:
+        benchmark.extra_info["speed-up vs scipy lm"] = round(_lm_per_solve["cbha tip"] / per_solve, 1)

@@ -1,0 +1,144 @@
+"""How an ``ik`` problem's options become a least-squares problem: tip rows, redundancy, elongation distribution.
+
+The residual ``r(q, target)`` of :class:`~optikin.solvers.nonlinear.LeastSquaresProblem`
+stacks these rows, all in metres:
+
+tip
+    ``p(q) - p*``; for poses also ``2 L vec(q*^-1 q(q))`` (:func:`tip_residual`,
+    described in :mod:`optikin.problems.ik`).
+penalty (``redundancy: penalty``): seed 004 eq. (11),
+    ``J = 1/2 (X_d - X)^T (X_d - X) + lambda/2 ||X||^2``, which the seed adds to the
+    cost of its inverse network "to select a particular inverse solution". ``X`` is
+    "the predicted position", but a cost that depends on ``q`` only through the tip
+    cannot select among configurations with the same tip, so two readings are offered:
+
+    ``penalty_on: configuration`` (default): ``X`` is what the inverse model predicts,
+    the configuration; rows ``sqrt(lambda) W dist(q, q_rest)``, the weighted distance
+    to the rest configuration (``dist = 2 sin((q - q_rest)/2)`` for angles that wrap).
+    The distance is taken from the rest configuration because a zero configuration lies
+    outside the CBHA's bounds and ``||q||`` would add metres to radians. This is
+    Tikhonov regularisation of the inverse problem: a unique, smooth choice, paid for
+    with a tip error that grows with ``lambda`` (in m^2, the weighted distance being a
+    pure number): at an interior minimiser ``J^T e + lambda W^2 d = 0`` (``e`` the tip
+    error, ``J`` its Jacobian, ``d = q - q_rest``), so ``e = -lambda (J J^T)^-1 J W^2 d``.
+
+    ``penalty_on: position``: ``X`` is the predicted tip position, as printed; rows
+    ``sqrt(lambda) p(q)`` (``lambda`` a pure number). Over reachable tips the minimum is
+    ``X = X_d / (1 + lambda)``: the tip is pulled towards the base, and the redundancy
+    is left as it was (every configuration with that tip is a minimiser).
+
+    Either way the problem is a minimisation whose minimum is not zero
+    (``exact=False``): a sample is ``ok`` at a stationary point of the whole cost, and
+    the tip error is reported separately.
+elongation distribution (``elongation: distributed``, CBHA only): seed 004 section IV,
+    every inter-vertebra a fixed fraction of its section's tube length; 42 rows
+    ``q_{m,k}(q) - c_k L_{m,s}(q)`` (:mod:`optikin.problems.ik_cbha`). Combined with an exact
+    redundancy choice they must vanish with the tip rows; under the penalty they are
+    soft, weighed in metres of leg length against the tip error.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from optikin.algebra import dq_rotation, dq_translation, quat_conjugate, quat_multiply
+from optikin.arms.base import ArmModel
+from optikin.arms.cbha import CBHAArm
+from optikin.problems.ik_cbha import distribution_rows
+from optikin.problems.ik_platform import platform_problems
+from optikin.solvers.nonlinear import LeastSquaresProblem
+
+REDUNDANCY_CHOICES = ("rest", "previous", "minimum_norm", "penalty")
+PENALTY_READINGS = ("configuration", "position")
+ELONGATIONS = ("free", "distributed")
+PENALTY_STATIONARITY = 1e-9
+"""``||J^T r|| / (||J||_F ||r||)`` at which a penalised (not exact) problem counts as solved."""
+
+
+@dataclass(frozen=True, eq=False)
+class Formulation:
+    """One inverse problem on an arm: what is matched and how the redundancy is resolved (module docstring)."""
+
+    target: str
+    redundancy: str
+    rest: np.ndarray
+    weights: np.ndarray
+    tolerance: float
+    orientation_length: float = 1.0
+    penalty: float = 0.0
+    penalty_on: str = "configuration"
+    elongation: str = "free"
+
+    @property
+    def exact(self) -> bool:
+        """Whether solutions reach ``r = 0`` (every choice but the penalty)."""
+        return self.redundancy != "penalty"
+
+    def label(self) -> str:
+        """A short description, e.g. ``penalty on configuration, lambda=1e-06; distributed``."""
+        text = self.redundancy
+        if self.redundancy == "penalty":
+            text += f" on {self.penalty_on}, lambda={self.penalty:g}"
+        if self.elongation != "free":
+            text += f"; {self.elongation}"
+        return text
+
+
+def tip_residual(arm: ArmModel, target: str, orientation_length: float) -> ca.Function:
+    """``r(q, target)``: the tip position error; for poses also ``2 L vec(q_target^-1 q_tip)``."""
+    q = ca.SX.sym("q", arm.n_config)
+    quat, position = arm.section_frames(q)[-1]
+    if target == "position":
+        p = ca.SX.sym("p", 3)
+        return ca.Function(f"{arm.name}_ik_position", [q, p], [position - p], ["q", "p"], ["r"])
+    p = ca.SX.sym("dq", 8)
+    error = quat_multiply(quat_conjugate(dq_rotation(p)), quat)
+    r = ca.vertcat(position - dq_translation(p), orientation_length * 2.0 * error[1:])
+    return ca.Function(f"{arm.name}_ik_pose", [q, p], [r], ["q", "dq"], ["r"])
+
+
+def rest_configuration(arm: ArmModel) -> np.ndarray:
+    """Straight at nominal lengths when the arm defines it, else the middle of the bounds."""
+    straight = getattr(arm, "straight_configuration", None)
+    return straight() if callable(straight) else 0.5 * (arm.lower + arm.upper)
+
+
+def penalty_rows(arm: ArmModel, q: ca.SX, formulation: Formulation) -> ca.SX:
+    """The rows of seed 004 eq. (11) in the chosen reading (module docstring)."""
+    root = np.sqrt(formulation.penalty)
+    if formulation.penalty_on == "position":
+        return root * arm.section_frames(q)[-1][1]
+    d = q - ca.DM(formulation.rest)
+    d = ca.if_else(ca.DM(arm.periodic.astype(float)), 2.0 * ca.sin(d / 2.0), d)
+    return root * ca.DM(formulation.weights) * d
+
+
+def build_problem(arm: ArmModel, formulation: Formulation) -> LeastSquaresProblem | list[LeastSquaresProblem]:
+    """The least-squares problem of a formulation; for CBHA leg lengths, one per platform.
+
+    A CBHA's leg lengths must stay within Table I (seed 004): they are the problem's constraints.
+    """
+    if formulation.target == "legs":
+        return platform_problems(arm, formulation.tolerance)
+    tip = tip_residual(arm, formulation.target, formulation.orientation_length)
+    q, p = ca.SX.sym("q", arm.n_config), ca.SX.sym("p", tip.size1_in(1))
+    rows = [tip(q, p)]
+    if formulation.elongation == "distributed":
+        rows.append(distribution_rows(arm, q))
+    if formulation.redundancy == "penalty":
+        rows.append(penalty_rows(arm, q, formulation))
+    name = f"{arm.name}_ik_{formulation.target}"
+    residual = tip if len(rows) == 1 else ca.Function(name, [q, p], [ca.vertcat(*rows)], ["q", "p"], ["r"])
+    limits = {}
+    if isinstance(arm, CBHAArm):
+        lower, upper = arm.leg_limits()
+        limits = {"constraints": arm.leg_lengths, "constraint_lower": lower, "constraint_upper": upper,
+                  "constraint_names": arm.leg_names}
+    if not formulation.exact:
+        limits["stationarity_tolerance"] = PENALTY_STATIONARITY
+    return LeastSquaresProblem(residual, arm.lower, arm.upper, arm.periodic, tolerance=formulation.tolerance,
+                               weights=formulation.weights, exact=formulation.exact, name=name,
+                               variable_names=arm.config_names, **limits)
