@@ -84,6 +84,15 @@ def test_perturbation_problem(tmp_path):
     coupled = metrics["quaternion: perturbation coupled final orientation deviation [mrad]"]
     assert metrics["quaternion: perturbation plain peak orientation deviation [mrad]"] > 1.0
     assert coupled < 0.05 * plain
+    # eq. (15): exp(-zeta) = 0.01 at tau; the seed's eq. (28) lags even without the push
+    assert metrics["quaternion: perturbation coupled undisturbed phase at the end"] == pytest.approx(0.01, rel=1e-6)
+    assert metrics["quaternion: perturbation coupled + phase stopping (seed eq. 28) undisturbed phase at the end"] > 0.3
+
+
+def test_tracking_phase_stopping_against_the_demonstration_is_refused(tmp_path):
+    path = reduced("dmp-perturbation", tmp_path, couplings={"stopped": {"alpha_s": 5.0, "alpha": 5.0}})
+    with pytest.raises(SpecError, match=r"options\.couplings\.stopped\.alpha.*robot's pose"):
+        solve(str(path))
 
 
 def test_kinect_problem_through_the_command_line(tmp_path):
@@ -102,6 +111,8 @@ def test_kinect_problem_through_the_command_line(tmp_path):
     ({"regression": {"method": "lstsq", "bound": 10.0}}, "options.regression.bound"),
     ({"goal_switches": [{"time": 1.0, "rotate": [0, 1]}]}, "options.goal_switches.0.rotate"),
     ({"tuning": {"gains": ["stiffness"]}}, "options.tuning.gains.0"),
+    ({"tuning": {"screen": -1}}, "options.tuning.screen"),
+    ({"smoothing": -2.5}, "options.smoothing"),
     ({"colour": "blue"}, "options.colour"),
 ])
 def test_bad_options_name_the_field(tmp_path, options, field):

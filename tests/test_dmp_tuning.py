@@ -3,7 +3,8 @@
 The CasADi objective of eq. (29) is checked against the independent numpy path
 (``DMP.imitate`` with ``numpy.linalg.lstsq``, then a roll-out) and its exact
 gradient against central differences of that path; the GA against known
-minima of test functions.
+minima of test functions; the multi-start gradient tuning against the GA and
+an exhaustive grid of the same objective.
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ import pytest
 
 from optikin.algebra import quat_exp, quat_multiply
 from optikin.baselines.genetic import minimise
-from optikin.data.demonstrations import smooth_pose_demonstration
+from optikin.data.demonstrations import imu_interface_recording, smooth_pose_demonstration
 from optikin.dmp import DMP, Gains, UnitQuaternion
 from optikin.dmp.tuning import tune_genetic, tune_gradient, tuning_problem
 
@@ -104,3 +105,32 @@ def test_genetic_algorithm_finds_known_minima():
     assert rosenbrock.value < 1e-3
     with pytest.raises(ValueError):
         minimise(lambda X: X[:, 0], [1.0], [0.0])
+
+
+@pytest.fixture(scope="module")
+def imu_goal_problem():
+    """The notebook's small goal-switch case: 10 s of the IMU demonstration at 15 Hz, 10 basis functions,
+    beta_g0 and alpha_s from (10, 1); a single IPOPT run from there stops at a stationary point (1.34)
+    above the GA's result (1.18)."""
+    demo = imu_interface_recording(samples=150, rate=15.0, seed=2020).demonstration
+    new_goal = quat_multiply(quat_exp(np.array([0.15, -0.15, 0.1])), demo.quaternion[-1])
+    dmp = DMP(UnitQuaternion(), n_basis=10, gains=Gains(beta_g0=10.0, alpha_s=1.0))
+    return tuning_problem(dmp, demo.t, demo.quaternion, ("beta_g0", "alpha_s"), scenario="goal",
+                          new_goal=new_goal, switch_time=4.0)
+
+
+def test_multi_start_gradient_tuning_reaches_the_genetic_algorithm_and_the_grid(imu_goal_problem, problem):
+    """On both small cases the multi-start IPOPT ends at or below the GA's error and below the minimum of a
+    24 x 24 (goal) or 10 x 10 x 10 (reproduction) grid of the log-box, within 0.1%."""
+    found = {}
+    for case, points in ((imu_goal_problem, 24), (problem, 10)):
+        ga = tune_genetic(case, population=10, generations=5, seed=2020)
+        found[id(case)] = gradient = tune_gradient(case, max_iterations=15, seed=2020)
+        axes = [np.linspace(lo, hi, points) for lo, hi in zip(np.log(case.lower), np.log(case.upper))]
+        grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(axes))
+        grid_best = float(np.min(np.asarray(case.objective.map(len(grid), "serial")(grid.T))))
+        assert gradient.error <= 1.001 * ga.error
+        assert gradient.error <= 1.001 * grid_best
+        assert gradient.evaluations > 17  # the 16-point screening plus the start, then IPOPT's own calls
+    single = tune_gradient(imu_goal_problem, max_iterations=15, screen=0, starts=1)
+    assert single.error > 1.05 * found[id(imu_goal_problem)].error  # a local point: why the screening is there

@@ -45,19 +45,21 @@ def test_the_shipped_scenarios_cover_the_issue():
 
 
 def test_dmp_reference_starts_at_the_demonstration_and_is_tracked_within_limits(tmp_path):
-    """The reference is a DMP roll-out of the IMU demonstration: it starts at the demonstration's first pose."""
-    from optikin.algebra import dq_translation
+    """The reference is a DMP roll-out of the (smoothed) IMU demonstration: it starts and ends at its poses."""
+    from optikin.algebra import dq_rotation, dq_translation, quat_angle, quat_conjugate, quat_multiply
     from optikin.data.demonstrations import imu_interface_recording
 
     result, _ = solve(str(shortened(tmp_path, "track-dmp", baselines=True)), figures=False)
     recording = imu_interface_recording(samples=300, seed=load_problem("track-dmp")[0].data.seed)
+    demo = recording.demonstration.dual_quaternion
     reference = result.arrays["reference"]
-    np.testing.assert_allclose(reference[0], recording.demonstration.dual_quaternion[0], atol=1e-9)
-    end_gap = np.linalg.norm(dq_translation(reference[-1]) - recording.demonstration.position[-1])
-    assert end_gap < 5e-3  # the roll-out lasts one tau, ending near the demonstrated goal
+    # The smoother (2.5 Hz) moves the end samples of this short 3 s demonstration by a few mm / degrees.
+    for ref, pose, (metres, radians) in ((reference[0], demo[0], (5e-3, 0.05)), (reference[-1], demo[-1], (5e-3, 0.1))):
+        assert np.linalg.norm(dq_translation(ref) - dq_translation(pose)) < metres
+        assert quat_angle(quat_multiply(quat_conjugate(dq_rotation(pose)), dq_rotation(ref))) < radians
     rows = {row.method: row.metrics for row in result.comparison}
     assert rows["qp (osqp)"]["outside limits"] == 0
-    assert rows["qp (osqp)"]["rms [mm]"] < 5.0
+    assert rows["qp (osqp)"]["rms [mm]"] < 10.0  # 100 Hz on a 3 s demonstration; the shipped 500 Hz run: ~1 mm
 
 
 @pytest.mark.parametrize("name", SCENARIOS)

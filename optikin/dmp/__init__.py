@@ -2,6 +2,7 @@
 
 * :mod:`~optikin.dmp.spaces` -- the spaces a DMP moves in (gap and advance operations).
 * :mod:`~optikin.dmp.canonical`, :mod:`~optikin.dmp.basis` -- phase (eqs. 15, 25, 28) and forcing-term basis (13-14).
+* :mod:`~optikin.dmp.smoothing` -- optional low-pass of noisy (sensor) demonstrations before learning.
 * :mod:`~optikin.dmp.imitation`, :mod:`~optikin.dmp.regression` -- targets (16, 21-22) and weight fits.
 * :mod:`~optikin.dmp.rollout` -- the roll-out as one CasADi Function (11-12, 17-18, 23-28).
 * :mod:`~optikin.dmp.model` -- :class:`DMP`: imitate, roll out, generalise.

@@ -16,6 +16,23 @@ exponential; :func:`centres_along` takes the centres from the phase the
 demonstration actually has, which covers both cases. Everything accepts
 CasADi symbols, so gains can be tuned through the basis
 (:mod:`optikin.dmp.tuning`).
+
+The forcing term is switched off below the demonstration's final phase
+(:func:`forcing_end`). The weights are fitted on the phases the demonstration
+visits, ``[s_end, 1]``; below ``s_end`` the normalised sum is an extrapolation
+that no sample constrains: it returns ``s`` times the last weights, which a
+least-squares fit of noisy targets makes large and of alternating sign
+(``1e5``-``1e6`` on the IMU demonstration, whose final target forces are
+sensor noise divided by ``s_end = 0.01``), so it kept pushing for seconds
+after ``tau`` while ``s`` decayed with the time constant ``tau / zeta`` (on
+the 10 s IMU demonstration the dual-quaternion DMP's tip went 0.2 m off the
+goal within a second after ``tau``, and was metres off after 5 tau). Ijspeert
+et al. (2013) and Ude et al. (2014) rely on ``s -> 0`` alone for ``f -> 0``,
+which bounds the forcing term only asymptotically. With the gate
+the DMP past ``s_end`` is exactly the critically damped spring of eqs. (11) /
+(17) with ``f = 0``: it converges to the goal from wherever ``tau`` leaves it,
+and the roll-out within the demonstration is unchanged (every phase it fits
+lies above the threshold).
 """
 
 from __future__ import annotations
@@ -50,6 +67,23 @@ def centres_along(log_phase: Array, n_basis: int) -> Array:
     if B.is_casadi(log_phase):
         return ca.exp(ca.mtimes(ca.sparsify(ca.DM(A)), log_phase))
     return np.exp(A @ np.asarray(log_phase, dtype=float))
+
+
+def forcing_end(log_phase: Array) -> Array:
+    """Phase below which the forcing term is off: between the last two samples of the demonstration's phase.
+
+    ``log_phase`` holds ``log s_0 .. log s_{N-1}``; the targets are fitted at
+    ``s_0 .. s_{N-2}`` (one per step), so the threshold is their geometric
+    midpoint ``sqrt(s_{N-2} s_{N-1})``: every fitted phase lies above it, and a
+    roll-out on the demonstration's step switches the forcing term off from
+    the first step after ``tau`` on, whatever the rounding of ``s``.
+    """
+    if log_phase.shape[0] < 2:
+        raise ValueError("the phase of a demonstration has at least two samples")
+    if B.is_casadi(log_phase):
+        return ca.exp(0.5 * (log_phase[-2] + log_phase[-1]))
+    log_phase = np.asarray(log_phase, dtype=float)
+    return float(np.exp(0.5 * (log_phase[-2] + log_phase[-1])))
 
 
 def widths(c: Array, overlap: float = DEFAULT_OVERLAP) -> Array:

@@ -34,7 +34,8 @@ import numpy as np
 from optikin.algebra import backend as B
 from optikin.algebra.backend import Array
 from optikin.dmp import basis
-from optikin.dmp.canonical import stopped_log_phase
+from optikin.dmp.canonical import goal_stopping_weight, stopped_log_phase
+from optikin.dmp.smoothing import smooth_demonstration
 from optikin.dmp.spaces import Space, smooth_norm
 from optikin.errors import InputDataError
 
@@ -63,11 +64,14 @@ class Demonstration:
         return self.Y[-1]
 
 
-def prepare(space: Space, t: np.ndarray, Y: np.ndarray, source: str = "demonstration") -> Demonstration:
+def prepare(space: Space, t: np.ndarray, Y: np.ndarray, source: str = "demonstration",
+            smoothing: float | None = None) -> Demonstration:
     """Check a demonstration (finite, fixed step, at least 3 samples) and compute its gap data.
 
     Quaternion blocks are made sign-continuous along the demonstration; the
-    time constant ``tau`` is its duration.
+    time constant ``tau`` is its duration. ``smoothing``: the cutoff [Hz] of
+    the low-pass of :mod:`optikin.dmp.smoothing` applied first (``None``: the
+    samples as given); start and goal are then the smoothed end samples.
     """
     t = np.asarray(t, dtype=float)
     Y = np.asarray(Y, dtype=float)
@@ -91,6 +95,11 @@ def prepare(space: Space, t: np.ndarray, Y: np.ndarray, source: str = "demonstra
                              f"{steps[worst]:.6g} s); resample the demonstration first", source=source,
                              sample=worst + 1, field="t")
     Y = space.continuous(Y)
+    if smoothing is not None:
+        try:
+            Y = smooth_demonstration(space, Y, dt, float(smoothing))
+        except ValueError as exc:
+            raise InputDataError(str(exc), source=source, field="smoothing") from None
     tau = float(t[-1] - t[0])
     goal = Y[-1]
     return Demonstration(space=space, t=t - t[0], Y=Y, dt=dt, tau=tau,
@@ -119,9 +128,16 @@ def target_forces(demo: Demonstration, beta: Array, gamma: Array, alpha_s: Array
     return (demo.tau / demo.dt) * (eta_next - eta) - beta * (gamma * E - eta)
 
 
-def demonstration_log_phase(demo: Demonstration, zeta: Array, alpha: Array = 0.0) -> Array:
-    """``log s_k`` along the demonstration, ``k = 0 .. N-1`` (stopped by the goal gap when ``alpha > 0``, eq. 25)."""
-    return stopped_log_phase(demo.dt, demo.tau, zeta, alpha, smooth_norm(demo.goal_gap))
+def demonstration_log_phase(demo: Demonstration, zeta: Array, alpha: Array = 0.0,
+                            phase_stopping: str = "tracking") -> Array:
+    """``log s_k`` along the demonstration, ``k = 0 .. N-1``.
+
+    The demonstration has no tracking error, so with ``tracking`` phase
+    stopping this is eq. (15); with the seed's it is slowed by the goal gap
+    when ``alpha > 0`` (eq. 25), as its roll-out will be.
+    """
+    alpha_goal = goal_stopping_weight(phase_stopping) * alpha
+    return stopped_log_phase(demo.dt, demo.tau, zeta, alpha_goal, smooth_norm(demo.goal_gap))
 
 
 def amplitude(space: Space, start: np.ndarray, goal: np.ndarray, scale: bool, source: str = "") -> np.ndarray:
@@ -142,10 +158,12 @@ def amplitude(space: Space, start: np.ndarray, goal: np.ndarray, scale: bool, so
 
 
 def design_matrix(demo: Demonstration, n_basis: int, zeta: Array, alpha: Array = 0.0,
-                  overlap: float = basis.DEFAULT_OVERLAP) -> tuple[Array, Array, Array, Array]:
-    """``(X, s, c, h)``: the ``(N - 1, n)`` design matrix of eq. (13), the phase of its rows, centres and widths."""
-    log_s = demonstration_log_phase(demo, zeta, alpha)
+                  overlap: float = basis.DEFAULT_OVERLAP,
+                  phase_stopping: str = "tracking") -> tuple[Array, Array, Array, Array, Array]:
+    """``(X, s, c, h, s_end)``: the ``(N - 1, n)`` design matrix of eq. (13), the phase of its rows, centres,
+    widths, and the phase below which the forcing term is off (:func:`optikin.dmp.basis.forcing_end`)."""
+    log_s = demonstration_log_phase(demo, zeta, alpha, phase_stopping)
     c = basis.centres_along(log_s, n_basis)
     h = basis.widths(c, overlap)
     s = ca.exp(log_s[:-1, :]) if B.is_casadi(log_s) else np.exp(log_s[:-1])
-    return basis.features(s, c, h), s, c, h
+    return basis.features(s, c, h), s, c, h, basis.forcing_end(log_s)

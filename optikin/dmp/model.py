@@ -9,6 +9,10 @@ Per-angle DMPs (seed eqs. 11-16) are ``DMP(Euclidean(3))`` on roll-pitch-yaw,
 the quaternion DMP (eqs. 17-23) is ``DMP(UnitQuaternion())``, the pose DMPs
 are in :mod:`optikin.dmp.pose`. ``tau`` is the temporal scaling: the same
 weights replay the motion in ``tau`` seconds instead of the demonstration's.
+Past the demonstration's final phase the forcing term is off
+(:mod:`optikin.dmp.basis`), so every roll-out ends as the critically damped
+spring of eqs. (11) / (17) on the goal; noisy (sensor) demonstrations should
+be learned with ``smoothing`` (:mod:`optikin.dmp.smoothing`).
 """
 
 from __future__ import annotations
@@ -20,6 +24,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from optikin.dmp import basis, regression
+from optikin.dmp.canonical import goal_stopping_weight
 from optikin.dmp.gains import Gains
 from optikin.dmp.imitation import Demonstration, amplitude, design_matrix, prepare, target_forces
 from optikin.dmp.rollout import input_size, rollout_function
@@ -63,7 +68,8 @@ class RolloutPlan:
 
 @dataclass(frozen=True)
 class RegressionProblem:
-    """The weight regression of one demonstration: ``X W^T ~ F`` with the phase and activations along it."""
+    """The weight regression of one demonstration: ``X W^T ~ F`` with the phase and activations along it,
+    the basis, and the phase below which the forcing term is off."""
 
     demo: Demonstration
     X: np.ndarray
@@ -72,35 +78,50 @@ class RegressionProblem:
     activations: np.ndarray
     centres: np.ndarray
     widths: np.ndarray
+    forcing_end: float
 
 
 class DMP:
-    """Discrete DMP (seed 000 eqs. 11-28) on ``space`` with ``n_basis`` Gaussians per gap component."""
+    """Discrete DMP (seed 000 eqs. 11-28) on ``space`` with ``n_basis`` Gaussians per gap component.
+
+    ``smoothing``: cutoff [Hz] of the low-pass applied to demonstrations before
+    learning (:mod:`optikin.dmp.smoothing`; ``None``, the default, learns the
+    samples as given). ``phase_stopping``: the error that slows the phase when
+    ``gains.alpha > 0`` (:mod:`optikin.dmp.canonical`): ``tracking`` (default,
+    Ijspeert et al. 2013, Ude et al. 2014) or ``seed`` (eqs. 25, 28 as printed).
+    """
 
     def __init__(self, space: Space, n_basis: int = 50, gains: Gains = Gains(),
-                 overlap: float = basis.DEFAULT_OVERLAP, scale_by_amplitude: bool = False):
+                 overlap: float = basis.DEFAULT_OVERLAP, scale_by_amplitude: bool = False,
+                 smoothing: float | None = None, phase_stopping: str = "tracking"):
         if n_basis < 2:
             raise ValueError(f"a DMP needs at least 2 basis functions, got {n_basis}")
+        if smoothing is not None and not smoothing > 0:
+            raise ValueError(f"the smoothing cutoff must be a positive frequency in Hz (or None), got {smoothing}")
         self.space = space
         self.n_basis = int(n_basis)
         self.gains = gains
         self.overlap = float(overlap)
         self.scale_by_amplitude = bool(scale_by_amplitude)
+        self.smoothing = None if smoothing is None else float(smoothing)
+        self.goal_stopping = goal_stopping_weight(phase_stopping)
+        self.phase_stopping = phase_stopping
         self.weights: np.ndarray | None = None
         self.centres: np.ndarray | None = None
         self.widths: np.ndarray | None = None
+        self.forcing_end: float | None = None
         self.demo: Demonstration | None = None
         self.fit: regression.Fit | None = None
 
     # ------------------------------------------------------------------ learning
     def regression_problem(self, t: np.ndarray, Y: np.ndarray, source: str = "demonstration") -> RegressionProblem:
         """Design matrix and target forces of a demonstration under this DMP's gains (seed eqs. 16, 21-22)."""
-        demo = prepare(self.space, t, Y, source)
+        demo = prepare(self.space, t, Y, source, self.smoothing)
         g = self.gains
-        X, s, c, h = design_matrix(demo, self.n_basis, g.zeta, g.alpha, self.overlap)
+        X, s, c, h, s_end = design_matrix(demo, self.n_basis, g.zeta, g.alpha, self.overlap, self.phase_stopping)
         amp = amplitude(self.space, demo.start, demo.goal, self.scale_by_amplitude, source)
         F = target_forces(demo, g.beta, g.gamma, g.alpha_s) / amp
-        return RegressionProblem(demo, X, F, s, basis.activations(s, c, h), c, h)
+        return RegressionProblem(demo, X, F, s, basis.activations(s, c, h), c, h, s_end)
 
     def imitate(self, t: np.ndarray, Y: np.ndarray, method: str = "lstsq", ridge: float = 0.0,
                 lower: float | np.ndarray | None = None, upper: float | np.ndarray | None = None,
@@ -118,7 +139,7 @@ class DMP:
         else:
             raise ValueError(f"unknown regression method {method!r}; choose from {regression.METHODS}")
         self.weights, self.demo, self.fit = fit.weights, problem.demo, fit
-        self.centres, self.widths = problem.centres, problem.widths
+        self.centres, self.widths, self.forcing_end = problem.centres, problem.widths, problem.forcing_end
         return fit
 
     @property
@@ -158,7 +179,7 @@ class DMP:
         f = rollout_function(space, self.n_basis, plan.steps)
         begin = time.perf_counter()
         X = np.asarray(f(x0, plan.inputs.T, W, self.centres, self.widths, plan.amplitude, gains.vector(),
-                         plan.tau, plan.dt)).T
+                         plan.tau, plan.dt, self.forcing_end, self.goal_stopping)).T
         seconds = time.perf_counter() - begin
         return Rollout(t=plan.t, y=X[:, :size], eta=X[:, size:size + dim], phase=X[:, size + dim],
                        goal=X[:, size + dim + 1:], seconds=seconds)

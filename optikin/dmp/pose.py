@@ -37,30 +37,28 @@ from __future__ import annotations
 import numpy as np
 
 from optikin.algebra import dq_rotation, dq_translation
-from optikin.dmp import basis
-from optikin.dmp.gains import Gains
 from optikin.dmp.model import DMP
 from optikin.dmp.spaces import Euclidean, Product, UnitDualQuaternion, UnitQuaternion
 
 POSE_VARIANTS = ("seed", "dual-quaternion", "cartesian")
 
 
-def seed_dual_quaternion_dmp(n_basis: int = 50, gains: Gains = Gains(), overlap: float = basis.DEFAULT_OVERLAP,
-                             scale_by_amplitude: bool = False) -> DMP:
-    """Seed 000's variant: quaternion DMPs on ``Q_r`` and on ``Q_d`` of ``(Q_r, Q_d)`` (unsound, see module doc)."""
-    return DMP(Product(UnitQuaternion(), UnitQuaternion()), n_basis, gains, overlap, scale_by_amplitude)
+def seed_dual_quaternion_dmp(n_basis: int = 50, **options) -> DMP:
+    """Seed 000's variant: quaternion DMPs on ``Q_r`` and on ``Q_d`` of ``(Q_r, Q_d)`` (unsound, see module doc).
+
+    ``options``: the keyword arguments of :class:`~optikin.dmp.DMP` (gains, overlap, smoothing, ...).
+    """
+    return DMP(Product(UnitQuaternion(), UnitQuaternion()), n_basis, **options)
 
 
-def dual_quaternion_dmp(n_basis: int = 50, gains: Gains = Gains(), overlap: float = basis.DEFAULT_OVERLAP,
-                        scale_by_amplitude: bool = False) -> DMP:
-    """A DMP on unit dual quaternions through ``dq_log``/``dq_exp`` (sound)."""
-    return DMP(UnitDualQuaternion(), n_basis, gains, overlap, scale_by_amplitude)
+def dual_quaternion_dmp(n_basis: int = 50, **options) -> DMP:
+    """A DMP on unit dual quaternions through ``dq_log``/``dq_exp`` (sound); ``options`` as :class:`DMP`'s."""
+    return DMP(UnitDualQuaternion(), n_basis, **options)
 
 
-def cartesian_dmp(n_basis: int = 50, gains: Gains = Gains(), overlap: float = basis.DEFAULT_OVERLAP,
-                  scale_by_amplitude: bool = False) -> DMP:
-    """A translation DMP and a quaternion DMP on ``(x, y, z, qw, qx, qy, qz)`` (sound)."""
-    return DMP(Product(Euclidean(3), UnitQuaternion()), n_basis, gains, overlap, scale_by_amplitude)
+def cartesian_dmp(n_basis: int = 50, **options) -> DMP:
+    """A translation DMP and a quaternion DMP on ``(x, y, z, qw, qx, qy, qz)`` (sound); ``options``: :class:`DMP`'s."""
+    return DMP(Product(Euclidean(3), UnitQuaternion()), n_basis, **options)
 
 
 def pose_dmp(variant: str, **options) -> DMP:

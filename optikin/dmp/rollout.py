@@ -5,18 +5,21 @@ One step (seed 000 eqs. 11-12 / 17-18, 15, 23-28, in the gap units of
 
     e   = gap(g, y)                      goal gap (eq. 19: 2 log(g conj(y)))
     r   = m gap(y_ref, y)                gap to a reference (eq. 27), m in {0, 1}
-    f   = a * (W psi(s)) s / sum psi(s)  forcing term (eqs. 13, 20), a the amplitude scaling
+    f   = a * (W psi(s)) s / sum psi(s)  forcing term (eqs. 13, 20), a the amplitude scaling,
+          for s > s_end only           (off past the demonstration's phase, :func:`optikin.dmp.basis.forcing_end`)
     eta <- eta + dt/tau [beta (gamma e - eta) + f + d]                       (eqs. 11, 17; d a disturbance)
     y   <- advance(y, dt/tau (eta + alpha_s (e + r)))                        (eqs. 12, 23, 26, 27)
-    s   <- s exp(-zeta dt / (tau (1 + alpha (|e| + |r|))))                   (eqs. 15, 25, 28)
+    s   <- s exp(-zeta dt / (tau (1 + alpha (w |e| + |r|))))                 (eqs. 15, 25, 28)
     g   <- advance(g, (1 - exp(-beta_g0 dt/tau)) gap(g_new, g))              (eq. 24)
 
 The pose update ``advance(y, v) = exp(v/2) y`` keeps a unit quaternion (or
 unit dual quaternion) unit to rounding; the goal filter and the phase are
 integrated exactly for gaps held over the step. The coupling uses the filtered
 goal ``g`` (the seed writes the new goal in eq. 26, which would make the
-velocity jump at a switch, what the filter is there to prevent), and eq. (28)'s
-denominator is read as the sum of the two gap norms.
+velocity jump at a switch, what the filter is there to prevent). Phase
+stopping (:mod:`optikin.dmp.canonical`) uses the tracking error ``|r|`` alone
+(``w = 0``, the default) or, as the seed's eq. (28), the sum of the two gap
+norms (``w = 1``).
 
 The loop is a ``mapaccum`` of the step wrapped in an MX Function per number of
 steps (cached): no Python runs per sample, and the same graph gives exact
@@ -46,7 +49,7 @@ def input_size(space: Space) -> int:
 
 @lru_cache(maxsize=32)
 def step_function(space: Space, n_basis: int) -> ca.Function:
-    """One step of the roll-out, ``(x, u, W, c, h, amplitude, gains, tau, dt) -> x_next`` (SX)."""
+    """One step of the roll-out, ``(x, u, W, c, h, amplitude, gains, tau, dt, s_end, w) -> x_next`` (SX)."""
     size, dim = space.size, space.dim
     x = ca.SX.sym("x", state_size(space))
     u = ca.SX.sym("u", input_size(space))
@@ -57,6 +60,8 @@ def step_function(space: Space, n_basis: int) -> ca.Function:
     gains = ca.SX.sym("gains", len(GAIN_NAMES))
     tau = ca.SX.sym("tau")
     dt = ca.SX.sym("dt")
+    s_end = ca.SX.sym("s_end")
+    w = ca.SX.sym("goal_stopping")
     beta, gamma, zeta, beta_g0, alpha_s, alpha = (gains[i] for i in range(len(GAIN_NAMES)))
 
     y, eta, s, g = x[:size], x[size:size + dim], x[size + dim], x[size + dim + 1:]
@@ -65,22 +70,25 @@ def step_function(space: Space, n_basis: int) -> ca.Function:
     e = space.gap(g, y)
     r = m * space.gap(ref, y)
     psi = ca.exp(-h * (s - c) ** 2)
-    f = amp * ca.mtimes(W, psi) * (s / ca.sum1(psi))
+    f = amp * ca.mtimes(W, psi) * (s / ca.sum1(psi)) * (s > s_end)
     eta_next = eta + dt / tau * (beta * (gamma * e - eta) + f + d)
     y_next = space.advance(y, dt / tau * (eta_next + alpha_s * (e + r)))
-    s_next = s * ca.exp(-zeta * dt / (tau * (1.0 + alpha * (smooth_norm(e) + smooth_norm(r)))))
+    s_next = s * ca.exp(-zeta * dt / (tau * (1.0 + alpha * (w * smooth_norm(e) + smooth_norm(r)))))
     g_next = space.advance(g, (1.0 - ca.exp(-beta_g0 * dt / tau)) * space.gap(g_new, g))
-    return ca.Function(f"dmp_step_{n_basis}", [x, u, W, c, h, amp, gains, tau, dt],
+    return ca.Function(f"dmp_step_{n_basis}", [x, u, W, c, h, amp, gains, tau, dt, s_end, w],
                        [ca.vertcat(y_next, eta_next, s_next, g_next)],
-                       ["x", "u", "W", "c", "h", "amplitude", "gains", "tau", "dt"], ["x_next"])
+                       ["x", "u", "W", "c", "h", "amplitude", "gains", "tau", "dt", "s_end", "goal_stopping"],
+                       ["x_next"])
 
 
 @lru_cache(maxsize=64)
 def rollout_function(space: Space, n_basis: int, steps: int) -> ca.Function:
-    """``(x0, U, W, c, h, amplitude, gains, tau, dt) -> X``: ``steps`` steps, ``X`` of shape ``nx x (steps + 1)``.
+    """``(x0, U, W, c, h, amplitude, gains, tau, dt, s_end, goal_stopping) -> X``: ``steps`` steps, ``X`` of
+    shape ``nx x (steps + 1)``.
 
-    ``U`` holds one column of per-step inputs per step; ``c`` and ``h`` are the
-    basis centres and widths learned with the weights.
+    ``U`` holds one column of per-step inputs per step; ``c``, ``h`` and
+    ``s_end`` are the basis centres, widths and end phase learned with the
+    weights; ``goal_stopping`` is the weight ``w`` of the goal gap in phase stopping.
     """
     if steps < 1:
         raise ValueError(f"a roll-out needs at least one step, got {steps}")
@@ -95,6 +103,9 @@ def rollout_function(space: Space, n_basis: int, steps: int) -> ca.Function:
     gains = ca.MX.sym("gains", len(GAIN_NAMES))
     tau = ca.MX.sym("tau")
     dt = ca.MX.sym("dt")
-    X = loop(x0, U, W, c, h, amp, gains, tau, dt)
-    return ca.Function(f"dmp_rollout_{n_basis}_{steps}", [x0, U, W, c, h, amp, gains, tau, dt], [ca.horzcat(x0, X)],
-                       ["x0", "U", "W", "c", "h", "amplitude", "gains", "tau", "dt"], ["X"])
+    s_end = ca.MX.sym("s_end")
+    w = ca.MX.sym("goal_stopping")
+    X = loop(x0, U, W, c, h, amp, gains, tau, dt, s_end, w)
+    return ca.Function(f"dmp_rollout_{n_basis}_{steps}", [x0, U, W, c, h, amp, gains, tau, dt, s_end, w],
+                       [ca.horzcat(x0, X)],
+                       ["x0", "U", "W", "c", "h", "amplitude", "gains", "tau", "dt", "s_end", "goal_stopping"], ["X"])

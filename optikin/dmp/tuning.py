@@ -13,9 +13,11 @@ roll-out and a new goal (Figs. 5-6). Here the whole chain
 
 is one CasADi graph of the gains' logarithms (positive gains, scale-free
 steps), so a gradient-based NLP solver gets exact derivatives
-(:func:`tune_gradient`, IPOPT with a limited-memory Hessian), and the GA
-baseline (:mod:`optikin.baselines.genetic`) evaluates the very same Function
-on a whole population at once (:func:`tune_genetic`).
+(:func:`tune_gradient`: IPOPT with a limited-memory Hessian, started from the
+best points of a Latin-hypercube screening of the box, since eq. (29) is not
+convex in the gains), and the GA baseline (:mod:`optikin.baselines.genetic`)
+evaluates the very same Function on a whole population at once
+(:func:`tune_genetic`).
 
 Scenarios: ``reproduction`` (the roll-out against the demonstration) and
 ``goal`` (a switch to ``new_goal`` at ``switch_time``; the roll-out against
@@ -27,9 +29,11 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
+from typing import Callable
 
 import casadi as ca
 import numpy as np
+from scipy.stats import qmc
 
 from optikin.baselines import genetic
 from optikin.dmp.gains import GAIN_NAMES, Gains, stable_bounds
@@ -114,7 +118,8 @@ def tuning_problem(dmp: DMP, t: np.ndarray, Y: np.ndarray, names: tuple[str, ...
     for i, n in enumerate(names):
         value[n] = ca.exp(log_gains[i])
 
-    X, _, c, h = design_matrix(demo, dmp.n_basis, value["zeta"], value["alpha"], dmp.overlap)
+    X, _, c, h, s_end = design_matrix(demo, dmp.n_basis, value["zeta"], value["alpha"], dmp.overlap,
+                                      dmp.phase_stopping)
     scale = dmp.plan().amplitude  # the learned demonstration's start-goal scaling (ones when not scaling)
     F = target_forces(demo, value["beta"], value["gamma"], value["alpha_s"]) / ca.repmat(ca.DM(scale).T,
                                                                                          demo.Y.shape[0] - 1, 1)
@@ -135,7 +140,8 @@ def tuning_problem(dmp: DMP, t: np.ndarray, Y: np.ndarray, names: tuple[str, ...
     x0 = ca.vertcat(plan.start, -value["alpha_s"] * ca.DM(plan.start_coupling), 1.0, plan.goal)
     gains_vector = ca.vertcat(*[value[n] for n in GAIN_NAMES])
     rollout = rollout_function(space, dmp.n_basis, plan.steps)
-    states = rollout(x0, plan.inputs.T, W, c, h, plan.amplitude, gains_vector, plan.tau, plan.dt)
+    states = rollout(x0, plan.inputs.T, W, c, h, plan.amplitude, gains_vector, plan.tau, plan.dt, s_end,
+                     dmp.goal_stopping)
     E = states[:space.size, rows] - ca.DM(reference[rows].T)
     samples = reference[rows].shape[0]
     objective = ca.Function("dmp_eq29", [log_gains], [ca.sumsqr(E) / samples], ["log_gains"], ["error"])
@@ -146,43 +152,87 @@ def tuning_problem(dmp: DMP, t: np.ndarray, Y: np.ndarray, names: tuple[str, ...
                          dmp.gains)
 
 
-def tune_gradient(problem: TuningProblem, max_iterations: int = 60, tolerance: float = 1e-8,
-                  time_limit: float = 60.0) -> TuningResult:
-    """Minimise eq. (29) over the log-gains with IPOPT (exact gradient, limited-memory Hessian, box bounds)."""
-    p = ca.MX.sym("p", len(problem.names))
+def _batch(problem: TuningProblem) -> Callable[[np.ndarray], np.ndarray]:
+    """``P (k, n) log-gains -> (k,)`` errors: the objective mapped over a batch in one call (cached per size)."""
+    mapped: dict[int, ca.Function] = {}
+
+    def evaluate(P: np.ndarray) -> np.ndarray:
+        f = mapped.get(len(P))
+        if f is None:
+            f = mapped[len(P)] = problem.objective.map(len(P), "serial")
+        return np.asarray(f(np.asarray(P, dtype=float).T)).ravel()
+
+    return evaluate
+
+
+def screening_points(problem: TuningProblem, points: int, seed: int = 0) -> np.ndarray:
+    """The starting gains and a ``points``-point Latin hypercube of the log-box: ``(points + 1, n)`` log-gains."""
+    n = len(problem.names)
+    lower, upper = np.log(problem.lower), np.log(problem.upper)
+    unit = qmc.LatinHypercube(d=n, rng=seed).random(points) if points else np.empty((0, n))
+    return np.vstack([np.log(problem.initial)[None, :], lower + unit * (upper - lower)])
+
+
+def tune_gradient(problem: TuningProblem, max_iterations: int = 60, tolerance: float = 1e-6,
+                  time_limit: float = 60.0, screen: int = 16, starts: int = 2, seed: int = 0) -> TuningResult:
+    """Minimise eq. (29) over the log-gains: multi-start IPOPT (exact gradient, limited-memory Hessian, box bounds).
+
+    Eq. (29) is not convex in the gains (on the IMU demonstrations a single
+    IPOPT run from the default gains stops at a local point or at its
+    iteration limit, above what the GA's random population finds), so the
+    starts are chosen globally first: the starting gains and ``screen``
+    points of a Latin hypercube of the log-box are evaluated in one mapped call,
+    and IPOPT runs from the ``starts`` best of them (``max_iterations`` each,
+    ``time_limit`` seconds for all). ``screen=0, starts=1`` is a single local
+    run from the starting gains. The history is the best error after the
+    screening and after each IPOPT iteration, run after run; the evaluation
+    count adds the screening to IPOPT's objective and gradient calls.
+    ``tolerance`` applies to the objective scaled by its starting value: the
+    regression inside it (normal equations) leaves a rounding floor near 1e-8
+    of that, where a tighter tolerance only buys failing line searches (30-odd
+    backtracks per iteration, 300+ evaluations for nothing).
+    """
+    if starts < 1 or screen < 0:
+        raise ValueError(f"need starts >= 1 and screen >= 0, got {starts}, {screen}")
+    begin = time.perf_counter()
     initial_error = problem.error(problem.initial)
+    candidates = screening_points(problem, screen, seed)
+    values = _batch(problem)(candidates)
+    values = np.where(np.isfinite(values), values, np.inf)
+    order = np.argsort(values, kind="stable")[:starts]
+
+    p = ca.MX.sym("p", len(problem.names))
     scale = 1.0 / max(initial_error, 1e-300)
-    nlp = {"x": p, "f": scale * problem.objective(p)}
-    options = {"print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes",
-               "ipopt.hessian_approximation": "limited-memory", "ipopt.max_iter": int(max_iterations),
-               "ipopt.tol": float(tolerance), "ipopt.max_wall_time": float(time_limit)}
-    solver = ca.nlpsol("dmp_gain_tuning", "ipopt", nlp, options)
-    start = time.perf_counter()
-    solution = solver(x0=np.log(problem.initial), lbx=np.log(problem.lower), ubx=np.log(problem.upper))
-    seconds = time.perf_counter() - start
-    stats = solver.stats()
-    values = np.exp(np.asarray(solution["x"]).ravel())
-    error = problem.error(values)
-    if not math.isfinite(error):
-        raise SolverError(f"gain tuning ended at non-finite error ({stats.get('return_status')})")
-    history = np.asarray(stats.get("iterations", {}).get("obj", [scale * initial_error])) / scale
-    return TuningResult("ipopt", problem.gains(values), error, initial_error, seconds,
-                        int(stats.get("n_call_nlp_f", 0)) + int(stats.get("n_call_nlp_grad_f", 0)),
-                        np.minimum.accumulate(history), str(stats.get("return_status")))
+    best_x, best_error, best_status = candidates[order[0]], float(values[order[0]]), "screening"
+    history, evaluations = [best_error], len(candidates)
+    for k in order:
+        remaining = time_limit - (time.perf_counter() - begin)
+        if remaining <= 0:
+            break
+        options = {"print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes",
+                   "ipopt.hessian_approximation": "limited-memory", "ipopt.max_iter": int(max_iterations),
+                   "ipopt.tol": float(tolerance), "ipopt.max_wall_time": float(remaining)}
+        solver = ca.nlpsol("dmp_gain_tuning", "ipopt", {"x": p, "f": scale * problem.objective(p)}, options)
+        solution = solver(x0=candidates[k], lbx=np.log(problem.lower), ubx=np.log(problem.upper))
+        stats = solver.stats()
+        evaluations += int(stats.get("n_call_nlp_f", 0)) + int(stats.get("n_call_nlp_grad_f", 0))
+        # IPOPT may end a relative 1e-8 outside the box (its bound_relax_factor): back into it
+        x = np.clip(np.asarray(solution["x"]).ravel(), np.log(problem.lower), np.log(problem.upper))
+        error = problem.error(np.exp(x))
+        history += list(np.asarray(stats.get("iterations", {}).get("obj", []), dtype=float) / scale)
+        if math.isfinite(error) and error < best_error:
+            best_x, best_error, best_status = x, error, str(stats.get("return_status"))
+    if not math.isfinite(best_error):
+        raise SolverError("gain tuning found no finite value of eq. (29) at any start")
+    seconds = time.perf_counter() - begin
+    return TuningResult("ipopt", problem.gains(np.exp(best_x)), best_error, initial_error, seconds, evaluations,
+                        np.minimum.accumulate(np.asarray(history)), best_status)
 
 
 def tune_genetic(problem: TuningProblem, population: int = 20, generations: int = 15, seed: int = 0) -> TuningResult:
     """Minimise eq. (29) with the GA baseline over the log-gains, evaluating each generation in one mapped call."""
-    mapped: dict[int, ca.Function] = {}
-
-    def batch(P: np.ndarray) -> np.ndarray:
-        f = mapped.get(len(P))
-        if f is None:
-            f = mapped[len(P)] = problem.objective.map(len(P), "serial")
-        return np.asarray(f(P.T)).ravel()
-
     initial_error = problem.error(problem.initial)
-    found = genetic.minimise(batch, np.log(problem.lower), np.log(problem.upper), population=population,
+    found = genetic.minimise(_batch(problem), np.log(problem.lower), np.log(problem.upper), population=population,
                              generations=generations, seed=seed, initial=np.log(problem.initial))
     values = np.exp(found.x)
     return TuningResult("genetic", problem.gains(values), found.value, initial_error, found.seconds,

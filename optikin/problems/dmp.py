@@ -22,16 +22,20 @@ Options (all optional)::
 
     variants: [cartesian]   # seed | dual-quaternion | cartesian | quaternion | rpy | position
     n_basis: 50
+    smoothing: null         # cutoff [Hz] of the low-pass applied to the demonstration before learning
+                            # (optikin.dmp.smoothing; sensor data), null: learn the samples as given
     gains: {beta: 25, gamma: 6.25, zeta: 4.6, beta_g0: .inf, alpha_s: 0, alpha: 0}
     regression: {method: cvxpy, ridge: 0.0, bound: null}   # bound: |w| <= bound (cvxpy only)
     goal_switches: [{time: 4.0, rotate: [rx, ry, rz], translate: [x, y, z]}]  # new goals relative to the last
     disturbance: {start: 5.0, stop: 7.0, amplitude: 1.0, component: 0}       # step force in eq. (17)
-    couplings: {coupled: {alpha_s: 5.0, alpha: 5.0}}   # label -> gains of each coupled DMP run against
-                                                       # the plain one under the disturbance (eqs. 27-28);
-                                                       # each reports its peak and final deviation from
-                                                       # its own undisturbed roll-out
+    couplings: {coupled: {alpha_s: 5.0}}   # label -> {alpha_s, alpha, phase_stopping} of each DMP coupled
+                                           # to the demonstration (eq. 27) and run against the plain one under
+                                           # the disturbance; alpha > 0 needs phase_stopping: seed (eq. 28);
+                                           # each reports its peak and final deviation from its own
+                                           # undisturbed roll-out and its phase at the end
     tuning: {gains: [beta, gamma, zeta], variant: quaternion, scenario: reproduction,
-             max_iterations: 60, population: 20, generations: 15}
+             max_iterations: 60, screen: 16, starts: 2,    # IPOPT: iterations per start; Latin-hypercube
+             population: 20, generations: 15}               # screening points; starts from the best of them
     settle: 5.0     # goal-switch roll-outs last settle x tau; the final errors measure convergence
     tolerance: {position_mm: 0.01, orientation_mrad: 0.01}
 
@@ -63,6 +67,7 @@ from optikin.algebra import (
 )
 from optikin.data import demonstrations as sources
 from optikin.dmp import DMP, Euclidean, Gains, UnitQuaternion
+from optikin.dmp.canonical import PHASE_STOPPING
 from optikin.dmp.gains import GAIN_NAMES
 from optikin.dmp.pose import POSE_VARIANTS, pose_dmp
 from optikin.dmp.regression import METHODS
@@ -74,14 +79,15 @@ from optikin.results import MethodRow, Result
 VARIANTS = ("seed", "dual-quaternion", "cartesian", "quaternion", "rpy", "position")
 SOURCES = ("imu", "kinect", "smooth", "gimbal", "csv")
 OPTION_DEFAULTS: dict[str, Any] = {
-    "variants": ["cartesian"], "n_basis": 50, "gains": {}, "regression": {}, "goal_switches": [],
-    "disturbance": None, "couplings": {"coupled": {"alpha_s": 5.0, "alpha": 5.0}}, "tuning": None, "settle": 5.0,
+    "variants": ["cartesian"], "n_basis": 50, "smoothing": None, "gains": {}, "regression": {}, "goal_switches": [],
+    "disturbance": None, "couplings": {"coupled": {"alpha_s": 5.0}}, "tuning": None, "settle": 5.0,
     "tolerance": {"position_mm": 0.01, "orientation_mrad": 0.01},
 }
 REGRESSION_DEFAULTS = {"method": "cvxpy", "ridge": 0.0, "bound": None}
 TUNING_DEFAULTS = {"gains": ["beta", "gamma", "zeta"], "variant": None, "scenario": "reproduction",
-                   "max_iterations": 60, "population": 20, "generations": 15}
+                   "max_iterations": 60, "screen": 16, "starts": 2, "population": 20, "generations": 15}
 DISTURBANCE_DEFAULTS = {"start": 5.0, "stop": 7.0, "amplitude": 1.0, "component": 0}
+COUPLING_DEFAULTS = {"alpha_s": 0.0, "alpha": 0.0, "phase_stopping": "tracking"}
 MM, MRAD = 1e3, 1e3
 
 
@@ -144,11 +150,12 @@ def load_demonstration(ctx: ProblemContext) -> tuple[sources.PoseDemonstration, 
 # ----------------------------------------------------------------------------- variants
 
 
-def make_dmp(variant: str, n_basis: int, gains: Gains) -> DMP:
+def make_dmp(variant: str, n_basis: int, gains: Gains, **options) -> DMP:
+    """The DMP of a variant label; ``options``: the other keyword arguments of :class:`DMP` (smoothing, ...)."""
     if variant in POSE_VARIANTS:
-        return pose_dmp(variant, n_basis=n_basis, gains=gains)
+        return pose_dmp(variant, n_basis=n_basis, gains=gains, **options)
     space = UnitQuaternion() if variant == "quaternion" else Euclidean(3)
-    return DMP(space, n_basis=n_basis, gains=gains)
+    return DMP(space, n_basis=n_basis, gains=gains, **options)
 
 
 def variant_data(variant: str, position: np.ndarray, quaternion: np.ndarray,
@@ -228,6 +235,9 @@ def run(ctx: ProblemContext) -> Result:
     n_basis = int(o["n_basis"])
     if n_basis < 2:
         raise ctx.error("options.n_basis", "at least 2 basis functions")
+    smoothing = o["smoothing"]
+    if smoothing is not None and (not isinstance(smoothing, (int, float)) or not smoothing > 0):
+        raise ctx.error("options.smoothing", f"expected a cutoff frequency in Hz (> 0) or null, got {smoothing!r}")
     gains_given = _settings(ctx, o["gains"], {n: None for n in GAIN_NAMES}, "options.gains")
     try:
         gains = Gains(**{k: float(v) for k, v in gains_given.items() if v is not None})
@@ -273,7 +283,7 @@ def run(ctx: ProblemContext) -> Result:
 
     with ctx.progress.task(f"dmp: {len(variants)} variants", total=len(variants)) as advance:
         for variant in variants:
-            dmp = make_dmp(variant, n_basis, gains)
+            dmp = make_dmp(variant, n_basis, gains, smoothing=smoothing)
             fits[variant] = fit(dmp, variant, regression["method"], source)
             models[variant] = dmp
             out = dmp.rollout()
@@ -294,7 +304,7 @@ def run(ctx: ProblemContext) -> Result:
     for method in spec.baselines:
         if method not in ("lstsq", "lwr") or method == regression["method"]:
             continue
-        dmp = make_dmp(first, n_basis, gains)
+        dmp = make_dmp(first, n_basis, gains, smoothing=smoothing)
         baseline_fit = fit(dmp, first, method, source)
         out = dmp.rollout()
         errors = pose_errors(first, out.y, demo.position, demo.quaternion)
@@ -321,9 +331,19 @@ def run(ctx: ProblemContext) -> Result:
     if o["disturbance"] is not None:
         d = _settings(ctx, o["disturbance"], DISTURBANCE_DEFAULTS, "options.disturbance")
         if not isinstance(o["couplings"], dict) or not o["couplings"]:
-            raise ctx.error("options.couplings", "expected a mapping label -> {alpha_s, alpha}")
-        couplings = {str(label): _settings(ctx, gains_of, {"alpha_s": 0.0, "alpha": 0.0}, f"options.couplings.{label}")
+            raise ctx.error("options.couplings", "expected a mapping label -> {alpha_s, alpha, phase_stopping}")
+        couplings = {str(label): _settings(ctx, gains_of, COUPLING_DEFAULTS, f"options.couplings.{label}")
                      for label, gains_of in o["couplings"].items()}
+        for label, coupling in couplings.items():
+            if coupling["phase_stopping"] not in PHASE_STOPPING:
+                raise ctx.error(f"options.couplings.{label}.phase_stopping",
+                                f"unknown phase stopping; known: {', '.join(PHASE_STOPPING)}")
+            if coupling["phase_stopping"] == "tracking" and float(coupling["alpha"]) > 0:
+                raise ctx.error(f"options.couplings.{label}.alpha",
+                                "phase stopping on the tracking error needs the robot's pose as the reference; "
+                                "here the DMP is coupled to the demonstration (eq. 27), which runs on in time, so "
+                                "the lag the stopping creates would feed itself (optikin.dmp.canonical): use "
+                                "phase_stopping: seed (eq. 28) or alpha: 0")
         for variant in variants:
             dim = models[variant].space.dim
             component = int(d["component"])
@@ -335,11 +355,12 @@ def run(ctx: ProblemContext) -> Result:
                 force[(t >= d["start"]) & (t < d["stop"]), component] = float(d["amplitude"])
                 return force
 
-            reference = variant_data(variant, demo.position, demo.quaternion)
             for label, extra in [("plain", {})] + list(couplings.items()):
-                dmp = make_dmp(variant, n_basis, gains.with_values(**{k: float(v) for k, v in extra.items()}))
+                coupled_gains = gains.with_values(**{k: float(extra[k]) for k in ("alpha_s", "alpha") if k in extra})
+                dmp = make_dmp(variant, n_basis, coupled_gains, smoothing=smoothing,
+                               phase_stopping=extra.get("phase_stopping", "tracking"))
                 fit(dmp, variant, regression["method"], source)
-                coupled_to = reference if extra else None
+                coupled_to = dmp.demo.Y if extra else None  # the demonstration as learned (smoothed if asked)
                 calm = dmp.rollout(reference=coupled_to)
                 out = dmp.rollout(disturbance=step, reference=coupled_to)
                 rollouts[(variant, f"perturbation {label}")] = out.y
@@ -350,11 +371,13 @@ def run(ctx: ProblemContext) -> Result:
                     unit, scale = ("mm", MM) if k == "position" else ("mrad", MRAD)
                     metrics[f"{variant}: perturbation {label} peak {k} deviation [{unit}]"] = float(v.max() * scale)
                     metrics[f"{variant}: perturbation {label} final {k} deviation [{unit}]"] = float(v[-1] * scale)
+                metrics[f"{variant}: perturbation {label} phase at the end"] = float(out.phase[-1])
+                metrics[f"{variant}: perturbation {label} undisturbed phase at the end"] = float(calm.phase[-1])
                 labels.append(f"{variant}: perturbation {label}")
                 status.append(_status(out.y, unit_error(variant, out.y)))
 
     if o["tuning"] is not None:
-        comparison += _tuning(ctx, o["tuning"], demo, variants, n_basis, gains, goals, final_rpy)
+        comparison += _tuning(ctx, o["tuning"], demo, variants, n_basis, gains, smoothing, goals, final_rpy)
 
     arrays: dict[str, np.ndarray] = {"t": demo.t, "demo_position": demo.position, "demo_quaternion": demo.quaternion}
     for (variant, scenario), y in rollouts.items():
@@ -408,7 +431,7 @@ def _goal_switches(ctx: ProblemContext, given: Any, demo, tau: float) -> list[tu
 
 
 def _tuning(ctx: ProblemContext, given: Any, demo, variants: list[str], n_basis: int, gains: Gains,
-            goals, final_rpy) -> list[MethodRow]:
+            smoothing: float | None, goals, final_rpy) -> list[MethodRow]:
     s = _settings(ctx, given, TUNING_DEFAULTS, "options.tuning")
     names = tuple(s["gains"])
     for i, name in enumerate(names):
@@ -425,12 +448,19 @@ def _tuning(ctx: ProblemContext, given: Any, demo, variants: list[str], n_basis:
             raise ctx.error("options.tuning.scenario", "the goal scenario needs options.goal_switches")
         when, p, q = goals[0]
         extra = {"new_goal": variant_data(variant, p, q, final_rpy), "switch_time": when}
-    dmp = make_dmp(variant, n_basis, gains)
+    for key in ("max_iterations", "starts", "population"):
+        if not isinstance(s[key], int) or s[key] < 1:
+            raise ctx.error(f"options.tuning.{key}", f"expected a positive integer, got {s[key]!r}")
+    for key in ("screen", "generations"):
+        if not isinstance(s[key], int) or s[key] < 0:
+            raise ctx.error(f"options.tuning.{key}", f"expected a non-negative integer, got {s[key]!r}")
+    dmp = make_dmp(variant, n_basis, gains, smoothing=smoothing)
     problem = tuning_problem(dmp, demo.t, variant_data(variant, demo.position, demo.quaternion), names,
                              scenario=s["scenario"], **extra)
     rows = []
     with ctx.progress.task(f"dmp: tuning {', '.join(names)}", total=2) as advance:
-        results = [tune_gradient(problem, max_iterations=int(s["max_iterations"]))]
+        results = [tune_gradient(problem, max_iterations=s["max_iterations"], screen=s["screen"],
+                                 starts=s["starts"], seed=ctx.spec.data.seed)]
         advance()
         if "genetic" in ctx.spec.baselines:
             results.append(tune_genetic(problem, population=int(s["population"]),
@@ -439,7 +469,7 @@ def _tuning(ctx: ProblemContext, given: Any, demo, variants: list[str], n_basis:
     for result in results:
         metrics = {"eq. 29 error": result.error, "eq. 29 error at start": result.initial_error,
                    "time [s]": result.seconds, "objective evaluations": result.evaluations,
-                   **{n: getattr(result.gains, n) for n in names}}
+                   "status": result.status, **{n: getattr(result.gains, n) for n in names}}
         rows.append(MethodRow(f"tuning {variant} ({result.method})",
                               "solver" if result.method == "ipopt" else "baseline", metrics))
     return rows

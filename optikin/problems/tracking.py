@@ -11,7 +11,8 @@ configuration path (source ``waypoints``, :mod:`optikin.control.reference`) or
 the roll-out of a pose DMP learned from the flexible-interface IMU demonstration
 of seed 000 (source ``dmp``: params ``task``, ``rate``, ``variant``
 (dual-quaternion | cartesian | seed), ``basis``, ``demonstration_samples``,
-``hold``; the run starts from the interface's first configuration)::
+``hold``, ``smoothing`` (cut-off in Hz of the demonstration smoother, null for
+none); the run starts from the interface's first configuration)::
 
     data:
       source: waypoints
@@ -66,7 +67,7 @@ from optikin.results import MethodRow, Result
 
 DATA_DEFAULTS = {"task": "pose", "rate": 500.0, "waypoints": None, "segment_time": 1.5, "hold": 1.0}
 DMP_DATA_DEFAULTS = {"task": "pose", "rate": 500.0, "variant": "dual-quaternion", "basis": 50,
-                     "demonstration_samples": 1000, "hold": 0.0}
+                     "demonstration_samples": 1000, "hold": 1.0, "smoothing": 2.5}
 OPTION_DEFAULTS: dict[str, Any] = {
     "start": None, "start_offset": None, "gain": 10.0, "damping": 1e-4, "rate_limits": None,
     "limit_margin": 1e-9, "limit_gain": 1.0,
@@ -137,7 +138,8 @@ def _dmp_reference(ctx: ProblemContext, p: dict, rate: float):
                                                f"{', '.join(POSE_VARIANTS)}")
     recording = imu_interface_recording(samples=int(p["demonstration_samples"]), seed=ctx.spec.data.seed,
                                         section_lengths=tuple(arm.section_lengths))
-    dmp = pose_dmp(p["variant"], n_basis=int(p["basis"]))
+    dmp = pose_dmp(p["variant"], n_basis=int(p["basis"]),
+                   smoothing=None if p["smoothing"] is None else float(p["smoothing"]))
     dmp.imitate(recording.t, to_variant(p["variant"], recording.demonstration.dual_quaternion),
                 source="IMU demonstration")
     rollout = dmp.rollout(dmp.tau + float(p["hold"]), dt=1.0 / rate)
