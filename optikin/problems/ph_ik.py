@@ -19,30 +19,42 @@ Options (besides those of :mod:`optikin.problems.ph_common`)::
     tube_radius: null     # [base, tip] offset radius in metres; default: the CBHA's r_max, r_min
 
 Baselines: any ``ph`` preset, and ``newton-raphson``, the Newton-Raphson inverse
-kinematics of the CBHA that Table II compares with. That comparator belongs to
-the inverse-kinematics work (``optikin.problems.ik``), not yet in the repository:
-:func:`newton_raphson_tube_lengths` is the hook it plugs into; until then the run
-says so in its notes. The other frame's tube lengths (same curves) are reported
-as an extra row, to show what the choice of frame is worth.
+kinematics of the CBHA that Table II compares with (seed 002 ref. [11],
+:func:`newton_raphson_tube_lengths`): each recorded tip pose relative to the base
+is solved for the 48 platform variables with the ``newton`` preset (CasADi
+rootfinder) on the inverse problem of :mod:`optikin.problems.ik_formulation`:
+pose target plus the elongation distribution of seed 004 section IV, 6 + 42 rows
+for 48 variables, a square system with one root near the previous posture. Postures
+are solved in order, each warm-started from the previous solution; the first
+starts from the ``lm`` preset's solution from the straight configuration, where
+the square Jacobian is singular (no twist to first order). The tube lengths are
+the solution's legs summed over both sections (``arm.tube_lengths``), as the
+recording's ``L1, L2, L3``; a sample that is not ``ok`` (e.g. its root leaves
+Table I) is counted and gets no lengths, never dropped. Its time per sample is the
+Newton solve plus one call of ``arm.tube_lengths``. The other frame's tube lengths
+(same curves) are reported as an extra row, to show what the choice of frame is worth.
 """
 
 from __future__ import annotations
 
 import time
-from typing import Any
+from typing import Any, NamedTuple
 
 import casadi as ca
 import numpy as np
 
+from optikin.algebra import dq_from_rotation_translation, quat_conjugate, quat_multiply, quat_rotate
 from optikin.arms.cbha import CBHAArm
 from optikin.curves.min_energy import N_PARAMETERS, ShapeData, ShapeEnergyModel
 from optikin.curves.ph_quintic import hermite_family
 from optikin.curves.tubes import CBHA_TUBE_ANGLES, FRAMES, TubeLayout, tube_lengths
 from optikin.data.markers import MarkerRecording
+from optikin.data.targets import reach_bound
 from optikin.errors import InputDataError
 from optikin.fastcall import BufferedFunction
 from optikin.problems import ProblemContext, ProblemKind, register_kind
 from optikin.problems import ph_figures as figures
+from optikin.problems.ik_formulation import Formulation, build_problem, rest_configuration
 from optikin.problems.ph_common import (
     COMMON_DEFAULTS,
     MM,
@@ -58,9 +70,15 @@ from optikin.problems.ph_common import (
     solve_methods,
     summary_of,
 )
+from optikin.registry import BACKENDS
 from optikin.results import MethodRow, Result
+from optikin.spec import load_solver
 
 NEWTON_RAPHSON = "newton-raphson"
+NR_PRESETS = ("newton", "lm")
+"""Newton-Raphson along the recording, and the least-squares preset that finds its first start."""
+NR_TOLERANCE = 1e-9
+"""``||r||`` [m] at which a recorded pose counts as reached by the Newton-Raphson comparator."""
 DEFAULTS: dict[str, Any] = {**COMMON_DEFAULTS, "frame": "rmf", "tube_radius": None}
 
 SEED_TABLE_II_MM = {"PH": {"L1": (0.0112, 4.4020, 2.8239), "L2": (0.0032, 5.2327, 2.2020), "L3": (0.0012, 3.5959, 0.9768)},
@@ -103,15 +121,46 @@ def timed_tube_lengths(function: ca.Function, run: MethodRun, samples: list[Shap
     return lengths, seconds
 
 
-def newton_raphson_tube_lengths(ctx: ProblemContext, recording: MarkerRecording) -> tuple[np.ndarray, np.ndarray] | None:
-    """Hook for the Newton-Raphson comparator of Table II: tube lengths ``(N, 3)`` and seconds ``(N,)``, or None.
+class NewtonRaphsonRun(NamedTuple):
+    """Per posture: tube lengths ``(N, 3)`` [m] (NaN unless ``ok``), seconds, status and message of the solve."""
 
-    It is to solve the CBHA's inverse kinematics for each recorded tip pose (relative
-    to the base) by Newton-Raphson (seed 002 ref. [11]) and sum the leg lengths of the
-    solution (``arm.tube_lengths``). The inverse kinematics belongs to
-    ``optikin.problems.ik``, which is not in the repository yet: returns None.
-    """
-    return None
+    lengths: np.ndarray
+    seconds: np.ndarray
+    status: list[str]
+    messages: list[str]
+
+
+def relative_tip_poses(recording: MarkerRecording) -> np.ndarray:
+    """Unit dual quaternions ``(N, 8)`` of the tip rigid bodies in the base rigid bodies' frames."""
+    to_base = quat_conjugate(recording.base_orientation)
+    rotation = quat_multiply(to_base, recording.tip_orientation)
+    translation = quat_rotate(to_base, recording.tip_position - recording.base_position)
+    return dq_from_rotation_translation(rotation, translation)
+
+
+def newton_raphson_tube_lengths(ctx: ProblemContext, recording: MarkerRecording) -> NewtonRaphsonRun | None:
+    """The Newton-Raphson comparator of Table II (module docstring); None for an arm that is not a CBHA."""
+    arm = ctx.arm
+    if not isinstance(arm, CBHAArm):
+        return None
+    formulation = Formulation(target="pose", redundancy="previous", rest=rest_configuration(arm),
+                              weights=1.0 / (arm.upper - arm.lower), tolerance=NR_TOLERANCE,
+                              orientation_length=reach_bound(arm), elongation="distributed")
+    problem = build_problem(arm, formulation)
+    newton, lm = (BACKENDS.get(preset.backend).build(preset) for preset in (load_solver(n)[0] for n in NR_PRESETS))
+    targets = relative_tip_poses(recording)
+    start = lm.solve(problem, formulation.rest, targets[0])
+    newton.solve(problem, start.x, targets[0])  # build the rootfinder before timing
+    report = newton.solve_many(problem, start.x, targets, warm_start=True)
+    report.time[0] += start.time
+    lengths, seconds = np.full((len(targets), 3), np.nan), report.time.copy()
+    for i, x in enumerate(report.x):
+        if report.status[i] != "ok":
+            continue
+        tic = time.perf_counter()
+        lengths[i] = np.asarray(arm.tube_lengths(x)).sum(axis=0)  # (section, tube) -> whole tubes
+        seconds[i] += time.perf_counter() - tic
+    return NewtonRaphsonRun(lengths, seconds, report.status, report.messages)
 
 
 def layout_of(ctx: ProblemContext, options: dict[str, Any]) -> TubeLayout:
@@ -179,17 +228,26 @@ def run(ctx: ProblemContext) -> Result:
              f"{layout.frame} frame at {layout.radius_start * MM:.1f} mm (base) to {layout.radius_end * MM:.1f} mm "
              f"(tip); backbone length: {settings.length}; end speeds "
              f"{'free, length held' if settings.free_speeds else 'set to the length'}"]
+    nr_arrays: dict[str, np.ndarray] = {}
     if NEWTON_RAPHSON in spec.baselines:
         nr = newton_raphson_tube_lengths(ctx, recording)
         if nr is None:
-            notes.append("newton-raphson: the Newton-Raphson IK comparator of seed 002 Table II is not available yet "
-                         "(hook: optikin.problems.ph_ik.newton_raphson_tube_lengths, waiting for optikin.problems.ik)")
+            notes.append(f"newton-raphson: needs a cbha arm (CBHA inverse kinematics), not {spec.arm.type!r}")
         else:
-            nr_lengths, nr_seconds = nr
-            nr_errors = np.abs(nr_lengths - reference) * MM
+            nr_errors = np.abs(nr.lengths - reference) * MM
+            status = np.array(nr.status)
+            failed = np.flatnonzero(status != "ok")
             comparison.append(MethodRow(NEWTON_RAPHSON, "baseline", {
-                **error_metrics(nr_errors), "mean |L error| [mm]": float(np.nanmean(nr_errors)),
-                "median IK time per sample [us]": float(np.median(nr_seconds) * 1e6)}))
+                "ok": f"{len(status) - failed.size}/{len(status)}", "failures": int(failed.size),
+                **error_metrics(nr_errors), "mean |L error| [mm]": summary_of(nr_errors.ravel())["avg"],
+                "median IK time per sample [us]": float(np.median(nr.seconds) * 1e6),
+                "seed 002 Table III, Newton-Raphson: time per sample [us]": SEED_TABLE_III_S["Newton-Raphson"] * 1e6}))
+            ik_seconds[NEWTON_RAPHSON] = nr.seconds
+            nr_arrays = {"tube_lengths_newton_raphson": nr.lengths, "status_newton_raphson": status,
+                         f"ik_seconds_{NEWTON_RAPHSON}": nr.seconds}
+            if failed.size:
+                notes.append(f"newton-raphson: {failed.size} of {len(status)} postures not ok (no tube lengths), "
+                             f"e.g. sample {failed[0]}: {nr.status[failed[0]]}, {nr.messages[failed[0]]}")
 
     metrics: dict[str, Any] = {
         **error_metrics(errors),
@@ -208,6 +266,7 @@ def run(ctx: ProblemContext) -> Result:
     for name in runs:
         arrays[f"ik_seconds_{name}"] = ik_seconds[name]
         arrays[f"energy_{name}"] = runs[name].energies
+    arrays |= nr_arrays
 
     def draw_errors(path):
         figures.per_sample(path, {"|L - L_ref|": errors, "L_ref": reference * MM}, "[mm]",

@@ -1,0 +1,338 @@
+"""Multilayer perceptrons of the hybrid approach (seed 004 sections IV-V), trained with scikit-learn.
+
+Forward models (section IV-A, Table II): one network per section, the section's
+24 leg lengths ``q_{m,k}`` in, its 24 platform variables ``(Z_k, theta_k, psi_k)``
+out (eq. 10). The hybrid forward kinematics (Fig. 9) then chains the predicted
+platforms with the exact transforms of eq. (5).
+
+Inverse models (section V, Table III): ``NN1`` maps the tip position to the end
+of section 1; ``NN2``, ``NN3`` and ``NN4`` map (tip, end of section 1) to the
+``Z_k``, the ``theta_k`` and the ``psi_k`` of all 16 platforms. The seed only says
+"the last three models ... provide Z_k, theta_k and psi_k as outputs"; one model
+per variable fits Table III, where NN2 has the smallest error (``Z`` varies by
+millimetres, the angles by tenths of a radian). The hybrid inverse kinematics
+(Fig. 10) turns the predicted platforms into leg lengths by the exact
+equations (7)-(9).
+
+Training follows section IV-A: two hidden layers of equal width, the width
+searched over 2..20 in steps of 2 on the validation MSE; each candidate trained
+epoch by epoch on the training split and stopped early once the validation
+criterion has not improved for ``patience`` epochs, keeping the weights of its
+best epoch. Settings (:data:`SETTINGS`):
+
+``seed``       back-propagation (stochastic gradient descent) with a momentum term, as the
+               seed describes it, on the raw SI values (metres, radians): the seed states no
+               pre-processing;
+``adam``       Adam on standardised inputs and outputs (zero mean, unit variance on the
+               training split), same width search;
+``adam-wide``  as ``adam`` with wider layers (32 and 64 neurons), to separate what the
+               optimiser and what the width limit of 20 neurons cost.
+
+Eq. (11) adds ``lambda/2 ||X||^2`` to the squared error of an inverse network's
+prediction ``X``. Per sample, ``1/2 ||X_d - X||^2 + lambda/2 ||X||^2 =
+(1 + lambda)/2 ||X - X_d/(1 + lambda)||^2 + const``, so the penalised network is
+the plain one trained on the shrunk targets ``X_d / (1 + lambda)`` (the constant
+factor only rescales the step size): :func:`train_model` does exactly that, and
+monitors the penalised criterion on the validation split. It pulls every
+prediction towards the origin; among redundant solutions a least-squares fit
+already returns their conditional mean, which the penalty only shrinks.
+
+Every score reported here comes from the split it names: :func:`split_mse` reads
+only the rows of that split.
+"""
+
+from __future__ import annotations
+
+import copy
+import time
+from dataclasses import dataclass, field, replace
+from typing import Callable
+
+import numpy as np
+from scipy.special import expit
+from sklearn.neural_network import MLPRegressor
+from threadpoolctl import threadpool_limits
+
+from optikin.baselines.nn_database import LearningDatabase
+
+VARIABLES = ("Z", "theta", "psi")
+ACTIVATIONS: dict[str, Callable[[np.ndarray], np.ndarray]] = {
+    "tanh": np.tanh, "logistic": expit, "relu": lambda a: np.maximum(a, 0.0), "identity": lambda a: a}
+"""Hidden-layer activations of scikit-learn's MLPRegressor, for :meth:`TrainedModel.predict`."""
+
+SEED_TABLE_II = {"fkm_section1": (18, 6.4612e-5), "fkm_section2": (18, 8.2425e-5)}
+"""Seed 004 Table II: (neurons, test MSE) of the forward model of each section."""
+SEED_TABLE_III = {"ikm_nn1": (18, 4.9840e-4), "ikm_nn2": (12, 1.2363e-5), "ikm_nn3": (16, 4.0503e-5),
+                  "ikm_nn4": (16, 3.4651e-5)}
+"""Seed 004 Table III: (neurons, test MSE) of the inverse models NN1-NN4."""
+
+
+# ---------------------------------------------------------------------------------------- tasks
+@dataclass(frozen=True)
+class Task:
+    """What one network maps: columns of one database table to columns of another.
+
+    Tables (:func:`table`): ``legs`` (48 leg lengths), ``configurations`` (48 platform
+    variables) and ``ends`` (tip x, y, z, then end of section 1 x, y, z).
+    """
+
+    key: str
+    title: str
+    inputs: tuple[str, tuple[int, ...]]
+    outputs: tuple[str, tuple[int, ...]]
+    penalised: bool = False
+
+    def arrays(self, db: LearningDatabase, rows: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """``(X, Y)`` of the given rows (all when ``None``)."""
+        X = table(db, self.inputs[0])[:, list(self.inputs[1])]
+        Y = table(db, self.outputs[0])[:, list(self.outputs[1])]
+        return (X, Y) if rows is None else (X[rows], Y[rows])
+
+    @property
+    def seed_reference(self) -> tuple[int, float] | None:
+        """(neurons, test MSE) printed in seed 004 Tables II / III."""
+        return {**SEED_TABLE_II, **SEED_TABLE_III}.get(self.key)
+
+
+def table(db: LearningDatabase, name: str) -> np.ndarray:
+    """One of the database tables a :class:`Task` reads."""
+    if name == "legs":
+        return db.leg_lengths
+    if name == "configurations":
+        return db.configurations
+    if name == "ends":
+        return np.concatenate([db.tip, db.section_ends[:, 0]], axis=1)
+    raise KeyError(f"unknown table {name!r}")
+
+
+def forward_tasks(db: LearningDatabase) -> list[Task]:
+    """One forward model per section: its leg lengths -> its platform variables (Table II)."""
+    tasks = []
+    for s in range(1, len(db.geometry.platforms_per_section) + 1):
+        cols = tuple(range(db.section_columns(s).start, db.section_columns(s).stop))
+        tasks.append(Task(f"fkm_section{s}", f"FKM section {s}", ("legs", cols), ("configurations", cols)))
+    return tasks
+
+
+def inverse_tasks(db: LearningDatabase) -> list[Task]:
+    """NN1 (tip -> end of section 1) and NN2-NN4 ((tip, end 1) -> every Z_k, theta_k, psi_k) (Table III)."""
+    if len(db.geometry.platforms_per_section) != 2:
+        raise ValueError("the inverse models of seed 004 section V are defined for two sections")
+    n = 3 * db.geometry.n_platforms
+    tasks = [Task("ikm_nn1", "IKM NN1: tip -> end of section 1", ("ends", (0, 1, 2)), ("ends", (3, 4, 5)), True)]
+    for i, variable in enumerate(VARIABLES):
+        tasks.append(Task(f"ikm_nn{i + 2}", f"IKM NN{i + 2}: tip, end 1 -> {variable}_k",
+                          ("ends", tuple(range(6))), ("configurations", tuple(range(i, n, 3))), True))
+    return tasks
+
+
+# ---------------------------------------------------------------------------------------- settings
+@dataclass(frozen=True)
+class TrainingSetting:
+    """How a network is trained and which widths are searched.
+
+    ``solver`` is ``sgd`` (with classical momentum) or ``adam``; ``batch_size`` samples per
+    update; an epoch is one pass over the training split; training stops after ``patience``
+    epochs without a better validation criterion, or at ``max_epochs``.
+    """
+
+    name: str
+    solver: str
+    scaling: bool
+    neurons: tuple[int, ...] = tuple(range(2, 21, 2))
+    learning_rate: float = 0.01
+    momentum: float = 0.9
+    batch_size: int = 128
+    max_epochs: int = 400
+    patience: int = 30
+    activation: str = "tanh"
+
+    def __post_init__(self):
+        object.__setattr__(self, "neurons", tuple(int(n) for n in self.neurons))
+        if self.solver not in ("sgd", "adam"):
+            raise ValueError(f"solver must be 'sgd' or 'adam', got {self.solver!r}")
+        if not self.neurons or min(self.neurons) < 1:
+            raise ValueError(f"neurons must be positive widths, got {self.neurons}")
+        for name in ("batch_size", "max_epochs", "patience"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"{name} must be at least 1, got {getattr(self, name)}")
+        if not self.learning_rate > 0 or not 0 <= self.momentum < 1:
+            raise ValueError("learning_rate must be positive and momentum within [0, 1)")
+        if self.activation not in ACTIVATIONS:
+            raise ValueError(f"activation must be one of {', '.join(ACTIVATIONS)}, got {self.activation!r}")
+
+    @property
+    def description(self) -> str:
+        opt = f"SGD + momentum {self.momentum:g}" if self.solver == "sgd" else "Adam"
+        scaled = "standardised" if self.scaling else "raw SI units"
+        return f"{opt}, lr {self.learning_rate:g}, {scaled}, widths {list(self.neurons)}"
+
+    def small(self) -> "TrainingSetting":
+        """A quick version for tests and notebooks: two widths, at most 15 epochs."""
+        return replace(self, neurons=self.neurons[-2:] if self.name == "adam-wide" else (4, 8),
+                       max_epochs=15, patience=4)
+
+
+SETTINGS = {
+    "seed": TrainingSetting("seed", "sgd", scaling=False, learning_rate=0.01, momentum=0.9),
+    "adam": TrainingSetting("adam", "adam", scaling=True, learning_rate=0.001),
+    "adam-wide": TrainingSetting("adam-wide", "adam", scaling=True, learning_rate=0.001, neurons=(32, 64)),
+}
+
+
+# ---------------------------------------------------------------------------------------- models
+@dataclass
+class TrainedModel:
+    """A trained network with its affine input / output maps and how it was chosen.
+
+    ``predict(X) = network((X - x_offset) / x_scale) * y_scale + y_offset``, in SI units. The
+    network's forward pass is evaluated here from its weights (:func:`forward_pass`):
+    ``MLPRegressor.predict`` validates its input on every call, which costs more than the
+    arithmetic of these small networks when they are called one sample at a time.
+    """
+
+    task: Task
+    setting: TrainingSetting
+    penalty: float
+    neurons: int
+    network: MLPRegressor
+    x_offset: np.ndarray
+    x_scale: np.ndarray
+    y_offset: np.ndarray
+    y_scale: np.ndarray
+    search: dict[int, float] = field(default_factory=dict)
+    epochs: dict[int, int] = field(default_factory=dict)
+    training_time: float = 0.0
+
+    def predict(self, X: np.ndarray) -> np.ndarray:
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        return forward_pass(self.network, (X - self.x_offset) / self.x_scale) * self.y_scale + self.y_offset
+
+
+def forward_pass(network: MLPRegressor, A: np.ndarray) -> np.ndarray:
+    """``network.predict(A)`` as ``(n, outputs)``, from the weights: hidden activations, identity output."""
+    act = ACTIVATIONS[network.activation]
+    for W, b in zip(network.coefs_[:-1], network.intercepts_[:-1]):
+        A = act(A @ W + b)
+    return A @ network.coefs_[-1] + network.intercepts_[-1]
+
+
+def split_mse(model: TrainedModel, db: LearningDatabase, split: str = "test") -> float:
+    """Mean squared error over the outputs and the rows of ``split`` only (SI units, no penalty)."""
+    X, Y = model.task.arrays(db, db.rows(split))
+    return float(np.mean((model.predict(X) - Y) ** 2))
+
+
+def split_rmse_by_variable(model: TrainedModel, db: LearningDatabase, split: str = "test") -> dict[str, float]:
+    """RMSE of ``Z`` [mm] and of the angles [deg] (or of positions [mm]) over the rows of ``split``."""
+    X, Y = model.task.arrays(db, db.rows(split))
+    err = model.predict(X) - Y
+    if model.task.outputs[0] == "ends":
+        return {"position [mm]": float(1e3 * np.sqrt(np.mean(err**2)))}
+    cols = np.array(model.task.outputs[1]) % 3
+    out = {}
+    for v, variable in enumerate(VARIABLES):
+        if np.any(cols == v):
+            scale, unit = (1e3, "mm") if variable == "Z" else (180 / np.pi, "deg")
+            out[f"{variable} [{unit}]"] = float(scale * np.sqrt(np.mean(err[:, cols == v] ** 2)))
+    return out
+
+
+def _random_state(db: LearningDatabase, task: Task, neurons: int) -> int:
+    key = [db.spec.seed, *task.key.encode(), neurons]
+    return int(np.random.SeedSequence(key).generate_state(1)[0] % (2**31))
+
+
+def _affine(A: np.ndarray, scaling: bool) -> tuple[np.ndarray, np.ndarray]:
+    if not scaling:
+        return np.zeros(A.shape[1]), np.ones(A.shape[1])
+    scale = A.std(axis=0)
+    return A.mean(axis=0), np.where(scale > 0, scale, 1.0)
+
+
+def _fit_width(network: MLPRegressor, Xs: np.ndarray, Ys: np.ndarray, criterion: Callable[[], float],
+               setting: TrainingSetting) -> tuple[float, int]:
+    """Epochs of ``partial_fit`` until the validation criterion stalls; restores the best weights."""
+    best, best_epoch, best_weights = np.inf, 0, None
+    for epoch in range(1, setting.max_epochs + 1):
+        network.partial_fit(Xs, Ys)
+        value = criterion()
+        if value < best:
+            best, best_epoch = value, epoch
+            best_weights = (copy.deepcopy(network.coefs_), copy.deepcopy(network.intercepts_))
+        elif epoch - best_epoch >= setting.patience:
+            break
+    if best_weights is not None:
+        network.coefs_, network.intercepts_ = best_weights
+    return float(best), best_epoch
+
+
+def train_model(task: Task, db: LearningDatabase, setting: TrainingSetting, penalty: float = 0.0,
+                on_width: Callable[[int, float], None] | None = None) -> TrainedModel:
+    """Train ``task`` for every width of ``setting`` and keep the best on the validation split.
+
+    ``penalty`` is ``lambda`` of eq. (11) (inverse models only). The validation criterion is
+    ``mean((Y - P)^2 + lambda P^2)`` in SI units, i.e. the MSE when ``lambda = 0``.
+    """
+    if penalty < 0:
+        raise ValueError(f"penalty must be non-negative, got {penalty}")
+    if penalty and not task.penalised:
+        raise ValueError(f"{task.key}: the penalty of eq. (11) applies to the inverse models only")
+    X_train, Y_train = task.arrays(db, db.train)
+    X_val, Y_val = task.arrays(db, db.validation)
+    target = Y_train / (1.0 + penalty)
+    x_off, x_sc = _affine(X_train, setting.scaling)
+    y_off, y_sc = _affine(target, setting.scaling)
+    Xs, Ys = (X_train - x_off) / x_sc, (target - y_off) / y_sc
+    Xv = (X_val - x_off) / x_sc
+    results: dict[int, tuple[float, int, MLPRegressor]] = {}
+    start = time.perf_counter()
+    with threadpool_limits(1):  # tiny matrices: BLAS threads only add overhead
+        for n in setting.neurons:
+            network = MLPRegressor(
+                hidden_layer_sizes=(n, n), activation=setting.activation, solver=setting.solver, alpha=0.0,
+                batch_size=min(setting.batch_size, len(Xs)), learning_rate_init=setting.learning_rate,
+                momentum=setting.momentum, nesterovs_momentum=False, shuffle=True,
+                random_state=_random_state(db, task, n))
+
+            def criterion() -> float:
+                P = forward_pass(network, Xv) * y_sc + y_off
+                return float(np.mean((Y_val - P) ** 2 + penalty * P**2))
+
+            value, epochs = _fit_width(network, Xs, Ys, criterion, setting)
+            results[n] = (value, epochs, network)
+            if on_width is not None:
+                on_width(n, value)
+    elapsed = time.perf_counter() - start
+    best = min(results, key=lambda n: (results[n][0], n))
+    return TrainedModel(task=task, setting=setting, penalty=float(penalty), neurons=best,
+                        network=results[best][2], x_offset=x_off, x_scale=x_sc, y_offset=y_off, y_scale=y_sc,
+                        search={n: r[0] for n, r in results.items()}, epochs={n: r[1] for n, r in results.items()},
+                        training_time=elapsed)
+
+
+# ---------------------------------------------------------------------------------------- hybrid models
+def hybrid_forward_configurations(models: list[TrainedModel], legs: np.ndarray) -> np.ndarray:
+    """Fig. 9: every section's platform variables from its leg lengths, ``(n, 48)`` from ``(n, 48)``."""
+    legs = np.atleast_2d(np.asarray(legs, dtype=float))
+    if sorted(c for m in models for c in m.task.outputs[1]) != list(range(legs.shape[1])):
+        raise ValueError("the forward models do not cover every platform exactly once")
+    Q = np.empty(legs.shape)
+    for model in models:
+        Q[:, list(model.task.outputs[1])] = model.predict(legs[:, list(model.task.inputs[1])])
+    return Q
+
+
+def hybrid_inverse_configurations(models: list[TrainedModel], tip: np.ndarray) -> np.ndarray:
+    """Fig. 10: NN1 gives the end of section 1, NN2-NN4 every ``(Z_k, theta_k, psi_k)``; ``(n, 48)``."""
+    by_key = {m.task.key: m for m in models}
+    missing = {"ikm_nn1", "ikm_nn2", "ikm_nn3", "ikm_nn4"} - set(by_key)
+    if missing:
+        raise ValueError(f"missing inverse models: {', '.join(sorted(missing))}")
+    tip = np.atleast_2d(np.asarray(tip, dtype=float))
+    ends = np.concatenate([tip, by_key["ikm_nn1"].predict(tip)], axis=1)
+    n_config = 3 * len(by_key["ikm_nn2"].task.outputs[1])
+    Q = np.empty((len(tip), n_config))
+    for i in range(3):
+        Q[:, i::3] = by_key[f"ikm_nn{i + 2}"].predict(ends)
+    return Q

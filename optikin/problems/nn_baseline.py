@@ -1,0 +1,396 @@
+"""Problem kinds ``nn_fkm`` and ``nn_ikm``: the hybrid networks of seed 004 against exact solvers.
+
+``nn_fkm`` (seed 004 section IV, Fig. 9, Table II): a forward network per
+section predicts the platform variables from the leg lengths; the tip follows
+by the exact chain of eq. (5). Baselines on the same held-out arms:
+``newton`` (CasADi Newton on eqs. 7-9 per platform) and ``least_squares``
+(scipy Levenberg-Marquardt per arm), :mod:`optikin.baselines.nn_exact`.
+
+``nn_ikm`` (section V, Fig. 10, Table III, eq. 11): NN1-NN4 predict the platform
+variables from the tip position, eqs. (7)-(9) turn them into leg lengths.
+Baselines: ``ipopt`` (the admissible configuration nearest the rest pose) and
+``least_squares`` (scipy trust-region reflective). Every method's lengths are
+clipped to Table I and realised through the exact forward kinematics
+(:func:`optikin.baselines.nn_exact.realise`) before its tip error is measured.
+
+Every MSE is on the test split of the database; every tip error is the
+distance between the exact forward kinematics of a method's configuration and
+the held-out arm's tip. Per-sample status: ``ok`` when the first variant's tip
+is finite, ``failed`` otherwise; the residual is its tip error [m].
+
+``data`` (source ``fig7``, :mod:`optikin.baselines.nn_database`)::
+
+    data:
+      source: fig7
+      seed: 2016                # every draw and the split
+      samples: 1500000          # candidate draws per platform
+      params:
+        z_range_mm: [0, 25]     # the wide box of Fig. 7
+        angle_range_deg: [-45, 45]
+        require_upright: true
+        coupling: platform      # or section
+        split: [0.7, 0.15, 0.15]
+
+``options`` (all optional)::
+
+    variants: [seed, adam]      # training settings (optikin.baselines.nn_models.SETTINGS)
+    setting: full               # or small: two widths, 15 epochs (tests, notebooks)
+    penalty: 1.0e-3             # lambda of eq. (11), nn_ikm only
+    store: null                 # folder of trained models (relative to the working directory):
+                                # loaded when it matches the problem, otherwise trained and written
+    exact_samples: 200          # test samples given to the per-sample exact solvers
+    latency_repeats: 50         # one-sample calls timed for the latency
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Any, Callable
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from optikin.arms.cbha import CBHAArm  # noqa: E402
+from optikin.baselines import nn_exact  # noqa: E402
+from optikin.baselines.nn_database import DatabaseSpec, LearningDatabase, build_database  # noqa: E402
+from optikin.baselines.nn_models import (  # noqa: E402
+    SETTINGS, Task, TrainedModel, TrainingSetting, forward_tasks, hybrid_forward_configurations,
+    hybrid_inverse_configurations, inverse_tasks, split_mse, split_rmse_by_variable, train_model)
+from optikin.baselines.nn_store import load_models, save_models  # noqa: E402
+from optikin.problems import ProblemContext, ProblemKind, register_kind  # noqa: E402
+from optikin.results import MethodRow, Result  # noqa: E402
+
+MM = 1e3
+BATCH_REPEATS = 5
+"""Calls of a batched method whose median time is reported."""
+DATA_DEFAULTS: dict[str, Any] = {"z_range_mm": [0.0, 25.0], "angle_range_deg": [-45.0, 45.0],
+                                 "require_upright": True, "coupling": "platform", "split": [0.70, 0.15, 0.15]}
+OPTION_DEFAULTS: dict[str, Any] = {"variants": ["seed", "adam"], "setting": "full", "penalty": 1e-3, "store": None,
+                                   "exact_samples": 200, "latency_repeats": 50}
+
+
+# ---------------------------------------------------------------------------------------- reading the file
+def database_spec(ctx: ProblemContext) -> DatabaseSpec:
+    """The :class:`DatabaseSpec` of the problem's ``data`` section."""
+    data = ctx.spec.data
+    if data.source != "fig7":
+        raise ctx.error("data.source", f"{data.source!r}: the nn kinds draw their own database, source 'fig7'")
+    for key in data.params:
+        if key not in DATA_DEFAULTS:
+            raise ctx.error(f"data.params.{key}", f"unknown parameter; known: {', '.join(DATA_DEFAULTS)}")
+    p = {**DATA_DEFAULTS, **data.params}
+    try:
+        return DatabaseSpec(candidates=data.samples, seed=data.seed,
+                            z_range=tuple(v / MM for v in p["z_range_mm"]),
+                            angle_range=tuple(np.radians(v) for v in p["angle_range_deg"]),
+                            require_upright=bool(p["require_upright"]), split=tuple(p["split"]),
+                            coupling=str(p["coupling"]))
+    except (TypeError, ValueError) as exc:
+        raise ctx.error("data.params", str(exc)) from None
+
+
+def options(ctx: ProblemContext) -> dict[str, Any]:
+    for key in ctx.spec.options:
+        if key not in OPTION_DEFAULTS:
+            raise ctx.error(f"options.{key}", f"unknown option; known: {', '.join(OPTION_DEFAULTS)}")
+    o = {**OPTION_DEFAULTS, **ctx.spec.options}
+    if o["setting"] not in ("full", "small"):
+        raise ctx.error("options.setting", f"{o['setting']!r} is not 'full' or 'small'")
+    if not isinstance(o["variants"], list) or not o["variants"]:
+        raise ctx.error("options.variants", "a non-empty list of training settings")
+    for i, name in enumerate(o["variants"]):
+        if name not in SETTINGS:
+            raise ctx.error(f"options.variants.{i}", f"unknown setting {name!r}; known: {', '.join(SETTINGS)}")
+    for key in ("exact_samples", "latency_repeats"):
+        if not isinstance(o[key], int) or o[key] < 1:
+            raise ctx.error(f"options.{key}", "must be a positive integer")
+    if not isinstance(o["penalty"], (int, float)) or o["penalty"] < 0:
+        raise ctx.error("options.penalty", "must be a non-negative number")
+    return o
+
+
+def settings_of(o: dict[str, Any]) -> list[TrainingSetting]:
+    return [SETTINGS[n].small() if o["setting"] == "small" else SETTINGS[n] for n in o["variants"]]
+
+
+def cbha_arm(ctx: ProblemContext) -> CBHAArm:
+    if not isinstance(ctx.arm, CBHAArm):
+        raise ctx.error("arm.type", f"the nn kinds model the CBHA of seed 004, not {ctx.arm.name!r}")
+    return ctx.arm
+
+
+# ---------------------------------------------------------------------------------------- models
+def obtain_models(ctx: ProblemContext, db: LearningDatabase, tasks: list[Task], setting: TrainingSetting,
+                  penalty: float, store: str | None, label: str) -> tuple[list[TrainedModel], bool]:
+    """Models of ``tasks``: loaded from ``store/label`` when it exists, else trained (and saved there)."""
+    penalties = {t.key: (penalty if t.penalised else 0.0) for t in tasks}
+    folder = Path(store) / label if store else None
+    if folder is not None and folder.exists():
+        required = {t.key: (setting, penalties[t.key]) for t in tasks}
+        return load_models(folder, db.geometry, db.spec, required), False
+    models = []
+    with ctx.progress.task(f"training {label}: {len(tasks)} models x {len(setting.neurons)} widths",
+                           total=len(tasks) * len(setting.neurons)) as advance:
+        for task in tasks:
+            models.append(train_model(task, db, setting, penalties[task.key], on_width=lambda n, v: advance()))
+    if folder is not None:
+        save_models(folder, models, db)
+    return models, True
+
+
+def timed(fn: Callable[[], Any], repeats: int = 1) -> tuple[Any, float]:
+    """The value of ``fn()`` and the median wall time of ``repeats`` calls [s]."""
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        value = fn()
+        times.append(time.perf_counter() - start)
+    return value, float(np.median(times))
+
+
+def latency(fn: Callable[[np.ndarray], Any], inputs: np.ndarray, repeats: int) -> float:
+    """Median seconds of ``fn`` on one sample, over ``repeats`` samples (after one warm-up call)."""
+    fn(inputs[:1])
+    times = []
+    for i in range(repeats):
+        row = inputs[i % len(inputs): i % len(inputs) + 1]
+        start = time.perf_counter()
+        fn(row)
+        times.append(time.perf_counter() - start)
+    return float(np.median(times))
+
+
+def error_stats(errors: np.ndarray) -> dict[str, float]:
+    """Mean, median, 95th percentile and max of tip errors given in metres, in millimetres."""
+    e = np.asarray(errors) * MM
+    return {"tip error mean [mm]": float(e.mean()), "tip error median [mm]": float(np.median(e)),
+            "tip error p95 [mm]": float(np.percentile(e, 95)), "tip error max [mm]": float(e.max())}
+
+
+def model_metrics(label: str, models: list[TrainedModel], db: LearningDatabase) -> dict[str, Any]:
+    """One entry per model (``"<label> <task>"``) and one for its width search, test split only."""
+    out: dict[str, Any] = {}
+    for m in models:
+        seed = m.task.seed_reference
+        _, Y = m.task.arrays(db, db.test)
+        out[f"{label} {m.task.key}"] = {
+            "neurons": m.neurons,
+            "test MSE": split_mse(m, db, "test"),
+            "test output variance": float(Y.var(axis=0).mean()),
+            "seed 004 (neurons, test MSE)": list(seed) if seed else None,
+            "test RMSE": split_rmse_by_variable(m, db, "test"),
+            "training time [s]": m.training_time,
+        }
+        out[f"{label} {m.task.key} validation criterion per width"] = {str(n): v for n, v in m.search.items()}
+    return out
+
+
+# ---------------------------------------------------------------------------------------- figures
+def draw_search(path: Path, searches: dict[str, dict[int, float]], title: str) -> None:
+    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    for label, search in searches.items():
+        widths = sorted(search)
+        ax.semilogy(widths, [search[n] for n in widths], "o-", label=label)
+    ax.set_xlabel("neurons per hidden layer")
+    ax.set_ylabel("validation criterion (MSE, + eq. 11 penalty), SI units")
+    ax.set_title(title)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def draw_tip_errors(path: Path, errors: dict[str, np.ndarray], title: str) -> None:
+    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    labels = list(errors)
+    data = [np.maximum(errors[k] * MM, 1e-12) for k in labels]
+    ax.boxplot(data, showfliers=True)
+    ax.set_xticks(range(1, len(labels) + 1), labels, rotation=20, fontsize=8)
+    ax.set_yscale("log")
+    ax.set_ylabel("tip error through exact FK [mm]")
+    ax.set_title(title)
+    ax.grid(True, which="both", axis="y", alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def _status(tip: np.ndarray) -> list[str]:
+    return ["ok" if ok else "failed" for ok in np.isfinite(tip).all(axis=1)]
+
+
+# ---------------------------------------------------------------------------------------- nn_fkm
+def run_fkm(ctx: ProblemContext) -> Result:
+    spec, arm = ctx.spec, cbha_arm(ctx)
+    o, db_spec = options(ctx), database_spec(ctx)
+    try:
+        db, t_db = timed(lambda: build_database(arm.geometry, db_spec))
+    except ValueError as exc:
+        raise ctx.error("data", str(exc)) from None
+    test = db.test
+    legs, truth_tip = db.leg_lengths[test], db.tip[test]
+    n = len(test)
+
+    comparison, searches, errors, arrays = [], {}, {}, {}
+    metrics: dict[str, Any] = {"database": db.summary(), "database time [s]": t_db, "test samples": n}
+    first_tip = None
+    for setting in settings_of(o):
+        models, trained = obtain_models(ctx, db, forward_tasks(db), setting, 0.0, o["store"], f"fkm-{setting.name}")
+
+        def hybrid(L, models=models):
+            return arm.evaluate("fk_position", hybrid_forward_configurations(models, L))
+
+        hybrid(legs[:1])
+        _, seconds = timed(lambda: hybrid(legs), BATCH_REPEATS)
+        Q = hybrid_forward_configurations(models, legs)
+        tip = arm.evaluate("fk_position", Q)
+        err = np.linalg.norm(tip - truth_tip, axis=1)
+        label = f"mlp-{setting.name}"
+        mm = model_metrics(label, models, db)
+        metrics |= {f"{label} setting": setting.description, f"{label} loaded from store": not trained, **mm}
+        row = {f"test MSE {m.task.key}": mm[f"{label} {m.task.key}"]["test MSE"] for m in models}
+        row |= {f"neurons {m.task.key}": m.neurons for m in models}
+        row |= error_stats(err)
+        row |= {"time per sample, batch [us]": seconds / n * 1e6,
+                "latency, one sample [us]": latency(hybrid, legs, o["latency_repeats"]) * 1e6,
+                "training time [s]": sum(m.training_time for m in models)}
+        comparison.append(MethodRow(label, "solver", row))
+        searches |= {f"{label} {m.task.key}": m.search for m in models}
+        errors[label] = err
+        arrays[f"tip_{setting.name}"] = tip
+        arrays[f"configurations_{setting.name}"] = Q
+        first_tip = tip if first_tip is None else first_tip
+
+    if "newton" in spec.baselines:
+        newton = nn_exact.PlatformNewton(arm)
+        newton.solve(legs[:1])
+        (Q_newton, residual), seconds = timed(lambda: newton.solve(legs), BATCH_REPEATS)
+        arrays["tip_newton"] = arm.evaluate("fk_position", Q_newton)
+        errors["newton"] = np.linalg.norm(arrays["tip_newton"] - truth_tip, axis=1)
+        comparison.append(MethodRow("newton", "baseline", {
+            "max |platform variables - truth|": float(np.abs(Q_newton - db.configurations[test]).max()),
+            "max leg residual [m]": float(residual.max()),
+            **error_stats(errors["newton"]),
+            "time per sample, batch [us]": seconds / n * 1e6,
+            "latency, one sample [us]": latency(newton.solve, legs, o["latency_repeats"]) * 1e6,
+        }))
+    if "least_squares" in spec.baselines:
+        k = min(n, o["exact_samples"])
+        (Q_ls, residual), seconds = timed(lambda: nn_exact.platform_least_squares(arm, legs[:k]))
+        errors["least_squares"] = np.linalg.norm(arm.evaluate("fk_position", Q_ls) - truth_tip[:k], axis=1)
+        comparison.append(MethodRow("least_squares", "baseline", {
+            "samples": k, "max leg residual [m]": float(residual.max()),
+            **error_stats(errors["least_squares"]), "time per sample, one call each [us]": seconds / k * 1e6}))
+
+    arrays |= {"test_rows": test, "leg_lengths": legs, "configurations": db.configurations[test], "tip": truth_tip}
+    title = f"{spec.name}: hybrid FKM vs exact"
+    return Result(
+        problem=spec.name, kind=spec.kind, solver=comparison[0].method, title=spec.title, arm=arm.describe(),
+        status=_status(first_tip), residuals=errors[comparison[0].method],
+        timings={"database [s]": t_db}, metrics=metrics, comparison=comparison, arrays=arrays,
+        figures={"search": lambda p: draw_search(p, searches, f"{spec.name}: width search"),
+                 "tip_errors": lambda p: draw_tip_errors(p, errors, title)},
+        notes=["Every MSE is on the test split; tip errors through the exact chain of eq. (5)."],
+    )
+
+
+# ---------------------------------------------------------------------------------------- nn_ikm
+def run_ikm(ctx: ProblemContext) -> Result:
+    spec, arm = ctx.spec, cbha_arm(ctx)
+    o, db_spec = options(ctx), database_spec(ctx)
+    try:
+        db, t_db = timed(lambda: build_database(arm.geometry, db_spec))
+    except ValueError as exc:
+        raise ctx.error("data", str(exc)) from None
+    test = db.test
+    targets = db.tip[test]
+    n = len(test)
+    newton = nn_exact.PlatformNewton(arm)
+
+    comparison, searches, errors, arrays = [], {}, {}, {}
+    metrics: dict[str, Any] = {"database": db.summary(), "database time [s]": t_db, "test samples": n,
+                               "penalty (eq. 11)": o["penalty"]}
+    first_tip = None
+    for setting in settings_of(o):
+        models, trained = obtain_models(ctx, db, inverse_tasks(db), setting, float(o["penalty"]), o["store"],
+                                        f"ikm-{setting.name}")
+
+        def hybrid(P, models=models):
+            return arm.evaluate("leg_lengths", hybrid_inverse_configurations(models, P))
+
+        hybrid(targets[:1])
+        _, seconds = timed(lambda: hybrid(targets), BATCH_REPEATS)
+        Q = hybrid_inverse_configurations(models, targets)
+        realised = nn_exact.realise(arm, Q, newton)
+        err = np.linalg.norm(realised.tip - targets, axis=1)
+        unclipped = np.linalg.norm(arm.evaluate("fk_position", Q) - targets, axis=1)
+        label = f"mlp-{setting.name}"
+        mm = model_metrics(label, models, db)
+        metrics |= {f"{label} setting": setting.description, f"{label} loaded from store": not trained, **mm}
+        row = {f"test MSE {m.task.key}": mm[f"{label} {m.task.key}"]["test MSE"] for m in models}
+        row |= {f"neurons {m.task.key}": m.neurons for m in models}
+        row |= error_stats(err)
+        row |= {"tip error of the predicted pose, unclipped, median [mm]": float(np.median(unclipped) * MM),
+                "lengths clipped to Table I [%]": float(100 * realised.clipped.mean()),
+                "time per sample, batch [us]": seconds / n * 1e6,
+                "latency, one sample [us]": latency(hybrid, targets, o["latency_repeats"]) * 1e6,
+                "training time [s]": sum(m.training_time for m in models)}
+        comparison.append(MethodRow(label, "solver", row))
+        searches |= {f"{label} {m.task.key}": m.search for m in models}
+        errors[label] = err
+        arrays[f"tip_{setting.name}"] = realised.tip
+        arrays[f"leg_lengths_{setting.name}"] = realised.commanded
+        arrays[f"predicted_{setting.name}"] = Q
+        arrays[f"configurations_{setting.name}"] = realised.configurations
+        first_tip = realised.tip if first_tip is None else first_tip
+
+    k = min(n, o["exact_samples"])
+    for name in spec.baselines:
+        if name == "ipopt":
+            report = nn_exact.TipIpopt(arm).solve(targets[:k])
+        else:
+            report = nn_exact.tip_least_squares(arm, targets[:k])
+        realised = nn_exact.realise(arm, report.configurations, newton)
+        errors[name] = np.linalg.norm(realised.tip - targets[:k], axis=1)
+        comparison.append(MethodRow(name, "baseline", {
+            "samples": k, "converged [%]": float(100 * report.converged.mean()),
+            **error_stats(errors[name]),
+            "lengths clipped to Table I [%]": float(100 * realised.clipped.mean()),
+            "median iterations": float(np.median(report.iterations)),
+            "time per sample, one call each [us]": float(report.seconds.mean() * 1e6)}))
+
+    arrays |= {"test_rows": test, "targets": targets, "configurations": db.configurations[test]}
+    title = f"{spec.name}: hybrid IKM vs exact"
+    return Result(
+        problem=spec.name, kind=spec.kind, solver=comparison[0].method, title=spec.title, arm=arm.describe(),
+        status=_status(first_tip), residuals=errors[comparison[0].method],
+        timings={"database [s]": t_db}, metrics=metrics, comparison=comparison, arrays=arrays,
+        figures={"search": lambda p: draw_search(p, searches, f"{spec.name}: width search"),
+                 "tip_errors": lambda p: draw_tip_errors(p, errors, title)},
+        notes=["Every MSE is on the test split; each method's leg lengths are clipped to Table I and realised "
+               "through the exact platform and chain kinematics before its tip error is measured."],
+    )
+
+
+register_kind(ProblemKind(
+    name="nn_fkm",
+    summary="seed 004 hybrid forward kinematics (MLP per section) against Newton / least squares",
+    run=run_fkm,
+    backend_families=(),
+    default_solver=None,
+    baselines=("newton", "least_squares"),
+))
+
+register_kind(ProblemKind(
+    name="nn_ikm",
+    summary="seed 004 hybrid inverse kinematics (MLPs NN1-NN4, eq. 11) against IPOPT / least squares",
+    run=run_ikm,
+    backend_families=(),
+    default_solver=None,
+    baselines=("ipopt", "least_squares"),
+))

@@ -1,0 +1,151 @@
+"""The nn_fkm and nn_ikm problem kinds on a small setting: exact-FK tip errors, test-split MSEs, store, bad input.
+
+References: the chain of 4x4 matrices of eq. (5) written out in numpy, the printed
+eqs. (7)-(9), Table I typed in again, and the database rebuilt from the problem's data.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import yaml
+
+from optikin.arms.cbha import CBHAArm, CBHAGeometry, printed_leg_lengths
+from optikin.baselines.nn_database import DatabaseSpec, build_database
+from optikin.errors import InputDataError, SpecError
+from optikin.problems import ProblemContext
+from optikin.problems.nn_baseline import database_spec, options
+from optikin.progress import SILENT
+from optikin.runner import solve
+from optikin.spec import load_problem, project_root
+
+Q_MIN_MM = np.array([8.5, 8.5, 8.5, 7, 7, 7, 8.5, 10, 6.5, 8, 8, 7.5, 7.5, 7, 7, 6.5])
+Q_MAX_MM = np.array([19.5, 19.5, 19.5, 16.5, 16.5, 16.5, 20, 22, 16, 20.5, 20.5, 19, 19, 18, 18, 16])
+RADII = np.linspace(0.040, 0.029, 17)
+CANDIDATES, SEED = 40_000, 2016
+
+
+def chain_tips(Q: np.ndarray) -> np.ndarray:
+    """Tip positions of configurations (n, 48): product of the eq. (5) matrices, numpy."""
+    T = np.tile(np.eye(4), (len(Q), 1, 1))
+    for Z, theta, psi in np.moveaxis(Q.reshape(len(Q), -1, 3), 1, 0).transpose(0, 2, 1):
+        ct, st, cp, sp = np.cos(theta), np.sin(theta), np.cos(psi), np.sin(psi)
+        A = np.zeros((len(Q), 4, 4))
+        A[:, 0, :3], A[:, 1, :3], A[:, 2] = np.stack([ct, st * sp, st * cp], -1), np.stack([0 * ct, cp, -sp], -1), \
+            np.stack([-st, sp * ct, ct * cp, Z], -1)
+        A[:, 3, 3] = 1.0
+        T = T @ A
+    return T[:, :3, 3]
+
+
+def small_problem(tmp_path, kind: str, **changes) -> str:
+    data = yaml.safe_load((project_root() / "problems" / f"cbha-nn-{kind}.yaml").read_text())
+    data["data"]["samples"] = CANDIDATES
+    data["options"] |= {"setting": "small", "exact_samples": 3, "latency_repeats": 3}
+    for key, value in changes.items():
+        section, _, field = key.partition("__")
+        if field:
+            data[section][field] = value
+        else:
+            data[section] = value
+    data["name"] = f"small-{kind}"
+    path = tmp_path / f"small-{kind}.yaml"
+    path.write_text(yaml.safe_dump(data))
+    return str(path)
+
+
+@pytest.fixture(scope="module")
+def database():
+    return build_database(CBHAGeometry(), DatabaseSpec(candidates=CANDIDATES, seed=SEED))
+
+
+@pytest.fixture(scope="module")
+def fkm(tmp_path_factory):
+    path = small_problem(tmp_path_factory.mktemp("fkm"), "fkm", options__variants=["seed", "adam"])
+    return solve(path)[0]
+
+
+@pytest.fixture(scope="module")
+def ikm(tmp_path_factory):
+    path = small_problem(tmp_path_factory.mktemp("ikm"), "ikm", options__variants=["adam"])
+    return solve(path)[0]
+
+
+def test_fkm_tip_errors_go_through_the_exact_chain(fkm, database):
+    a = fkm.arrays
+    assert np.array_equal(a["test_rows"], database.test)
+    np.testing.assert_allclose(a["tip"], chain_tips(database.configurations[database.test]), atol=1e-15)
+    rows = {r.method: r.metrics for r in fkm.comparison}
+    for variant in ("seed", "adam"):
+        np.testing.assert_allclose(a[f"tip_{variant}"], chain_tips(a[f"configurations_{variant}"]), atol=1e-15)
+        errors = np.linalg.norm(a[f"tip_{variant}"] - a["tip"], axis=1) * 1e3
+        assert rows[f"mlp-{variant}"]["tip error mean [mm]"] == pytest.approx(errors.mean(), rel=1e-12)
+        assert rows[f"mlp-{variant}"]["tip error max [mm]"] == pytest.approx(errors.max(), rel=1e-12)
+    assert rows["newton"]["tip error max [mm]"] < 1e-9
+    assert rows["least_squares"]["tip error max [mm]"] < 1e-9 and rows["least_squares"]["samples"] == 3
+    assert fkm.succeeded
+
+
+def test_fkm_reports_the_test_split_mse(fkm, database):
+    a, rows = fkm.arrays, {r.method: r.metrics for r in fkm.comparison}
+    truth = database.configurations[database.test]
+    for variant in ("seed", "adam"):
+        for s, cols in ((1, slice(0, 24)), (2, slice(24, 48))):
+            mse = np.mean((a[f"configurations_{variant}"][:, cols] - truth[:, cols]) ** 2)
+            assert rows[f"mlp-{variant}"][f"test MSE fkm_section{s}"] == pytest.approx(mse, rel=1e-9)
+
+
+def test_ikm_realises_lengths_within_table_i_and_measures_through_exact_fk(ikm, database):
+    a, rows = ikm.arrays, {r.method: r.metrics for r in ikm.comparison}
+    np.testing.assert_allclose(a["targets"], chain_tips(database.configurations[database.test]), atol=1e-15)
+    Q = a["configurations_adam"].reshape(len(a["targets"]), 16, 3)
+    legs = np.stack([np.stack(printed_leg_lengths(*Q[:, k].T, RADII[k], RADII[k + 1]), -1) for k in range(16)], 1)
+    lo, hi = np.repeat(Q_MIN_MM, 3) / 1e3, np.repeat(Q_MAX_MM, 3) / 1e3
+    np.testing.assert_allclose(legs.reshape(len(Q), -1), np.clip(a["leg_lengths_adam"], lo, hi), atol=1e-12)
+    np.testing.assert_allclose(a["tip_adam"], chain_tips(a["configurations_adam"]), atol=1e-15)
+    errors = np.linalg.norm(a["tip_adam"] - a["targets"], axis=1) * 1e3
+    assert rows["mlp-adam"]["tip error median [mm]"] == pytest.approx(np.median(errors), rel=1e-12)
+    assert set(rows) == {"mlp-adam", "ipopt", "least_squares"}
+    assert rows["ipopt"]["tip error max [mm]"] < 1e-6 and rows["ipopt"]["lengths clipped to Table I [%]"] == 0
+    assert rows["least_squares"]["tip error max [mm]"] < 1e-3
+
+
+def test_store_is_reused_and_refused_for_another_database(tmp_path):
+    store = tmp_path / "models"
+    path = small_problem(tmp_path, "fkm", options__variants=["adam"], options__store=str(store),
+                         baselines=["newton"])
+    first, _ = solve(path)
+    again, _ = solve(path)
+    assert first.metrics["mlp-adam loaded from store"] is False
+    assert again.metrics["mlp-adam loaded from store"] is True
+    np.testing.assert_array_equal(again.arrays["tip_adam"], first.arrays["tip_adam"])
+    other = small_problem(tmp_path, "fkm", options__variants=["adam"], options__store=str(store),
+                          baselines=["newton"], data__seed=SEED + 1)
+    with pytest.raises(InputDataError) as err:
+        solve(other)
+    assert err.value.field == "database.seed"
+
+
+@pytest.mark.parametrize("changes, field", [
+    ({"data__source": "random"}, "data.source"),
+    ({"options__variants": ["sgd-fast"]}, "options.variants.0"),
+    ({"options__penalty": -1.0}, "options.penalty"),
+    ({"data__params": {"z_range_mm": [8, 25]}}, "data"),
+    ({"data__params": {"grid": True}}, "data.params.grid"),
+    ({"baselines": ["ipopt"]}, "baselines.0"),
+])
+def test_bad_problem_files_name_the_field(tmp_path, changes, field):
+    with pytest.raises(SpecError) as err:
+        solve(small_problem(tmp_path, "fkm", **changes))
+    assert err.value.field == field
+
+
+@pytest.mark.parametrize("name", ["cbha-nn-fkm", "cbha-nn-ikm", "cbha-nn-fkm-coupled", "cbha-nn-ikm-coupled"])
+def test_shipped_problem_files_are_valid(name):
+    spec, path = load_problem(name)
+    ctx = ProblemContext(spec=spec, path=path, arm=CBHAArm(**spec.arm.params), solver=None, solver_path=None,
+                         progress=SILENT)
+    o, db_spec = options(ctx), database_spec(ctx)
+    assert o["setting"] == "full" and db_spec.split == (0.70, 0.15, 0.15)
+    assert db_spec.coupling == ("section" if name.endswith("coupled") else "platform")
+    assert db_spec.z_range == (0.0, 0.025) and db_spec.angle_range == pytest.approx((-np.pi / 4, np.pi / 4))
