@@ -225,13 +225,18 @@ def _status(tip: np.ndarray) -> list[str]:
 
 
 # ---------------------------------------------------------------------------------------- nn_fkm
-def run_fkm(ctx: ProblemContext) -> Result:
-    spec, arm = ctx.spec, cbha_arm(ctx)
-    o, db_spec = options(ctx), database_spec(ctx)
+def _database(ctx: ProblemContext, arm: CBHAArm):
+    """The learning database of the problem's ``data`` section and the seconds it took to build."""
     try:
-        db, t_db = timed(lambda: build_database(arm.geometry, db_spec))
+        return timed(lambda: build_database(arm.geometry, database_spec(ctx)))
     except ValueError as exc:
         raise ctx.error("data", str(exc)) from None
+
+
+def run_fkm(ctx: ProblemContext) -> Result:
+    spec, arm = ctx.spec, cbha_arm(ctx)
+    o = options(ctx)
+    db, t_db = _database(ctx, arm)
     test = db.test
     legs, truth_tip = db.leg_lengths[test], db.tip[test]
     n = len(test)
@@ -302,11 +307,8 @@ def run_fkm(ctx: ProblemContext) -> Result:
 # ---------------------------------------------------------------------------------------- nn_ikm
 def run_ikm(ctx: ProblemContext) -> Result:
     spec, arm = ctx.spec, cbha_arm(ctx)
-    o, db_spec = options(ctx), database_spec(ctx)
-    try:
-        db, t_db = timed(lambda: build_database(arm.geometry, db_spec))
-    except ValueError as exc:
-        raise ctx.error("data", str(exc)) from None
+    o = options(ctx)
+    db, t_db = _database(ctx, arm)
     test = db.test
     targets = db.tip[test]
     n = len(test)
