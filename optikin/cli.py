@@ -13,7 +13,6 @@ import sys
 from pathlib import Path
 
 import yaml
-from rich.console import Console
 
 from optikin import __version__
 from optikin.errors import OptikinError
@@ -21,30 +20,34 @@ from optikin.errors import OptikinError
 EXIT_OK, EXIT_FAILED_SAMPLES, EXIT_BAD_INPUT = 0, 1, 2
 
 
-def _cmd_list(args: argparse.Namespace) -> int:
-    from optikin.report import print_listing
-    from optikin.spec import available, load_problem, load_solver
+def _listing(kind: str, load, describe) -> tuple[list[tuple[str, ...]], list[str]]:
+    """Rows ``(name, *describe(spec))`` of every named file of ``kind``, and the errors of those that fail."""
+    from optikin.spec import available
 
-    console = Console()
     rows, broken = [], []
-    for name in available("problems"):
+    for name in available(kind):
         try:
-            spec, path = load_problem(name)
-            rows.append((name, spec.kind, spec.title))
+            rows.append((name, *describe(load(name)[0])))
         except OptikinError as exc:
             broken.append(str(exc))
+    return rows, broken
+
+
+def _cmd_list(args: argparse.Namespace) -> int:
+    from rich.markup import escape
+
+    from optikin.report import print_listing, wide_console
+    from optikin.spec import load_problem, load_solver
+
+    console = wide_console()
+    rows, broken = _listing("problems", load_problem, lambda spec: (spec.kind, spec.title))
     print_listing("problems", rows, ("name", "kind", "title"), console)
     if args.solvers:
-        srows = []
-        for name in available("solvers"):
-            try:
-                s, _ = load_solver(name)
-                srows.append((name, s.backend, s.title))
-            except OptikinError as exc:
-                broken.append(str(exc))
-        print_listing("solvers", srows, ("name", "backend", "title"), console)
+        solver_rows, solver_broken = _listing("solvers", load_solver, lambda spec: (spec.backend, spec.title))
+        print_listing("solvers", solver_rows, ("name", "backend", "title"), console)
+        broken += solver_broken
     for message in broken:
-        console.print(f"[red]invalid:[/red] {message}")
+        console.print(f"[red]invalid:[/red] {escape(message)}")
     return EXIT_BAD_INPUT if broken else EXIT_OK
 
 
@@ -69,7 +72,7 @@ def _cmd_solve(args: argparse.Namespace) -> int:
         print(json.dumps(result.summary(), indent=2))
     else:
         print_result(result)
-        Console().print(f"written to {written}")
+        print(f"written to {written}")
     return EXIT_OK if result.succeeded else EXIT_FAILED_SAMPLES
 
 

@@ -14,10 +14,10 @@ from optikin.arms import build_arm
 from optikin.errors import SpecError, UnknownNameError
 from optikin.problems import ProblemContext, ProblemKind, load_kinds
 from optikin.progress import SILENT, Progress
-from optikin.registry import BACKENDS, PROBLEM_KINDS
+from optikin.registry import PROBLEM_KINDS
 from optikin.results import Result, write_result
-from optikin.solvers import Backend, load_backends
-from optikin.spec import ProblemSpec, available, load_problem, load_solver
+from optikin.solvers import load_backends, load_preset
+from optikin.spec import ProblemSpec, available, load_problem
 
 
 def _kind_of(spec: ProblemSpec, path: Path) -> ProblemKind:
@@ -38,11 +38,7 @@ def _check_baselines(spec: ProblemSpec, path: Path, kind: ProblemKind) -> None:
             raise SpecError(path, f"baselines.{i}",
                             f"{baseline!r} is neither a baseline of kind {kind.name!r} "
                             f"(known: {', '.join(kind.baselines) or 'none'}) nor a solver preset")
-        preset, preset_path = load_solver(baseline)
-        try:
-            family = BACKENDS.get(preset.backend).family
-        except UnknownNameError as exc:
-            raise SpecError(preset_path, "backend", str(exc)) from None
+        family = load_preset(baseline)[2].family
         if family not in kind.backend_families:
             raise SpecError(path, f"baselines.{i}", f"solver preset {baseline!r} ({family}) cannot solve kind "
                                                     f"{kind.name!r}, which takes {' or '.join(kind.backend_families)}")
@@ -58,11 +54,7 @@ def solve(problem: str, solver: str | None = None, out: Path | None = None, figu
     preset_name = solver or spec.solver or kind.default_solver
     preset, preset_path, adapter = None, None, None
     if preset_name is not None:
-        preset, preset_path = load_solver(preset_name)
-        try:
-            backend: Backend = BACKENDS.get(preset.backend)
-        except UnknownNameError as exc:
-            raise SpecError(preset_path, "backend", str(exc)) from None
+        preset, preset_path, backend = load_preset(preset_name)
         if backend.family not in kind.backend_families:
             raise SpecError(preset_path, "backend",
                             f"{preset.backend!r} ({backend.family}) cannot solve kind {kind.name!r}, "

@@ -117,10 +117,9 @@ from optikin.problems.ik_formulation import (
     rest_configuration,
 )
 from optikin.problems.ik_platform import solve_platforms
-from optikin.registry import BACKENDS
 from optikin.results import MethodRow, Result
 from optikin.solvers.nonlinear import FAMILY, BatchReport, LeastSquaresProblem, NonlinearAdapter
-from optikin.spec import load_solver
+from optikin.solvers import build_preset
 
 DEFAULTS: dict[str, Any] = {"target": "position", "redundancy": "rest", "rest": None, "weights": None,
                             "start": "rest", "restarts": 2, "tolerance": 1e-10, "orientation_length": None,
@@ -275,9 +274,8 @@ def methods_of(ctx: ProblemContext, settings: Settings) -> list[Method]:
     for name in ctx.spec.baselines:
         if name in [m.name for m in methods]:
             continue
-        preset, _ = load_solver(name)  # the runner checked that it is a preset of this kind's family
-        methods.append(Method(name, "baseline", BACKENDS.get(preset.backend).build(preset), settings.formulation,
-                              problem))
+        # the runner checked that it is a preset of this kind's family
+        methods.append(Method(name, "baseline", build_preset(name), settings.formulation, problem))
     for label, formulation in settings.variants.items():
         methods.append(Method(f"{ctx.solver.name} [{label}]", "variant", ctx.adapter, formulation,
                               build_problem(ctx.arm, formulation)))

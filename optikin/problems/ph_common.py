@@ -44,13 +44,11 @@ from optikin.curves.ph_quintic import PHQuintic
 from optikin.data.markers import MARKER_SOURCES, MarkerRecording
 from optikin.errors import InputDataError, SpecError
 from optikin.problems import ProblemContext
-from optikin.registry import BACKENDS
 from optikin.results import MethodRow
-from optikin.solvers.ph_backends import FAMILY, PHAdapter
-from optikin.spec import load_problem, load_solver
+from optikin.solvers import build_preset
+from optikin.solvers.ph_backends import PHAdapter
+from optikin.spec import load_problem
 
-PH_PRESETS = ("ph-newton", "ph-newton-compiled", "ph-ipopt", "ph-ipopt-cold", "ph-grid")
-"""Solver presets of the ``ph`` family shipped with optikin; any may be a solver or a baseline."""
 
 LENGTH_MODES = ("arc", "markers", "model")
 COMMON_DEFAULTS: dict[str, Any] = {"twist_weight": 0.0, "nodes": DEFAULT_NODES, "free_speeds": False,
@@ -185,14 +183,10 @@ def ph_methods(ctx: ProblemContext, others: tuple[str, ...] = ()) -> list[tuple[
     ``others`` are baseline names the kind runs itself (not ``ph`` presets).
     """
     methods = [(ctx.solver.name, "solver", ctx.adapter)]
-    for i, name in enumerate(ctx.spec.baselines):
+    for name in ctx.spec.baselines:
         if name in [m[0] for m in methods] or name in others:
             continue
-        preset, _ = load_solver(name)
-        backend = BACKENDS.get(preset.backend)
-        if backend.family != FAMILY:
-            raise SpecError(ctx.path, f"baselines.{i}", f"preset {name!r} ({preset.backend}) is not a {FAMILY} backend")
-        methods.append((name, "baseline", backend.build(preset)))
+        methods.append((name, "baseline", build_preset(name)))  # the runner checked its family
     return methods
 
 

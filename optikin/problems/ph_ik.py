@@ -58,7 +58,6 @@ from optikin.problems.ik_formulation import Formulation, build_problem, rest_con
 from optikin.problems.ph_common import (
     COMMON_DEFAULTS,
     MM,
-    PH_PRESETS,
     MethodRun,
     backbone_lengths,
     check_options,
@@ -70,9 +69,8 @@ from optikin.problems.ph_common import (
     solve_methods,
     summary_of,
 )
-from optikin.registry import BACKENDS
 from optikin.results import MethodRow, Result
-from optikin.spec import load_solver
+from optikin.solvers import build_preset
 
 NEWTON_RAPHSON = "newton-raphson"
 NR_PRESETS = ("newton", "lm")
@@ -147,7 +145,7 @@ def newton_raphson_tube_lengths(ctx: ProblemContext, recording: MarkerRecording)
                               weights=1.0 / (arm.upper - arm.lower), tolerance=NR_TOLERANCE,
                               orientation_length=reach_bound(arm), elongation="distributed")
     problem = build_problem(arm, formulation)
-    newton, lm = (BACKENDS.get(preset.backend).build(preset) for preset in (load_solver(n)[0] for n in NR_PRESETS))
+    newton, lm = (build_preset(name) for name in NR_PRESETS)
     targets = relative_tip_poses(recording)
     start = lm.solve(problem, formulation.rest, targets[0])
     newton.solve(problem, start.x, targets[0])  # build the rootfinder before timing
@@ -292,5 +290,5 @@ register_kind(ProblemKind(
     run=run,
     backend_families=("ph",),
     default_solver="ph-newton",
-    baselines=PH_PRESETS + (NEWTON_RAPHSON,),
+    baselines=(NEWTON_RAPHSON,),
 ))

@@ -27,7 +27,6 @@ from optikin.problems import ph_figures as figures
 from optikin.problems.ph_common import (
     COMMON_DEFAULTS,
     MM,
-    PH_PRESETS,
     backbone_lengths,
     check_options,
     curve_batch,
@@ -132,5 +131,5 @@ register_kind(ProblemKind(
     run=run,
     backend_families=("ph",),
     default_solver="ph-newton",
-    baselines=PH_PRESETS,
+    baselines=(),
 ))

@@ -8,10 +8,12 @@ convention (e.g. every ``evaluation`` backend offers ``evaluate(arm, name, Q)``)
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Callable
 
+from optikin.errors import SpecError, UnknownNameError
 from optikin.registry import BACKENDS
-from optikin.spec import SolverSpec
+from optikin.spec import SolverSpec, load_solver
 
 
 @dataclass(frozen=True)
@@ -32,6 +34,22 @@ def register_backend(name: str, family: str, summary: str) -> Callable:
         return build
 
     return add
+
+
+def load_preset(name_or_path: str) -> tuple[SolverSpec, Path, Backend]:
+    """A solver preset, its file and its registered backend; an unknown backend names the file's field."""
+    load_backends()
+    preset, path = load_solver(name_or_path)
+    try:
+        return preset, path, BACKENDS.get(preset.backend)
+    except UnknownNameError as exc:
+        raise SpecError(path, "backend", str(exc)) from None
+
+
+def build_preset(name_or_path: str) -> Any:
+    """The adapter of a named solver preset (e.g. a baseline listed in a problem file)."""
+    preset, _, backend = load_preset(name_or_path)
+    return backend.build(preset)
 
 
 def load_backends() -> None:
