@@ -142,6 +142,27 @@ def test_batched_gauss_newton_agrees_with_single_solves():
     np.testing.assert_array_equal(batch.iterations, [s.iterations for s in singles])
 
 
+def test_batched_newton_agrees_with_the_closed_form_and_single_solves():
+    """The rootfinder mapped over samples: the closed form of :func:`circle_line`, the one-sample
+    path's points and statuses; a redundant problem takes each sample's own ``x_ref``."""
+    problem = circle_line()
+    rng = np.random.default_rng(1)
+    P = np.column_stack([rng.uniform(0.5, 3.0, 40), rng.uniform(-3.0, 3.0, 40)])
+    solver = adapter("newton")
+    batch = solver.solve_many(problem, np.array([1.0, 0.0]), P)
+    assert batch.batched and batch.status == ["ok"] * 40 and np.all(batch.iterations == -1)
+    x0 = P[:, 0] / np.hypot(1.0, P[:, 1])
+    np.testing.assert_allclose(batch.x, np.column_stack([x0, P[:, 1] * x0]), atol=1e-9)
+    singles = [solver.solve(problem, np.array([1.0, 0.0]), P[i]) for i in range(40)]
+    np.testing.assert_allclose(batch.x, [s.x for s in singles], atol=1e-14)
+    weights = np.array([1.0, 2.0, 4.0])
+    refs = rng.uniform(-2.0, 2.0, (5, 3))
+    report = solver.solve_many(plane(weights), np.zeros(3), np.full((5, 1), 3.0), x_ref=refs)
+    m_inv = 1.0 / weights**2
+    expected = refs + m_inv * (3.0 - refs.sum(axis=1, keepdims=True)) / m_inv.sum()
+    np.testing.assert_allclose(report.x, expected, atol=1e-9)
+
+
 def test_failed_samples_are_reported_not_dropped():
     """A residual that is NaN for x0 > 1: every sample comes back, the bad ones as failed."""
     x, p = ca.SX.sym("x", 1), ca.SX.sym("p", 1)

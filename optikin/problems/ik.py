@@ -396,7 +396,7 @@ def method_metrics(report: BatchReport, targets: Targets, formulation: Formulati
         metrics["unreachable flagged"] = f"{int((status[~reachable] == 'unreachable').sum())}/{int((~reachable).sum())}"
         metrics["unreachable reported ok"] = int(ok[~reachable].sum())
     metrics.update({
-        "median iterations": float(np.median(report.iterations)),
+        "median iterations": float(np.median(report.iterations)) if np.all(report.iterations >= 0) else None,
         "median time per solve [us]": float(np.median(report.time) * 1e6),
         "mean time per solve [us]": float(wall / len(report) * 1e6),
         "batched": report.batched,

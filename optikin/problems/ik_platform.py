@@ -12,9 +12,15 @@ with ``legs_k`` the arm's leg lengths of eqs. (3)-(6) (equal to the printed eqs.
 The 16 platforms of a sample are independent: every platform is solved for all
 samples at once by the backend's :meth:`solve_many`, and a sample is ``ok`` when
 all 16 of its platforms are.
+
+Two helpers serve the hybrid networks of seed 004 (:mod:`optikin.problems.nn_baseline`):
+:func:`linearised_start`, a starting point from the leg lengths themselves, and
+:func:`realise`, what the arm does with commanded leg lengths.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
@@ -22,6 +28,9 @@ import numpy as np
 from optikin.arms.cbha import PLATFORM_LEG_LENGTHS, CBHAArm
 from optikin.solvers.nonlinear import BatchReport, LeastSquaresProblem, NonlinearAdapter
 
+CLIP_TOLERANCE = 1e-9
+"""A commanded length counts as clipped when it leaves Table I by more than this [m] (a solver's
+constraint tolerance is not a clip)."""
 STATUS_PRIORITY = ("failed", "timeout", "not_converged", "unreachable", "ok")
 """A sample takes the first of these statuses that any of its platforms has."""
 
@@ -64,3 +73,54 @@ def solve_platforms(adapter: NonlinearAdapter, problems: list[LeastSquaresProble
         messages=messages,
         batched=all(r.batched for r in reports),
     )
+
+
+def linearised_start(arm: CBHAArm, legs: np.ndarray) -> np.ndarray:
+    """Starting configurations ``(N, 48)`` from leg lengths ``(N, 48)``: eqs. (7)-(9) linearised.
+
+    For small angles ``q_1 - (q_2 + q_3)/2 ~ 3/2 r_{k+1} sin theta`` and
+    ``q_2 - q_3 ~ sqrt(3) r_{k+1} sin psi cos theta``, and ``Z ~ mean(q)``; the sines are
+    clipped to 0.9 so that a far-off length still gives a finite start.
+    """
+    legs = np.atleast_2d(np.asarray(legs, dtype=float))
+    L = legs.reshape(len(legs), -1, 3)
+    q1, q2, q3 = L[..., 0], L[..., 1], L[..., 2]
+    r_upper = arm.geometry.radii[1:]
+    theta = np.arcsin(np.clip((q1 - 0.5 * (q2 + q3)) / (1.5 * r_upper), -0.9, 0.9))
+    psi = np.arcsin(np.clip((q2 - q3) / (np.sqrt(3.0) * r_upper * np.cos(theta)), -0.9, 0.9))
+    return np.stack([(q1 + q2 + q3) / 3.0, theta, psi], axis=-1).reshape(len(legs), -1)
+
+
+@dataclass
+class Realised:
+    """What the arm does with commanded leg lengths (``clipped``: per sample, whether a length left
+    Table I by more than :data:`CLIP_TOLERANCE`; ``report``: the platform solve of the applied lengths)."""
+
+    commanded: np.ndarray
+    clipped: np.ndarray
+    configurations: np.ndarray
+    tip: np.ndarray
+    report: BatchReport
+
+
+def realise(arm: CBHAArm, configurations: np.ndarray, adapter: NonlinearAdapter,
+            problems: list[LeastSquaresProblem]) -> Realised:
+    """The leg lengths of ``configurations`` (eqs. 7-9) clipped to Table I, as the actuators would,
+    the pose they produce (every platform solved by ``adapter`` from :func:`linearised_start`)
+    and its tip (eq. 5). A configuration with a non-finite value, or applied lengths whose
+    platform solve is not ``ok``, gives a non-finite pose and tip."""
+    configurations = np.atleast_2d(np.asarray(configurations, dtype=float))
+    finite = np.all(np.isfinite(configurations), axis=1)
+    commanded = np.full((len(configurations), 3 * arm.geometry.n_platforms), np.nan)
+    if finite.any():
+        commanded[finite] = arm.evaluate("leg_lengths", configurations[finite]).reshape(int(finite.sum()), -1)
+    lo, hi = arm.leg_limits()
+    applied = np.where(finite[:, None], np.clip(commanded, lo, hi), 0.5 * (lo + hi))
+    report = solve_platforms(adapter, problems, applied, linearised_start(arm, applied))
+    solved = finite & (np.array(report.status) == "ok")
+    Q = np.where(solved[:, None], report.x, np.nan)
+    tip = np.full((len(Q), 3), np.nan)
+    if solved.any():
+        tip[solved] = arm.evaluate("fk_position", Q[solved])
+    return Realised(commanded=commanded, clipped=np.any(np.abs(applied - commanded) > CLIP_TOLERANCE, axis=1),
+                    configurations=Q, tip=tip, report=report)

@@ -1,22 +1,32 @@
 """Problem kinds ``nn_fkm`` and ``nn_ikm``: the hybrid networks of seed 004 against exact solvers.
 
+Seed 004 replaces the numerical solution of the kinematic equations by networks
+because "least square, Newton-Raphson methods [...] are usually computationally
+intensive" (section IV-A). The baselines are those methods: any solver preset of
+the ``nonlinear`` family (``newton``, ``gauss-newton``, ``lm``, ``trf``, ``ipopt``,
+``sqpmethod``, or a user's own), on the inverse problems of
+:mod:`optikin.problems.ik_platform` and :mod:`optikin.problems.ik_formulation`, on the
+first ``exact_samples`` held-out samples.
+
 ``nn_fkm`` (seed 004 section IV, Fig. 9, Table II): a forward network per
 section predicts the platform variables from the leg lengths; the tip follows
-by the exact chain of eq. (5). Baselines on the same held-out arms:
-``newton`` (CasADi Newton on eqs. 7-9 per platform) and ``least_squares``
-(scipy Levenberg-Marquardt per arm), :mod:`optikin.baselines.nn_exact`.
+by the exact chain of eq. (5). A baseline solves eqs. (7)-(9) of every platform
+from their linearisation (:func:`~optikin.problems.ik_platform.linearised_start`).
 
 ``nn_ikm`` (section V, Fig. 10, Table III, eq. 11): NN1-NN4 predict the platform
-variables from the tip position, eqs. (7)-(9) turn them into leg lengths.
-Baselines: ``ipopt`` (the admissible configuration nearest the rest pose) and
-``least_squares`` (scipy trust-region reflective). Every method's lengths are
-clipped to Table I and realised through the exact forward kinematics
-(:func:`optikin.baselines.nn_exact.realise`) before its tip error is measured.
+variables from the tip position, eqs. (7)-(9) turn them into leg lengths. A
+baseline solves the tip-position IK for the admissible configuration nearest the
+straight mid-range pose (redundancy ``rest``, every leg within Table I), from that
+pose. Every method's lengths are clipped to Table I and realised through the exact
+forward kinematics (:func:`~optikin.problems.ik_platform.realise`, Newton on every
+platform) before its tip error is measured.
 
 Every MSE is on the test split of the database; every tip error is the
 distance between the exact forward kinematics of a method's configuration and
 the held-out arm's tip. Per-sample status: ``ok`` when the first variant's tip
-is finite, ``failed`` otherwise; the residual is its tip error [m].
+is finite, ``failed`` otherwise; the residual is its tip error [m]. A solver's
+row gives its share of ``ok`` samples; a sample without a finite tip is counted,
+never dropped.
 
 ``data`` (source ``fig7``, :mod:`optikin.baselines.nn_database`)::
 
@@ -38,7 +48,7 @@ is finite, ``failed`` otherwise; the residual is its tip error [m].
     penalty: 1.0e-3             # lambda of eq. (11), nn_ikm only
     store: null                 # folder of trained models (relative to the working directory):
                                 # loaded when it matches the problem, otherwise trained and written
-    exact_samples: 200          # test samples given to the per-sample exact solvers
+    exact_samples: 200          # test samples given to the exact solvers (the first ones)
     latency_repeats: 50         # one-sample calls timed for the latency
 """
 
@@ -55,18 +65,27 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from optikin.arms.cbha import CBHAArm  # noqa: E402
-from optikin.baselines import nn_exact  # noqa: E402
 from optikin.baselines.nn_database import DatabaseSpec, LearningDatabase, build_database  # noqa: E402
 from optikin.baselines.nn_models import (  # noqa: E402
     SETTINGS, Task, TrainedModel, TrainingSetting, forward_tasks, hybrid_forward_configurations,
     hybrid_inverse_configurations, inverse_tasks, split_mse, split_rmse_by_variable, train_model)
 from optikin.baselines.nn_store import load_models, save_models  # noqa: E402
 from optikin.problems import ProblemContext, ProblemKind, register_kind  # noqa: E402
+from optikin.problems.ik_formulation import Formulation, build_problem, rest_configuration  # noqa: E402
+from optikin.problems.ik_platform import linearised_start, platform_problems, realise, solve_platforms  # noqa: E402
 from optikin.results import MethodRow, Result  # noqa: E402
+from optikin.solvers import build_preset  # noqa: E402
+from optikin.solvers.nonlinear import BatchReport  # noqa: E402
 
 MM = 1e3
 BATCH_REPEATS = 5
 """Calls of a batched method whose median time is reported."""
+PLATFORM_TOLERANCE = 1e-12
+"""Largest leg-length residual [m] of a solved platform (eqs. 7-9)."""
+TIP_TOLERANCE = 1e-10
+"""Largest tip error [m] of a solved tip-position IK."""
+REALISER = "newton"
+"""The solver preset that finds the pose commanded leg lengths produce (:func:`realise`)."""
 DATA_DEFAULTS: dict[str, Any] = {"z_range_mm": [0.0, 25.0], "angle_range_deg": [-45.0, 45.0],
                                  "require_upright": True, "coupling": "platform", "split": [0.70, 0.15, 0.15]}
 OPTION_DEFAULTS: dict[str, Any] = {"variants": ["seed", "adam"], "setting": "full", "penalty": 1e-3, "store": None,
@@ -165,10 +184,15 @@ def latency(fn: Callable[[np.ndarray], Any], inputs: np.ndarray, repeats: int) -
 
 
 def error_stats(errors: np.ndarray) -> dict[str, float]:
-    """Mean, median, 95th percentile and max of tip errors given in metres, in millimetres."""
+    """Mean, median, 95th percentile and max of the finite tip errors given in metres, in millimetres,
+    and how many samples have none (a failed solve)."""
     e = np.asarray(errors) * MM
-    return {"tip error mean [mm]": float(e.mean()), "tip error median [mm]": float(np.median(e)),
-            "tip error p95 [mm]": float(np.percentile(e, 95)), "tip error max [mm]": float(e.max())}
+    finite = e[np.isfinite(e)]
+    stats = {"samples without a tip": int(e.size - finite.size)}
+    if finite.size:
+        stats |= {"tip error mean [mm]": float(finite.mean()), "tip error median [mm]": float(np.median(finite)),
+                  "tip error p95 [mm]": float(np.percentile(finite, 95)), "tip error max [mm]": float(finite.max())}
+    return stats
 
 
 def model_metrics(label: str, models: list[TrainedModel], db: LearningDatabase) -> dict[str, Any]:
@@ -220,10 +244,6 @@ def draw_tip_errors(path: Path, errors: dict[str, np.ndarray], title: str) -> No
     plt.close(fig)
 
 
-def _status(tip: np.ndarray) -> list[str]:
-    return ["ok" if ok else "failed" for ok in np.isfinite(tip).all(axis=1)]
-
-
 # ---------------------------------------------------------------------------------------- nn_fkm
 def _database(ctx: ProblemContext, arm: CBHAArm):
     """The learning database of the problem's ``data`` section and the seconds it took to build."""
@@ -233,8 +253,58 @@ def _database(ctx: ProblemContext, arm: CBHAArm):
         raise ctx.error("data", str(exc)) from None
 
 
+def check_solver(ctx: ProblemContext) -> None:
+    """The networks are the method under test; exact solvers are named as baselines."""
+    if ctx.solver is not None:
+        raise ctx.error("solver", f"{ctx.solver.name!r}: the nn kinds train networks; list the exact solver "
+                                  "presets to compare with under baselines")
+
+
+def network_row(label: str, models: list[TrainedModel], db: LearningDatabase, trained: bool,
+                hybrid: Callable[[np.ndarray], Any], inputs: np.ndarray, errors: np.ndarray,
+                o: dict[str, Any], metrics: dict[str, Any], extra: dict[str, Any] | None = None) -> MethodRow:
+    """The comparison row of one trained variant (its model metrics are added to ``metrics``)."""
+    hybrid(inputs[:1])
+    _, seconds = timed(lambda: hybrid(inputs), BATCH_REPEATS)
+    mm = model_metrics(label, models, db)
+    metrics |= {f"{label} setting": models[0].setting.description, f"{label} loaded from store": not trained, **mm}
+    row = {f"test MSE {m.task.key}": mm[f"{label} {m.task.key}"]["test MSE"] for m in models}
+    row |= {f"neurons {m.task.key}": m.neurons for m in models}
+    row |= error_stats(errors) | (extra or {})
+    row |= {"time per sample, batch [us]": seconds / len(inputs) * 1e6,
+            "latency, one sample [us]": latency(hybrid, inputs, o["latency_repeats"]) * 1e6,
+            "training time [s]": sum(m.training_time for m in models)}
+    return MethodRow(label, "solver", row)
+
+
+def solver_row(name: str, report: BatchReport, errors: np.ndarray, seconds: float,
+               extra: dict[str, Any]) -> MethodRow:
+    """The comparison row of an exact solver preset on ``len(report)`` samples."""
+    return MethodRow(name, "baseline", {
+        "samples": len(report), "ok [%]": float(100 * np.mean(np.array(report.status) == "ok")),
+        **error_stats(errors), **extra, "batched": report.batched,
+        "time per sample [us]": seconds / len(report) * 1e6})
+
+
+def comparison_result(ctx: ProblemContext, arm: CBHAArm, comparison: list[MethodRow], errors: dict[str, np.ndarray],
+                      searches: dict[str, dict[int, float]], metrics: dict[str, Any], arrays: dict[str, np.ndarray],
+                      t_db: float, what: str, note: str) -> Result:
+    """The result of either kind: the first network variant is the method, every row a comparison."""
+    spec, main = ctx.spec, comparison[0].method
+    title = f"{spec.name}: hybrid {what} vs exact"
+    return Result(
+        problem=spec.name, kind=spec.kind, solver=main, title=spec.title, arm=arm.describe(),
+        status=["ok" if np.isfinite(e) else "failed" for e in errors[main]], residuals=errors[main],
+        timings={"database [s]": t_db}, metrics=metrics, comparison=comparison, arrays=arrays,
+        figures={"search": lambda p: draw_search(p, searches, f"{spec.name}: width search"),
+                 "tip_errors": lambda p: draw_tip_errors(p, errors, title)},
+        notes=[note],
+    )
+
+
 def run_fkm(ctx: ProblemContext) -> Result:
     spec, arm = ctx.spec, cbha_arm(ctx)
+    check_solver(ctx)
     o = options(ctx)
     db, t_db = _database(ctx, arm)
     test = db.test
@@ -243,81 +313,58 @@ def run_fkm(ctx: ProblemContext) -> Result:
 
     comparison, searches, errors, arrays = [], {}, {}, {}
     metrics: dict[str, Any] = {"database": db.summary(), "database time [s]": t_db, "test samples": n}
-    first_tip = None
     for setting in settings_of(o):
         models, trained = obtain_models(ctx, db, forward_tasks(db), setting, 0.0, o["store"], f"fkm-{setting.name}")
 
         def hybrid(L, models=models):
             return arm.evaluate("fk_position", hybrid_forward_configurations(models, L))
 
-        hybrid(legs[:1])
-        _, seconds = timed(lambda: hybrid(legs), BATCH_REPEATS)
         Q = hybrid_forward_configurations(models, legs)
         tip = arm.evaluate("fk_position", Q)
-        err = np.linalg.norm(tip - truth_tip, axis=1)
         label = f"mlp-{setting.name}"
-        mm = model_metrics(label, models, db)
-        metrics |= {f"{label} setting": setting.description, f"{label} loaded from store": not trained, **mm}
-        row = {f"test MSE {m.task.key}": mm[f"{label} {m.task.key}"]["test MSE"] for m in models}
-        row |= {f"neurons {m.task.key}": m.neurons for m in models}
-        row |= error_stats(err)
-        row |= {"time per sample, batch [us]": seconds / n * 1e6,
-                "latency, one sample [us]": latency(hybrid, legs, o["latency_repeats"]) * 1e6,
-                "training time [s]": sum(m.training_time for m in models)}
-        comparison.append(MethodRow(label, "solver", row))
+        errors[label] = np.linalg.norm(tip - truth_tip, axis=1)
+        comparison.append(network_row(label, models, db, trained, hybrid, legs, errors[label], o, metrics))
         searches |= {f"{label} {m.task.key}": m.search for m in models}
-        errors[label] = err
-        arrays[f"tip_{setting.name}"] = tip
-        arrays[f"configurations_{setting.name}"] = Q
-        first_tip = tip if first_tip is None else first_tip
+        arrays |= {f"tip_{setting.name}": tip, f"configurations_{setting.name}": Q}
 
-    if "newton" in spec.baselines:
-        newton = nn_exact.PlatformNewton(arm)
-        newton.solve(legs[:1])
-        (Q_newton, residual), seconds = timed(lambda: newton.solve(legs), BATCH_REPEATS)
-        arrays["tip_newton"] = arm.evaluate("fk_position", Q_newton)
-        errors["newton"] = np.linalg.norm(arrays["tip_newton"] - truth_tip, axis=1)
-        comparison.append(MethodRow("newton", "baseline", {
-            "max |platform variables - truth|": float(np.abs(Q_newton - db.configurations[test]).max()),
-            "max leg residual [m]": float(residual.max()),
-            **error_stats(errors["newton"]),
-            "time per sample, batch [us]": seconds / n * 1e6,
-            "latency, one sample [us]": latency(newton.solve, legs, o["latency_repeats"]) * 1e6,
-        }))
-    if "least_squares" in spec.baselines:
-        k = min(n, o["exact_samples"])
-        (Q_ls, residual), seconds = timed(lambda: nn_exact.platform_least_squares(arm, legs[:k]))
-        errors["least_squares"] = np.linalg.norm(arm.evaluate("fk_position", Q_ls) - truth_tip[:k], axis=1)
-        comparison.append(MethodRow("least_squares", "baseline", {
-            "samples": k, "max leg residual [m]": float(residual.max()),
-            **error_stats(errors["least_squares"]), "time per sample, one call each [us]": seconds / k * 1e6}))
+    k = min(n, o["exact_samples"])
+    problems = platform_problems(arm, PLATFORM_TOLERANCE)
+    for name in spec.baselines:
+        adapter = build_preset(name)
+
+        def solve(L, adapter=adapter):
+            return solve_platforms(adapter, problems, L, linearised_start(arm, L))
+
+        solve(legs[:1])  # build (and compile) before the clock starts
+        report, seconds = timed(lambda: solve(legs[:k]))
+        tip = arm.evaluate("fk_position", report.x)
+        errors[name] = np.linalg.norm(tip - truth_tip[:k], axis=1)
+        arrays[f"tip_{name}"] = tip
+        comparison.append(solver_row(name, report, errors[name], seconds, {
+            "max |platform variables - truth|": float(np.max(np.abs(report.x - db.configurations[test[:k]]))),
+            "max leg residual [m]": float(np.max(report.residual)),
+            "latency, one sample [us]": latency(solve, legs, o["latency_repeats"]) * 1e6}))
 
     arrays |= {"test_rows": test, "leg_lengths": legs, "configurations": db.configurations[test], "tip": truth_tip}
-    title = f"{spec.name}: hybrid FKM vs exact"
-    return Result(
-        problem=spec.name, kind=spec.kind, solver=comparison[0].method, title=spec.title, arm=arm.describe(),
-        status=_status(first_tip), residuals=errors[comparison[0].method],
-        timings={"database [s]": t_db}, metrics=metrics, comparison=comparison, arrays=arrays,
-        figures={"search": lambda p: draw_search(p, searches, f"{spec.name}: width search"),
-                 "tip_errors": lambda p: draw_tip_errors(p, errors, title)},
-        notes=["Every MSE is on the test split; tip errors through the exact chain of eq. (5)."],
-    )
+    return comparison_result(ctx, arm, comparison, errors, searches, metrics, arrays, t_db, "FKM",
+                             "Every MSE is on the test split; tip errors through the exact chain of eq. (5); "
+                             f"exact solvers on the first {k} test arms, every platform from eqs. (7)-(9) "
+                             "linearised.")
 
 
-# ---------------------------------------------------------------------------------------- nn_ikm
 def run_ikm(ctx: ProblemContext) -> Result:
     spec, arm = ctx.spec, cbha_arm(ctx)
+    check_solver(ctx)
     o = options(ctx)
     db, t_db = _database(ctx, arm)
     test = db.test
     targets = db.tip[test]
     n = len(test)
-    newton = nn_exact.PlatformNewton(arm)
+    platforms, realiser = platform_problems(arm, PLATFORM_TOLERANCE), build_preset(REALISER)
 
     comparison, searches, errors, arrays = [], {}, {}, {}
     metrics: dict[str, Any] = {"database": db.summary(), "database time [s]": t_db, "test samples": n,
                                "penalty (eq. 11)": o["penalty"]}
-    first_tip = None
     for setting in settings_of(o):
         models, trained = obtain_models(ctx, db, inverse_tasks(db), setting, float(o["penalty"]), o["store"],
                                         f"ikm-{setting.name}")
@@ -325,74 +372,53 @@ def run_ikm(ctx: ProblemContext) -> Result:
         def hybrid(P, models=models):
             return arm.evaluate("leg_lengths", hybrid_inverse_configurations(models, P))
 
-        hybrid(targets[:1])
-        _, seconds = timed(lambda: hybrid(targets), BATCH_REPEATS)
         Q = hybrid_inverse_configurations(models, targets)
-        realised = nn_exact.realise(arm, Q, newton)
-        err = np.linalg.norm(realised.tip - targets, axis=1)
-        unclipped = np.linalg.norm(arm.evaluate("fk_position", Q) - targets, axis=1)
+        realised = realise(arm, Q, realiser, platforms)
         label = f"mlp-{setting.name}"
-        mm = model_metrics(label, models, db)
-        metrics |= {f"{label} setting": setting.description, f"{label} loaded from store": not trained, **mm}
-        row = {f"test MSE {m.task.key}": mm[f"{label} {m.task.key}"]["test MSE"] for m in models}
-        row |= {f"neurons {m.task.key}": m.neurons for m in models}
-        row |= error_stats(err)
-        row |= {"tip error of the predicted pose, unclipped, median [mm]": float(np.median(unclipped) * MM),
-                "lengths clipped to Table I [%]": float(100 * realised.clipped.mean()),
-                "time per sample, batch [us]": seconds / n * 1e6,
-                "latency, one sample [us]": latency(hybrid, targets, o["latency_repeats"]) * 1e6,
-                "training time [s]": sum(m.training_time for m in models)}
-        comparison.append(MethodRow(label, "solver", row))
+        errors[label] = np.linalg.norm(realised.tip - targets, axis=1)
+        unclipped = np.linalg.norm(arm.evaluate("fk_position", Q) - targets, axis=1)
+        comparison.append(network_row(label, models, db, trained, hybrid, targets, errors[label], o, metrics, {
+            "tip error of the predicted pose, unclipped, median [mm]": float(np.median(unclipped) * MM),
+            "lengths clipped to Table I [%]": float(100 * realised.clipped.mean())}))
         searches |= {f"{label} {m.task.key}": m.search for m in models}
-        errors[label] = err
-        arrays[f"tip_{setting.name}"] = realised.tip
-        arrays[f"leg_lengths_{setting.name}"] = realised.commanded
-        arrays[f"predicted_{setting.name}"] = Q
-        arrays[f"configurations_{setting.name}"] = realised.configurations
-        first_tip = realised.tip if first_tip is None else first_tip
+        arrays |= {f"tip_{setting.name}": realised.tip, f"leg_lengths_{setting.name}": realised.commanded,
+                   f"predicted_{setting.name}": Q, f"configurations_{setting.name}": realised.configurations}
 
     k = min(n, o["exact_samples"])
+    formulation = Formulation(target="position", redundancy="rest", rest=rest_configuration(arm),
+                              weights=1.0 / (arm.upper - arm.lower), tolerance=TIP_TOLERANCE)
+    problem = build_problem(arm, formulation)
     for name in spec.baselines:
-        if name == "ipopt":
-            report = nn_exact.TipIpopt(arm).solve(targets[:k])
-        else:
-            report = nn_exact.tip_least_squares(arm, targets[:k])
-        realised = nn_exact.realise(arm, report.configurations, newton)
+        adapter = build_preset(name)
+        adapter.solve(problem, formulation.rest, targets[0])  # build before the clock starts
+        report, seconds = timed(lambda: adapter.solve_many(problem, formulation.rest, targets[:k]))
+        realised = realise(arm, report.x, realiser, platforms)
         errors[name] = np.linalg.norm(realised.tip - targets[:k], axis=1)
-        comparison.append(MethodRow(name, "baseline", {
-            "samples": k, "converged [%]": float(100 * report.converged.mean()),
-            **error_stats(errors[name]),
+        arrays |= {f"tip_{name}": realised.tip, f"configurations_{name}": realised.configurations}
+        comparison.append(solver_row(name, report, errors[name], seconds, {
             "lengths clipped to Table I [%]": float(100 * realised.clipped.mean()),
-            "median iterations": float(np.median(report.iterations)),
-            "time per sample, one call each [us]": float(report.seconds.mean() * 1e6)}))
+            "median iterations": float(np.median(report.iterations)) if np.all(report.iterations >= 0) else None}))
 
     arrays |= {"test_rows": test, "targets": targets, "configurations": db.configurations[test]}
-    title = f"{spec.name}: hybrid IKM vs exact"
-    return Result(
-        problem=spec.name, kind=spec.kind, solver=comparison[0].method, title=spec.title, arm=arm.describe(),
-        status=_status(first_tip), residuals=errors[comparison[0].method],
-        timings={"database [s]": t_db}, metrics=metrics, comparison=comparison, arrays=arrays,
-        figures={"search": lambda p: draw_search(p, searches, f"{spec.name}: width search"),
-                 "tip_errors": lambda p: draw_tip_errors(p, errors, title)},
-        notes=["Every MSE is on the test split; each method's leg lengths are clipped to Table I and realised "
-               "through the exact platform and chain kinematics before its tip error is measured."],
-    )
+    return comparison_result(ctx, arm, comparison, errors, searches, metrics, arrays, t_db, "IKM",
+                             "Every MSE is on the test split; each method's leg lengths are clipped to Table I and "
+                             "realised through the exact platform and chain kinematics before its tip error is "
+                             f"measured; exact solvers on the first {k} test tips, from the straight mid-range "
+                             f"pose, for the admissible configuration nearest it ({formulation.label()}).")
 
 
 register_kind(ProblemKind(
     name="nn_fkm",
-    summary="seed 004 hybrid forward kinematics (MLP per section) against Newton / least squares",
+    summary="seed 004 hybrid forward kinematics (MLP per section) against exact platform solvers",
     run=run_fkm,
-    backend_families=(),
+    backend_families=("nonlinear",),
     default_solver=None,
-    baselines=("newton", "least_squares"),
 ))
 
 register_kind(ProblemKind(
     name="nn_ikm",
-    summary="seed 004 hybrid inverse kinematics (MLPs NN1-NN4, eq. 11) against IPOPT / least squares",
+    summary="seed 004 hybrid inverse kinematics (MLPs NN1-NN4, eq. 11) against exact tip IK solvers",
     run=run_ikm,
-    backend_families=(),
+    backend_families=("nonlinear",),
     default_solver=None,
-    baselines=("ipopt", "least_squares"),
 ))

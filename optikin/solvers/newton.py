@@ -16,6 +16,13 @@ a root outside them is reported ``failed``. ANCHORS.md: the rootfinder may
 return a non-converged iterate silently, so every result is classified from
 its own residual (:mod:`optikin.solvers.nonlinear`).
 
+Many independent samples (``solve_many`` without ``warm_start``) are solved in
+one call: the rootfinder is mapped over the samples (:func:`optikin.batch.batched`),
+as CasADi evaluates a ``map`` of it, and the points are classified together. A
+mapped rootfinder keeps no per-sample statistics, so a batch reports its
+iterations as -1 (unknown), and its time limit applies to the batch as a whole
+(``limits.time_limit`` per sample, checked after the call).
+
 Preset options: ``plugin`` (``newton`` or ``fast_newton``), ``abstolStep``,
 ``line_search`` (``newton`` only). ``limits.max_iterations`` and
 ``limits.tolerance`` become ``max_iter`` and ``abstol``.
@@ -28,10 +35,11 @@ import time
 import casadi as ca
 import numpy as np
 
+from optikin.batch import batched
 from optikin.errors import SolverError
 from optikin.solvers import register_backend
 from optikin.fastcall import BufferedFunction
-from optikin.solvers.nonlinear import LeastSquaresProblem, NonlinearAdapter, SolveReport
+from optikin.solvers.nonlinear import BatchReport, LeastSquaresProblem, NonlinearAdapter, SolveReport
 
 PLUGINS = ("newton", "fast_newton")
 
@@ -67,7 +75,8 @@ class Newton(NonlinearAdapter):
         if self.options["plugin"] not in PLUGINS:
             raise self.option_error("plugin", f"{self.options['plugin']!r} is not one of {', '.join(PLUGINS)}")
 
-    def rootfinder(self, problem: LeastSquaresProblem) -> BufferedFunction:
+    def rootfinder_function(self, problem: LeastSquaresProblem) -> ca.Function:
+        """``(z0, [p; x_ref]) -> z``: CasADi's rootfinder on the system of :func:`optimality_system`."""
         key = ("rootfinder", self)
         if key not in problem.cache:
             z, parameters, G = optimality_system(problem)
@@ -78,10 +87,28 @@ class Newton(NonlinearAdapter):
             if self.options["plugin"] == "newton":
                 opts["line_search"] = self.options["line_search"]
             try:
-                solver = ca.rootfinder(f"{problem.name}_newton", self.options["plugin"], g, opts)
+                problem.cache[key] = ca.rootfinder(f"{problem.name}_newton", self.options["plugin"], g, opts)
             except RuntimeError as exc:
                 raise SolverError(f"{self.preset.name}: building the rootfinder failed: {exc}") from None
-            problem.cache[key] = BufferedFunction(solver)
+        return problem.cache[key]
+
+    def rootfinder(self, problem: LeastSquaresProblem) -> BufferedFunction:
+        """A zero-copy caller of :meth:`rootfinder_function` (one sample per call)."""
+        key = ("rootfinder_buffered", self)
+        if key not in problem.cache:
+            problem.cache[key] = BufferedFunction(self.rootfinder_function(problem))
+        return problem.cache[key]
+
+    def packed_rootfinder(self, problem: LeastSquaresProblem) -> ca.Function:
+        """``[x0; p; x_ref] -> x``: one packed input per sample, for a mapped batch."""
+        key = ("rootfinder_packed", self)
+        if key not in problem.cache:
+            solver = self.rootfinder_function(problem)
+            n, n_z = problem.n, solver.size1_in(0)
+            w = ca.MX.sym("w", 2 * n + problem.n_data)
+            z0 = ca.vertcat(w[:n], ca.MX.zeros(n_z - n))
+            z = solver(z0, w[n:])
+            problem.cache[key] = ca.Function(f"{problem.name}_newton_packed", [w], [z[:n]])
         return problem.cache[key]
 
     def solve(self, problem: LeastSquaresProblem, x0: np.ndarray, p: np.ndarray,
@@ -97,6 +124,31 @@ class Newton(NonlinearAdapter):
             return self.finish(problem, x0, p, 0, started, error=f"rootfinder: {exc}")
         iterations = call.stats().get("iter_count", -1)
         return self.finish(problem, z[: problem.n].copy(), p, iterations, started)
+
+    def solve_many(self, problem: LeastSquaresProblem, X0: np.ndarray, P: np.ndarray, warm_start: bool = False,
+                   x_ref: np.ndarray | None = None) -> BatchReport:
+        if warm_start:
+            return super().solve_many(problem, X0, P, warm_start, x_ref)
+        return self.solve_batch(problem, X0, P, x_ref)
+
+    def solve_batch(self, problem: LeastSquaresProblem, X0: np.ndarray, P: np.ndarray,
+                    x_ref: np.ndarray | None = None) -> BatchReport:
+        """Every row of ``P`` in one mapped call (module docstring); ``x_ref`` defaults to each start."""
+        mapped = batched(self.packed_rootfinder(problem))  # built before the clock starts
+        started = time.perf_counter()
+        P = np.atleast_2d(np.asarray(P, dtype=float))
+        N, n = len(P), problem.n
+        X0 = np.broadcast_to(np.asarray(X0, dtype=float), (N, n))
+        reference = X0 if x_ref is None else np.broadcast_to(np.asarray(x_ref, dtype=float), (N, n))
+        try:
+            X = mapped.raw(np.concatenate([X0, P, reference], axis=1))
+        except RuntimeError as exc:
+            raise SolverError(f"{self.preset.name}: the mapped rootfinder failed: {exc}") from None
+        elapsed = time.perf_counter() - started
+        limited = np.full(N, elapsed > self.limits.time_limit * N)
+        status, residual, messages = problem.classify_many(X, P, limited=limited)
+        return BatchReport(x=problem.wrap(X), status=status, iterations=np.full(N, -1), residual=residual,
+                           time=np.full(N, elapsed / N), messages=messages, batched=True)
 
 
 register_backend("newton", "nonlinear", "CasADi rootfinder (Newton) on r = 0 or its optimality system")(Newton)

@@ -9,16 +9,23 @@ networks here have the seed's width (18 neurons, Tables II-III) and a short Adam
 training on a 400,000-draw database. Training time is measured by the command in
 BENCHMARKS.md, not here.
 
+The exact methods are the inverse-kinematics solver presets (``solvers/*.yaml``) on
+the problems of :mod:`optikin.problems.ik_platform` and :mod:`optikin.problems.ik_formulation`,
+exactly as ``optikin solve cbha-nn-fkm`` / ``cbha-nn-ikm`` run them:
+
 * ``nn fkm`` group: leg lengths of ``N_FKM`` held-out arms -> tip. ``mlp`` = both section
-  networks + the exact chain of eq. (5) (Fig. 9); ``newton`` = CasADi Newton on eqs.
-  (7)-(9) for all 16 x N platforms in one mapped call + the same chain; ``least_squares``
-  = scipy Levenberg-Marquardt, one call per arm, on ``N_SCIPY`` arms.
+  networks + the exact chain of eq. (5) (Fig. 9); ``newton`` (CasADi rootfinder mapped over
+  the samples, one call per platform) and ``gauss-newton`` (batched) on eqs. (7)-(9) from
+  their linearisation + the same chain; ``lm`` = scipy Levenberg-Marquardt, one call per
+  platform and arm, on ``N_SCIPY`` arms.
 * ``nn ikm`` group: held-out tips -> leg lengths. ``mlp`` = NN1-NN4 + eqs. (7)-(9)
-  (Fig. 10); ``ipopt`` and ``least_squares``, one call per tip, on fewer tips.
+  (Fig. 10); ``ipopt``, ``sqpmethod`` (Table I imposed), ``gauss-newton`` and ``lm`` (bounds
+  only) for the configuration nearest the straight mid-range pose, one solve per tip, on
+  ``N_TIP`` tips.
 * ``one sample`` group: a single arm / tip per call, as a controller would call it.
 
-``extra_info`` holds the median time per sample; the Newton and IPOPT rows also the
-speed-up of the network over them (a value above 1: the network is faster).
+``extra_info`` holds the median time per sample and, for the exact rows, the speed-up of
+the network over them (a value above 1: the network is faster).
 """
 
 from __future__ import annotations
@@ -29,13 +36,16 @@ import numpy as np
 import pytest
 
 from optikin.arms.cbha import CBHAGeometry
-from optikin.baselines import nn_exact
 from optikin.baselines.nn_database import DatabaseSpec, build_database
 from optikin.baselines.nn_models import (
     SETTINGS, forward_tasks, hybrid_forward_configurations, hybrid_inverse_configurations, inverse_tasks,
     train_model)
+from optikin.problems.ik_formulation import Formulation, build_problem, rest_configuration
+from optikin.problems.ik_platform import linearised_start, platform_problems, solve_platforms
+from optikin.problems.nn_baseline import PLATFORM_TOLERANCE, TIP_TOLERANCE
+from optikin.solvers import build_preset
 
-N_FKM, N_SCIPY, N_IPOPT = 500, 20, 20
+N_FKM, N_SCIPY, N_TIP = 500, 20, 20
 _per_sample: dict[str, float] = {}
 
 
@@ -45,7 +55,22 @@ def trained():
     setting = dataclasses.replace(SETTINGS["adam"], neurons=(18,), max_epochs=40, patience=10)
     forward = [train_model(t, db, setting) for t in forward_tasks(db)]
     inverse = [train_model(t, db, setting, penalty=1e-3) for t in inverse_tasks(db)]
-    return db, forward, inverse, nn_exact.PlatformNewton(db.arm)
+    return db, forward, inverse
+
+
+def platform_solver(db, preset: str):
+    """Leg lengths ``(N, 48)`` -> tips, by the preset on every platform (as ``nn_fkm``)."""
+    arm, adapter, problems = db.arm, build_preset(preset), platform_problems(db.arm, PLATFORM_TOLERANCE)
+    return lambda L: arm.evaluate("fk_position", solve_platforms(adapter, problems, L, linearised_start(arm, L)).x)
+
+
+def tip_solver(db, preset: str):
+    """Tips ``(N, 3)`` -> leg lengths, by the preset from the rest pose (as ``nn_ikm``)."""
+    arm, adapter = db.arm, build_preset(preset)
+    formulation = Formulation(target="position", redundancy="rest", rest=rest_configuration(arm),
+                              weights=1.0 / (arm.upper - arm.lower), tolerance=TIP_TOLERANCE)
+    problem = build_problem(arm, formulation)
+    return lambda P: arm.evaluate("leg_lengths", adapter.solve_many(problem, formulation.rest, P).x)
 
 
 def record(benchmark, key: str, samples: int, reference: str | None = None) -> None:
@@ -56,64 +81,60 @@ def record(benchmark, key: str, samples: int, reference: str | None = None) -> N
         benchmark.extra_info[f"mlp speed-up over {key}"] = round(per_sample / _per_sample[reference], 1)
 
 
-@pytest.mark.parametrize("method", ["mlp", "newton", "least_squares"])
+@pytest.mark.parametrize("method", ["mlp", "newton", "gauss-newton", "lm"])
 def test_forward(benchmark, trained, method):
-    db, forward, _, newton = trained
+    db, forward, _ = trained
     arm = db.arm
     legs = db.leg_lengths[db.test][:N_FKM]
     if method == "mlp":
         def run(L=legs):
             return arm.evaluate("fk_position", hybrid_forward_configurations(forward, L))
-    elif method == "newton":
-        def run(L=legs):
-            return arm.evaluate("fk_position", newton.solve(L)[0])
     else:
-        legs = legs[:N_SCIPY]
+        legs = legs[:N_SCIPY] if method == "lm" else legs
+        solve = platform_solver(db, method)
 
         def run(L=legs):
-            return arm.evaluate("fk_position", nn_exact.platform_least_squares(arm, L)[0])
+            return solve(L)
     run(legs[:1])
-    benchmark.group = f"nn fkm: leg lengths -> tip, {N_FKM} held-out arms (scipy: {N_SCIPY})"
-    tip = benchmark.pedantic(run, rounds=3 if method == "least_squares" else 9, warmup_rounds=1, iterations=1)
+    benchmark.group = f"nn fkm: leg lengths -> tip, {N_FKM} held-out arms (lm: {N_SCIPY})"
+    tip = benchmark.pedantic(run, rounds=3 if method == "lm" else 9, warmup_rounds=1, iterations=1)
     benchmark.extra_info["max tip error [mm]"] = float(1e3 * np.abs(tip - db.tip[db.test][:len(legs)]).max())
     record(benchmark, f"fkm {method}", len(legs), None if method == "mlp" else "fkm mlp")
 
 
-@pytest.mark.parametrize("method", ["mlp", "ipopt", "least_squares"])
+@pytest.mark.parametrize("method", ["mlp", "ipopt", "sqpmethod", "gauss-newton", "lm"])
 def test_inverse(benchmark, trained, method):
-    db, _, inverse, _ = trained
+    db, _, inverse = trained
     arm = db.arm
     tips = db.tip[db.test][:N_FKM]
     if method == "mlp":
         def run(P=tips):
             return arm.evaluate("leg_lengths", hybrid_inverse_configurations(inverse, P))
-    elif method == "ipopt":
-        tips, solver = tips[:N_IPOPT], nn_exact.TipIpopt(arm)
-
-        def run(P=tips):
-            return arm.evaluate("leg_lengths", solver.solve(P).configurations)
     else:
-        tips = tips[:N_SCIPY // 4]
+        tips, solve = tips[:N_TIP], tip_solver(db, method)
 
         def run(P=tips):
-            return arm.evaluate("leg_lengths", nn_exact.tip_least_squares(arm, P).configurations)
+            return solve(P)
     run(tips[:1])
-    benchmark.group = f"nn ikm: tip -> leg lengths, {N_FKM} held-out tips (ipopt: {N_IPOPT}, scipy: {N_SCIPY // 4})"
+    benchmark.group = f"nn ikm: tip -> leg lengths, {N_FKM} held-out tips (exact solvers: {N_TIP})"
     benchmark.pedantic(run, rounds=1 if method != "mlp" else 9, warmup_rounds=0, iterations=1)
     record(benchmark, f"ikm {method}", len(tips), None if method == "mlp" else "ikm mlp")
 
 
 @pytest.mark.parametrize("method", ["fkm mlp", "fkm newton", "ikm mlp", "ikm ipopt"])
 def test_one_sample(benchmark, trained, method):
-    db, forward, inverse, newton = trained
+    db, forward, inverse = trained
     arm = db.arm
     legs, tip = db.leg_lengths[db.test][:1], db.tip[db.test][:1]
-    ipopt = nn_exact.TipIpopt(arm)
+    if method == "fkm newton":
+        newton = platform_solver(db, "newton")
+    if method == "ikm ipopt":
+        ipopt = tip_solver(db, "ipopt")
     run = {
         "fkm mlp": lambda: arm.evaluate("fk_position", hybrid_forward_configurations(forward, legs)),
-        "fkm newton": lambda: arm.evaluate("fk_position", newton.solve(legs)[0]),
+        "fkm newton": lambda: newton(legs),
         "ikm mlp": lambda: arm.evaluate("leg_lengths", hybrid_inverse_configurations(inverse, tip)),
-        "ikm ipopt": lambda: arm.evaluate("leg_lengths", ipopt.solve(tip).configurations),
+        "ikm ipopt": lambda: ipopt(tip),
     }[method]
     run()
     benchmark.group = "nn: one sample per call"
