@@ -141,13 +141,13 @@ class Newton(NonlinearAdapter):
         X0 = np.broadcast_to(np.asarray(X0, dtype=float), (N, n))
         reference = X0 if x_ref is None else np.broadcast_to(np.asarray(x_ref, dtype=float), (N, n))
         try:
-            X = mapped.raw(np.concatenate([X0, P, reference], axis=1))
+            X = problem.wrap(mapped.raw(np.concatenate([X0, P, reference], axis=1)))
         except RuntimeError as exc:
             raise SolverError(f"{self.preset.name}: the mapped rootfinder failed: {exc}") from None
         elapsed = time.perf_counter() - started
         limited = np.full(N, elapsed > self.limits.time_limit * N)
         status, residual, messages = problem.classify_many(X, P, limited=limited)
-        return BatchReport(x=problem.wrap(X), status=status, iterations=np.full(N, -1), residual=residual,
+        return BatchReport(x=X, status=status, iterations=np.full(N, -1), residual=residual,
                            time=np.full(N, elapsed / N), messages=messages, batched=True)
 
 

@@ -201,6 +201,8 @@ class LeastSquaresProblem:
     def wrap(self, x: np.ndarray) -> np.ndarray:
         """Wrap periodic variables only (a point outside the bounds stays outside; NaN stays NaN)."""
         x = np.array(x, dtype=float)
+        if not self.periodic.any():
+            return x
         with np.errstate(invalid="ignore"):
             wrapped = self.lower + np.mod(x - self.lower, self.upper - self.lower)
         return np.where(self.periodic, wrapped, x)
@@ -249,8 +251,8 @@ class LeastSquaresProblem:
 
     def classify_many(self, X: np.ndarray, P: np.ndarray, limited: np.ndarray | None = None
                       ) -> tuple[list[str], np.ndarray, list[str]]:
-        """:meth:`classify` for a batch (rows of ``X`` and ``P``); ``limited`` marks samples cut off by a limit."""
-        X = self.wrap(X)
+        """:meth:`classify` for a batch (rows of ``X`` and ``P``, ``X`` already wrapped);
+        ``limited`` marks samples cut off by a limit."""
         N = len(X)
         finite = np.all(np.isfinite(X), axis=1)
         packed = np.concatenate([np.where(finite[:, None], X, self.lower), np.asarray(P, dtype=float)], axis=1)
