@@ -153,10 +153,15 @@ def test_unconstrained_step_is_damped_least_squares():
     np.testing.assert_allclose(qdot, np.linalg.solve(J.T @ J + DAMPING * np.eye(6), J.T @ v), atol=1e-5)
 
 
-def test_osqp_fast_path_matches_the_public_api():
+@pytest.mark.parametrize("fast_path", [True, False])
+def test_osqp_fast_path_matches_the_public_api(fast_path):
+    """The backend's answers against a fresh osqp problem set up through the public API; without
+    the private handle (``fast_path=False``: an osqp release without it) the backend uses that API."""
     rng = np.random.default_rng(1)
     n = 6
     backend = OSQPBackend(n)
+    if not fast_path:
+        backend._solver = None
     rows, cols = upper_triangle_csc_indices(n)
     for _ in range(3):
         J = rng.normal(size=(8, n))

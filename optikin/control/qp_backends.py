@@ -61,7 +61,9 @@ class OSQPBackend:
     The per-step calls go to the compiled solver object that ``osqp.OSQP.setup``
     creates (``OSQP._solver``): the Python wrapper's ``update``/``solve`` add about
     35 us of bookkeeping per step (an info namespace of 20 fields, derivative
-    caches), more than the solve itself. The test suite checks both paths agree.
+    caches), more than the solve itself. The test suite checks both paths agree. An
+    osqp release without that handle gets the public ``update``/``solve`` instead
+    (same answers, slower).
 
     ``rho = 1`` (OSQP's default is 0.1): on the closed-loop pose task it takes as
     many iterations (median 35 warm-started at eps 1e-7) and lands 20 times closer
@@ -83,19 +85,24 @@ class OSQPBackend:
         self.problem = osqp.OSQP()
         self.problem.setup(pattern + n * sp.identity(n, format="csc"), np.zeros(n), sp.identity(n, format="csc"),
                            -np.ones(n), np.ones(n), **self.settings)
-        self._solver = self.problem._solver
+        self._solver = getattr(self.problem, "_solver", None)  # the fast path (class docstring)
         self._solved = osqp.SolverStatus.OSQP_SOLVED
         self.last_status = "not run"
         self.iterations = 0
 
     def solve(self, data: QPData) -> np.ndarray | None:
         solver = self._solver
-        solver.update_data_mat(P_x=data.H_upper, P_i=None, A_x=None, A_i=None)
-        solver.update_data_vec(q=data.g, l=data.lb, u=data.ub)
-        solver.solve()
-        info = solver.info
+        if solver is None:
+            self.problem.update(Px=data.H_upper, q=data.g, l=data.lb, u=data.ub)
+            result = self.problem.solve(raise_error=False)
+            info, x = result.info, result.x
+        else:
+            solver.update_data_mat(P_x=data.H_upper, P_i=None, A_x=None, A_i=None)
+            solver.update_data_vec(q=data.g, l=data.lb, u=data.ub)
+            solver.solve()
+            info, x = solver.info, solver.solution.x
         self.last_status, self.iterations = info.status, info.iter
-        return solver.solution.x if info.status_val == self._solved else None
+        return x if info.status_val == self._solved else None
 
 
 class QpsolversBackend:
