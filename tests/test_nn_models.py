@@ -1,6 +1,7 @@
 """Networks of seed 004 sections IV-V: scores from the test split only, the width search, eq. (11).
 
 References: MSEs recomputed here from the database arrays with columns picked by hand;
+scikit-learn's own ``MLPRegressor.predict`` on the networks before their weights are copied;
 a database whose training and validation rows are poisoned with NaN (any score that
 touched them would be NaN); the minimiser of eq. (11), ``X_d / (1 + lambda)``.
 """
@@ -8,15 +9,19 @@ touched them would be NaN); the minimiser of eq. (11), ``X_d / (1 + lambda)``.
 from __future__ import annotations
 
 import dataclasses
+import warnings
 
 import numpy as np
 import pytest
+from sklearn.exceptions import ConvergenceWarning
+from sklearn.neural_network import MLPRegressor
 
 from optikin.arms.cbha import CBHAGeometry
+from optikin.baselines import nn_models
 from optikin.baselines.nn_database import DatabaseSpec, build_database
 from optikin.baselines.nn_models import (
-    SETTINGS, forward_tasks, hybrid_forward_configurations, hybrid_inverse_configurations, inverse_tasks,
-    split_mse, train_model)
+    SETTINGS, Network, forward_pass, forward_tasks, hybrid_forward_configurations, hybrid_inverse_configurations,
+    inverse_tasks, split_mse, train_model)
 
 SMALL = SETTINGS["adam"].small()
 
@@ -72,12 +77,48 @@ def test_width_search_keeps_the_best_validation_width(db, forward):
         assert np.mean((model.predict(X) - Y) ** 2) == pytest.approx(model.search[model.neurons], rel=1e-9)
 
 
-def test_predict_is_scikit_learns_forward_pass(db, forward):
-    for model in forward:
-        X = db.leg_lengths[db.test][:, list(model.task.inputs[1])]
-        by_sklearn = model.network.predict((X - model.x_offset) / model.x_scale) * model.y_scale + model.y_offset
-        np.testing.assert_allclose(model.predict(X), by_sklearn, rtol=1e-12, atol=1e-15)
-        np.testing.assert_allclose(model.predict(X[0]), by_sklearn[:1], rtol=1e-12, atol=1e-15)
+def test_predict_is_scikit_learns_predict_on_the_trained_network(db, monkeypatch):
+    """The kept weights give what the trained ``MLPRegressor`` itself predicts, and nothing holds it any more."""
+    trained = []
+
+    class Recorded(MLPRegressor):
+        def partial_fit(self, X, y):
+            if not trained or trained[-1] is not self:
+                trained.append(self)
+            return super().partial_fit(X, y)
+
+    monkeypatch.setattr(nn_models, "MLPRegressor", Recorded)
+    model = train_model(forward_tasks(db)[1], db, dataclasses.replace(SMALL, max_epochs=6))
+    (network,) = [n for n in trained if n.hidden_layer_sizes == (model.neurons, model.neurons)]
+    X = db.leg_lengths[db.test][:, list(model.task.inputs[1])]
+    by_sklearn = network.predict((X - model.x_offset) / model.x_scale) * model.y_scale + model.y_offset
+    np.testing.assert_allclose(model.predict(X), by_sklearn, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(model.predict(X[0]), by_sklearn[:1], rtol=1e-12, atol=1e-15)
+    assert not any(isinstance(v, MLPRegressor) for v in vars(model).values())
+    network.coefs_[0][:] = 0.0  # the model holds copies
+    np.testing.assert_allclose(model.predict(X), by_sklearn, rtol=1e-12, atol=1e-15)
+
+
+@pytest.mark.parametrize("activation", ["tanh", "logistic", "relu", "identity"])
+def test_forward_pass_of_the_converted_weights_is_scikit_learns_predict(activation):
+    rng = np.random.default_rng(3)
+    X, Y = rng.normal(size=(200, 5)), rng.normal(size=(200, 2))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConvergenceWarning)
+        mlp = MLPRegressor(hidden_layer_sizes=(7, 3), activation=activation, max_iter=20, random_state=0).fit(X, Y)
+    network = Network.from_sklearn(mlp)
+    assert network.hidden_layer_sizes == (7, 3) and network.activation == activation
+    np.testing.assert_allclose(forward_pass(network, X), mlp.predict(X), rtol=1e-12, atol=1e-14)
+
+
+def test_network_refuses_layers_that_do_not_chain():
+    W, b = np.ones((3, 4)), np.ones(4)
+    with pytest.raises(ValueError, match="layer 1"):
+        Network((W, np.ones((5, 2))), (b, np.ones(2)), "tanh")
+    with pytest.raises(ValueError, match="activation"):
+        Network((W,), (b,), "softsign")
+    with pytest.raises(ValueError, match="bias"):
+        Network((W,), (np.ones(3),), "tanh")
 
 
 def test_training_is_reproducible(db, forward):
@@ -115,3 +156,10 @@ def test_hybrid_inverse_routes_nn1_into_nn2_to_nn4(db):
         np.testing.assert_allclose(Q[:, i::3], models[i + 1].predict(ends), rtol=1e-12, atol=1e-15)
     with pytest.raises(ValueError, match="ikm_nn4"):
         hybrid_inverse_configurations(models[:3], tip)
+    end1 = db.section_ends[db.test, 0]  # the true end of section 1 replaces NN1, which is then not needed
+    given = hybrid_inverse_configurations(models[1:], tip, end1)
+    for i in range(3):
+        np.testing.assert_allclose(given[:, i::3], models[i + 1].predict(np.concatenate([tip, end1], axis=1)),
+                                   rtol=1e-12, atol=1e-15)
+    with pytest.raises(ValueError, match="ikm_nn1"):
+        hybrid_inverse_configurations(models[1:], tip)

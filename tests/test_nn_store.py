@@ -1,9 +1,11 @@
-"""Saved networks come back identical, and refuse to load for a problem they were not trained for."""
+"""Saved networks come back identical, as plain arrays, and refuse to load for a problem they were not trained for."""
 
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import json
+import zipfile
 
 import numpy as np
 import pytest
@@ -35,13 +37,20 @@ def required(setting=SETTING):
     return {"fkm_section1": (setting, 0.0), "fkm_section2": (setting, 0.0)}
 
 
-def test_round_trip_gives_the_same_predictions_and_metadata(store, trained):
+def test_round_trip_gives_the_same_models_and_metadata(store, trained):
     db, models = trained
     loaded = load_models(store, CBHAGeometry(), SPEC, required())
     X = db.leg_lengths[db.test]
     for original, again in zip(models, loaded):
         cols = list(original.task.inputs[1])
         np.testing.assert_array_equal(again.predict(X[:, cols]), original.predict(X[:, cols]))
+        assert (again.task, again.setting, again.penalty, again.neurons) == \
+            (original.task, original.setting, original.penalty, original.neurons)
+        assert (again.search, again.epochs, again.training_time) == \
+            (original.search, original.epochs, original.training_time)
+        for a, b in zip(again.network.coefs + again.network.intercepts,
+                        original.network.coefs + original.network.intercepts):
+            np.testing.assert_array_equal(a, b)
     meta = read_metadata(store)
     assert meta["versions"]["scikit-learn"] == sklearn.__version__
     assert meta["geometry"]["leg_max"] == pytest.approx([v / 1000 for v in
@@ -76,20 +85,74 @@ def test_other_setting_penalty_or_missing_model_is_refused(store):
         load_models(store, CBHAGeometry(), SPEC, {"ikm_nn1": (SETTING, 0.0)})
 
 
-def test_other_sklearn_version_damaged_pickle_or_no_store_is_refused(store, tmp_path):
+def rewrite_weights(store, change):
+    """Apply ``change`` to the arrays of ``weights.npz`` and record the new checksum (a consistent but wrong store)."""
+    with np.load(store / "weights.npz") as weights:
+        arrays = dict(weights)
+    change(arrays)
+    with open(store / "weights.npz", "wb") as fh:
+        np.savez(fh, **arrays)
+    meta = json.loads((store / "metadata.json").read_text())
+    meta["sha256"] = hashlib.sha256((store / "weights.npz").read_bytes()).hexdigest()
+    (store / "metadata.json").write_text(json.dumps(meta))
+
+
+def test_store_holds_plain_arrays_only(store, trained):
+    _, models = trained
+    assert sorted(p.name for p in store.iterdir()) == ["metadata.json", "weights.npz"]
+    with zipfile.ZipFile(store / "weights.npz") as archive:
+        assert all(name.endswith(".npy") for name in archive.namelist())
+    with np.load(store / "weights.npz", allow_pickle=False) as weights:
+        arrays = {name: weights[name] for name in weights.files}  # would raise on an object (pickled) array
+    assert all(a.dtype.kind in "fiU" for a in arrays.values())
+    np.testing.assert_array_equal(arrays["fkm_section2.coef1"], models[1].network.coefs[1])
+    assert str(arrays["fkm_section1.activation"]) == SETTING.activation
+
+
+def test_store_loads_whatever_the_scikit_learn_version(store, trained):
+    db, models = trained
+    meta = json.loads((store / "metadata.json").read_text())
+    meta["versions"]["scikit-learn"] = "0.24.2"
+    (store / "metadata.json").write_text(json.dumps(meta))
+    loaded = load_models(store, CBHAGeometry(), SPEC, required())
+    X = db.leg_lengths[db.test, :24]
+    np.testing.assert_array_equal(loaded[0].predict(X), models[0].predict(X))
+
+
+def test_damaged_weights_old_format_or_no_store_is_refused(store, tmp_path):
     meta_path = store / "metadata.json"
     meta = json.loads(meta_path.read_text())
-    (store / "models.pkl").write_bytes((store / "models.pkl").read_bytes() + b"\0")
-    with pytest.raises(InputDataError) as err:
+    (store / "weights.npz").write_bytes((store / "weights.npz").read_bytes() + b"\0")
+    with pytest.raises(InputDataError, match="checksum") as err:
         load_models(store, CBHAGeometry(), SPEC, required())
-    assert err.value.field == "sha256"
-    meta["versions"]["scikit-learn"] = "0.24.2"
+    assert err.value.field == "sha256" and err.value.source == str(store)
+    (store / "weights.npz").unlink()
+    with pytest.raises(InputDataError, match="cannot read weights.npz") as err:
+        load_models(store, CBHAGeometry(), SPEC, required())
+    assert err.value.field == "weights.npz"
+    meta["format_version"] = 1
     meta_path.write_text(json.dumps(meta))
-    with pytest.raises(InputDataError, match="scikit-learn 0.24.2") as err:
+    with pytest.raises(InputDataError, match="format version 1") as err:
         load_models(store, CBHAGeometry(), SPEC, required())
-    assert err.value.field == "versions.scikit-learn"
+    assert err.value.field == "format_version"
     with pytest.raises(InputDataError, match="not a model store"):
         load_models(tmp_path / "nothing", CBHAGeometry(), SPEC, required())
+
+
+@pytest.mark.parametrize("change, field, message", [
+    (lambda a: a.pop("fkm_section1.coef1"), "models.fkm_section1.coef1", "no array"),
+    (lambda a: a.update({"fkm_section1.x_scale": np.ones(3)}), "models.fkm_section1.x_scale", r"shape \(3,\)"),
+    (lambda a: a.update({"fkm_section1.coef1": np.ones((5, 4))}), "models.fkm_section1.network", "do not chain"),
+    (lambda a: a.update({"fkm_section1.activation": np.array("softsign")}), "models.fkm_section1.network",
+     "activation"),
+    (lambda a: a.update({"fkm_section1.intercept0": np.array([print], dtype=object)}),
+     "models.fkm_section1.intercept0", "allow_pickle"),
+])
+def test_inconsistent_arrays_are_refused_naming_the_field(store, change, field, message):
+    rewrite_weights(store, change)
+    with pytest.raises(InputDataError, match=message) as err:
+        load_models(store, CBHAGeometry(), SPEC, required())
+    assert err.value.field == field and err.value.source == str(store)
 
 
 def test_saving_again_replaces_the_store(store, trained):

@@ -37,6 +37,10 @@ monitors the penalised criterion on the validation split. It pulls every
 prediction towards the origin; among redundant solutions a least-squares fit
 already returns their conditional mean, which the penalty only shrinks.
 
+Training uses scikit-learn's ``MLPRegressor``; a :class:`TrainedModel` keeps only its
+weights (:class:`Network`), evaluated by :func:`forward_pass`, so that a stored model does not
+depend on the scikit-learn version (:mod:`optikin.baselines.nn_store`).
+
 Every score reported here comes from the split it names: :func:`split_mse` reads
 only the rows of that split.
 """
@@ -181,6 +185,50 @@ SETTINGS = {
 
 
 # ---------------------------------------------------------------------------------------- models
+@dataclass(frozen=True, eq=False)
+class Network:
+    """The weights of a trained multilayer perceptron, independent of scikit-learn.
+
+    Layer ``i`` maps ``A`` to ``A @ coefs[i] + intercepts[i]``, followed by ``activation``
+    on every hidden layer and the identity on the output layer, as scikit-learn's
+    ``MLPRegressor`` does. The arrays are read-only copies.
+    """
+
+    coefs: tuple[np.ndarray, ...]
+    intercepts: tuple[np.ndarray, ...]
+    activation: str
+
+    def __post_init__(self):
+        if self.activation not in ACTIVATIONS:
+            raise ValueError(f"activation must be one of {', '.join(ACTIVATIONS)}, got {self.activation!r}")
+        coefs = tuple(_frozen(W) for W in self.coefs)
+        intercepts = tuple(_frozen(b) for b in self.intercepts)
+        if not coefs or len(coefs) != len(intercepts):
+            raise ValueError(f"{len(coefs)} weight matrices and {len(intercepts)} bias vectors")
+        for i, (W, b) in enumerate(zip(coefs, intercepts)):
+            if W.ndim != 2 or b.shape != (W.shape[1],) or (i and W.shape[0] != coefs[i - 1].shape[1]):
+                raise ValueError(f"layer {i}: weights {W.shape} and bias {b.shape} do not chain")
+        object.__setattr__(self, "coefs", coefs)
+        object.__setattr__(self, "intercepts", intercepts)
+
+    @classmethod
+    def from_sklearn(cls, network: MLPRegressor) -> "Network":
+        """The weights of a fitted ``MLPRegressor`` (identity output layer)."""
+        if network.out_activation_ != "identity":
+            raise ValueError(f"output activation {network.out_activation_!r}, expected 'identity'")
+        return cls(tuple(network.coefs_), tuple(network.intercepts_), network.activation)
+
+    @property
+    def hidden_layer_sizes(self) -> tuple[int, ...]:
+        return tuple(W.shape[1] for W in self.coefs[:-1])
+
+
+def _frozen(a: np.ndarray) -> np.ndarray:
+    a = np.array(a, dtype=float)
+    a.flags.writeable = False
+    return a
+
+
 @dataclass
 class TrainedModel:
     """A trained network with its affine input / output maps and how it was chosen.
@@ -188,14 +236,16 @@ class TrainedModel:
     ``predict(X) = network((X - x_offset) / x_scale) * y_scale + y_offset``, in SI units. The
     network's forward pass is evaluated here from its weights (:func:`forward_pass`):
     ``MLPRegressor.predict`` validates its input on every call, which costs more than the
-    arithmetic of these small networks when they are called one sample at a time.
+    arithmetic of these small networks when they are called one sample at a time; and the
+    weights alone can be stored independently of the scikit-learn version
+    (:mod:`optikin.baselines.nn_store`).
     """
 
     task: Task
     setting: TrainingSetting
     penalty: float
     neurons: int
-    network: MLPRegressor
+    network: Network
     x_offset: np.ndarray
     x_scale: np.ndarray
     y_offset: np.ndarray
@@ -209,12 +259,12 @@ class TrainedModel:
         return forward_pass(self.network, (X - self.x_offset) / self.x_scale) * self.y_scale + self.y_offset
 
 
-def forward_pass(network: MLPRegressor, A: np.ndarray) -> np.ndarray:
-    """``network.predict(A)`` as ``(n, outputs)``, from the weights: hidden activations, identity output."""
+def forward_pass(network: Network, A: np.ndarray) -> np.ndarray:
+    """``MLPRegressor.predict(A)`` as ``(n, outputs)``, from the weights: hidden activations, identity output."""
     act = ACTIVATIONS[network.activation]
-    for W, b in zip(network.coefs_[:-1], network.intercepts_[:-1]):
+    for W, b in zip(network.coefs[:-1], network.intercepts[:-1]):
         A = act(A @ W + b)
-    return A @ network.coefs_[-1] + network.intercepts_[-1]
+    return A @ network.coefs[-1] + network.intercepts[-1]
 
 
 def split_mse(model: TrainedModel, db: LearningDatabase, split: str = "test") -> float:
@@ -296,7 +346,7 @@ def train_model(task: Task, db: LearningDatabase, setting: TrainingSetting, pena
                 random_state=_random_state(db, task, n))
 
             def criterion() -> float:
-                P = forward_pass(network, Xv) * y_sc + y_off
+                P = forward_pass(Network.from_sklearn(network), Xv) * y_sc + y_off
                 return float(np.mean((Y_val - P) ** 2 + penalty * P**2))
 
             value, epochs = _fit_width(network, Xs, Ys, criterion, setting)
@@ -306,7 +356,8 @@ def train_model(task: Task, db: LearningDatabase, setting: TrainingSetting, pena
     elapsed = time.perf_counter() - start
     best = min(results, key=lambda n: (results[n][0], n))
     return TrainedModel(task=task, setting=setting, penalty=float(penalty), neurons=best,
-                        network=results[best][2], x_offset=x_off, x_scale=x_sc, y_offset=y_off, y_scale=y_sc,
+                        network=Network.from_sklearn(results[best][2]), x_offset=x_off, x_scale=x_sc,
+                        y_offset=y_off, y_scale=y_sc,
                         search={n: r[0] for n, r in results.items()}, epochs={n: r[1] for n, r in results.items()},
                         training_time=elapsed)
 
@@ -323,14 +374,23 @@ def hybrid_forward_configurations(models: list[TrainedModel], legs: np.ndarray) 
     return Q
 
 
-def hybrid_inverse_configurations(models: list[TrainedModel], tip: np.ndarray) -> np.ndarray:
-    """Fig. 10: NN1 gives the end of section 1, NN2-NN4 every ``(Z_k, theta_k, psi_k)``; ``(n, 48)``."""
+def hybrid_inverse_configurations(models: list[TrainedModel], tip: np.ndarray,
+                                  section1_end: np.ndarray | None = None) -> np.ndarray:
+    """Fig. 10: NN1 gives the end of section 1, NN2-NN4 every ``(Z_k, theta_k, psi_k)``; ``(n, 48)``.
+
+    ``section1_end`` ``(n, 3)``, when given (e.g. measured), replaces NN1's prediction, which
+    is then not needed.
+    """
     by_key = {m.task.key: m for m in models}
-    missing = {"ikm_nn1", "ikm_nn2", "ikm_nn3", "ikm_nn4"} - set(by_key)
+    needed = {"ikm_nn2", "ikm_nn3", "ikm_nn4"} | ({"ikm_nn1"} if section1_end is None else set())
+    missing = needed - set(by_key)
     if missing:
         raise ValueError(f"missing inverse models: {', '.join(sorted(missing))}")
     tip = np.atleast_2d(np.asarray(tip, dtype=float))
-    ends = np.concatenate([tip, by_key["ikm_nn1"].predict(tip)], axis=1)
+    end1 = by_key["ikm_nn1"].predict(tip) if section1_end is None else np.atleast_2d(np.asarray(section1_end, float))
+    if end1.shape != tip.shape:
+        raise ValueError(f"section1_end has shape {end1.shape}, the tips {tip.shape}")
+    ends = np.concatenate([tip, end1], axis=1)
     n_config = 3 * len(by_key["ikm_nn2"].task.outputs[1])
     Q = np.empty((len(tip), n_config))
     for i in range(3):
