@@ -12,8 +12,10 @@ import numpy as np
 import pytest
 import yaml
 
-from optikin.arms.cbha import CBHAGeometry
+from optikin.arms.cbha import CBHAArm, CBHAGeometry
+from optikin.data.markers import configurations_from_fractions
 from optikin.errors import SpecError
+from optikin.problems.ik_cbha import distributed_tube_range, distribution_deviation
 from optikin.runner import solve
 
 TABLE_I_MIN_MM = [8.5, 8.5, 8.5, 7, 7, 7, 8.5, 10, 6.5, 8, 8, 7.5, 7.5, 7, 7, 6.5]
@@ -111,12 +113,13 @@ def tip_jacobian(x: np.ndarray, h: float = 1e-6) -> np.ndarray:
 @pytest.fixture(scope="module")
 def formulations(tmp_path_factory):
     """One run: exact tip closest to rest, and as variants eq. (11) on the configuration and as printed,
-    and the elongation distribution of section IV."""
+    and the elongation distribution of section IV in both readings."""
     options = {"target": "position", "redundancy": "rest", "restarts": 1, "weights": WEIGHTS.tolist(),
                "variants": {"penalty": {"redundancy": "penalty", "penalty": PENALTY},
                             "printed": {"redundancy": "penalty", "penalty_on": "position",
                                         "penalty": PRINTED_PENALTY},
-                            "distributed": {"elongation": "distributed"}}}
+                            "distributed": {"elongation": "distributed"},
+                            "affine": {"elongation": "affine"}}}
     path = write_problem(tmp_path_factory.mktemp("cbha"), "forms", options, 8)
     return solve(str(path), figures=False)[0]
 
@@ -169,13 +172,44 @@ def test_elongation_distribution_of_section_iv(formulations):
     assert within_table_i(all_legs(solutions)).all()
 
 
+def test_affine_elongation_distribution_of_section_iv(formulations):
+    """Every leg at one fraction of its Table I range, shared by the platforms of its section and tube,
+    and the tip on its target (eqs. (7)-(9) and the eq. (5) chain, transcribed here)."""
+    result = formulations
+    ok = result.arrays["status_gauss-newton_affine"] == "ok"
+    assert ok.sum() >= 7
+    solutions = result.arrays["solutions_gauss-newton_affine"][ok]
+    legs = all_legs(solutions).reshape(-1, 16, 3)
+    lo, hi = (np.array(v)[None, :, None] / 1e3 for v in (TABLE_I_MIN_MM, TABLE_I_MAX_MM))
+    fraction = (legs - lo) / (hi - lo)
+    for section in (slice(0, 8), slice(8, 16)):
+        f = fraction[:, section]
+        np.testing.assert_allclose(f, np.broadcast_to(f[:, :1], f.shape), atol=1e-9)
+    tips = np.array([tip_eq_5(x) for x in solutions])
+    assert np.abs(tips - result.arrays["targets"][ok]).max() < 1e-9
+    assert within_table_i(all_legs(solutions)).all()
+
+
+def test_the_synthetic_recording_moves_the_legs_by_the_affine_distribution():
+    """The recorder sets the legs from one fraction per section and tube and solves the platform poses;
+    the affine rows vanish on its configurations, the mid-range ones do not."""
+    arm = CBHAArm()
+    fractions = np.random.default_rng(5).uniform(0.0, 1.0, size=(20, 2, 3))
+    X = configurations_from_fractions(arm, fractions)
+    assert distribution_deviation(arm, X, "affine").max() < 1e-12
+    assert distribution_deviation(arm, X, "distributed").min() > 1e-5
+    lower, upper = distributed_tube_range(arm.geometry, "affine")
+    np.testing.assert_allclose(lower * 1e3, [sum(TABLE_I_MIN_MM[:8]), sum(TABLE_I_MIN_MM[8:])])
+    np.testing.assert_allclose(upper * 1e3, [sum(TABLE_I_MAX_MM[:8]), sum(TABLE_I_MAX_MM[8:])])
+
+
 def test_formulations_are_compared_in_one_result(formulations):
     """Tip error, leg margins and tube lengths of every row, recomputed here from its solutions."""
     result = formulations
     rows = {row.method: row for row in result.comparison}
     assert set(rows) == {"gauss-newton", "gauss-newton [penalty]", "gauss-newton [printed]",
-                         "gauss-newton [distributed]"}
-    assert [row.role for row in rows.values()] == ["solver", "variant", "variant", "variant"]
+                         "gauss-newton [distributed]", "gauss-newton [affine]"}
+    assert [row.role for row in rows.values()] == ["solver", "variant", "variant", "variant", "variant"]
     lo, hi = np.repeat(TABLE_I_MIN_MM, 3), np.repeat(TABLE_I_MAX_MM, 3)
     for name, row in rows.items():
         key = name.replace(" [", "_").rstrip("]")
@@ -189,7 +223,7 @@ def test_formulations_are_compared_in_one_result(formulations):
         assert row.metrics["median time per solve [us]"] > 0
         tubes = legs.reshape(-1, 2, 8, 3).sum(axis=2) / 1e3  # (sample, section, tube): sums of the legs
         np.testing.assert_allclose(result.arrays[f"tube_lengths_{key}"], tubes.reshape(-1, 6), atol=1e-15)
-    exact = ("gauss-newton", "gauss-newton [distributed]")
+    exact = ("gauss-newton", "gauss-newton [distributed]", "gauss-newton [affine]")
     assert all(rows[n].metrics["tip within tolerance [%]"] == 100.0 for n in exact)
     assert rows["gauss-newton [penalty]"].metrics["tip within tolerance [%]"] == 0.0
     assert rows["gauss-newton [distributed]"].metrics["median deviation from distribution [mm]"] < 1e-9

@@ -47,7 +47,9 @@ default the inverse ranges of the variables):
 
 On a CBHA, ``elongation: distributed`` adds the elongation distribution of seed
 004 section IV (every inter-vertebra a fixed fraction of its section's tube
-length, from Table I; :mod:`optikin.problems.ik_cbha`) to any of these.
+length, from Table I; :mod:`optikin.problems.ik_cbha`) to any of these;
+``elongation: affine`` its other reading (the elongation above Table I's minimum
+shared in proportion to each inter-vertebra's range).
 
 Backends that minimise a distance (``newton`` through the optimality system,
 ``ipopt``, ``sqpmethod``) do so exactly, with ``q_ref`` the rest configuration or
@@ -84,8 +86,8 @@ Options: ``target``, ``redundancy``, ``rest``, ``weights``, ``start`` (``rest`` 
 a configuration), ``restarts`` (default 2), ``tolerance`` (``||r||`` in metres
 counted as solved, default 1e-10), ``orientation_length``, ``penalty`` (lambda,
 default 1e-6: m^2 on the configuration, a pure number on the position),
-``penalty_on`` (``configuration`` or ``position``), ``elongation`` (``free`` or
-``distributed``), ``variants`` (``{label: {option: value}}`` over the options
+``penalty_on`` (``configuration`` or ``position``), ``elongation`` (``free``,
+``distributed`` or ``affine``), ``variants`` (``{label: {option: value}}`` over the options
 ``redundancy``, ``penalty``, ``penalty_on``, ``elongation``, ``rest``, ``weights``,
 ``tolerance``, ``orientation_length``).
 """
@@ -209,7 +211,7 @@ class Settings:
             raise ctx.error(field("penalty_on"), f"{o['penalty_on']!r} is not one of {', '.join(PENALTY_READINGS)}")
         if o["elongation"] not in ELONGATIONS:
             raise ctx.error(field("elongation"), f"{o['elongation']!r} is not one of {', '.join(ELONGATIONS)}")
-        if o["elongation"] == "distributed" and not isinstance(arm, CBHAArm):
+        if o["elongation"] != "free" and not isinstance(arm, CBHAArm):
             raise ctx.error(field("elongation"), f"the elongation distribution needs a cbha arm, "
                                                  f"not {ctx.spec.arm.type!r}")
         if self.target == "legs" and (o["elongation"] != "free" or o["redundancy"] == "penalty"):
@@ -356,7 +358,8 @@ def answer_checks(arm: ArmModel, targets: Targets, formulation: Formulation, X: 
         checks["angle_error"] = angle_error
     if isinstance(arm, CBHAArm):
         checks["leg_margin"] = leg_margins(arm, X)
-        checks["distribution_deviation"] = distribution_deviation(arm, X)
+        rule = "distributed" if formulation.elongation == "free" else formulation.elongation
+        checks["distribution_deviation"] = distribution_deviation(arm, X, rule)
         # seed 004's inverse model ends with the tube lengths (section, tube), "summing the elongations"
         finite = np.all(np.isfinite(X), axis=1)
         tubes = arm.evaluate("tube_lengths", np.where(finite[:, None], X, rest_configuration(arm)))

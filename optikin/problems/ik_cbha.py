@@ -4,24 +4,37 @@ Seed 004, section IV-A: "since the length of an inter-vertebra is a fraction of
 the tube length, the elongation of each inter-vertebra at any time represents a
 percentage of the total length of the tube. This percentage can be obtained by
 considering the minimum and the maximum elongations of each inter-vertebra
-listed in Table I." The percentages themselves (Fig. 6) are not in the text;
-here platform ``k`` of section ``s`` takes its share of the mid-range lengths,
+listed in Table I." The percentages themselves (Fig. 6) are not in the text, and
+the sentence reads two ways; both are offered (:data:`DISTRIBUTIONS`), each an
+affine rule ``q_{m,k} = a_k + b_k L_{m,s}`` with ``L_{m,s} = sum_{j in s} q_{m,j}``
+the length of tube ``m`` along section ``s`` (the quantity the wire
+potentiometers measure and the pressures set):
 
-    c_k = (q_min,k + q_max,k) / sum_{j in s} (q_min,j + q_max,j),
+``distributed``: a fixed share of the tube, the share of the mid-range lengths,
 
-and every leg follows ``q_{m,k} = c_k L_{m,s}`` with ``L_{m,s} = sum_{j in s}
-q_{m,j}`` the length of tube ``m`` along section ``s`` (the quantity the wire
-potentiometers measure and the pressures set). The shares at the minimum and at
-the maximum of Table I differ from ``c_k`` by at most 0.5 percentage points.
-A distributed leg lies within Table I exactly when its tube length lies in
-``[max_k q_min,k / c_k, min_k q_max,k / c_k]``: 67.2-147.8 mm for section 1
+    q_{m,k} = c_k L_{m,s},    c_k = (q_min,k + q_max,k) / sum_{j in s} (q_min,j + q_max,j).
+
+The shares at the minimum and at the maximum of Table I differ from ``c_k`` by at
+most 0.5 percentage points. A leg lies within Table I exactly when its tube length
+lies in ``[max_k q_min,k / c_k, min_k q_max,k / c_k]``: 67.2-147.8 mm for section 1
 (Table I's sums: 65-150 mm) and 59.2-145.8 mm for section 2 (58-147 mm).
 
+``affine``: the elongation above the minimum shared in proportion to the Table I ranges,
+
+    q_{m,k} = q_min,k + (q_max,k - q_min,k) / sum_{j in s} (q_max,j - q_min,j) * (L_{m,s} - sum_{j in s} q_min,j),
+
+so every leg sits at the same fraction of its own range: all at ``q_min`` when the
+tube is shortest, all at ``q_max`` when it is longest. Every leg lies within Table I
+exactly when the tube length does (65-150 mm and 58-147 mm). This is how the
+synthetic recording moves the legs (:func:`optikin.data.markers.configurations_from_fractions`:
+``q_min,k + f (q_max,k - q_min,k)`` with one ``f`` per section and tube), so its
+configurations satisfy this rule exactly and the mid-range one only to about 0.1 mm.
+
 As residual rows of the inverse problem (:mod:`optikin.problems.ik_formulation`)
-the distribution is ``q_{m,k}(q) - c_k L_{m,s}(q)`` for every platform but the
-last of each section (whose row follows, the fractions adding up to one): 42
-rows of full rank, leaving the 48 platform variables the 6 degrees of freedom of
-the 6 tube lengths.
+the distribution is ``q_{m,k}(q) - a_k - b_k L_{m,s}(q)`` for every platform but the
+last of each section (whose row follows: the ``b_k`` add up to one and the ``a_k`` to
+zero): 42 rows of full rank, leaving the 48 platform variables the 6 degrees of
+freedom of the 6 tube lengths.
 """
 
 from __future__ import annotations
@@ -30,6 +43,9 @@ import casadi as ca
 import numpy as np
 
 from optikin.arms.cbha import CBHAArm, CBHAGeometry, printed_leg_lengths
+
+DISTRIBUTIONS = ("distributed", "affine")
+"""Readings of seed 004's elongation distribution (module docstring)."""
 
 
 def section_slices(geometry: CBHAGeometry) -> list[slice]:
@@ -44,22 +60,37 @@ def elongation_fractions(geometry: CBHAGeometry) -> np.ndarray:
     return np.concatenate([mid[s] / mid[s].sum() for s in section_slices(geometry)])
 
 
-def distributed_tube_range(geometry: CBHAGeometry) -> tuple[np.ndarray, np.ndarray]:
+def distribution_coefficients(geometry: CBHAGeometry, elongation: str = "distributed") -> tuple[np.ndarray, np.ndarray]:
+    """``(a_k, b_k)``, one per platform: leg ``q_{m,k} = a_k + b_k L_{m,s}`` (module docstring)."""
+    if elongation == "distributed":
+        c = elongation_fractions(geometry)
+        return np.zeros_like(c), c
+    if elongation != "affine":
+        raise ValueError(f"elongation must be one of {', '.join(DISTRIBUTIONS)}, got {elongation!r}")
+    lo, hi = np.asarray(geometry.leg_min, dtype=float), np.asarray(geometry.leg_max, dtype=float)
+    b = np.concatenate([(hi[s] - lo[s]) / (hi[s] - lo[s]).sum() for s in section_slices(geometry)])
+    a = lo - b * np.concatenate([np.full(s.stop - s.start, lo[s].sum()) for s in section_slices(geometry)])
+    return a, b
+
+
+def distributed_tube_range(geometry: CBHAGeometry, elongation: str = "distributed") -> tuple[np.ndarray, np.ndarray]:
     """Per section, the tube lengths ``[lower, upper]`` [m] whose distributed legs are all within Table I."""
-    c = elongation_fractions(geometry)
+    a, b = distribution_coefficients(geometry, elongation)
     lo, hi = np.asarray(geometry.leg_min), np.asarray(geometry.leg_max)
     slices = section_slices(geometry)
-    return (np.array([np.max(lo[s] / c[s]) for s in slices]), np.array([np.min(hi[s] / c[s]) for s in slices]))
+    return (np.array([np.max((lo[s] - a[s]) / b[s]) for s in slices]),
+            np.array([np.min((hi[s] - a[s]) / b[s]) for s in slices]))
 
 
-def distribution_rows(arm: CBHAArm, q: ca.SX) -> ca.SX:
-    """``q_{m,k}(q) - c_k L_{m,s}(q)`` for all platforms but the last of each section, metres (module docstring)."""
-    c = elongation_fractions(arm.geometry)
+def distribution_rows(arm: CBHAArm, q: ca.SX, elongation: str = "distributed") -> ca.SX:
+    """``q_{m,k}(q) - a_k - b_k L_{m,s}(q)`` for all platforms but the last of each section, metres
+    (module docstring)."""
+    a, b = distribution_coefficients(arm.geometry, elongation)
     legs = ca.reshape(arm.leg_length_expressions(q), 3, arm.geometry.n_platforms)  # tube x platform
     rows = []
     for s in section_slices(arm.geometry):
         tube = ca.sum2(legs[:, s])
-        rows += [legs[:, k] - c[k] * tube for k in range(s.start, s.stop - 1)]
+        rows += [legs[:, k] - a[k] - b[k] * tube for k in range(s.start, s.stop - 1)]
     return ca.vertcat(*rows)
 
 
@@ -82,14 +113,14 @@ def leg_margins(arm: CBHAArm, X: np.ndarray) -> np.ndarray:
     return np.min(np.minimum(legs - lo, hi - legs), axis=1)
 
 
-def distribution_deviation(arm: CBHAArm, X: np.ndarray) -> np.ndarray:
-    """Per configuration, ``max |q_{m,k} - c_k L_{m,s}|`` [m]: how far its legs are from the distribution."""
+def distribution_deviation(arm: CBHAArm, X: np.ndarray, elongation: str = "distributed") -> np.ndarray:
+    """Per configuration, ``max |q_{m,k} - a_k - b_k L_{m,s}|`` [m]: how far its legs are from the distribution."""
     legs = legs_of(arm, X).reshape(len(np.atleast_2d(X)), -1, 3)  # sample, platform, tube
-    c = elongation_fractions(arm.geometry)
+    a, b = distribution_coefficients(arm.geometry, elongation)
     deviation = np.empty_like(legs)
     for s in section_slices(arm.geometry):
         tube = legs[:, s].sum(axis=1, keepdims=True)
-        deviation[:, s] = legs[:, s] - c[s, None] * tube
+        deviation[:, s] = legs[:, s] - a[s, None] - b[s, None] * tube
     return np.abs(deviation).max(axis=(1, 2))
 
 

@@ -5,7 +5,10 @@ stacks these rows, all in metres:
 
 tip
     ``p(q) - p*``; for poses also ``2 L vec(q*^-1 q(q))`` (:func:`tip_residual`,
-    described in :mod:`optikin.problems.ik`).
+    described in :mod:`optikin.problems.ik`). Target ``sections`` (not an ``ik``
+    target; the Newton-Raphson comparator of :mod:`optikin.problems.ph_comparators`): the end
+    position of every section, ``p_s(q) - p_s*``, the inputs of seed 004's inverse
+    model (section V: the tip and the end of the first section).
 penalty (``redundancy: penalty``): seed 004 eq. (11),
     ``J = 1/2 (X_d - X)^T (X_d - X) + lambda/2 ||X||^2``, which the seed adds to the
     cost of its inverse network "to select a particular inverse solution". ``X`` is
@@ -30,9 +33,11 @@ penalty (``redundancy: penalty``): seed 004 eq. (11),
     Either way the problem is a minimisation whose minimum is not zero
     (``exact=False``): a sample is ``ok`` at a stationary point of the whole cost, and
     the tip error is reported separately.
-elongation distribution (``elongation: distributed``, CBHA only): seed 004 section IV,
-    every inter-vertebra a fixed fraction of its section's tube length; 42 rows
-    ``q_{m,k}(q) - c_k L_{m,s}(q)`` (:mod:`optikin.problems.ik_cbha`). Combined with an exact
+elongation distribution (``elongation: distributed`` or ``affine``, CBHA only): seed 004
+    section IV, every inter-vertebra an affine function of its section's tube length,
+    ``distributed`` a fixed share of the mid-range lengths, ``affine`` the elongation above
+    the minimum shared in proportion to the Table I ranges; 42 rows
+    ``q_{m,k}(q) - a_k - b_k L_{m,s}(q)`` (:mod:`optikin.problems.ik_cbha`). Combined with an exact
     redundancy choice they must vanish with the tip rows; under the penalty they are
     soft, weighed in metres of leg length against the tip error.
 """
@@ -47,13 +52,13 @@ import numpy as np
 from optikin.algebra import dq_rotation, dq_translation, quat_conjugate, quat_multiply
 from optikin.arms.base import ArmModel
 from optikin.arms.cbha import CBHAArm
-from optikin.problems.ik_cbha import distribution_rows
+from optikin.problems.ik_cbha import DISTRIBUTIONS, distribution_rows
 from optikin.problems.ik_platform import platform_problems
 from optikin.solvers.nonlinear import LeastSquaresProblem
 
 REDUNDANCY_CHOICES = ("rest", "previous", "minimum_norm", "penalty")
 PENALTY_READINGS = ("configuration", "position")
-ELONGATIONS = ("free", "distributed")
+ELONGATIONS = ("free",) + DISTRIBUTIONS
 PENALTY_STATIONARITY = 1e-9
 """``||J^T r|| / (||J||_F ||r||)`` at which a penalised (not exact) problem counts as solved."""
 
@@ -88,9 +93,15 @@ class Formulation:
 
 
 def tip_residual(arm: ArmModel, target: str, orientation_length: float) -> ca.Function:
-    """``r(q, target)``: the tip position error; for poses also ``2 L vec(q_target^-1 q_tip)``."""
+    """``r(q, target)``: the tip position error; for poses also ``2 L vec(q_target^-1 q_tip)``; for
+    ``sections`` the end position error of every section, ``(3 n_sections,)`` targets base to tip."""
     q = ca.SX.sym("q", arm.n_config)
-    quat, position = arm.section_frames(q)[-1]
+    frames = arm.section_frames(q)
+    quat, position = frames[-1]
+    if target == "sections":
+        ends = ca.SX.sym("ends", 3 * len(frames))
+        r = ca.vertcat(*[pos - ends[3 * i: 3 * i + 3] for i, (_, pos) in enumerate(frames)])
+        return ca.Function(f"{arm.name}_ik_sections", [q, ends], [r], ["q", "ends"], ["r"])
     if target == "position":
         p = ca.SX.sym("p", 3)
         return ca.Function(f"{arm.name}_ik_position", [q, p], [position - p], ["q", "p"], ["r"])
@@ -126,8 +137,8 @@ def build_problem(arm: ArmModel, formulation: Formulation) -> LeastSquaresProble
     tip = tip_residual(arm, formulation.target, formulation.orientation_length)
     q, p = ca.SX.sym("q", arm.n_config), ca.SX.sym("p", tip.size1_in(1))
     rows = [tip(q, p)]
-    if formulation.elongation == "distributed":
-        rows.append(distribution_rows(arm, q))
+    if formulation.elongation != "free":
+        rows.append(distribution_rows(arm, q, formulation.elongation))
     if formulation.redundancy == "penalty":
         rows.append(penalty_rows(arm, q, formulation))
     name = f"{arm.name}_ik_{formulation.target}"

@@ -18,43 +18,32 @@ Options (besides those of :mod:`optikin.problems.ph_common`)::
     frame: rmf            # rmf | euler_rodrigues: the frame that carries the tubes
     tube_radius: null     # [base, tip] offset radius in metres; default: the CBHA's r_max, r_min
 
-Baselines: any ``ph`` preset, and ``newton-raphson``, the Newton-Raphson inverse
-kinematics of the CBHA that Table II compares with (seed 002 ref. [11],
-:func:`newton_raphson_tube_lengths`): each recorded tip pose relative to the base
-is solved for the 48 platform variables with the ``newton`` preset (CasADi
-rootfinder) on the inverse problem of :mod:`optikin.problems.ik_formulation`:
-pose target plus the elongation distribution of seed 004 section IV, 6 + 42 rows
-for 48 variables, a square system with one root near the previous posture. Postures
-are solved in order, each warm-started from the previous solution; the first
-starts from the ``lm`` preset's solution from the straight configuration, where
-the square Jacobian is singular (no twist to first order). The tube lengths are
-the solution's legs summed over both sections (``arm.tube_lengths``), as the
-recording's ``L1, L2, L3``; a sample that is not ``ok`` (e.g. its root leaves
-Table I) is counted and gets no lengths, never dropped. Its time per sample is the
-Newton solve plus one call of ``arm.tube_lengths``. The other frame's tube lengths
-(same curves) are reported as an extra row, to show what the choice of frame is worth.
+Baselines: any ``ph`` preset, and the comparators of Tables II-III
+(:mod:`optikin.problems.ph_comparators`): ``newton-raphson`` (Newton on the section
+end positions and seed 004's elongation distribution), ``newton-raphson-pose`` (the
+same on the tip pose, the PH rows' data) and ``hybrid`` (seed 004's networks from the
+tip position). A comparator's postures that are not ``ok`` are counted, never dropped.
+
+The other frame's tube lengths (same curves) are reported as an extra row, to show
+what the choice of frame is worth.
 """
 
 from __future__ import annotations
 
 import time
-from typing import Any, NamedTuple
+from typing import Any
 
 import casadi as ca
 import numpy as np
 
-from optikin.algebra import dq_from_rotation_translation, quat_conjugate, quat_multiply, quat_rotate
 from optikin.arms.cbha import CBHAArm
 from optikin.curves.min_energy import N_PARAMETERS, ShapeData, ShapeEnergyModel
 from optikin.curves.ph_quintic import hermite_family
 from optikin.curves.tubes import CBHA_TUBE_ANGLES, FRAMES, TubeLayout, tube_lengths
-from optikin.data.markers import MarkerRecording
-from optikin.data.targets import reach_bound
 from optikin.errors import InputDataError
 from optikin.fastcall import BufferedFunction
 from optikin.problems import ProblemContext, ProblemKind, register_kind
 from optikin.problems import ph_figures as figures
-from optikin.problems.ik_formulation import Formulation, build_problem, rest_configuration
 from optikin.problems.ph_common import (
     COMMON_DEFAULTS,
     MM,
@@ -69,21 +58,16 @@ from optikin.problems.ph_common import (
     solve_methods,
     summary_of,
 )
+from optikin.problems.ph_comparators import COMPARATORS, HYBRID, NEWTON_RAPHSON, run_comparator
 from optikin.results import MethodRow, Result
-from optikin.solvers import build_preset
 
-NEWTON_RAPHSON = "newton-raphson"
-NR_PRESETS = ("newton", "lm")
-"""Newton-Raphson along the recording, and the least-squares preset that finds its first start."""
-NR_TOLERANCE = 1e-9
-"""``||r||`` [m] at which a recorded pose counts as reached by the Newton-Raphson comparator."""
 DEFAULTS: dict[str, Any] = {**COMMON_DEFAULTS, "frame": "rmf", "tube_radius": None}
 
 SEED_TABLE_II_MM = {"PH": {"L1": (0.0112, 4.4020, 2.8239), "L2": (0.0032, 5.2327, 2.2020), "L3": (0.0012, 3.5959, 0.9768)},
                     "Newton-Raphson": {"L1": (1.9555, 13.2310, 6.3947), "L2": (0.1101, 7.5254, 3.9361),
                                        "L3": (0.0054, 9.9292, 6.2398)}}
 """Seed 002 Table II: (min, max, mean) absolute tube-length error over the trajectory, mm."""
-SEED_TABLE_III_S = {"PH": 0.00027, "Newton-Raphson": 0.23351, "hybrid": 0.01208}
+SEED_TABLE_III_S = {"PH": 0.00027, NEWTON_RAPHSON: 0.23351, HYBRID: 0.01208}
 """Seed 002 Table III: time cost for one sample, seconds."""
 
 
@@ -117,48 +101,6 @@ def timed_tube_lengths(function: ca.Function, run: MethodRun, samples: list[Shap
         lengths[i] = out
         seconds[i] = time.perf_counter() - tic
     return lengths, seconds
-
-
-class NewtonRaphsonRun(NamedTuple):
-    """Per posture: tube lengths ``(N, 3)`` [m] (NaN unless ``ok``), seconds, status and message of the solve."""
-
-    lengths: np.ndarray
-    seconds: np.ndarray
-    status: list[str]
-    messages: list[str]
-
-
-def relative_tip_poses(recording: MarkerRecording) -> np.ndarray:
-    """Unit dual quaternions ``(N, 8)`` of the tip rigid bodies in the base rigid bodies' frames."""
-    to_base = quat_conjugate(recording.base_orientation)
-    rotation = quat_multiply(to_base, recording.tip_orientation)
-    translation = quat_rotate(to_base, recording.tip_position - recording.base_position)
-    return dq_from_rotation_translation(rotation, translation)
-
-
-def newton_raphson_tube_lengths(ctx: ProblemContext, recording: MarkerRecording) -> NewtonRaphsonRun | None:
-    """The Newton-Raphson comparator of Table II (module docstring); None for an arm that is not a CBHA."""
-    arm = ctx.arm
-    if not isinstance(arm, CBHAArm):
-        return None
-    formulation = Formulation(target="pose", redundancy="previous", rest=rest_configuration(arm),
-                              weights=1.0 / (arm.upper - arm.lower), tolerance=NR_TOLERANCE,
-                              orientation_length=reach_bound(arm), elongation="distributed")
-    problem = build_problem(arm, formulation)
-    newton, lm = (build_preset(name) for name in NR_PRESETS)
-    targets = relative_tip_poses(recording)
-    start = lm.solve(problem, formulation.rest, targets[0])
-    newton.solve(problem, start.x, targets[0])  # build the rootfinder before timing
-    report = newton.solve_many(problem, start.x, targets, warm_start=True)
-    report.time[0] += start.time
-    lengths, seconds = np.full((len(targets), 3), np.nan), report.time.copy()
-    for i, x in enumerate(report.x):
-        if report.status[i] != "ok":
-            continue
-        tic = time.perf_counter()
-        lengths[i] = np.asarray(arm.tube_lengths(x)).sum(axis=0)  # (section, tube) -> whole tubes
-        seconds[i] += time.perf_counter() - tic
-    return NewtonRaphsonRun(lengths, seconds, report.status, report.messages)
 
 
 def layout_of(ctx: ProblemContext, options: dict[str, Any]) -> TubeLayout:
@@ -201,7 +143,7 @@ def run(ctx: ProblemContext) -> Result:
         recording = recording.with_fixed_base()
     lengths = backbone_lengths(recording, settings.length, source)
     samples = end_data(recording, lengths, source)
-    runs = solve_methods(ctx, settings, samples, others=(NEWTON_RAPHSON,))
+    runs = solve_methods(ctx, settings, samples, others=COMPARATORS)
     normals = recording.base_normal
 
     tubes, extra, ik_seconds = {}, {}, {}
@@ -226,26 +168,25 @@ def run(ctx: ProblemContext) -> Result:
              f"{layout.frame} frame at {layout.radius_start * MM:.1f} mm (base) to {layout.radius_end * MM:.1f} mm "
              f"(tip); backbone length: {settings.length}; end speeds "
              f"{'free, length held' if settings.free_speeds else 'set to the length'}"]
-    nr_arrays: dict[str, np.ndarray] = {}
-    if NEWTON_RAPHSON in spec.baselines:
-        nr = newton_raphson_tube_lengths(ctx, recording)
-        if nr is None:
-            notes.append(f"newton-raphson: needs a cbha arm (CBHA inverse kinematics), not {spec.arm.type!r}")
-        else:
-            nr_errors = np.abs(nr.lengths - reference) * MM
-            status = np.array(nr.status)
-            failed = np.flatnonzero(status != "ok")
-            comparison.append(MethodRow(NEWTON_RAPHSON, "baseline", {
-                "ok": f"{len(status) - failed.size}/{len(status)}", "failures": int(failed.size),
-                **error_metrics(nr_errors), "mean |L error| [mm]": summary_of(nr_errors.ravel())["avg"],
-                "median IK time per sample [us]": float(np.median(nr.seconds) * 1e6),
-                "seed 002 Table III, Newton-Raphson: time per sample [us]": SEED_TABLE_III_S["Newton-Raphson"] * 1e6}))
-            ik_seconds[NEWTON_RAPHSON] = nr.seconds
-            nr_arrays = {"tube_lengths_newton_raphson": nr.lengths, "status_newton_raphson": status,
-                         f"ik_seconds_{NEWTON_RAPHSON}": nr.seconds}
-            if failed.size:
-                notes.append(f"newton-raphson: {failed.size} of {len(status)} postures not ok (no tube lengths), "
-                             f"e.g. sample {failed[0]}: {nr.status[failed[0]]}, {nr.messages[failed[0]]}")
+    comparator_arrays: dict[str, np.ndarray] = {}
+    for name in (n for n in COMPARATORS if n in spec.baselines):
+        found = run_comparator(ctx, name, recording)
+        comparator_errors = np.abs(found.lengths - reference) * MM
+        status = np.array(found.status)
+        failed = np.flatnonzero(status != "ok")
+        seed_time = SEED_TABLE_III_S.get(name)
+        comparison.append(MethodRow(name, "baseline", {
+            "ok": f"{len(status) - failed.size}/{len(status)}", "failures": int(failed.size),
+            **error_metrics(comparator_errors), "mean |L error| [mm]": summary_of(comparator_errors.ravel())["avg"],
+            "median IK time per sample [us]": float(np.median(found.seconds) * 1e6),
+            **({f"seed 002 Table III, {name}: time per sample [us]": seed_time * 1e6} if seed_time else {})}))
+        ik_seconds[name] = found.seconds
+        key = name.replace("-", "_")
+        comparator_arrays |= {f"tube_lengths_{key}": found.lengths, f"status_{key}": status,
+                              f"ik_seconds_{name}": found.seconds}
+        if failed.size:
+            notes.append(f"{name}: {failed.size} of {len(status)} postures not ok (no tube lengths), "
+                         f"e.g. sample {failed[0]}: {found.status[failed[0]]}, {found.messages[failed[0]]}")
 
     metrics: dict[str, Any] = {
         **error_metrics(errors),
@@ -264,7 +205,7 @@ def run(ctx: ProblemContext) -> Result:
     for name in runs:
         arrays[f"ik_seconds_{name}"] = ik_seconds[name]
         arrays[f"energy_{name}"] = runs[name].energies
-    arrays |= nr_arrays
+    arrays |= comparator_arrays
 
     def draw_errors(path):
         figures.per_sample(path, {"|L - L_ref|": errors, "L_ref": reference * MM}, "[mm]",
@@ -290,5 +231,5 @@ register_kind(ProblemKind(
     run=run,
     backend_families=("ph",),
     default_solver="ph-newton",
-    baselines=(NEWTON_RAPHSON,),
+    baselines=COMPARATORS,
 ))

@@ -21,9 +21,14 @@ compile the first time; the libraries are cached on disk afterwards.
 
 ``ph-ik`` adds the tube lengths (one call of the compiled tube-length Function) to
 the compiled given-speed Newton: the time per sample of the PH inverse kinematics
-of seed 002 Table III (0.27 ms there). The Newton-Raphson comparator of that table
-belongs to the inverse-kinematics work; it will join here through
-:func:`optikin.problems.ph_ik.newton_raphson_tube_lengths` (a hook, not filled yet).
+of seed 002 Table III (0.27 ms there). ``newton-raphson`` is that table's comparator
+(233 ms there) as ``cbha-ph-ik`` runs it
+(:func:`optikin.problems.ph_comparators.newton_raphson_tube_lengths`):
+per posture, Newton on the 48 x 48 system of the section ends and the affine elongation
+distribution, started from the last posture it solved (the first of a pass from the
+straight configuration), plus the tube lengths of the solution, on the same 100 postures
+in the same run (given-speed group); ``extra_info`` has the postures not ok, the mean
+tube-length error against the recording's and the ratio of its median to ``ph-ik``'s.
 The grid of the free-speed group is 24 x 24 angles x 5 speed ratios (the 64 x 64 x 9
 of ``ph-grid`` costs about 3 s per sample there).
 """
@@ -37,15 +42,25 @@ from threadpoolctl import threadpool_limits
 from optikin.arms.cbha import CBHAArm
 from optikin.curves.min_energy import EnergySettings, ShapeEnergyModel
 from optikin.curves.tubes import TubeLayout
-from optikin.data.markers import MARKER_SOURCES
+from optikin.data.markers import INTERMEDIATE_VERTEBRAE, MARKER_SOURCES
 from optikin.fastcall import BufferedFunction
 from optikin.problems.ph_common import backbone_lengths, end_data
+from optikin.problems.ik_formulation import rest_configuration
+from optikin.problems.ph_comparators import (
+    NR_PRESET,
+    newton_raphson_problem,
+    newton_raphson_step,
+    relative_section_ends,
+    section_end_markers,
+)
 from optikin.problems.ph_ik import tube_length_function
+from optikin.solvers import build_preset
 from optikin.spec import load_problem
 
 GROUPS = {False: "PH shape, 100-posture CBHA trajectory, given speeds (seed setting): time per sample",
           True: "PH shape, 100-posture CBHA trajectory, free speeds, length held: time per sample"}
 _grid_median: dict[bool, float] = {}
+_ph_ik_median: list[float] = []
 
 
 @pytest.fixture(scope="module", autouse=True)
@@ -146,4 +161,40 @@ def test_ph_ik_compiled(benchmark, case):
         return sol
 
     _bench(benchmark, case, "ph-ik", solve_one)
+    _ph_ik_median.append(benchmark.stats.stats.median)
+
+
+def test_newton_raphson_ik(benchmark, case, recording):
+    """The Newton-Raphson comparator of Table II on the same postures, one round per posture (given speeds)."""
+    if case[0]:
+        pytest.skip("the seed's setting (given speeds) only")
+    arm = CBHAArm()
+    problem, newton = newton_raphson_problem(arm), build_preset(NR_PRESET)
+    targets = relative_section_ends(recording, section_end_markers(arm, recording, INTERMEDIATE_VERTEBRAE, "timing"))
+    n, rest = len(targets), rest_configuration(arm)
+    lengths, status = np.full((n, 3), np.nan), [""] * n
+    state = {"k": 0, "start": rest}
+
+    def step():
+        k = state["k"] % n
+        state["k"] += 1
+        start = rest if k == 0 else state["start"]
+        report, lengths[k], _ = newton_raphson_step(arm, newton, problem, start, targets[k])
+        status[k] = report.status
+        if report.status == "ok":
+            state["start"] = report.x
+
+    for _ in range(n):  # builds the rootfinder, warms caches
+        step()
+    benchmark.group = GROUPS[False]
+    benchmark.pedantic(step, rounds=n, iterations=1, warmup_rounds=0)
+    median = benchmark.stats.stats.median
+    benchmark.extra_info.update({
+        "median per sample [us]": median * 1e6,
+        "not ok": sum(s != "ok" for s in status),
+        "mean |L error| [mm]": float(np.nanmean(np.abs(lengths - recording.tube_lengths)) * 1e3),
+    })
+    if _ph_ik_median:
+        benchmark.extra_info["ratio to ph-ik"] = median / _ph_ik_median[-1]
+    assert len(status) == n and all(status)
 
