@@ -331,12 +331,17 @@ class ShapeEnergyModel:
         return BufferedFunction(f, compiled=self.compile)
 
     def solve_newton(self, data: ShapeData, x0: np.ndarray | None = None, *, tolerance: float = 1e-10,
-                     max_iterations: int = 50, fallback: bool = True) -> ShapeSolution:
+                     max_iterations: int = 50, fallback: bool = True, basin_check: bool = False) -> ShapeSolution:
         """Fast path: Newton from ``x0`` (or the best coarse-grid point).
 
         Converged means ``|grad L| <= tolerance (1 + |E|)`` (and ``|S - L| <= tolerance L``
         with free speeds) at a point where the (reduced) Hessian is positive definite.
         Otherwise, with ``fallback``, it restarts from the coarse grid, then calls IPOPT.
+
+        ``basin_check``: a warm start stays in the basin of the previous sample's minimum,
+        which need not be the lowest (with free speeds the energy has several minima along a
+        trajectory). Newton is then also run from the best coarse-grid point, and the lower of
+        the two converged minima kept: about three times the time per sample.
         """
         tic = time.perf_counter()
         P = self._check(data)
@@ -347,6 +352,12 @@ class ShapeEnergyModel:
             notes.append("warm start failed; coarse grid restart")
             x, lam, E, S, more, ok = self._newton(self.coarse_starts(P)[:, 0], P, tolerance, max_iterations)
             iterations += more
+        if ok and basin_check and x0 is not None:
+            x2, lam2, E2, S2, more, ok2 = self._newton(self.coarse_starts(P)[:, 0], P, tolerance, max_iterations)
+            iterations += more
+            if ok2 and E2 < E - 1e-9 * abs(E):
+                notes.append("basin check: the coarse-grid start found a lower minimum")
+                x, lam, E, S = x2, lam2, E2, S2
         if not ok and fallback:
             notes.append("Newton failed; IPOPT fallback")
             ref = self.solve_nlp(data, starts=3)

@@ -13,7 +13,9 @@ Backends (seed 002 section II.A posed as an NLP; issue 3 item 2):
 ``ph_newton``  the fast path: Newton on the compiled (``compile: true``) or
                virtual-machine CasADi gradient and Hessian, warm-started from the
                previous sample (``warm_start``), coarse-grid restart and IPOPT
-               fallback (``fallback``); ``limits.tolerance`` and
+               fallback (``fallback``), optionally also from the coarse grid on
+               every warm-started sample, keeping the lower minimum (``basin_check``,
+               for free end speeds); ``limits.tolerance`` and
                ``limits.max_iterations`` are Newton's.
 ``ph_ipopt``   the reference: CasADi ``nlpsol('ipopt')`` (tolerance 1e-12), warm
                from the previous solution (``warm_start: true``) or cold from the
@@ -80,7 +82,7 @@ class PHAdapter:
 
 class NewtonAdapter(PHAdapter):
     method = "newton"
-    defaults = {"compile": False, "warm_start": True, "fallback": True, "coarse_grid": 12}
+    defaults = {"compile": False, "warm_start": True, "fallback": True, "basin_check": False, "coarse_grid": 12}
 
     def model(self, settings: EnergySettings, free_speeds: bool) -> ShapeEnergyModel:
         return shared_model(settings, free_speeds, self.options["compile"], self.options["coarse_grid"])
@@ -90,7 +92,8 @@ class NewtonAdapter(PHAdapter):
         out, previous = [], None
         for data in samples:
             sol = model.solve_newton(data, previous, tolerance=limits.tolerance,
-                                     max_iterations=limits.max_iterations, fallback=self.options["fallback"])
+                                     max_iterations=limits.max_iterations, fallback=self.options["fallback"],
+                                     basin_check=self.options["basin_check"])
             out.append(sol)
             previous = sol.x if (self.options["warm_start"] and sol.status == "ok") else None
         return out

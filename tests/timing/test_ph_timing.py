@@ -29,6 +29,9 @@ distribution, started from the last posture it solved (the first of a pass from 
 straight configuration), plus the tube lengths of the solution, on the same 100 postures
 in the same run (given-speed group); ``extra_info`` has the postures not ok, the mean
 tube-length error against the recording's and the ratio of its median to ``ph-ik``'s.
+``compiled-basin-check`` also runs Newton from the best coarse-grid point on every
+warm-started sample and keeps the lower minimum (``basin_check``), against the worse
+branch a warm start can follow with free speeds.
 The grid of the free-speed group is 24 x 24 angles x 5 speed ratios (the 64 x 64 x 9
 of ``ph-grid`` costs about 3 s per sample there).
 """
@@ -137,10 +140,12 @@ def test_ipopt_warm(benchmark, case):
            lambda d, x0: model.solve_nlp(d, x0) if x0 is not None else model.solve_nlp(d, starts=3))
 
 
-@pytest.mark.parametrize("compiled", [False, True], ids=["vm", "compiled"])
-def test_newton(benchmark, case, compiled):
+@pytest.mark.parametrize("compiled, basin_check", [(False, False), (True, False), (True, True)],
+                         ids=["vm", "compiled", "compiled-basin-check"])
+def test_newton(benchmark, case, compiled, basin_check):
     model = ShapeEnergyModel(EnergySettings(), free_speeds=case[0], compile=compiled)
-    _bench(benchmark, case, f"newton {'compiled' if compiled else 'vm'}", lambda d, x0: model.solve_newton(d, x0))
+    _bench(benchmark, case, f"newton {'compiled' if compiled else 'vm'}",
+           lambda d, x0: model.solve_newton(d, x0, basin_check=basin_check))
 
 
 def test_ph_ik_compiled(benchmark, case):
