@@ -183,7 +183,7 @@ class ShapeEnergyModel:
         energy = shape_energy(curve, settings.twist_weight, settings.nodes, settings.curvature_floor)
         self._x, self._P, self._energy, self._length = x, P, energy, curve.arc_length()
         self.energy_function = ca.Function("ph_energy", [x, P], [energy, self._length], ["x", "P"], ["E", "S"])
-        self._maps: dict[int, ca.Function] = {}
+        self._maps: dict[int, BufferedFunction] = {}
 
     # -- data checks --------------------------------------------------------------
     def _check(self, data: ShapeData, source: str = "", sample: int | None = None) -> np.ndarray:
@@ -209,12 +209,13 @@ class ShapeEnergyModel:
         return np.stack([A0.ravel(), A2.ravel()])
 
     def _evaluate_many(self, X: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Energy and arc length at the columns of ``X`` (one mapped call)."""
+        """Energy and arc length at the columns of ``X`` (one mapped call; compiled with the model)."""
         n = X.shape[1]
         if n not in self._maps:
-            self._maps[n] = self.energy_function.map(n)
+            mapped = self.energy_function.map(f"ph_energy_map{n}", "serial", n, [1], [])  # P shared
+            self._maps[n] = BufferedFunction(mapped, compiled=self.compile)
         E, S = self._maps[n](X, P)
-        return np.asarray(E).ravel(), np.asarray(S).ravel()
+        return E.copy(), S.copy()
 
     def coarse_starts(self, P: np.ndarray, count: int = 1) -> np.ndarray:
         """The ``count`` best points of a ``coarse_grid`` x ``coarse_grid`` angle grid (speeds at ``L``), ``n_x x count``."""
