@@ -20,7 +20,7 @@ from optikin.baselines.nn_store import read_metadata
 from optikin.errors import InputDataError
 from optikin.problems import ProblemContext
 from optikin.problems.nn_baseline import database_spec, options
-from optikin.problems.ph_hybrid import SHIPPED_STORE, hybrid_tube_lengths, load_hybrid_models
+from optikin.problems.ph_hybrid import SHIPPED_STORE, SHIPPED_STORES, hybrid_tube_lengths, load_hybrid_models
 from optikin.progress import SILENT
 from optikin.spec import load_problem
 
@@ -41,11 +41,13 @@ def tips(arm):
     return arm.evaluate("fk_position", arm.sample_configurations(40, np.random.default_rng(5)))
 
 
-def test_shipped_store_holds_the_models_of_cbha_nn_ikm(models):
+@pytest.mark.parametrize("problem", sorted(SHIPPED_STORES))
+def test_shipped_stores_hold_the_models_of_their_problem(arm, problem):
+    models = load_hybrid_models(arm, SHIPPED_STORES[problem])
     assert [m.task.key for m in models] == ["ikm_nn1", "ikm_nn2", "ikm_nn3", "ikm_nn4"]
-    meta = read_metadata(SHIPPED_STORE)
+    meta = read_metadata(SHIPPED_STORES[problem])
     assert CBHAGeometry(**meta["geometry"]) == CBHAGeometry()
-    spec, path = load_problem("cbha-nn-ikm")
+    spec, path = load_problem(problem)
     ctx = ProblemContext(spec=spec, path=path, arm=CBHAArm(**spec.arm.params), solver=None, solver_path=None,
                          progress=SILENT)
     assert DatabaseSpec(**meta["database"]) == database_spec(ctx)

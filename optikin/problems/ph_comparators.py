@@ -24,9 +24,11 @@ not ``ok`` is counted and gets no lengths, never dropped.
     The same Newton on the data the PH rows use: the tip pose relative to the base
     (6 rows: position, and ``2 L vec(q*^-1 q)`` with ``L`` the arm's reach) plus the
     same 42 distribution rows. The like-for-like comparison, and an ill-posed one (below).
-``hybrid``
+``hybrid``, ``hybrid-coupled``
     :func:`optikin.problems.ph_hybrid.hybrid_tube_lengths`: the shipped networks
-    NN1-NN4 of ``cbha-nn-ikm`` from the tip position relative to the base.
+    NN1-NN4 from the tip position relative to the base, trained on seed 004's Fig. 7
+    database (``cbha-nn-ikm``: independent platforms, the seed's) or on the database
+    whose sections bend as one (``cbha-nn-ikm-coupled``).
 
 Both Newton rows solve the postures in order, each from the last solution that was
 ``ok``; before the first, from the straight configuration (``newton-raphson``), or from
@@ -57,6 +59,7 @@ errors are partly by construction.
 from __future__ import annotations
 
 import time
+from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
@@ -68,7 +71,7 @@ from optikin.data.targets import reach_bound
 from optikin.errors import InputDataError
 from optikin.problems import ProblemContext
 from optikin.problems.ik_formulation import Formulation, build_problem, rest_configuration
-from optikin.problems.ph_hybrid import hybrid_tube_lengths, load_hybrid_models
+from optikin.problems.ph_hybrid import SHIPPED_STORES, hybrid_tube_lengths, load_hybrid_models
 from optikin.solvers import build_preset
 from optikin.solvers.nonlinear import LeastSquaresProblem, NonlinearAdapter, SolveReport
 
@@ -77,7 +80,9 @@ NEWTON_RAPHSON_POSE = "newton-raphson-pose"
 HYBRID = "hybrid"
 NR_TARGETS = {NEWTON_RAPHSON: "sections", NEWTON_RAPHSON_POSE: "pose"}
 """The Newton-Raphson comparators and the target each solves for (module docstring)."""
-COMPARATORS = (*NR_TARGETS, HYBRID)
+HYBRID_STORES = {HYBRID: SHIPPED_STORES["cbha-nn-ikm"], "hybrid-coupled": SHIPPED_STORES["cbha-nn-ikm-coupled"]}
+"""The hybrid comparators and the shipped networks each uses (module docstring)."""
+COMPARATORS = (*NR_TARGETS, *HYBRID_STORES)
 NR_PRESET = "newton"
 """The Newton-Raphson comparators' solver preset: CasADi rootfinder on the square system."""
 NR_FIRST_START = "lm"
@@ -180,9 +185,9 @@ def newton_raphson_tube_lengths(ctx: ProblemContext, arm: CBHAArm, recording: Ma
     return ComparatorRun(lengths, seconds, status, messages)
 
 
-def hybrid_run(arm: CBHAArm, recording: MarkerRecording) -> ComparatorRun:
-    """The hybrid networks from the tip position relative to the base (module docstring)."""
-    lengths, seconds = hybrid_tube_lengths(arm, relative_section_ends(recording, []), load_hybrid_models(arm))
+def hybrid_run(arm: CBHAArm, recording: MarkerRecording, store: Path) -> ComparatorRun:
+    """The hybrid networks of ``store`` from the tip position relative to the base (module docstring)."""
+    lengths, seconds = hybrid_tube_lengths(arm, relative_section_ends(recording, []), load_hybrid_models(arm, store))
     finite = np.all(np.isfinite(lengths), axis=1)
     return ComparatorRun(np.where(finite[:, None], lengths, np.nan), seconds,
                          ["ok" if f else "failed" for f in finite], ["" if f else "non-finite prediction" for f in finite])
@@ -192,6 +197,6 @@ def run_comparator(ctx: ProblemContext, name: str, recording: MarkerRecording) -
     """The comparator ``name`` (one of :data:`COMPARATORS`) on the recording of a CBHA."""
     if not isinstance(ctx.arm, CBHAArm):
         raise ctx.error("baselines", f"{name}: needs a cbha arm (CBHA inverse kinematics), not {ctx.spec.arm.type!r}")
-    if name == HYBRID:
-        return hybrid_run(ctx.arm, recording)
+    if name in HYBRID_STORES:
+        return hybrid_run(ctx.arm, recording, HYBRID_STORES[name])
     return newton_raphson_tube_lengths(ctx, ctx.arm, recording, NR_TARGETS[name])

@@ -9,28 +9,36 @@ inter-vertebrae": each tube's length is the sum of its legs over the 16
 platforms. :func:`hybrid_tube_lengths` does exactly that, one posture per call,
 and times each call as the seed's per-sample time.
 
-The networks are the inverse models of ``problems/cbha-nn-ikm.yaml`` (its Fig. 7
-database, the ``adam`` setting, the eq. (11) penalty), shipped with the package in
-:data:`SHIPPED_STORE` (:mod:`optikin.baselines.nn_store`, plain arrays). Regenerate
-them from the repository root with (185 s of training, the sum of the models'
-``training time [s]`` in its ``metadata.json``, 3.4 min for the whole command, on 2
-shared cores; training is seeded, and gives the widths 12/10/4/8 and test MSEs of
-BENCHMARKS.md, "Inverse kinematics")::
+The networks are the inverse models of a problem file (its database, the ``adam``
+setting, its eq. (11) penalty), shipped with the package in :data:`SHIPPED_STORES`
+(:mod:`optikin.baselines.nn_store`, plain arrays):
 
-    rm -rf optikin/data/models/cbha-nn-ikm/ikm-adam
-    python -c "import yaml; d = yaml.safe_load(open('problems/cbha-nn-ikm.yaml')); \\
-    d['options'] |= {'variants': ['adam'], 'store': 'optikin/data/models/cbha-nn-ikm'}; \\
-    d['baselines'] = []; d['name'] = 'cbha-nn-ikm-store'; \\
-    open('/tmp/cbha-nn-ikm-store.yaml', 'w').write(yaml.safe_dump(d))"
-    optikin solve /tmp/cbha-nn-ikm-store.yaml --out /tmp/cbha-nn-ikm-store
+``cbha-nn-ikm``
+    the Fig. 7 database of seed 004, every platform drawn independently (185 s of
+    training; widths 12/10/4/8, the test MSEs of BENCHMARKS.md, "Inverse kinematics");
+``cbha-nn-ikm-coupled``
+    the database whose sections bend as one (one draw per section shared by its
+    eight platforms; 363 s of training; widths 18/18/20/20, BENCHMARKS.md "Sections
+    that bend as one").
+
+Training is seeded; regenerate a store from the repository root with (``NAME`` one of
+the two; about 3.4 and 7 min for the whole command on 2 shared cores)::
+
+    rm -rf optikin/data/models/NAME/ikm-adam
+    python -c "import yaml; d = yaml.safe_load(open('problems/NAME.yaml')); \\
+    d['options'] |= {'variants': ['adam'], 'store': 'optikin/data/models/NAME'}; \\
+    d['baselines'] = []; d['name'] = 'NAME-store'; \\
+    open('/tmp/NAME-store.yaml', 'w').write(yaml.safe_dump(d))"
+    optikin solve /tmp/NAME-store.yaml --out /tmp/NAME-store
 
 A tip position (3 numbers) does not determine the tube lengths: the arm driven by
 its 6 tubes (3 per section) reaches one tip with a 3-parameter family of tube
-lengths, so any map from the tip position alone errs on some of them. These
-networks err more: trained on platforms drawn independently of each other (Fig. 7),
-they have seen little of the strong, coherent bending of an arm driven by its tubes
-(every platform of a section at the same fraction of its Table I range), so on such
-a recording they extrapolate.
+lengths, so any map from the tip position alone errs on some of them. The
+``cbha-nn-ikm`` networks err more: trained on platforms drawn independently of each
+other (Fig. 7), they have seen little of the strong, coherent bending of an arm
+driven by its tubes (every platform of a section at the same fraction of its Table I
+range), so on such a recording they extrapolate. The ``cbha-nn-ikm-coupled``
+networks have seen sections that bend as one, close to that motion.
 """
 
 from __future__ import annotations
@@ -47,8 +55,11 @@ from optikin.baselines.nn_models import SETTINGS, TrainedModel, TrainingSetting,
 from optikin.baselines.nn_store import load_models, read_metadata
 from optikin.errors import InputDataError
 
-SHIPPED_STORE = Path(optikin.data.__file__).resolve().parent / "models" / "cbha-nn-ikm" / "ikm-adam"
-"""The inverse models NN1-NN4 of ``cbha-nn-ikm`` (setting ``adam``), shipped with the package."""
+MODELS = Path(optikin.data.__file__).resolve().parent / "models"
+SHIPPED_STORES = {name: MODELS / name / "ikm-adam" for name in ("cbha-nn-ikm", "cbha-nn-ikm-coupled")}
+"""The inverse models NN1-NN4 (setting ``adam``) of these problem files, shipped with the package."""
+SHIPPED_STORE = SHIPPED_STORES["cbha-nn-ikm"]
+"""The default: the networks of seed 004's own database (Fig. 7)."""
 SHIPPED_SETTING = "adam"
 SHIPPED_PENALTY = 1e-3
 """``lambda`` of eq. (11) in ``problems/cbha-nn-ikm.yaml``."""
