@@ -232,7 +232,7 @@ def draw_search(path: Path, searches: dict[str, dict[int, float]], title: str) -
 def draw_tip_errors(path: Path, errors: dict[str, np.ndarray], title: str) -> None:
     fig, ax = plt.subplots(figsize=(6.4, 4.2))
     labels = list(errors)
-    data = [np.maximum(errors[k] * MM, 1e-12) for k in labels]
+    data = [np.maximum(errors[k][np.isfinite(errors[k])] * MM, 1e-12) for k in labels]  # failures: in the table
     ax.boxplot(data, showfliers=True)
     ax.set_xticks(range(1, len(labels) + 1), labels, rotation=20, fontsize=8)
     ax.set_yscale("log")
