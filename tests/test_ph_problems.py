@@ -133,6 +133,28 @@ def test_recorded_csv_runs_through_the_same_problem_file(tmp_path):
     assert "vertebra_distance" not in recorded.arrays  # no ground truth in a recording
 
 
+def test_newton_raphson_on_a_csv_recording_needs_its_marker_layout(tmp_path):
+    """A CSV file does not say which vertebrae its markers are on: the comparator asks for
+    ``data.params.intermediate``; given, it reproduces the synthetic run."""
+    spec, path = load_problem("cbha-ph-ik")
+    recording = MARKER_SOURCES.get("synthetic")(CBHAArm(), spec.data.model_copy(update={"samples": 3}), path)
+    write_marker_csv(recording, tmp_path / "recorded.csv")
+    synthetic = run_variant(tmp_path / "a", "cbha-ph-ik", samples=3, baselines=["newton-raphson"])
+
+    def recorded(params):
+        file = problem_variant("cbha-ph-ik", tmp_path, samples=3, baselines=["newton-raphson"], data_params=params)
+        text = file.read_text().replace("source: synthetic", "source: csv")
+        file.write_text(text.replace("    noise: 0.0003\n    rate: 240.0\n    stride: 24\n", ""))
+        return solve(str(file))[0]
+
+    with pytest.raises(InputDataError) as err:
+        recorded({"file": "recorded.csv"})
+    assert err.value.field == "data.params.intermediate"
+    result = recorded({"file": "recorded.csv", "intermediate": [5, 9, 13]})
+    np.testing.assert_allclose(result.arrays["tube_lengths_newton_raphson"],
+                               synthetic.arrays["tube_lengths_newton_raphson"], rtol=0, atol=1e-12)
+
+
 def test_ph_ik_errors_and_frames(tmp_path):
     result = run_variant(tmp_path, "cbha-ph-ik", samples=8, baselines=["ph-ipopt"])
     assert result.status == ["ok"] * 8

@@ -61,7 +61,7 @@ from __future__ import annotations
 
 import csv
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from pathlib import Path
 from typing import Callable
@@ -106,7 +106,8 @@ class MarkerRecording:
 
     Positions in metres, quaternions ``(w, x, y, z)`` (rigid-body orientation: z along
     the backbone). ``tube_lengths`` are whole tubes ``(N, 3)``, ``section_tube_lengths``
-    section 1 ``(N, 3)``.
+    section 1 ``(N, 3)``. ``marker_vertebrae``: the 1-based vertebra of each intermediate
+    marker, when known (empty otherwise).
     """
 
     t: np.ndarray
@@ -119,6 +120,11 @@ class MarkerRecording:
     section_tube_lengths: np.ndarray | None = None
     source: str = ""
     truth: CBHATruth | None = field(default=None, repr=False)
+    marker_vertebrae: tuple[int, ...] = ()
+
+    def __post_init__(self):
+        if self.marker_vertebrae and len(self.marker_vertebrae) != self.markers.shape[1]:
+            raise ValueError(f"{len(self.marker_vertebrae)} marker vertebrae for {self.markers.shape[1]} markers")
 
     def __len__(self) -> int:
         return len(self.t)
@@ -143,9 +149,8 @@ class MarkerRecording:
         q = self.base_orientation * np.where(self.base_orientation @ self.base_orientation[0] < 0, -1.0, 1.0)[:, None]
         mean_q = quat_normalize(q.mean(axis=0))
         n = len(self)
-        return MarkerRecording(self.t, np.tile(self.base_position.mean(axis=0), (n, 1)), np.tile(mean_q, (n, 1)),
-                               self.tip_position, self.tip_orientation, self.markers, self.tube_lengths,
-                               self.section_tube_lengths, self.source, self.truth)
+        return replace(self, base_position=np.tile(self.base_position.mean(axis=0), (n, 1)),
+                       base_orientation=np.tile(mean_q, (n, 1)))
 
     def take(self, index) -> "MarkerRecording":
         """The postures ``index`` (a slice or an index array)."""
@@ -155,9 +160,11 @@ class MarkerRecording:
             tr = self.truth
             truth = CBHATruth(tr.configurations[index], tr.vertebrae[index], tr.backbone_length[index],
                               tr.marker_truth[index])
-        return MarkerRecording(self.t[index], self.base_position[index], self.base_orientation[index],
-                               self.tip_position[index], self.tip_orientation[index], self.markers[index],
-                               pick(self.tube_lengths), pick(self.section_tube_lengths), self.source, truth)
+        return replace(self, t=self.t[index], base_position=self.base_position[index],
+                       base_orientation=self.base_orientation[index], tip_position=self.tip_position[index],
+                       tip_orientation=self.tip_orientation[index], markers=self.markers[index],
+                       tube_lengths=pick(self.tube_lengths), section_tube_lengths=pick(self.section_tube_lengths),
+                       truth=truth)
 
 
 # ------------------------------------------------------------------------------ the CBHA driven by its tubes
@@ -268,7 +275,7 @@ def synthetic_recording(arm: CBHAArm, samples: int = 100, rng: np.random.Generat
     markers = marker_truth + noise * rng.standard_normal(marker_truth.shape)
     truth = CBHATruth(Q, vertebrae, Q.reshape(samples, -1, 3)[:, :, 0].sum(axis=1), marker_truth)
     return MarkerRecording(t, base_p, base_q, tip_p, tip_q, markers, lengths.sum(axis=1), lengths[:, 0, :],
-                           source, truth)
+                           source, truth, tuple(int(v) for v in intermediate))
 
 
 # ------------------------------------------------------------------------------ CSV files
@@ -396,11 +403,21 @@ def synthetic_source(arm: ArmModel, data: DataSpec, path: Path) -> MarkerRecordi
 
 @MARKER_SOURCES.register("csv")
 def csv_source(arm: ArmModel, data: DataSpec, path: Path) -> MarkerRecording:
-    """:func:`read_marker_csv` of ``params.file`` (relative to the problem file), first ``data.samples`` rows."""
-    p = _params(data, path, {"file": None})
+    """:func:`read_marker_csv` of ``params.file`` (relative to the problem file), first ``data.samples`` rows.
+
+    ``params.intermediate`` (optional): the 1-based vertebra of each intermediate marker,
+    in column order (needed by comparators that use a particular marker).
+    """
+    p = _params(data, path, {"file": None, "intermediate": None})
     if not p["file"]:
         raise SpecError(path, "data.params.file", "required by source 'csv'")
     recording = read_marker_csv((Path(path).parent / str(p["file"])).resolve())
+    if p["intermediate"] is not None:
+        try:
+            recording = replace(recording, marker_vertebrae=tuple(int(v) for v in p["intermediate"]))
+        except (TypeError, ValueError) as exc:
+            raise SpecError(path, "data.params.intermediate", f"{exc} (the file has {recording.markers.shape[1]} "
+                                                              "marker columns)") from None
     return recording.take(slice(0, data.samples))
 
 
@@ -434,10 +451,11 @@ def placed(recording: MarkerRecording, rotation: np.ndarray, translation: np.nda
     truth = recording.truth
     if truth is not None:
         truth = CBHATruth(truth.configurations, move(truth.vertebrae), truth.backbone_length, move(truth.marker_truth))
-    return MarkerRecording(recording.t, move(recording.base_position), quat_multiply(rotation, recording.base_orientation),
-                           move(recording.tip_position), quat_multiply(rotation, recording.tip_orientation),
-                           move(recording.markers), recording.tube_lengths, recording.section_tube_lengths,
-                           recording.source, truth)
+    return replace(recording, base_position=move(recording.base_position),
+                   base_orientation=quat_multiply(rotation, recording.base_orientation),
+                   tip_position=move(recording.tip_position),
+                   tip_orientation=quat_multiply(rotation, recording.tip_orientation),
+                   markers=move(recording.markers), truth=truth)
 
 
 def synthetic_rope_chain(arm: CBHAArm, samples: int, rng: np.random.Generator, *, base_distance: float = 0.25,

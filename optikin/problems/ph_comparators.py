@@ -14,9 +14,9 @@ not ``ok`` is counted and gets no lengths, never dropped.
     target ``sections``, ``elongation: affine``): the end positions of both sections,
     the inputs of seed 004's inverse model (section V: the tip and the end of the
     first section), measured relative to the base rigid body by the tip rigid body
-    and the intermediate marker on the vertebra that ends section 1 (vertebra 9 of
-    the recorder's layout; the layout is the synthetic source's ``intermediate``
-    parameter, and a CSV recording must have the recorder's three markers), plus 42
+    and the intermediate marker on the vertebra that ends section 1 (vertebra 9; which
+    vertebra each marker is on is the data's ``intermediate`` parameter, of the
+    synthetic source or of a CSV recording), plus 42
     rows of seed 004's elongation distribution in its affine reading
     (:mod:`optikin.problems.ik_cbha`), which keeps every leg within Table I whenever
     the tube lengths are within their ranges.
@@ -66,7 +66,7 @@ import numpy as np
 
 from optikin.algebra import dq_from_rotation_translation, quat_conjugate, quat_multiply, quat_rotate
 from optikin.arms.cbha import CBHAArm
-from optikin.data.markers import INTERMEDIATE_VERTEBRAE, MarkerRecording
+from optikin.data.markers import MarkerRecording
 from optikin.data.targets import reach_bound
 from optikin.errors import InputDataError
 from optikin.problems import ProblemContext
@@ -102,16 +102,19 @@ class ComparatorRun(NamedTuple):
     messages: list[str]
 
 
-def section_end_markers(arm: CBHAArm, recording: MarkerRecording, layout: tuple[int, ...], source: str) -> list[int]:
-    """Indices of the intermediate markers on the vertebrae that end every section but the last.
-
-    ``layout``: the 1-based vertebra of each marker (the synthetic source's ``intermediate``).
-    """
+def section_end_markers(arm: CBHAArm, recording: MarkerRecording, source: str) -> list[int]:
+    """Indices of the intermediate markers on the vertebrae that end every section but the last
+    (the recording's ``marker_vertebrae``: the data's ``intermediate`` parameter)."""
     wanted = [end + 1 for end in arm.section_end_vertebrae[:-1]]  # 1-based, as the layout
-    if recording.markers.shape[1] != len(layout) or not set(wanted) <= set(layout):
+    layout = recording.marker_vertebrae
+    if not layout:
         raise InputDataError(f"newton-raphson needs a marker on vertebrae {wanted} (the section ends); the recording "
-                             f"has {recording.markers.shape[1]} markers, read as vertebrae {list(layout)}",
-                             source=source, field="intermediate markers")
+                             f"does not say which vertebrae its {recording.markers.shape[1]} markers are on: give "
+                             "data.params.intermediate", source=source, field="data.params.intermediate")
+    if not set(wanted) <= set(layout):
+        raise InputDataError(f"newton-raphson needs a marker on vertebrae {wanted} (the section ends); the "
+                             f"recording's markers are on vertebrae {list(layout)}", source=source,
+                             field="data.params.intermediate")
     return [layout.index(v) for v in wanted]
 
 
@@ -143,8 +146,7 @@ def newton_raphson_targets(ctx: ProblemContext, arm: CBHAArm, recording: MarkerR
     """The measurements a comparator solves for, one row per posture (module docstring)."""
     if target == "pose":
         return relative_tip_poses(recording)
-    layout = tuple(ctx.spec.data.params.get("intermediate", INTERMEDIATE_VERTEBRAE))
-    return relative_section_ends(recording, section_end_markers(arm, recording, layout, f"{ctx.path.name}: data"))
+    return relative_section_ends(recording, section_end_markers(arm, recording, f"{ctx.path.name}: data"))
 
 
 def newton_raphson_step(arm: CBHAArm, newton: NonlinearAdapter, problem: LeastSquaresProblem, start: np.ndarray,

@@ -45,7 +45,7 @@ from threadpoolctl import threadpool_limits
 from optikin.arms.cbha import CBHAArm
 from optikin.curves.min_energy import EnergySettings, ShapeEnergyModel
 from optikin.curves.tubes import TubeLayout
-from optikin.data.markers import INTERMEDIATE_VERTEBRAE, MARKER_SOURCES
+from optikin.data.markers import MARKER_SOURCES
 from optikin.fastcall import BufferedFunction
 from optikin.problems.ph_common import backbone_lengths, end_data
 from optikin.problems.ik_formulation import rest_configuration
@@ -175,7 +175,7 @@ def test_newton_raphson_ik(benchmark, case, recording):
         pytest.skip("the seed's setting (given speeds) only")
     arm = CBHAArm()
     problem, newton = newton_raphson_problem(arm), build_preset(NR_PRESET)
-    targets = relative_section_ends(recording, section_end_markers(arm, recording, INTERMEDIATE_VERTEBRAE, "timing"))
+    targets = relative_section_ends(recording, section_end_markers(arm, recording, "timing"))
     n, rest = len(targets), rest_configuration(arm)
     lengths, status = np.full((n, 3), np.nan), [""] * n
     state = {"k": 0, "start": rest}
