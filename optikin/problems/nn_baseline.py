@@ -245,19 +245,20 @@ def draw_tip_errors(path: Path, errors: dict[str, np.ndarray], title: str) -> No
 
 
 # ---------------------------------------------------------------------------------------- nn_fkm
-def _database(ctx: ProblemContext, arm: CBHAArm):
-    """The learning database of the problem's ``data`` section and the seconds it took to build."""
-    try:
-        return timed(lambda: build_database(arm.geometry, database_spec(ctx)))
-    except ValueError as exc:
-        raise ctx.error("data", str(exc)) from None
-
-
-def check_solver(ctx: ProblemContext) -> None:
-    """The networks are the method under test; exact solvers are named as baselines."""
+def prepare(ctx: ProblemContext) -> tuple[CBHAArm, dict[str, Any], LearningDatabase, float]:
+    """Either kind's checked inputs: the arm, the options, the learning database of the ``data``
+    section and the seconds it took to build. The networks are the method under test, so a
+    ``solver`` is refused: exact solvers are named as baselines."""
+    arm = cbha_arm(ctx)
     if ctx.solver is not None:
         raise ctx.error("solver", f"{ctx.solver.name!r}: the nn kinds train networks; list the exact solver "
                                   "presets to compare with under baselines")
+    o = options(ctx)
+    try:
+        db, seconds = timed(lambda: build_database(arm.geometry, database_spec(ctx)))
+    except ValueError as exc:
+        raise ctx.error("data", str(exc)) from None
+    return arm, o, db, seconds
 
 
 def network_row(label: str, models: list[TrainedModel], db: LearningDatabase, trained: bool,
@@ -303,10 +304,7 @@ def comparison_result(ctx: ProblemContext, arm: CBHAArm, comparison: list[Method
 
 
 def run_fkm(ctx: ProblemContext) -> Result:
-    spec, arm = ctx.spec, cbha_arm(ctx)
-    check_solver(ctx)
-    o = options(ctx)
-    db, t_db = _database(ctx, arm)
+    spec, (arm, o, db, t_db) = ctx.spec, prepare(ctx)
     test = db.test
     legs, truth_tip = db.leg_lengths[test], db.tip[test]
     n = len(test)
@@ -353,10 +351,7 @@ def run_fkm(ctx: ProblemContext) -> Result:
 
 
 def run_ikm(ctx: ProblemContext) -> Result:
-    spec, arm = ctx.spec, cbha_arm(ctx)
-    check_solver(ctx)
-    o = options(ctx)
-    db, t_db = _database(ctx, arm)
+    spec, (arm, o, db, t_db) = ctx.spec, prepare(ctx)
     test = db.test
     targets = db.tip[test]
     n = len(test)
