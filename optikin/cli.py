@@ -1,4 +1,4 @@
-"""The ``optikin`` command line: ``list``, ``show``, ``solve``, ``bench``.
+"""The ``optikin`` command line: ``list``, ``show``, ``solve``, ``plot``, ``bench``.
 
 Every error caused by input (a malformed file, an unknown name, bad data, a
 failed solver) prints one line naming the file, field or sample and exits
@@ -43,21 +43,73 @@ def _cmd_list(args: argparse.Namespace) -> int:
     rows, broken = _listing("problems", load_problem, lambda spec: (spec.kind, spec.title))
     print_listing("problems", rows, ("name", "kind", "title"), console)
     if args.solvers:
-        solver_rows, solver_broken = _listing("solvers", load_solver, lambda spec: (spec.backend, spec.title))
-        print_listing("solvers", solver_rows, ("name", "backend", "title"), console)
+        from optikin.registry import BACKENDS
+        from optikin.solvers import load_backends
+
+        load_backends()
+
+        def describe(spec):
+            where = BACKENDS.get(spec.backend).module if spec.backend in BACKENDS else "unknown backend"
+            return (spec.backend, where, spec.title) if args.where else (spec.backend, spec.title)
+
+        columns = ("name", "backend", "module", "title") if args.where else ("name", "backend", "title")
+        solver_rows, solver_broken = _listing("solvers", load_solver, describe)
+        print_listing("solvers", solver_rows, columns, console)
         broken += solver_broken
+    if args.kinds:
+        _print_kinds(console)
     for message in broken:
         console.print(f"[red]invalid:[/red] {escape(message)}")
     return EXIT_BAD_INPUT if broken else EXIT_OK
 
 
-def _cmd_show(args: argparse.Namespace) -> int:
-    from optikin.spec import load_problem, load_solver
+def _print_kinds(console) -> None:
+    """Each problem kind with its backend families, data sources and options (field, type, default, meaning)."""
+    from optikin.data.sources import DATA_SOURCES
+    from optikin.options import describe_options
+    from optikin.problems import load_kinds
+    from optikin.registry import PROBLEM_KINDS
+    from optikin.report import print_listing
 
-    spec, path = load_solver(args.name) if args.solver else load_problem(args.name)
-    data = spec.model_dump(mode="json")
+    load_kinds()
+    for name in PROBLEM_KINDS.names():
+        kind = PROBLEM_KINDS.get(name)
+        sources = DATA_SOURCES.get(kind.data_family) if kind.data_family else None
+        console.print(f"[bold]{name}[/bold]: {kind.summary}; solved by {', '.join(kind.backend_families) or 'itself'}"
+                      f"; data sources: {', '.join(sources.names()) if sources else 'its own'}")
+        if kind.options is not None:
+            print_listing(f"options of kind {name}", describe_options(kind.options),
+                          ("field", "type", "default", "description"), console)
+
+
+def _cmd_show(args: argparse.Namespace) -> int:
+    from optikin.options import describe_options
+    from optikin.report import print_listing, wide_console
+
+    if args.solver:
+        from optikin.solvers import load_preset
+
+        preset = load_preset(args.name)
+        spec, path = preset.spec, preset.path
+        model, title = preset.backend.options, f"options of backend {preset.spec.backend}"
+        data = spec.model_dump(mode="json")
+        if model is not None:
+            data["options"] = preset.options.model_dump(mode="json")
+    else:
+        from optikin.runner import prepare
+
+        kind, ctx = prepare(args.name)
+        spec, path = ctx.spec, ctx.path
+        model, title = kind.options, f"options of kind {kind.name}"
+        data = spec.model_dump(mode="json")
+        if model is not None:
+            data["options"] = ctx.options.model_dump(mode="json")
+        if ctx.data_params is not None:
+            data["data"]["params"] = ctx.data_params.model_dump(mode="json")
     print(f"# {path}")
     print(json.dumps(data, indent=2) if args.json else yaml.safe_dump(data, sort_keys=False), end="")
+    if model is not None and not args.json:
+        print_listing(title, describe_options(model), ("field", "type", "default", "description"), wide_console())
     return EXIT_OK
 
 
@@ -66,6 +118,7 @@ def _cmd_solve(args: argparse.Namespace) -> int:
     from optikin.report import print_result
     from optikin.runner import solve
 
+    _headless_figures()
     result, written = solve(args.problem, solver=args.solver, out=Path(args.out), figures=not args.no_figures,
                             progress=Progress(enabled=not args.json))
     if args.json:
@@ -76,6 +129,34 @@ def _cmd_solve(args: argparse.Namespace) -> int:
     return EXIT_OK if result.succeeded else EXIT_FAILED_SAMPLES
 
 
+def _cmd_plot(args: argparse.Namespace) -> int:
+    from optikin.errors import SpecError
+    from optikin.problems import load_kinds
+    from optikin.registry import PROBLEM_KINDS
+    from optikin.results import read_result, redraw
+
+    _headless_figures()
+    folder = Path(args.result)
+    summary, arrays = read_result(folder)
+    load_kinds()
+    if summary["kind"] not in PROBLEM_KINDS:
+        raise SpecError(folder / "result.json", "kind", f"unknown problem kind {summary['kind']!r}")
+    kind = PROBLEM_KINDS.get(summary["kind"])
+    if kind.figures is None:
+        print(f"kind {kind.name} draws no figures")
+        return EXIT_OK
+    for path in redraw(folder, kind.figures, summary, arrays):
+        print(f"drew {path}")
+    return EXIT_OK
+
+
+def _headless_figures() -> None:
+    """Figures from the command line are files: draw with the Agg backend, whatever the machine has."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="optikin", description=__doc__.splitlines()[0])
     parser.add_argument("--version", action="version", version=f"optikin {__version__}")
@@ -83,6 +164,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("list", help="named problems (and solver presets) with title and kind")
     p.add_argument("--solvers", action="store_true", help="also list solver presets")
+    p.add_argument("--where", action="store_true", help="with --solvers: the module of each preset's backend")
+    p.add_argument("--kinds", action="store_true", help="also list problem kinds with their options")
     p.set_defaults(run=_cmd_list)
 
     p = sub.add_parser("show", help="the validated spec of a named problem (or solver preset)")
@@ -98,6 +181,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print the result summary as JSON")
     p.add_argument("--no-figures", action="store_true", help="skip drawing figures")
     p.set_defaults(run=_cmd_solve)
+
+    p = sub.add_parser("plot", help="redraw the figures of a written result from its arrays, without solving")
+    p.add_argument("result", help="a result folder (holding result.json and arrays.npz)")
+    p.set_defaults(run=_cmd_plot)
 
     from optikin import bench
 

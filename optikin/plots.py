@@ -1,7 +1,8 @@
 """Figures people would rather look at than read: backbones in 3-D, signals over time.
 
-Every function draws into a new figure and saves it to ``path`` (PNG); the
-non-interactive Agg backend is used so this works on machines with no screen.
+Every function draws into a new figure, saves it to ``path`` (PNG) and closes
+it. The matplotlib backend is the caller's: the command line picks Agg, a
+notebook keeps its own.
 """
 
 from __future__ import annotations
@@ -9,11 +10,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Sequence
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
 MM = 1e3
 

@@ -1,11 +1,14 @@
 """The outcome of one solve of a problem file, and how it is written to disk.
 
 A :class:`Result` holds per-sample status, iterations, residuals and timings
-(DESIGN.md: every solve reports how it went), the arrays the problem produced,
-summary metrics, and one row per compared method. :func:`write_result` writes
+(every solve reports how it went), the arrays the problem produced, summary
+metrics, and one row per compared method. :func:`write_result` writes
 ``result.json`` + ``arrays.npz`` + figures into ``OUT/<problem name>/``
 atomically: everything goes to a temporary folder first, which then replaces
 the old one in a single rename, so a failed run never leaves half a result.
+
+Figures are drawn by the kind's :data:`FigureBuilder` from the arrays and the
+summary alone, so :func:`redraw` can draw them again from a written folder.
 """
 
 from __future__ import annotations
@@ -18,7 +21,7 @@ import tempfile
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Mapping
 
 import numpy as np
 
@@ -26,6 +29,13 @@ from optikin import __version__
 
 STATUSES = ("ok", "unreachable", "failed", "not_converged", "timeout")
 """Per-sample statuses a problem kind may report."""
+
+Drawer = Callable[[Path], None]
+"""Draws one figure into the PNG file it is given."""
+
+FigureBuilder = Callable[[Mapping[str, np.ndarray], Mapping[str, Any]], dict[str, Drawer]]
+"""``figures(arrays, summary) -> {name: drawer}``: a kind's figures from a result's arrays and its
+JSON summary (:meth:`Result.summary`) alone. A figure whose arrays are missing is left out."""
 
 
 @dataclass
@@ -118,10 +128,12 @@ def _json_ready(x: Any) -> Any:
     return x
 
 
-def write_result(result: Result, out_dir: Path, figures: bool = True, arrays: list[str] | None = None) -> Path:
+def write_result(result: Result, out_dir: Path, figures: bool = True, arrays: list[str] | None = None,
+                 figure_builder: FigureBuilder | None = None) -> Path:
     """Write ``result`` under ``out_dir/<problem>/`` atomically; returns that folder.
 
-    ``arrays`` restricts which arrays go into ``arrays.npz`` (all when None).
+    ``arrays`` restricts which arrays go into ``arrays.npz`` (all when None);
+    ``figure_builder`` draws the kind's figures from all of the result's arrays.
     """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -135,7 +147,10 @@ def write_result(result: Result, out_dir: Path, figures: bool = True, arrays: li
         if kept:
             np.savez_compressed(staging / "arrays.npz", **kept)
         if figures:
-            for name, draw in result.figures.items():
+            drawers = dict(result.figures)
+            if figure_builder is not None:
+                drawers.update(figure_builder(result.arrays, summary))
+            for name, draw in drawers.items():
                 draw(staging / f"{name}.png")
                 summary["figures"].append(f"{name}.png")
         (staging / "result.json").write_text(json.dumps(summary, indent=2) + "\n")
@@ -155,3 +170,41 @@ def _replace_dir(staging: Path, final: Path) -> None:
     staging.rename(final)
     if old is not None:
         shutil.rmtree(old, ignore_errors=True)
+
+
+def read_result(folder: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    """The summary (``result.json``) and arrays (``arrays.npz``, empty if absent) of a written result."""
+    from optikin.errors import InputDataError
+
+    folder = Path(folder)
+    try:
+        summary = json.loads((folder / "result.json").read_text())
+    except OSError as exc:
+        raise InputDataError(f"not a result folder: {exc.strerror or exc}", source=str(folder)) from None
+    except json.JSONDecodeError as exc:
+        raise InputDataError(f"result.json is not JSON: {exc.msg} (line {exc.lineno})", source=str(folder)) from None
+    if not isinstance(summary, dict) or "kind" not in summary:
+        raise InputDataError("result.json names no problem kind", source=str(folder))
+    arrays: dict[str, np.ndarray] = {}
+    if (folder / "arrays.npz").is_file():
+        with np.load(folder / "arrays.npz", allow_pickle=False) as npz:
+            arrays = {k: npz[k] for k in npz.files}
+    return summary, arrays
+
+
+def redraw(folder: Path, figure_builder: FigureBuilder, summary: Mapping[str, Any],
+           arrays: Mapping[str, np.ndarray]) -> list[Path]:
+    """Draw a written result's figures again into ``folder``; each PNG replaces the old one atomically."""
+    written = []
+    for name, draw in figure_builder(arrays, summary).items():
+        final = Path(folder) / f"{name}.png"
+        fd, temporary = tempfile.mkstemp(prefix=f".{name}-", suffix=".png", dir=folder)
+        os.close(fd)
+        try:
+            draw(Path(temporary))
+            os.replace(temporary, final)
+        except BaseException:
+            Path(temporary).unlink(missing_ok=True)
+            raise
+        written.append(final)
+    return written

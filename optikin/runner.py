@@ -1,9 +1,11 @@
-"""Problem file + solver preset -> Result (DESIGN.md data flow).
+"""Problem file + solver preset -> Result.
 
 ``solve("cc-two-section-fk")`` loads and validates the problem file, picks the
 solver preset (the ``--solver`` argument, else the file's ``solver``, else the
 kind's default), checks that the kind accepts that backend and every listed
-baseline, builds the arm, runs the kind, and optionally writes the result.
+baseline, validates ``options`` and ``data.params`` against the kind's and the
+data source's models, builds the arm, runs the kind, and optionally writes the
+result. Every error found before the run names the file and the dotted field.
 """
 
 from __future__ import annotations
@@ -11,21 +13,26 @@ from __future__ import annotations
 from pathlib import Path
 
 from optikin.arms import build_arm
+from optikin.data.sources import source_of
 from optikin.errors import SpecError, UnknownNameError
+from optikin.options import validate_options
 from optikin.problems import ProblemContext, ProblemKind, load_kinds
 from optikin.progress import SILENT, Progress
 from optikin.registry import PROBLEM_KINDS
 from optikin.results import Result, write_result
-from optikin.solvers import load_backends, load_preset
+from optikin.solvers import LoadedPreset, load_backends, load_preset
 from optikin.spec import ProblemSpec, available, load_problem
 
 
-def _kind_of(spec: ProblemSpec, path: Path) -> ProblemKind:
+def kind_of(spec: ProblemSpec, path: Path) -> ProblemKind:
+    """The registered kind a problem file names; an unknown one names the file's ``kind`` field."""
     load_kinds()
     try:
-        return PROBLEM_KINDS.get(spec.kind)
+        kind = PROBLEM_KINDS.get(spec.kind)
     except UnknownNameError as exc:
         raise SpecError(path, "kind", str(exc)) from None
+    assert isinstance(kind, ProblemKind)
+    return kind
 
 
 def _check_baselines(spec: ProblemSpec, path: Path, kind: ProblemKind) -> None:
@@ -38,34 +45,58 @@ def _check_baselines(spec: ProblemSpec, path: Path, kind: ProblemKind) -> None:
             raise SpecError(path, f"baselines.{i}",
                             f"{baseline!r} is neither a baseline of kind {kind.name!r} "
                             f"(known: {', '.join(kind.baselines) or 'none'}) nor a solver preset")
-        family = load_preset(baseline)[2].family
+        family = load_preset(baseline).backend.family
         if family not in kind.backend_families:
             raise SpecError(path, f"baselines.{i}", f"solver preset {baseline!r} ({family}) cannot solve kind "
                                                     f"{kind.name!r}, which takes {' or '.join(kind.backend_families)}")
 
 
+def _preset(name: str | None, kind: ProblemKind) -> LoadedPreset | None:
+    if name is None:
+        return None
+    preset = load_preset(name)
+    if preset.backend.family not in kind.backend_families:
+        raise SpecError(preset.path, "backend",
+                        f"{preset.spec.backend!r} ({preset.backend.family}) cannot solve kind {kind.name!r}, "
+                        f"which takes {' or '.join(kind.backend_families) or 'no'} backends")
+    return preset
+
+
+def _check_arrays(spec: ProblemSpec, path: Path, result: Result) -> None:
+    """``outputs.arrays`` names arrays this result has."""
+    for i, name in enumerate(spec.outputs.arrays or []):
+        if name not in result.arrays:
+            raise SpecError(path, f"outputs.arrays.{i}",
+                            f"no array {name!r} in this result; known: {', '.join(sorted(result.arrays)) or 'none'}")
+
+
+def prepare(problem: str, solver: str | None = None, progress: Progress = SILENT) -> tuple[ProblemKind, ProblemContext]:
+    """Everything :func:`solve` checks and builds before the run: the kind and its context."""
+    load_backends()
+    spec, path = load_problem(problem)
+    kind = kind_of(spec, path)
+    _check_baselines(spec, path, kind)
+    options = spec.options if kind.options is None else validate_options(kind.options, spec.options, path, "options")
+    data_source, data_params = None, None
+    if kind.data_family is not None:
+        data_source = source_of(kind.data_family, spec.data.source, path)
+        data_params = validate_options(data_source.params, spec.data.params, path, "data.params")
+    preset = _preset(solver or spec.solver or kind.default_solver, kind)
+    adapter = None if preset is None else preset.build()
+    arm = build_arm(spec.arm.type, spec.arm.params, path)
+    ctx = ProblemContext(spec=spec, path=path, arm=arm, progress=progress, options=options,
+                         data_source=data_source, data_params=data_params, preset=preset, adapter=adapter)
+    return kind, ctx
+
+
 def solve(problem: str, solver: str | None = None, out: Path | None = None, figures: bool = True,
           progress: Progress = SILENT) -> tuple[Result, Path | None]:
     """Solve a named problem (or a path to one); returns the Result and where it was written."""
-    load_backends()
-    spec, path = load_problem(problem)
-    kind = _kind_of(spec, path)
-    _check_baselines(spec, path, kind)
-    preset_name = solver or spec.solver or kind.default_solver
-    preset, preset_path, adapter = None, None, None
-    if preset_name is not None:
-        preset, preset_path, backend = load_preset(preset_name)
-        if backend.family not in kind.backend_families:
-            raise SpecError(preset_path, "backend",
-                            f"{preset.backend!r} ({backend.family}) cannot solve kind {kind.name!r}, "
-                            f"which takes {' or '.join(kind.backend_families)} backends")
-        adapter = backend.build(preset)
-    arm = build_arm(spec.arm.type, spec.arm.params, path)
-    ctx = ProblemContext(spec=spec, path=path, arm=arm, solver=preset, solver_path=preset_path,
-                         progress=progress, adapter=adapter)
+    kind, ctx = prepare(problem, solver, progress)
     result = kind.run(ctx)
+    _check_arrays(ctx.spec, ctx.path, result)
     written = None
     if out is not None:
-        written = write_result(result, Path(out), figures=figures and spec.outputs.figures,
-                               arrays=spec.outputs.arrays)
+        written = write_result(result, Path(out), figures=figures and ctx.spec.outputs.figures,
+                               arrays=ctx.spec.outputs.arrays, figure_builder=kind.figures)
     return result, written

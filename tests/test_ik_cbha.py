@@ -15,7 +15,7 @@ import yaml
 from optikin.arms.cbha import CBHAArm, CBHAGeometry
 from optikin.data.markers import configurations_from_fractions
 from optikin.errors import SpecError
-from optikin.problems.ik_cbha import distributed_tube_range, distribution_deviation
+from optikin.ik.cbha import distributed_tube_range, distribution_deviation
 from optikin.runner import solve
 
 TABLE_I_MIN_MM = [8.5, 8.5, 8.5, 7, 7, 7, 8.5, 10, 6.5, 8, 8, 7.5, 7.5, 7, 7, 6.5]

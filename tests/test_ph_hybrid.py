@@ -20,7 +20,7 @@ from optikin.baselines.nn_store import read_metadata
 from optikin.errors import InputDataError
 from optikin.problems import ProblemContext
 from optikin.problems.nn_baseline import database_spec, options
-from optikin.problems.ph_hybrid import SHIPPED_STORE, SHIPPED_STORES, hybrid_tube_lengths, load_hybrid_models
+from optikin.baselines.hybrid_tubes import SHIPPED_STORE, SHIPPED_STORES, hybrid_tube_lengths, load_hybrid_models
 from optikin.progress import SILENT
 from optikin.spec import load_problem
 
@@ -48,7 +48,7 @@ def test_shipped_stores_hold_the_models_of_their_problem(arm, problem):
     meta = read_metadata(SHIPPED_STORES[problem])
     assert CBHAGeometry(**meta["geometry"]) == CBHAGeometry()
     spec, path = load_problem(problem)
-    ctx = ProblemContext(spec=spec, path=path, arm=CBHAArm(**spec.arm.params), solver=None, solver_path=None,
+    ctx = ProblemContext(spec=spec, path=path, arm=CBHAArm(**spec.arm.params),
                          progress=SILENT)
     assert DatabaseSpec(**meta["database"]) == database_spec(ctx)
     for model in models:

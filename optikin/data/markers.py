@@ -186,7 +186,7 @@ def platform_poses_from_legs(legs: np.ndarray, r_lower: np.ndarray, r_upper: np.
     ``legs`` ``(M, 3)``, radii ``(M,)``; starts from the straight pose at the mean leg
     length. Raises ``ValueError`` if a platform does not converge (legs no platform can have).
     A plain Newton loop of its own rather than the IK solver presets
-    (:mod:`optikin.problems.ik_platform`): the recording is the ground truth those are scored on.
+    (:mod:`optikin.ik.platform`): the recording is the ground truth those are scored on.
     """
     legs = np.asarray(legs, dtype=float)
     M = legs.shape[0]

@@ -1,42 +1,94 @@
 """Problem kinds: each reads a validated problem spec, builds its problem, solves it, returns a Result.
 
-A kind registers a :class:`ProblemKind` under the name used in the ``kind``
-field of problem files. The runner hands it a :class:`ProblemContext` holding
-the spec, the solver preset, the arm model and a progress reporter.
+Each kind is a package ``optikin/problems/<kind>/``:
+
+``run.py``
+    builds and solves the problem from a :class:`ProblemContext`, returning the
+    kind's own typed outcome;
+``report.py``
+    turns that outcome into a :class:`~optikin.results.Result` (metrics, the
+    comparison table, arrays, notes);
+``figures.py``
+    draws from the result's arrays and summary alone
+    (:data:`~optikin.results.FigureBuilder`), so ``optikin plot RESULT_DIR``
+    redraws a written result without solving again;
+``__init__.py``
+    registers a :class:`ProblemKind` under the name used in the ``kind`` field of
+    problem files, with its options model and data family.
+
+The runner validates ``options`` and ``data.params`` against the kind's models
+before the run, and hands the kind a :class:`ProblemContext` holding the spec,
+the typed options, the data source, the solver preset and its adapter, the arm
+model and a progress reporter.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable
+from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 
 from optikin.arms.base import ArmModel
+from optikin.data.sources import DataSource
 from optikin.errors import SpecError
+from optikin.options import NoOptions, Options
 from optikin.progress import Progress
 from optikin.registry import PROBLEM_KINDS
-from optikin.results import Result
+from optikin.results import FigureBuilder, Result
 from optikin.spec import ProblemSpec, SolverSpec
+
+if TYPE_CHECKING:
+    from optikin.solvers import LoadedPreset
 
 
 @dataclass
 class ProblemContext:
+    """Everything a kind's ``run`` needs, validated.
+
+    Attributes
+    ----------
+    spec, path:
+        The problem file and where it came from.
+    arm:
+        The arm model built from ``arm:``.
+    options:
+        ``options:`` validated against the kind's options model.
+    data_source, data_params:
+        The source named by ``data.source`` (in the kind's data family) and its
+        ``data.params`` validated against the source's params model; ``None`` for
+        kinds without a data family.
+    preset:
+        The solver preset (spec, file, backend, typed options), or ``None``.
+    adapter:
+        The preset's adapter, keeping its family's protocol (:mod:`optikin.solvers.base`).
+    """
+
     spec: ProblemSpec
     path: Path
     arm: ArmModel
-    solver: SolverSpec | None
-    solver_path: Path | None
     progress: Progress
+    options: Any = None
+    data_source: DataSource | None = None
+    data_params: Any = None
+    preset: "LoadedPreset | None" = None
     adapter: Any = None
+
+    @property
+    def solver(self) -> SolverSpec | None:
+        """The solver preset's spec, or None."""
+        return None if self.preset is None else self.preset.spec
 
     def rng(self, stream: int = 0) -> np.random.Generator:
         """A generator seeded from ``data.seed`` (``stream`` separates independent draws)."""
         return np.random.default_rng([self.spec.data.seed, stream])
 
-    def option(self, key: str, default: Any) -> Any:
-        return self.spec.options.get(key, default)
+    def load_data(self) -> Any:
+        """The samples of ``data:``, from the kind's data source with its validated params."""
+        if self.data_source is None:
+            raise SpecError(self.path, "data.source", f"kind {self.spec.kind!r} has no data sources")
+        return self.data_source.load(self.arm, self.spec.data, self.data_params, self.path)
 
     def error(self, field_path: str, message: str) -> SpecError:
         return SpecError(self.path, field_path, message)
@@ -44,7 +96,28 @@ class ProblemContext:
 
 @dataclass(frozen=True)
 class ProblemKind:
-    """What a kind accepts and how it runs."""
+    """What a kind accepts and how it runs.
+
+    Attributes
+    ----------
+    name, summary:
+        The ``kind:`` of problem files, and one line for ``optikin list --kinds``.
+    run:
+        ``run(ctx) -> Result``.
+    backend_families, default_solver:
+        The backend families whose presets may solve it, and the preset used when
+        the file names none.
+    baselines:
+        Baselines the kind implements itself (presets of an accepted family are
+        accepted as baselines too).
+    options:
+        The model of ``options:``; ``None`` marks a kind that still checks its options itself.
+    data_family:
+        The family of :data:`optikin.data.sources.DATA_SOURCES` that ``data.source`` names,
+        or ``None`` for a kind that resolves its data itself.
+    figures:
+        Draws the result's figures from its arrays and summary.
+    """
 
     name: str
     summary: str
@@ -52,7 +125,9 @@ class ProblemKind:
     backend_families: tuple[str, ...]
     default_solver: str | None
     baselines: tuple[str, ...] = ()
-    options: dict[str, Any] = field(default_factory=dict)
+    options: type[Options] | None = NoOptions
+    data_family: str | None = None
+    figures: FigureBuilder | None = None
 
 
 def register_kind(kind: ProblemKind) -> ProblemKind:
@@ -61,7 +136,7 @@ def register_kind(kind: ProblemKind) -> ProblemKind:
 
 
 def load_kinds() -> None:
-    """Import every problem-kind module in this package so it is registered."""
-    from optikin.solvers import _import_all
+    """Import every problem-kind module and package here so it is registered."""
+    from optikin.solvers import import_all
 
-    _import_all(__name__, __path__)
+    import_all(__name__, __path__)

@@ -519,6 +519,7 @@ def _figures(name: str, demo, variants: list[str], rollouts: dict[tuple[str, str
 
 
 register_kind(ProblemKind(
+    options=None,
     name="dmp",
     summary="learn a demonstrated motion with DMPs (cvxpy regression, NLP gain tuning) and generalise it",
     run=run,

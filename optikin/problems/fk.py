@@ -116,6 +116,7 @@ def run(ctx: ProblemContext) -> Result:
 
 
 register_kind(ProblemKind(
+    options=None,
     name="fk",
     summary="forward kinematics over a configuration sweep or trajectory",
     run=run,

@@ -20,7 +20,7 @@ within the arm's bounds (:mod:`optikin.solvers.nonlinear`), with
   least-squares problem with a curve of solutions per reachable pose.
 * ``target: legs`` (CBHA only): the 48 leg lengths of the 16 platforms ->
   ``(Z_k, theta_k, psi_k)``, seed 004 eqs. (7)-(9) inverted platform by platform
-  (:mod:`optikin.problems.ik_platform`); ``||r||`` in metres of leg length.
+  (:mod:`optikin.ik.platform`); ``||r||`` in metres of leg length.
 
 For a CBHA every leg length must also lie within Table I of seed 004: the NLP
 backends impose these limits as constraints, and any backend's configuration
@@ -41,13 +41,13 @@ default the inverse ranges of the variables):
                   ``penalty`` (lambda) times a squared norm is minimised
                   (``penalty_on: configuration``, the weighted distance to ``rest``;
                   or ``position``, the tip's distance to the base, as printed);
-                  see :mod:`optikin.problems.ik_formulation`. A sample is ``ok``
+                  see :mod:`optikin.ik.formulation`. A sample is ``ok``
                   at a stationary point of that cost; its tip error is reported
                   beside (in general larger than ``tolerance``).
 
 On a CBHA, ``elongation: distributed`` adds the elongation distribution of seed
 004 section IV (every inter-vertebra a fixed fraction of its section's tube
-length, from Table I; :mod:`optikin.problems.ik_cbha`) to any of these;
+length, from Table I; :mod:`optikin.ik.cbha`) to any of these;
 ``elongation: affine`` its other reading (the elongation above Table I's minimum
 shared in proportion to each inter-vertebra's range).
 
@@ -108,9 +108,9 @@ from optikin.arms.cbha import CBHAArm
 from optikin.data.targets import TARGET_KINDS, TARGET_SOURCES, Targets, reach_bound
 from optikin.errors import SpecError
 from optikin.problems import ProblemContext, ProblemKind, register_kind
-from optikin.problems.ik_cbha import distribution_deviation, leg_checks, leg_margins
+from optikin.ik.cbha import distribution_deviation, leg_checks, leg_margins
 from optikin.problems.ik_figures import draw_comparison
-from optikin.problems.ik_formulation import (
+from optikin.ik.formulation import (
     ELONGATIONS,
     PENALTY_READINGS,
     REDUNDANCY_CHOICES,
@@ -118,9 +118,10 @@ from optikin.problems.ik_formulation import (
     build_problem,
     rest_configuration,
 )
-from optikin.problems.ik_platform import solve_platforms
+from optikin.ik.platform import solve_platforms
 from optikin.results import MethodRow, Result
-from optikin.solvers.nonlinear import FAMILY, BatchReport, LeastSquaresProblem, NonlinearAdapter
+from optikin.solvers.nonlinear import FAMILY, LeastSquaresProblem, NonlinearAdapter
+from optikin.solvers.base import SolutionBatch
 from optikin.solvers import build_preset
 
 DEFAULTS: dict[str, Any] = {"target": "position", "redundancy": "rest", "rest": None, "weights": None,
@@ -284,8 +285,8 @@ def methods_of(ctx: ProblemContext, settings: Settings) -> list[Method]:
     return methods
 
 
-Solve = Callable[[np.ndarray, np.ndarray, bool, "np.ndarray | None"], BatchReport]
-"""``(starts, targets, warm_start, x_ref) -> BatchReport``: one backend on one kind of target."""
+Solve = Callable[[np.ndarray, np.ndarray, bool, "np.ndarray | None"], SolutionBatch]
+"""``(starts, targets, warm_start, x_ref) -> SolutionBatch``: one backend on one kind of target."""
 
 
 def solver_of(adapter: NonlinearAdapter, problem: LeastSquaresProblem | list[LeastSquaresProblem]) -> Solve:
@@ -295,7 +296,7 @@ def solver_of(adapter: NonlinearAdapter, problem: LeastSquaresProblem | list[Lea
 
 
 def solve_targets(solve: Solve, targets: Targets, settings: Settings, formulation: Formulation,
-                  ctx: ProblemContext, arm: ArmModel) -> BatchReport:
+                  ctx: ProblemContext, arm: ArmModel) -> SolutionBatch:
     """Solve every target (module docstring): warm-started along a trajectory, batched and retried otherwise."""
     x_ref = formulation.rest if formulation.redundancy == "rest" else None
     if targets.trajectory:
@@ -315,7 +316,7 @@ def solve_targets(solve: Solve, targets: Targets, settings: Settings, formulatio
             better = again.status[j] == "ok" or (np.isfinite(again.residual[j]) and
                                                  not again.residual[j] >= report.residual[i])
             report.iterations[i] += again.iterations[j]
-            report.time[i] += again.time[j]
+            report.seconds[i] += again.seconds[j]
             if better:
                 report.x[i], report.status[i] = again.x[j], again.status[j]
                 report.residual[i], report.messages[i] = again.residual[j], again.messages[j]
@@ -367,7 +368,7 @@ def answer_checks(arm: ArmModel, targets: Targets, formulation: Formulation, X: 
     return checks
 
 
-def method_metrics(report: BatchReport, targets: Targets, formulation: Formulation, checks: dict[str, np.ndarray],
+def method_metrics(report: SolutionBatch, targets: Targets, formulation: Formulation, checks: dict[str, np.ndarray],
                    wall: float) -> dict[str, Any]:
     status = np.array(report.status)
     ok = status == "ok"
@@ -400,7 +401,7 @@ def method_metrics(report: BatchReport, targets: Targets, formulation: Formulati
         metrics["unreachable reported ok"] = int(ok[~reachable].sum())
     metrics.update({
         "median iterations": float(np.median(report.iterations)) if np.all(report.iterations >= 0) else None,
-        "median time per solve [us]": float(np.median(report.time) * 1e6),
+        "median time per solve [us]": float(np.median(report.seconds) * 1e6),
         "mean time per solve [us]": float(wall / len(report) * 1e6),
         "batched": report.batched,
         "statuses": ", ".join(f"{s}: {int((status == s).sum())}" for s in dict.fromkeys(report.status)),
@@ -418,7 +419,7 @@ def run(ctx: ProblemContext) -> Result:
     targets = source(arm, spec.data, ctx.path, settings.target)
     methods = methods_of(ctx, settings)
 
-    reports: dict[str, BatchReport] = {}
+    reports: dict[str, SolutionBatch] = {}
     checks: dict[str, dict[str, np.ndarray]] = {}
     comparison = []
     with ctx.progress.task(f"ik: {len(targets)} targets x {len(methods)} methods", total=len(methods)) as advance:
@@ -441,7 +442,7 @@ def run(ctx: ProblemContext) -> Result:
     for name, r in reports.items():
         key = array_key(name)
         arrays |= {f"residual_{key}": r.residual, f"status_{key}": np.array(r.status), f"solutions_{key}": r.x,
-                   f"time_{key}": r.time, f"iterations_{key}": r.iterations}
+                   f"time_{key}": r.seconds, f"iterations_{key}": r.iterations}
         arrays |= {f"{check}_{key}": values for check, values in checks[name].items()}
     if targets.t is not None:
         arrays["t"] = targets.t
@@ -481,12 +482,13 @@ def run(ctx: ProblemContext) -> Result:
     return Result(
         problem=spec.name, kind=spec.kind, solver=ctx.solver.name, title=spec.title, arm=arm.describe(),
         status=list(main.status), iterations=main.iterations, residuals=main.residual,
-        timings={"median per solve [us]": float(np.median(main.time) * 1e6)},
+        timings={"median per solve [us]": float(np.median(main.seconds) * 1e6)},
         metrics=metrics, comparison=comparison, arrays=arrays, figures=figures, notes=notes,
     )
 
 
 register_kind(ProblemKind(
+    options=None,
     name="ik",
     summary="inverse kinematics by Newton / nonlinear least squares, backends compared on the same targets",
     run=run,

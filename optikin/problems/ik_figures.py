@@ -4,19 +4,16 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from optikin.solvers.nonlinear import BatchReport  # noqa: E402
+from optikin.solvers.base import SolutionBatch
 
 FLOOR = 1e-17
 """Tip errors are drawn on a log scale; exact zeros sit at this floor [m]."""
 
 
-def draw_comparison(path: Path, title: str, reports: dict[str, BatchReport],
+def draw_comparison(path: Path, title: str, reports: dict[str, SolutionBatch],
                     checks: dict[str, dict[str, np.ndarray]]) -> None:
     """Per method: the distribution of tip errors, the median time per solve and, on a CBHA, the leg margins."""
     names = list(reports)
@@ -30,7 +27,7 @@ def draw_comparison(path: Path, title: str, reports: dict[str, BatchReport],
     axes[0].set_xscale("log")
     axes[0].set_xlabel("tip error [m] (fk_dq of the answer)")
 
-    median_us = [np.median(reports[n].time) * 1e6 for n in names]
+    median_us = [np.median(reports[n].seconds) * 1e6 for n in names]
     ok = [100.0 * np.mean(np.array(reports[n].status) == "ok") for n in names]
     bars = axes[1].barh(y, median_us, color="tab:blue")
     axes[1].set_xscale("log")

@@ -5,20 +5,20 @@ because "least square, Newton-Raphson methods [...] are usually computationally
 intensive" (section IV-A). The baselines are those methods: any solver preset of
 the ``nonlinear`` family (``newton``, ``gauss-newton``, ``lm``, ``trf``, ``ipopt``,
 ``sqpmethod``, or a user's own), on the inverse problems of
-:mod:`optikin.problems.ik_platform` and :mod:`optikin.problems.ik_formulation`, on the
+:mod:`optikin.ik.platform` and :mod:`optikin.ik.formulation`, on the
 first ``exact_samples`` held-out samples.
 
 ``nn_fkm`` (seed 004 section IV, Fig. 9, Table II): a forward network per
 section predicts the platform variables from the leg lengths; the tip follows
 by the exact chain of eq. (5). A baseline solves eqs. (7)-(9) of every platform
-from their linearisation (:func:`~optikin.problems.ik_platform.linearised_start`).
+from their linearisation (:func:`~optikin.ik.platform.linearised_start`).
 
 ``nn_ikm`` (section V, Fig. 10, Table III, eq. 11): NN1-NN4 predict the platform
 variables from the tip position, eqs. (7)-(9) turn them into leg lengths. A
 baseline solves the tip-position IK for the admissible configuration nearest the
 straight mid-range pose (redundancy ``rest``, every leg within Table I), from that
 pose. Every method's lengths are clipped to Table I and realised through the exact
-forward kinematics (:func:`~optikin.problems.ik_platform.realise`, Newton on every
+forward kinematics (:func:`~optikin.ik.platform.realise`, Newton on every
 platform) before its tip error is measured.
 
 Every MSE is on the test split of the database; every tip error is the
@@ -58,24 +58,21 @@ import time
 from pathlib import Path
 from typing import Any, Callable
 
-import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from optikin.arms.cbha import CBHAArm  # noqa: E402
-from optikin.baselines.nn_database import DatabaseSpec, LearningDatabase, build_database  # noqa: E402
-from optikin.baselines.nn_models import (  # noqa: E402
+from optikin.arms.cbha import CBHAArm
+from optikin.baselines.nn_database import DatabaseSpec, LearningDatabase, build_database
+from optikin.baselines.nn_models import (
     SETTINGS, Task, TrainedModel, TrainingSetting, forward_tasks, hybrid_forward_configurations,
     hybrid_inverse_configurations, inverse_tasks, split_mse, split_rmse_by_variable, train_model)
-from optikin.baselines.nn_store import load_models, save_models  # noqa: E402
-from optikin.problems import ProblemContext, ProblemKind, register_kind  # noqa: E402
-from optikin.problems.ik_formulation import Formulation, build_problem, rest_configuration  # noqa: E402
-from optikin.problems.ik_platform import linearised_start, platform_problems, realise, solve_platforms  # noqa: E402
-from optikin.results import MethodRow, Result  # noqa: E402
-from optikin.solvers import build_preset  # noqa: E402
-from optikin.solvers.nonlinear import BatchReport  # noqa: E402
+from optikin.baselines.nn_store import load_models, save_models
+from optikin.problems import ProblemContext, ProblemKind, register_kind
+from optikin.ik.formulation import Formulation, build_problem, rest_configuration
+from optikin.ik.platform import linearised_start, platform_problems, realise, solve_platforms
+from optikin.results import MethodRow, Result
+from optikin.solvers import build_preset
+from optikin.solvers.base import SolutionBatch
 
 MM = 1e3
 BATCH_REPEATS = 5
@@ -278,7 +275,7 @@ def network_row(label: str, models: list[TrainedModel], db: LearningDatabase, tr
     return MethodRow(label, "solver", row)
 
 
-def solver_row(name: str, report: BatchReport, errors: np.ndarray, seconds: float,
+def solver_row(name: str, report: SolutionBatch, errors: np.ndarray, seconds: float,
                extra: dict[str, Any]) -> MethodRow:
     """The comparison row of an exact solver preset on ``len(report)`` samples."""
     return MethodRow(name, "baseline", {
@@ -403,6 +400,7 @@ def run_ikm(ctx: ProblemContext) -> Result:
 
 
 register_kind(ProblemKind(
+    options=None,
     name="nn_fkm",
     summary="seed 004 hybrid forward kinematics (MLP per section) against exact platform solvers",
     run=run_fkm,
@@ -411,6 +409,7 @@ register_kind(ProblemKind(
 ))
 
 register_kind(ProblemKind(
+    options=None,
     name="nn_ikm",
     summary="seed 004 hybrid inverse kinematics (MLPs NN1-NN4, eq. 11) against exact tip IK solvers",
     run=run_ikm,

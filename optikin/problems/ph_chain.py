@@ -186,6 +186,7 @@ def run(ctx: ProblemContext) -> Result:
 
 
 register_kind(ProblemKind(
+    options=None,
     name="ph_chain",
     summary="two CBHAs and a hanging rope, each link a PH quintic from its end poses (seed 002 IV.B, V.C)",
     run=run,

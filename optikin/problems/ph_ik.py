@@ -19,7 +19,7 @@ Options (besides those of :mod:`optikin.problems.ph_common`)::
     tube_radius: null     # [base, tip] offset radius in metres; default: the CBHA's r_max, r_min
 
 Baselines: any ``ph`` preset, and the comparators of Tables II-III
-(:mod:`optikin.problems.ph_comparators`): ``newton-raphson`` (Newton on the section
+(:mod:`optikin.baselines.ph_comparators`): ``newton-raphson`` (Newton on the section
 end positions and seed 004's elongation distribution), ``newton-raphson-pose`` (the
 same on the tip pose, the PH rows' data) and ``hybrid`` (seed 004's networks from the
 tip position). A comparator's postures that are not ``ok`` are counted, never dropped.
@@ -58,7 +58,7 @@ from optikin.problems.ph_common import (
     solve_methods,
     summary_of,
 )
-from optikin.problems.ph_comparators import COMPARATORS, HYBRID, NEWTON_RAPHSON, run_comparator
+from optikin.baselines.ph_comparators import COMPARATORS, HYBRID, NEWTON_RAPHSON, run_comparator
 from optikin.results import MethodRow, Result
 
 DEFAULTS: dict[str, Any] = {**COMMON_DEFAULTS, "frame": "rmf", "tube_radius": None}
@@ -226,6 +226,7 @@ def run(ctx: ProblemContext) -> Result:
 
 
 register_kind(ProblemKind(
+    options=None,
     name="ph_ik",
     summary="CBHA tube lengths from the PH backbone of the end poses, against the reference (seed 002 V.B)",
     run=run,

@@ -307,6 +307,7 @@ def _notes(qp_run: TrackingRun, runs: dict[str, TrackingRun], summaries: dict[st
 
 
 register_kind(ProblemKind(
+    options=None,
     name="tracking",
     summary="closed-loop tip tracking: a bounded QP per control step vs MRAC, pseudo-inverse, DLS",
     run=run,

@@ -1,66 +1,110 @@
 """Solver backends: one adapter module per backend, each registered by name.
 
 A preset in ``solvers/*.yaml`` names a backend and its options; a problem kind
-lists the backends it accepts. Backends of the same family share one calling
-convention (e.g. every ``evaluation`` backend offers ``evaluate(arm, name, Q)``).
+lists the backend families it accepts. Each backend declares its options as an
+:class:`~optikin.options.Options` model, validated by :func:`load_preset` with
+every error naming the preset file and the dotted field; its ``build(preset,
+options)`` returns an adapter that keeps its family's protocol
+(:mod:`optikin.solvers.base`).
 """
 
 from __future__ import annotations
 
+import importlib
+import pkgutil
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Iterable
 
 from optikin.errors import SpecError, UnknownNameError
+from optikin.options import NoOptions, Options, validate_options
 from optikin.registry import BACKENDS
 from optikin.spec import SolverSpec, load_solver
+
+FAMILIES = ("evaluation", "nonlinear", "ph", "qp")
+"""Backend families; their calling conventions are the protocols of :mod:`optikin.solvers.base`."""
 
 
 @dataclass(frozen=True)
 class Backend:
-    """A registered backend: its family, a one-line summary, and how to build its adapter from a preset."""
+    """A registered backend: family, one-line summary, options model, and how to build its adapter."""
 
     name: str
     family: str
     summary: str
-    build: Callable[[SolverSpec], Any]
+    build: Callable[..., Any]
+    options: type[Options] | None = NoOptions
+    module: str = ""
 
 
-def register_backend(name: str, family: str, summary: str) -> Callable:
-    """Decorator registering ``build(preset) -> adapter`` as backend ``name``."""
+def register_backend(name: str, family: str, summary: str,
+                     options: type[Options] | None = NoOptions) -> Callable:
+    """Decorator registering ``build(preset, options) -> adapter`` as backend ``name``.
 
-    def add(build: Callable[[SolverSpec], Any]) -> Callable[[SolverSpec], Any]:
-        BACKENDS.register(name)(Backend(name, family, summary, build))
+    ``options`` is the model the preset's ``options:`` are validated against; the
+    adapter receives the validated instance. ``None`` marks a backend that still
+    checks ``preset.options`` itself and is built as ``build(preset)``.
+    """
+    if family not in FAMILIES:
+        raise ValueError(f"backend {name!r}: unknown family {family!r}; known: {', '.join(FAMILIES)}")
+
+    def add(build: Callable[..., Any]) -> Callable[..., Any]:
+        BACKENDS.register(name)(Backend(name, family, summary, build, options, build.__module__))
         return build
 
     return add
 
 
-def load_preset(name_or_path: str) -> tuple[SolverSpec, Path, Backend]:
-    """A solver preset, its file and its registered backend; an unknown backend names the file's field."""
+@dataclass(frozen=True)
+class LoadedPreset:
+    """A validated preset: its spec, the file it came from, its backend and its typed options."""
+
+    spec: SolverSpec
+    path: Path
+    backend: Backend
+    options: Any
+
+    def build(self) -> Any:
+        """The adapter this preset describes."""
+        if self.backend.options is None:
+            return self.backend.build(self.spec)
+        return self.backend.build(self.spec, self.options)
+
+
+def load_preset(name_or_path: str) -> LoadedPreset:
+    """A solver preset with its backend and validated options; every error names the file and field."""
+    spec, path = load_solver(name_or_path)
+    return preset_of(spec, path)
+
+
+def preset_of(spec: SolverSpec, path: str | Path | None = None) -> LoadedPreset:
+    """A preset built in code (or read elsewhere) with its backend and validated options.
+
+    ``path`` is where errors say the preset came from (default: ``solver preset NAME``).
+    """
     load_backends()
-    preset, path = load_solver(name_or_path)
+    where = Path(path) if path is not None else Path(f"solver preset {spec.name}")
     try:
-        return preset, path, BACKENDS.get(preset.backend)
+        backend = BACKENDS.get(spec.backend)
     except UnknownNameError as exc:
-        raise SpecError(path, "backend", str(exc)) from None
+        raise SpecError(where, "backend", str(exc)) from None
+    options = (spec.options if backend.options is None
+               else validate_options(backend.options, spec.options, where, "options"))
+    return LoadedPreset(spec, where, backend, options)
 
 
 def build_preset(name_or_path: str) -> Any:
     """The adapter of a named solver preset (e.g. a baseline listed in a problem file)."""
-    preset, _, backend = load_preset(name_or_path)
-    return backend.build(preset)
+    return load_preset(name_or_path).build()
 
 
 def load_backends() -> None:
     """Import every adapter module in this package so its backends are registered."""
-    _import_all(__name__, __path__)
+    import_all(__name__, __path__)
 
 
-def _import_all(package: str, path) -> None:
-    import importlib
-    import pkgutil
-
+def import_all(package: str, path: Iterable[str]) -> None:
+    """Import every public module and subpackage of ``package`` (so their registrations run)."""
     for module in pkgutil.iter_modules(path):
         if not module.name.startswith("_"):
             importlib.import_module(f"{package}.{module.name}")

@@ -70,7 +70,7 @@ class CompiledEvaluator(MapEvaluator):
         return self.compiled(arm, name)(Q)
 
 
-register_backend("casadi_map", "evaluation", "CasADi Function.map over the batch")(MapEvaluator)
-register_backend("casadi_call", "evaluation", "one CasADi call per sample from Python")(CallEvaluator)
-register_backend("casadi_compiled", "evaluation", "CasADi code generation + C compiler, one C call per batch")(
+register_backend("casadi_map", "evaluation", "CasADi Function.map over the batch", options=None)(MapEvaluator)
+register_backend("casadi_call", "evaluation", "one CasADi call per sample from Python", options=None)(CallEvaluator)
+register_backend("casadi_compiled", "evaluation", "CasADi code generation + C compiler, one C call per batch", options=None)(
     CompiledEvaluator)

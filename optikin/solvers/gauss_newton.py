@@ -55,7 +55,8 @@ from optikin.batch import batched
 from optikin.codegen import CompiledFunction
 from optikin.solvers import register_backend
 from optikin.fastcall import BufferedFunction
-from optikin.solvers.nonlinear import BatchReport, LeastSquaresProblem, NonlinearAdapter, SolveReport
+from optikin.solvers.nonlinear import LeastSquaresProblem, NonlinearAdapter
+from optikin.solvers.base import Solution, SolutionBatch
 
 
 LAMBDA_FLOOR = 1e-10
@@ -203,7 +204,7 @@ class GaussNewton(NonlinearAdapter):
 
     # ------------------------------------------------------------------ one sample
     def solve(self, problem: LeastSquaresProblem, x0: np.ndarray, p: np.ndarray,
-              x_ref: np.ndarray | None = None) -> SolveReport:
+              x_ref: np.ndarray | None = None) -> Solution:
         started = time.perf_counter()
         gauss_newton = step = self._single(problem, False)
         tol, stat_tol = self._stop_tolerance(problem), problem.stationarity_tolerance
@@ -237,16 +238,16 @@ class GaussNewton(NonlinearAdapter):
             return self.finish(problem, x, p, calls, started)
         # x is inside the bounds (projected by every step) and (rn, stationarity) are its own.
         status, rn, message = problem.status_of(rn, stationarity, elapsed, self.limits.time_limit)
-        return SolveReport(x, status, calls, rn, elapsed, message)
+        return Solution(x, status, calls, rn, elapsed, message)
 
     # ------------------------------------------------------------------ many independent samples at once
     def solve_many(self, problem: LeastSquaresProblem, X0: np.ndarray, P: np.ndarray, warm_start: bool = False,
-                   x_ref: np.ndarray | None = None) -> BatchReport:
+                   x_ref: np.ndarray | None = None) -> SolutionBatch:
         if warm_start or not self.options["batch"]:
             return super().solve_many(problem, X0, P, warm_start, x_ref)
         return self.solve_batch(problem, X0, P)
 
-    def solve_batch(self, problem: LeastSquaresProblem, X0: np.ndarray, P: np.ndarray) -> BatchReport:
+    def solve_batch(self, problem: LeastSquaresProblem, X0: np.ndarray, P: np.ndarray) -> SolutionBatch:
         """All samples at once: one batched step evaluation per iteration, acceptance vectorised.
 
         Every sample follows the rule of :meth:`solve` (the results agree to rounding); a sample
@@ -313,9 +314,9 @@ class GaussNewton(NonlinearAdapter):
         limited[idx] = timed_out
         elapsed = time.perf_counter() - started
         status, residual, messages = problem.classify_many(X, P, limited=limited)
-        return BatchReport(x=X, status=status, iterations=calls, residual=residual,
-                           time=np.full(N, elapsed / N), messages=messages, batched=True)
+        return SolutionBatch(x=X, status=status, iterations=calls, residual=residual,
+                           seconds=np.full(N, elapsed / N), messages=messages, batched=True)
 
 
 register_backend("gauss_newton", "nonlinear",
-                 "damped projected Gauss-Newton on CasADi Jacobians; batched over samples")(GaussNewton)
+                 "damped projected Gauss-Newton on CasADi Jacobians; batched over samples", options=None)(GaussNewton)

@@ -39,7 +39,8 @@ from optikin.batch import batched
 from optikin.errors import SolverError
 from optikin.solvers import register_backend
 from optikin.fastcall import BufferedFunction
-from optikin.solvers.nonlinear import BatchReport, LeastSquaresProblem, NonlinearAdapter, SolveReport
+from optikin.solvers.nonlinear import LeastSquaresProblem, NonlinearAdapter
+from optikin.solvers.base import Solution, SolutionBatch
 
 PLUGINS = ("newton", "fast_newton")
 
@@ -112,7 +113,7 @@ class Newton(NonlinearAdapter):
         return problem.cache[key]
 
     def solve(self, problem: LeastSquaresProblem, x0: np.ndarray, p: np.ndarray,
-              x_ref: np.ndarray | None = None) -> SolveReport:
+              x_ref: np.ndarray | None = None) -> Solution:
         started = time.perf_counter()
         call = self.rootfinder(problem)
         x0 = np.asarray(x0, dtype=float)
@@ -126,13 +127,13 @@ class Newton(NonlinearAdapter):
         return self.finish(problem, z[: problem.n].copy(), p, iterations, started)
 
     def solve_many(self, problem: LeastSquaresProblem, X0: np.ndarray, P: np.ndarray, warm_start: bool = False,
-                   x_ref: np.ndarray | None = None) -> BatchReport:
+                   x_ref: np.ndarray | None = None) -> SolutionBatch:
         if warm_start:
             return super().solve_many(problem, X0, P, warm_start, x_ref)
         return self.solve_batch(problem, X0, P, x_ref)
 
     def solve_batch(self, problem: LeastSquaresProblem, X0: np.ndarray, P: np.ndarray,
-                    x_ref: np.ndarray | None = None) -> BatchReport:
+                    x_ref: np.ndarray | None = None) -> SolutionBatch:
         """Every row of ``P`` in one mapped call (module docstring); ``x_ref`` defaults to each start."""
         mapped = batched(self.packed_rootfinder(problem))  # built before the clock starts
         started = time.perf_counter()
@@ -147,8 +148,8 @@ class Newton(NonlinearAdapter):
         elapsed = time.perf_counter() - started
         limited = np.full(N, elapsed > self.limits.time_limit * N)
         status, residual, messages = problem.classify_many(X, P, limited=limited)
-        return BatchReport(x=X, status=status, iterations=np.full(N, -1), residual=residual,
-                           time=np.full(N, elapsed / N), messages=messages, batched=True)
+        return SolutionBatch(x=X, status=status, iterations=np.full(N, -1), residual=residual,
+                           seconds=np.full(N, elapsed / N), messages=messages, batched=True)
 
 
-register_backend("newton", "nonlinear", "CasADi rootfinder (Newton) on r = 0 or its optimality system")(Newton)
+register_backend("newton", "nonlinear", "CasADi rootfinder (Newton) on r = 0 or its optimality system", options=None)(Newton)

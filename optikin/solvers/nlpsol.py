@@ -39,7 +39,8 @@ import numpy as np
 from optikin.errors import SolverError
 from optikin.solvers import register_backend
 from optikin.fastcall import BufferedFunction
-from optikin.solvers.nonlinear import LeastSquaresProblem, NonlinearAdapter, SolveReport
+from optikin.solvers.nonlinear import LeastSquaresProblem, NonlinearAdapter
+from optikin.solvers.base import Solution
 
 QUIET_QP = {"print_iter": False, "print_header": False, "error_on_fail": False}
 
@@ -106,7 +107,7 @@ class NlpsolAdapter(NonlinearAdapter):
         return problem.cache[key]
 
     def solve(self, problem: LeastSquaresProblem, x0: np.ndarray, p: np.ndarray,
-              x_ref: np.ndarray | None = None) -> SolveReport:
+              x_ref: np.ndarray | None = None) -> Solution:
         started = time.perf_counter()
         call, lbx, ubx, lbg, ubg = self.solver(problem)
         x0 = np.asarray(x0, dtype=float)
@@ -148,5 +149,5 @@ class Sqpmethod(NlpsolAdapter):
         return options
 
 
-register_backend("ipopt", "nonlinear", "interior point (IPOPT) through CasADi nlpsol")(Ipopt)
-register_backend("sqpmethod", "nonlinear", "CasADi's SQP method (qrqp QPs) through nlpsol")(Sqpmethod)
+register_backend("ipopt", "nonlinear", "interior point (IPOPT) through CasADi nlpsol", options=None)(Ipopt)
+register_backend("sqpmethod", "nonlinear", "CasADi's SQP method (qrqp QPs) through nlpsol", options=None)(Sqpmethod)

@@ -16,9 +16,9 @@ imposing ``r = 0``; Newton solves ``J^T r = 0``).
 
 Every adapter of the family offers
 
-``solve(problem, x0, p, x_ref=None) -> SolveReport``
+``solve(problem, x0, p, x_ref=None) -> Solution``
     one solve from ``x0`` (``x_ref`` defaults to ``x0``);
-``solve_many(problem, X0, P, warm_start=False, x_ref=None) -> BatchReport``
+``solve_many(problem, X0, P, warm_start=False, x_ref=None) -> SolutionBatch``
     many samples; with ``warm_start`` sample ``k`` starts from the solution of
     sample ``k - 1`` (a trajectory), and ``x_ref=None`` then means "closest to
     the previous solution".
@@ -52,6 +52,7 @@ import numpy as np
 from optikin.batch import batched
 from optikin.errors import SpecError
 from optikin.fastcall import BufferedFunction
+from optikin.solvers.base import Solution, SolutionBatch
 from optikin.spec import SolverSpec, available
 
 FAMILY = "nonlinear"
@@ -277,49 +278,6 @@ class LeastSquaresProblem:
         return status, rn, messages
 
 
-@dataclass
-class SolveReport:
-    """Outcome of one solve: the point, its status, iterations, ``||r||`` and wall time [s]."""
-
-    x: np.ndarray
-    status: str
-    iterations: int
-    residual: float
-    time: float
-    message: str = ""
-
-    @property
-    def ok(self) -> bool:
-        return self.status == "ok"
-
-
-@dataclass
-class BatchReport:
-    """Outcome of many solves; ``time`` is per sample [s] (a batched path reports total / N)."""
-
-    x: np.ndarray
-    status: list[str]
-    iterations: np.ndarray
-    residual: np.ndarray
-    time: np.ndarray
-    messages: list[str]
-    batched: bool = False
-
-    @classmethod
-    def of(cls, reports: list[SolveReport], n: int) -> "BatchReport":
-        return cls(
-            x=np.array([r.x for r in reports]).reshape(len(reports), n),
-            status=[r.status for r in reports],
-            iterations=np.array([r.iterations for r in reports], dtype=int),
-            residual=np.array([r.residual for r in reports]),
-            time=np.array([r.time for r in reports]),
-            messages=[r.message for r in reports],
-        )
-
-    def __len__(self) -> int:
-        return len(self.status)
-
-
 def preset_path(preset: SolverSpec) -> str:
     """The file a preset most likely came from, for error messages."""
     return str(available("solvers").get(preset.name, f"solver preset {preset.name!r}"))
@@ -366,15 +324,15 @@ class NonlinearAdapter:
         return SpecError(preset_path(self.preset), f"options.{key}", message)
 
     def solve(self, problem: LeastSquaresProblem, x0: np.ndarray, p: np.ndarray,
-              x_ref: np.ndarray | None = None) -> SolveReport:
+              x_ref: np.ndarray | None = None) -> Solution:
         raise NotImplementedError
 
     def solve_many(self, problem: LeastSquaresProblem, X0: np.ndarray, P: np.ndarray, warm_start: bool = False,
-                   x_ref: np.ndarray | None = None) -> BatchReport:
+                   x_ref: np.ndarray | None = None) -> SolutionBatch:
         """Solve every row of ``P``; see the module docstring for ``warm_start`` and ``x_ref``."""
         P = np.atleast_2d(np.asarray(P, dtype=float))
         X0 = np.broadcast_to(np.asarray(X0, dtype=float), (len(P), problem.n))
-        reports: list[SolveReport] = []
+        reports: list[Solution] = []
         previous = None
         for k in range(len(P)):
             start = X0[k] if previous is None else previous
@@ -382,12 +340,12 @@ class NonlinearAdapter:
             reports.append(report)
             if warm_start and (report.status != "failed" or np.all(np.isfinite(report.x))):
                 previous = report.x
-        return BatchReport.of(reports, problem.n)
+        return SolutionBatch.of(reports, problem.n)
 
     def finish(self, problem: LeastSquaresProblem, x: np.ndarray, p: np.ndarray, iterations: int,
-               started: float, error: str = "") -> SolveReport:
+               started: float, error: str = "") -> Solution:
         """Classify the returned point and package the report."""
         elapsed = time.perf_counter() - started
         x = problem.wrap(np.asarray(x, dtype=float).ravel())
         status, rn, message = problem.classify(x, p, elapsed, self.limits.time_limit, error)
-        return SolveReport(x, status, int(iterations), rn, elapsed, message)
+        return Solution(x, status, int(iterations), rn, elapsed, message)

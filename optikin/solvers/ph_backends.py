@@ -123,7 +123,7 @@ class GridAdapter(PHAdapter):
         return [model.solve_grid(data, n=self.options["n"], n_ratio=self.options["n_ratio"]) for data in samples]
 
 
-register_backend("ph_newton", FAMILY, "Newton on compiled CasADi derivatives, warm-started (PH fast path)")(
+register_backend("ph_newton", FAMILY, "Newton on compiled CasADi derivatives, warm-started (PH fast path)", options=None)(
     NewtonAdapter)
-register_backend("ph_ipopt", FAMILY, "CasADi nlpsol IPOPT, warm or cold (PH reference)")(IpoptAdapter)
-register_backend("ph_grid", FAMILY, "dense grid over the free PH angles (and speed ratios)")(GridAdapter)
+register_backend("ph_ipopt", FAMILY, "CasADi nlpsol IPOPT, warm or cold (PH reference)", options=None)(IpoptAdapter)
+register_backend("ph_grid", FAMILY, "dense grid over the free PH angles (and speed ratios)", options=None)(GridAdapter)

@@ -42,8 +42,8 @@ def _factory(kind: str):
     return lambda preset: QPBackendFactory(kind, preset)
 
 
-register_backend("qp_osqp", "qp", "OSQP set up once, updated in place and warm-started every step")(_factory("osqp"))
-register_backend("qp_qpsolvers", "qp", "qpsolvers.solve_qp with bounds, one call per step")(_factory("qpsolvers"))
-register_backend("qp_cvxpy", "qp", "cvxpy Problem with Parameters (DPP), re-solved every step")(_factory("cvxpy"))
-register_backend("qp_cvxpy_rebuild", "qp", "cvxpy Problem rebuilt every step (slow reference)")(
+register_backend("qp_osqp", "qp", "OSQP set up once, updated in place and warm-started every step", options=None)(_factory("osqp"))
+register_backend("qp_qpsolvers", "qp", "qpsolvers.solve_qp with bounds, one call per step", options=None)(_factory("qpsolvers"))
+register_backend("qp_cvxpy", "qp", "cvxpy Problem with Parameters (DPP), re-solved every step", options=None)(_factory("cvxpy"))
+register_backend("qp_cvxpy_rebuild", "qp", "cvxpy Problem rebuilt every step (slow reference)", options=None)(
     _factory("cvxpy_rebuild"))

@@ -32,7 +32,8 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from optikin.solvers import register_backend
-from optikin.solvers.nonlinear import LeastSquaresProblem, NonlinearAdapter, SolveReport
+from optikin.solvers.nonlinear import LeastSquaresProblem, NonlinearAdapter
+from optikin.solvers.base import Solution
 
 
 class _TimeLimit(Exception):
@@ -132,7 +133,7 @@ class ScipyLeastSquares(NonlinearAdapter):
         return np.where(residual.transformed, 1.0, ranges)
 
     def solve(self, problem: LeastSquaresProblem, x0: np.ndarray, p: np.ndarray,
-              x_ref: np.ndarray | None = None) -> SolveReport:
+              x_ref: np.ndarray | None = None) -> Solution:
         started = time.perf_counter()
         x0 = problem.project(x0)
         reference = x0 if x_ref is None else np.asarray(x_ref, dtype=float)
@@ -171,5 +172,5 @@ class TrustRegionReflective(ScipyLeastSquares):
         return {"bounds": (lower, upper), "tr_solver": self.options["tr_solver"]}
 
 
-register_backend("lm", "nonlinear", "scipy least_squares, MINPACK Levenberg-Marquardt")(LevenbergMarquardt)
-register_backend("trf", "nonlinear", "scipy least_squares, trust-region reflective with bounds")(TrustRegionReflective)
+register_backend("lm", "nonlinear", "scipy least_squares, MINPACK Levenberg-Marquardt", options=None)(LevenbergMarquardt)
+register_backend("trf", "nonlinear", "scipy least_squares, trust-region reflective with bounds", options=None)(TrustRegionReflective)

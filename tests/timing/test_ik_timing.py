@@ -30,10 +30,9 @@ import pytest
 from optikin.arms import ConstantCurvatureArm
 from optikin.arms.cbha import CBHAArm
 from optikin.data.configurations import smooth_trajectory
-from optikin.problems.ik_formulation import Formulation, build_problem, rest_configuration, tip_residual
-from optikin.problems.ik_platform import platform_problems, solve_platforms
-from optikin.registry import BACKENDS
-from optikin.solvers import load_backends
+from optikin.ik.formulation import Formulation, build_problem, rest_configuration, tip_residual
+from optikin.ik.platform import platform_problems, solve_platforms
+from optikin.solvers import load_backends, preset_of
 from optikin.solvers.nonlinear import LeastSquaresProblem
 from optikin.spec import DataSpec, load_solver
 
@@ -47,7 +46,7 @@ _lm_per_solve: dict[str, float] = {}
 
 def adapter(preset_name: str):
     preset, _ = load_solver(preset_name)
-    return BACKENDS.get(preset.backend).build(preset)
+    return preset_of(preset).build()
 
 
 @pytest.fixture(scope="module")

@@ -10,7 +10,7 @@ training on a 400,000-draw database. Training time is measured by the command in
 BENCHMARKS.md, not here.
 
 The exact methods are the inverse-kinematics solver presets (``solvers/*.yaml``) on
-the problems of :mod:`optikin.problems.ik_platform` and :mod:`optikin.problems.ik_formulation`,
+the problems of :mod:`optikin.ik.platform` and :mod:`optikin.ik.formulation`,
 exactly as ``optikin solve cbha-nn-fkm`` / ``cbha-nn-ikm`` run them:
 
 * ``nn fkm`` group: leg lengths of ``N_FKM`` held-out arms -> tip. ``mlp`` = both section
@@ -40,8 +40,8 @@ from optikin.baselines.nn_database import DatabaseSpec, build_database
 from optikin.baselines.nn_models import (
     SETTINGS, forward_tasks, hybrid_forward_configurations, hybrid_inverse_configurations, inverse_tasks,
     train_model)
-from optikin.problems.ik_formulation import Formulation, build_problem, rest_configuration
-from optikin.problems.ik_platform import linearised_start, platform_problems, solve_platforms
+from optikin.ik.formulation import Formulation, build_problem, rest_configuration
+from optikin.ik.platform import linearised_start, platform_problems, solve_platforms
 from optikin.problems.nn_baseline import PLATFORM_TOLERANCE, TIP_TOLERANCE
 from optikin.solvers import build_preset
 

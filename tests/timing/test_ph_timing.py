@@ -23,7 +23,7 @@ compile the first time; the libraries are cached on disk afterwards.
 the compiled given-speed Newton: the time per sample of the PH inverse kinematics
 of seed 002 Table III (0.27 ms there). ``newton-raphson`` is that table's comparator
 (233 ms there) as ``cbha-ph-ik`` runs it
-(:func:`optikin.problems.ph_comparators.newton_raphson_tube_lengths`):
+(:func:`optikin.baselines.ph_comparators.newton_raphson_tube_lengths`):
 per posture, Newton on the 48 x 48 system of the section ends and the affine elongation
 distribution, started from the last posture it solved (the first of a pass from the
 straight configuration), plus the tube lengths of the solution, on the same 100 postures
@@ -48,8 +48,8 @@ from optikin.curves.tubes import TubeLayout
 from optikin.data.markers import MARKER_SOURCES
 from optikin.fastcall import BufferedFunction
 from optikin.problems.ph_common import backbone_lengths, end_data
-from optikin.problems.ik_formulation import rest_configuration
-from optikin.problems.ph_comparators import (
+from optikin.ik.formulation import rest_configuration
+from optikin.baselines.ph_comparators import (
     NR_PRESET,
     newton_raphson_problem,
     newton_raphson_step,

@@ -6,7 +6,7 @@ stacks these rows, all in metres:
 tip
     ``p(q) - p*``; for poses also ``2 L vec(q*^-1 q(q))`` (:func:`tip_residual`,
     described in :mod:`optikin.problems.ik`). Target ``sections`` (not an ``ik``
-    target; the Newton-Raphson comparator of :mod:`optikin.problems.ph_comparators`): the end
+    target; the Newton-Raphson comparator of :mod:`optikin.baselines.ph_comparators`): the end
     position of every section, ``p_s(q) - p_s*``, the inputs of seed 004's inverse
     model (section V: the tip and the end of the first section).
 penalty (``redundancy: penalty``): seed 004 eq. (11),
@@ -37,7 +37,7 @@ elongation distribution (``elongation: distributed`` or ``affine``, CBHA only): 
     section IV, every inter-vertebra an affine function of its section's tube length,
     ``distributed`` a fixed share of the mid-range lengths, ``affine`` the elongation above
     the minimum shared in proportion to the Table I ranges; 42 rows
-    ``q_{m,k}(q) - a_k - b_k L_{m,s}(q)`` (:mod:`optikin.problems.ik_cbha`). Combined with an exact
+    ``q_{m,k}(q) - a_k - b_k L_{m,s}(q)`` (:mod:`optikin.ik.cbha`). Combined with an exact
     redundancy choice they must vanish with the tip rows; under the penalty they are
     soft, weighed in metres of leg length against the tip error.
 """
@@ -52,8 +52,8 @@ import numpy as np
 from optikin.algebra import dq_rotation, dq_translation, quat_conjugate, quat_multiply
 from optikin.arms.base import ArmModel
 from optikin.arms.cbha import CBHAArm
-from optikin.problems.ik_cbha import DISTRIBUTIONS, distribution_rows
-from optikin.problems.ik_platform import platform_problems
+from optikin.ik.cbha import DISTRIBUTIONS, distribution_rows
+from optikin.ik.platform import platform_problems
 from optikin.solvers.nonlinear import LeastSquaresProblem
 
 REDUNDANCY_CHOICES = ("rest", "previous", "minimum_norm", "penalty")

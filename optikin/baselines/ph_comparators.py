@@ -10,7 +10,7 @@ not ``ok`` is counted and gets no lengths, never dropped.
 
 ``newton-raphson``
     Newton's method (``newton`` preset, CasADi rootfinder) on a square system of
-    48 rows in the 48 platform variables (:mod:`optikin.problems.ik_formulation`,
+    48 rows in the 48 platform variables (:mod:`optikin.ik.formulation`,
     target ``sections``, ``elongation: affine``): the end positions of both sections,
     the inputs of seed 004's inverse model (section V: the tip and the end of the
     first section), measured relative to the base rigid body by the tip rigid body
@@ -18,14 +18,14 @@ not ``ok`` is counted and gets no lengths, never dropped.
     vertebra each marker is on is the data's ``intermediate`` parameter, of the
     synthetic source or of a CSV recording), plus 42
     rows of seed 004's elongation distribution in its affine reading
-    (:mod:`optikin.problems.ik_cbha`), which keeps every leg within Table I whenever
+    (:mod:`optikin.ik.cbha`), which keeps every leg within Table I whenever
     the tube lengths are within their ranges.
 ``newton-raphson-pose``
     The same Newton on the data the PH rows use: the tip pose relative to the base
     (6 rows: position, and ``2 L vec(q*^-1 q)`` with ``L`` the arm's reach) plus the
     same 42 distribution rows. The like-for-like comparison, and an ill-posed one (below).
 ``hybrid``, ``hybrid-coupled``
-    :func:`optikin.problems.ph_hybrid.hybrid_tube_lengths`: the shipped networks
+    :func:`optikin.baselines.hybrid_tubes.hybrid_tube_lengths`: the shipped networks
     NN1-NN4 from the tip position relative to the base, trained on seed 004's Fig. 7
     database (``cbha-nn-ikm``: independent platforms, the seed's) or on the database
     whose sections bend as one (``cbha-nn-ikm-coupled``).
@@ -70,10 +70,11 @@ from optikin.data.markers import MarkerRecording
 from optikin.data.targets import reach_bound
 from optikin.errors import InputDataError
 from optikin.problems import ProblemContext
-from optikin.problems.ik_formulation import Formulation, build_problem, rest_configuration
-from optikin.problems.ph_hybrid import SHIPPED_STORES, hybrid_tube_lengths, load_hybrid_models
+from optikin.ik.formulation import Formulation, build_problem, rest_configuration
+from optikin.baselines.hybrid_tubes import SHIPPED_STORES, hybrid_tube_lengths, load_hybrid_models
 from optikin.solvers import build_preset
-from optikin.solvers.nonlinear import LeastSquaresProblem, NonlinearAdapter, SolveReport
+from optikin.solvers.nonlinear import LeastSquaresProblem, NonlinearAdapter
+from optikin.solvers.base import Solution
 
 NEWTON_RAPHSON = "newton-raphson"
 NEWTON_RAPHSON_POSE = "newton-raphson-pose"
@@ -90,7 +91,7 @@ NR_FIRST_START = "lm"
 NR_TOLERANCE = 1e-9
 """``||r||`` [m] at which a recorded posture counts as reached by a Newton-Raphson comparator."""
 NR_ELONGATION = "affine"
-"""The comparators' reading of seed 004's elongation distribution (:mod:`optikin.problems.ik_cbha`)."""
+"""The comparators' reading of seed 004's elongation distribution (:mod:`optikin.ik.cbha`)."""
 
 
 class ComparatorRun(NamedTuple):
@@ -150,15 +151,15 @@ def newton_raphson_targets(ctx: ProblemContext, arm: CBHAArm, recording: MarkerR
 
 
 def newton_raphson_step(arm: CBHAArm, newton: NonlinearAdapter, problem: LeastSquaresProblem, start: np.ndarray,
-                        target: np.ndarray) -> tuple[SolveReport, np.ndarray, float]:
+                        target: np.ndarray) -> tuple[Solution, np.ndarray, float]:
     """One posture: the Newton report, the whole tube lengths ``(3,)`` (NaN unless ``ok``) and the seconds
     of the solve plus the tube lengths."""
     report = newton.solve(problem, start, target)
     if report.status != "ok":
-        return report, np.full(3, np.nan), report.time
+        return report, np.full(3, np.nan), report.seconds
     tic = time.perf_counter()
     lengths = np.asarray(arm.tube_lengths(report.x)).sum(axis=0)  # (section, tube) -> whole tubes
-    return report, lengths, report.time + time.perf_counter() - tic
+    return report, lengths, report.seconds + time.perf_counter() - tic
 
 
 def newton_raphson_tube_lengths(ctx: ProblemContext, arm: CBHAArm, recording: MarkerRecording,
@@ -175,7 +176,7 @@ def newton_raphson_tube_lengths(ctx: ProblemContext, arm: CBHAArm, recording: Ma
         extra = 0.0
         if start is None and first is not None:
             found = first.solve(problem, rest, measured)
-            begin, extra = found.x, found.time
+            begin, extra = found.x, found.seconds
         else:
             begin = rest if start is None else start
         report, lengths[i], seconds[i] = newton_raphson_step(arm, newton, problem, begin, measured)

@@ -30,7 +30,7 @@ synthetic recording moves the legs (:func:`optikin.data.markers.configurations_f
 ``q_min,k + f (q_max,k - q_min,k)`` with one ``f`` per section and tube), so its
 configurations satisfy this rule exactly and the mid-range one only to about 0.1 mm.
 
-As residual rows of the inverse problem (:mod:`optikin.problems.ik_formulation`)
+As residual rows of the inverse problem (:mod:`optikin.ik.formulation`)
 the distribution is ``q_{m,k}(q) - a_k - b_k L_{m,s}(q)`` for every platform but the
 last of each section (whose row follows: the ``b_k`` add up to one and the ``a_k`` to
 zero): 42 rows of full rank, leaving the 48 platform variables the 6 degrees of

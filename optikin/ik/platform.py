@@ -26,7 +26,8 @@ import casadi as ca
 import numpy as np
 
 from optikin.arms.cbha import PLATFORM_LEG_LENGTHS, CBHAArm
-from optikin.solvers.nonlinear import BatchReport, LeastSquaresProblem, NonlinearAdapter
+from optikin.solvers.nonlinear import LeastSquaresProblem, NonlinearAdapter
+from optikin.solvers.base import SolutionBatch
 
 CLIP_TOLERANCE = 1e-9
 """A commanded length counts as clipped when it leaves Table I by more than this [m] (a solver's
@@ -51,7 +52,7 @@ def platform_problems(arm: CBHAArm, tolerance: float) -> list[LeastSquaresProble
 
 
 def solve_platforms(adapter: NonlinearAdapter, problems: list[LeastSquaresProblem], legs: np.ndarray,
-                    start: np.ndarray, warm_start: bool = False) -> BatchReport:
+                    start: np.ndarray, warm_start: bool = False) -> SolutionBatch:
     """Every platform of every sample; ``legs`` is ``(N, 3 * platforms)``, ``start`` one configuration or N.
 
     A sample's iterations and time add up over its platforms, its residual is the largest.
@@ -64,12 +65,12 @@ def solve_platforms(adapter: NonlinearAdapter, problems: list[LeastSquaresProble
     for i in range(len(legs)):
         bad = [f"platform {k + 1}: {r.messages[i]}" for k, r in enumerate(reports) if r.messages[i]]
         messages.append("; ".join(bad))
-    return BatchReport(
+    return SolutionBatch(
         x=np.hstack([r.x for r in reports]),
         status=status,
         iterations=np.sum([r.iterations for r in reports], axis=0),
         residual=np.max([r.residual for r in reports], axis=0),
-        time=np.sum([r.time for r in reports], axis=0),
+        seconds=np.sum([r.seconds for r in reports], axis=0),
         messages=messages,
         batched=all(r.batched for r in reports),
     )
@@ -100,7 +101,7 @@ class Realised:
     clipped: np.ndarray
     configurations: np.ndarray
     tip: np.ndarray
-    report: BatchReport
+    report: SolutionBatch
 
 
 def realise(arm: CBHAArm, configurations: np.ndarray, adapter: NonlinearAdapter,
