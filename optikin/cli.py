@@ -1,15 +1,27 @@
 """The ``optikin`` command line: ``list``, ``show``, ``solve``, ``plot``, ``bench``.
 
-Every error caused by input (a malformed file, an unknown name, bad data, a
-failed solver) prints one line naming the file, field or sample and exits
-with status 2; a run with failed samples exits with status 1.
+Exit status, one meaning each:
+
+0
+    the run finished and every sample is ``ok``;
+1
+    the run finished but some samples failed;
+2
+    bad input (a malformed file, an unknown name or field, bad data): one line
+    naming the file, field or sample;
+3
+    an internal error: one line, and the traceback with ``--debug``;
+130
+    interrupted (Ctrl-C or SIGTERM).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import signal
 import sys
+import traceback
 from pathlib import Path
 
 import yaml
@@ -17,7 +29,7 @@ import yaml
 from optikin import __version__
 from optikin.errors import OptikinError
 
-EXIT_OK, EXIT_FAILED_SAMPLES, EXIT_BAD_INPUT = 0, 1, 2
+EXIT_OK, EXIT_FAILED_SAMPLES, EXIT_BAD_INPUT, EXIT_INTERNAL, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 
 
 def _listing(kind: str, load, describe) -> tuple[list[tuple[str, ...]], list[str]]:
@@ -118,9 +130,14 @@ def _cmd_solve(args: argparse.Namespace) -> int:
     from optikin.report import print_result
     from optikin.runner import solve
 
+    from optikin.errors import SpecError
+
+    if not args.out.strip():
+        raise SpecError("--out", "", "an empty output folder is not accepted (give a folder, e.g. results)")
     _headless_figures()
     result, written = solve(args.problem, solver=args.solver, out=Path(args.out), figures=not args.no_figures,
-                            progress=Progress(enabled=not args.json))
+                            progress=Progress(enabled=not args.json),
+                            notify=lambda line: print(f"optikin: {line}", file=sys.stderr))
     if args.json:
         print(json.dumps(result.summary(), indent=2))
     else:
@@ -158,8 +175,11 @@ def _headless_figures() -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="optikin", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="optikin", description=__doc__.splitlines()[0],
+                                     epilog="exit status: 0 all samples ok, 1 some samples failed, 2 bad input "
+                                            "(file, field or sample named), 3 internal error, 130 interrupted")
     parser.add_argument("--version", action="version", version=f"optikin {__version__}")
+    parser.add_argument("--debug", action="store_true", help="show the traceback of an internal error")
     sub = parser.add_subparsers(dest="command", required=True)
 
     p = sub.add_parser("list", help="named problems (and solver presets) with title and kind")
@@ -194,13 +214,30 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _terminate(signum, frame):  # type: ignore[no-untyped-def]
+    raise KeyboardInterrupt
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    previous = signal.signal(signal.SIGTERM, _terminate)
     try:
         return args.run(args)
     except OptikinError as exc:
         print(f"optikin: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print("optikin: interrupted; nothing was written", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except Exception as exc:
+        if args.debug:
+            traceback.print_exc()
+        else:
+            print(f"optikin: internal error: {type(exc).__name__}: {exc}; run with --debug for the traceback",
+                  file=sys.stderr)
+        return EXIT_INTERNAL
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":

@@ -11,6 +11,7 @@ result. Every error found before the run names the file and the dotted field.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Callable
 
 from optikin.arms import build_arm
 from optikin.data.sources import source_of
@@ -21,7 +22,7 @@ from optikin.progress import SILENT, Progress
 from optikin.registry import PROBLEM_KINDS
 from optikin.results import Result, write_result
 from optikin.solvers import LoadedPreset, load_backends, load_preset
-from optikin.spec import ProblemSpec, available, load_problem
+from optikin.spec import ProblemSpec, available, load_problem, provenance
 
 
 def kind_of(spec: ProblemSpec, path: Path) -> ProblemKind:
@@ -70,10 +71,16 @@ def _check_arrays(spec: ProblemSpec, path: Path, result: Result) -> None:
                             f"no array {name!r} in this result; known: {', '.join(sorted(result.arrays)) or 'none'}")
 
 
-def prepare(problem: str, solver: str | None = None, progress: Progress = SILENT) -> tuple[ProblemKind, ProblemContext]:
-    """Everything :func:`solve` checks and builds before the run: the kind and its context."""
+def prepare(problem: str, solver: str | None = None, progress: Progress = SILENT,
+            notify: Callable[[str], None] | None = None) -> tuple[ProblemKind, ProblemContext]:
+    """Everything :func:`solve` checks and builds before the run: the kind and its context.
+
+    ``notify`` receives one line for each file used that is not one of optikin's own
+    (:func:`optikin.spec.provenance`).
+    """
     load_backends()
     spec, path = load_problem(problem)
+    _tell(notify, provenance(problem, path, "problems"))
     kind = kind_of(spec, path)
     _check_baselines(spec, path, kind)
     options = spec.options if kind.options is None else validate_options(kind.options, spec.options, path, "options")
@@ -81,7 +88,10 @@ def prepare(problem: str, solver: str | None = None, progress: Progress = SILENT
     if kind.data_family is not None:
         data_source = source_of(kind.data_family, spec.data.source, path)
         data_params = validate_options(data_source.params, spec.data.params, path, "data.params")
-    preset = _preset(solver or spec.solver or kind.default_solver, kind)
+    preset_name = solver or spec.solver or kind.default_solver
+    preset = _preset(preset_name, kind)
+    if preset is not None and preset_name is not None:
+        _tell(notify, provenance(preset_name, preset.path, "solvers"))
     adapter = None if preset is None else preset.build()
     arm = build_arm(spec.arm.type, spec.arm.params, path)
     ctx = ProblemContext(spec=spec, path=path, arm=arm, progress=progress, options=options,
@@ -89,10 +99,31 @@ def prepare(problem: str, solver: str | None = None, progress: Progress = SILENT
     return kind, ctx
 
 
+def _tell(notify: Callable[[str], None] | None, line: str | None) -> None:
+    if notify is not None and line is not None:
+        notify(line)
+
+
 def solve(problem: str, solver: str | None = None, out: Path | None = None, figures: bool = True,
-          progress: Progress = SILENT) -> tuple[Result, Path | None]:
-    """Solve a named problem (or a path to one); returns the Result and where it was written."""
-    kind, ctx = prepare(problem, solver, progress)
+          progress: Progress = SILENT, notify: Callable[[str], None] | None = None) -> tuple[Result, Path | None]:
+    """Solve a named problem (or a path to one); returns the Result and where it was written.
+
+    Parameters
+    ----------
+    problem:
+        A problem name (looked up as :func:`optikin.spec.resolve` says) or a path to a problem file.
+    solver:
+        A preset name or path replacing the file's ``solver``.
+    out:
+        Folder to write ``<problem>/`` into (nothing is written when None).
+    figures:
+        Draw the figures (when the file's ``outputs.figures`` allows).
+    progress:
+        Progress reporter for long runs.
+    notify:
+        Receives one line per file used that is not one of optikin's own.
+    """
+    kind, ctx = prepare(problem, solver, progress, notify)
     result = kind.run(ctx)
     _check_arrays(ctx.spec, ctx.path, result)
     written = None

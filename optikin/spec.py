@@ -41,12 +41,13 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from optikin.errors import SpecError, UnknownNameError
+from optikin.options import spec_error
 
 NAME_PATTERN = r"^[a-z0-9][a-z0-9_\-]*$"
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
 class ArmSpec(_Strict):
@@ -56,7 +57,7 @@ class ArmSpec(_Strict):
 
 class DataSpec(_Strict):
     source: str = Field(description="registered data source of the problem kind")
-    seed: int = Field(0, description="seed of every random draw in this problem")
+    seed: int = Field(0, ge=0, description="seed of every random draw in this problem")
     samples: int = Field(100, ge=1, le=10_000_000)
     params: dict[str, Any] = Field(default_factory=dict)
 
@@ -94,16 +95,24 @@ class SolverSpec(_Strict):
 
 # --------------------------------------------------------------------------- locating files
 
+MAX_FILE_BYTES = 1_000_000
+"""Largest problem or preset file read, in bytes (these files are short; a larger one is refused)."""
+
 
 def project_root() -> Path:
     """The checkout that holds ``problems/`` and ``solvers/`` beside the package."""
     return Path(__file__).resolve().parent.parent
 
 
+def shipped_dir(kind: Literal["problems", "solvers"]) -> Path:
+    """The folder of the named files that come with optikin."""
+    return project_root() / kind
+
+
 def search_dirs(kind: Literal["problems", "solvers"]) -> list[Path]:
-    """Folders searched for named files: ``$OPTIKIN_PATH`` entries, ``./kind``, the checkout's ``kind``."""
+    """Folders searched for named files: ``$OPTIKIN_PATH`` entries, ``./kind``, the shipped ``kind``."""
     dirs = [Path(p) / kind for p in os.environ.get("OPTIKIN_PATH", "").split(os.pathsep) if p]
-    dirs += [Path.cwd() / kind, project_root() / kind]
+    dirs += [Path.cwd() / kind, shipped_dir(kind)]
     unique: list[Path] = []
     for d in dirs:
         if d.is_dir() and d.resolve() not in [u.resolve() for u in unique]:
@@ -120,10 +129,15 @@ def available(kind: Literal["problems", "solvers"]) -> dict[str, Path]:
     return found
 
 
+def is_path(name_or_path: str) -> bool:
+    """True when ``name_or_path`` is a path to a file rather than a name to look up."""
+    return Path(name_or_path).suffix in (".yaml", ".yml") or os.sep in name_or_path
+
+
 def resolve(name_or_path: str, kind: Literal["problems", "solvers"]) -> Path:
     """A path as given, or the named file on the search path."""
     candidate = Path(name_or_path)
-    if candidate.suffix in (".yaml", ".yml") or os.sep in name_or_path:
+    if is_path(name_or_path):
         if not candidate.is_file():
             raise SpecError(name_or_path, "", "no such file")
         return candidate
@@ -133,41 +147,79 @@ def resolve(name_or_path: str, kind: Literal["problems", "solvers"]) -> Path:
     return named[name_or_path]
 
 
+def provenance(name_or_path: str, path: Path, kind: Literal["problems", "solvers"]) -> str | None:
+    """One line saying which file a *name* resolved to, when it is not one of optikin's own.
+
+    None for optikin's own files and for files given by path. A file named like a shipped one
+    says that it shadows it, so a preset copied into the current folder or ``$OPTIKIN_PATH``
+    cannot silently replace the shipped one.
+    """
+    if is_path(name_or_path):
+        return None
+    path = Path(path).resolve()
+    shipped = shipped_dir(kind).resolve()
+    if path.parent == shipped:
+        return None
+    line = f"using {kind[:-1]} file {path}"
+    if (shipped / path.name).is_file():
+        line += f" (shadows the shipped {kind[:-1]} {path.stem!r})"
+    return line
+
+
 # --------------------------------------------------------------------------- loading
+
+
+class _StrictLoader(yaml.SafeLoader):
+    """``yaml.SafeLoader`` that refuses duplicate keys and aliases (``*name``, the "billion laughs")."""
+
+    def compose_node(self, parent, index):  # type: ignore[no-untyped-def]
+        if self.check_event(yaml.AliasEvent):
+            event = self.peek_event()
+            raise yaml.constructor.ConstructorError(
+                None, None, f"aliases (*{event.anchor}) are not accepted in optikin files", event.start_mark)
+        return super().compose_node(parent, index)
+
+    def construct_mapping(self, node, deep=False):  # type: ignore[no-untyped-def]
+        seen: dict[object, int] = {}
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=True)
+            if isinstance(key, (str, int, float, bool)) and key in seen:
+                raise yaml.constructor.ConstructorError(
+                    None, None, f"duplicate key {key!r} (first on line {seen[key] + 1})", key_node.start_mark)
+            if isinstance(key, (str, int, float, bool)):
+                seen[key] = key_node.start_mark.line
+        return super().construct_mapping(node, deep=deep)
 
 
 def _read_yaml(path: Path) -> dict[str, Any]:
     try:
-        text = path.read_text()
+        size = path.stat().st_size
+        if size > MAX_FILE_BYTES:
+            raise SpecError(path, "", f"{size} bytes: larger than the {MAX_FILE_BYTES} bytes accepted")
+        text = path.read_bytes().decode("utf-8")
     except OSError as exc:
         raise SpecError(path, "", f"cannot read: {exc.strerror or exc}") from None
+    except UnicodeDecodeError as exc:
+        raise SpecError(path, "", f"not UTF-8 text (byte {exc.start}): is this a YAML file?") from None
     try:
-        data = yaml.safe_load(text)
+        data = yaml.load(text, Loader=_StrictLoader)  # noqa: S506 - a SafeLoader subclass
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark else ""
         problem = getattr(exc, "problem", None) or str(exc)
         raise SpecError(path, "", f"malformed YAML: {where}{problem}") from None
+    except RecursionError:
+        raise SpecError(path, "", "malformed YAML: nested too deeply") from None
     if not isinstance(data, dict):
         raise SpecError(path, "", f"expected a mapping at the top level, got {type(data).__name__}")
     return data
-
-
-def _field_path(loc: tuple) -> str:
-    return ".".join(str(p) for p in loc if not str(p).startswith("function-"))
 
 
 def _validate(model: type[BaseModel], data: dict[str, Any], path: Path) -> Any:
     try:
         return model.model_validate(data)
     except ValidationError as exc:
-        first = exc.errors()[0]
-        message = first["msg"]
-        if first["type"] == "extra_forbidden":
-            message = "unknown field"
-        elif first["type"] == "missing":
-            message = "required field is missing"
-        raise SpecError(path, _field_path(first["loc"]), message) from None
+        raise spec_error(path, exc) from None
 
 
 def load_problem(name_or_path: str) -> tuple[ProblemSpec, Path]:
