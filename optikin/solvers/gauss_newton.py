@@ -39,9 +39,7 @@ calls it compiled to C with one C loop over the samples (``compile: true``,
 :class:`optikin.codegen.CompiledFunction`), with the acceptance rule vectorised
 in numpy.
 
-Preset options: ``damping`` (initial mu), ``damping_min``, ``damping_max``
-(give up above it), ``second_order``, ``compile``, ``flags`` (C compiler flags), ``batch`` (use
-the batched path for independent samples).
+Preset options: :class:`GaussNewtonOptions`.
 """
 
 from __future__ import annotations
@@ -50,13 +48,15 @@ import time
 
 import casadi as ca
 import numpy as np
+from pydantic import Field, StrictBool, StrictFloat, StrictStr
 
 from optikin.batch import batched
 from optikin.codegen import CompiledFunction
-from optikin.solvers import register_backend
 from optikin.fastcall import BufferedFunction
-from optikin.solvers.nonlinear import LeastSquaresProblem, NonlinearAdapter
+from optikin.options import Options
+from optikin.solvers import register_backend
 from optikin.solvers.base import Solution, SolutionBatch
+from optikin.solvers.nonlinear import LeastSquaresProblem, NonlinearAdapter
 
 
 LAMBDA_FLOOR = 1e-10
@@ -124,23 +124,30 @@ switch the sample to the second-order model (a large-residual minimum, e.g. a ta
 the workspace)."""
 
 
+class GaussNewtonOptions(Options):
+    """Preset options of backend ``gauss_newton``."""
+
+    damping: StrictFloat = Field(10.0, gt=0, description="initial mu of the Levenberg parameter "
+                                                          "lam = mu ||r||^2 [1/(units of r)^2]")
+    damping_min: StrictFloat = Field(1e-12, gt=0, description="smallest mu [1/(units of r)^2]")
+    damping_max: StrictFloat = Field(1e12, gt=0, description="largest mu; a sample whose mu grows above it "
+                                                              "stops (stuck) [1/(units of r)^2]")
+    second_order: StrictBool = Field(True, description="switch a stalled sample (large residual) to the Newton "
+                                                       "model J^T J + sum r_i Hess r_i")
+    compile: StrictBool = Field(False, description="code-generate the step Function and compile it to C")
+    flags: tuple[StrictStr, ...] = Field(("-O3",), description="C compiler flags of compile: true")
+    batch: StrictBool = Field(True, description="independent samples: one batched step evaluation per "
+                                                "iteration for all of them")
+
+
 class GaussNewton(NonlinearAdapter):
     """Damped projected Gauss-Newton (module docstring)."""
 
-    defaults = {"damping": 10.0, "damping_min": 1e-12, "damping_max": 1e12, "second_order": True,
-                "compile": False, "flags": ["-O3"], "batch": True}
-
-    def __init__(self, preset):
-        super().__init__(preset)
-        if not isinstance(self.options["flags"], list):
-            raise self.option_error("flags", "expected a list of compiler flags")
-        for key in ("damping", "damping_min", "damping_max"):
-            if self.options[key] <= 0:
-                raise self.option_error(key, "must be positive")
+    options: GaussNewtonOptions
 
     # ------------------------------------------------------------------ Functions
     def _key(self, what: str, second_order: bool) -> tuple:
-        return (what, second_order, self.options["compile"], *self.options["flags"])
+        return (what, second_order, self.options.compile, *self.options.flags)
 
     def _function(self, problem: LeastSquaresProblem, second_order: bool) -> ca.Function:
         key = self._key("gn_function", second_order)
@@ -152,12 +159,12 @@ class GaussNewton(NonlinearAdapter):
         key = self._key("gn_compiled", second_order)
         if key not in problem.cache:
             f = self._function(problem, second_order)
-            problem.cache[key] = CompiledFunction(f, tuple(self.options["flags"]))
+            problem.cache[key] = CompiledFunction(f, self.options.flags)
         return problem.cache[key]
 
     def step(self, problem: LeastSquaresProblem, second_order: bool = False) -> ca.Function:
         """A step Function of ``problem`` (compiled when the preset says so), built once."""
-        if self.options["compile"]:
+        if self.options.compile:
             return self._compiled(problem, second_order).external
         return self._function(problem, second_order)
 
@@ -186,7 +193,7 @@ class GaussNewton(NonlinearAdapter):
         """``(X, P, mu) -> (X_new, info (2, N))`` over the rows of ``X``: one call into CasADi (or C)."""
         key = self._key("gn_batch", second_order)
         if key not in problem.cache:
-            if self.options["compile"]:
+            if self.options.compile:
                 runner = self._compiled(problem, second_order).raw
             else:
                 runner = batched(self._function(problem, second_order)).raw
@@ -208,7 +215,7 @@ class GaussNewton(NonlinearAdapter):
         started = time.perf_counter()
         gauss_newton = step = self._single(problem, False)
         tol, stat_tol = self._stop_tolerance(problem), problem.stationarity_tolerance
-        mu, mu_min, mu_max = self.options["damping"], self.options["damping_min"], self.options["damping_max"]
+        mu, mu_min, mu_max = self.options.damping, self.options.damping_min, self.options.damping_max
         max_calls = self.limits.max_iterations
         deadline = started + self.limits.time_limit
         x = problem.project(x0)
@@ -224,7 +231,7 @@ class GaussNewton(NonlinearAdapter):
             calls += 1
             if trial_rn < rn or trial_rn <= tol:
                 slow = slow + 1 if trial_rn > SLOW_PROGRESS * rn else 0
-                if slow >= SLOW_STEPS and step is gauss_newton and self.options["second_order"]:
+                if slow >= SLOW_STEPS and step is gauss_newton and self.options.second_order:
                     step = self._single(problem, True)  # built on first use: much larger than a Gauss-Newton step
                 x, proposal, mu = proposal, next_proposal.copy(), trial_mu
                 rn, stationarity = trial_rn, trial_stationarity
@@ -243,7 +250,7 @@ class GaussNewton(NonlinearAdapter):
     # ------------------------------------------------------------------ many independent samples at once
     def solve_many(self, problem: LeastSquaresProblem, X0: np.ndarray, P: np.ndarray, warm_start: bool = False,
                    x_ref: np.ndarray | None = None) -> SolutionBatch:
-        if warm_start or not self.options["batch"]:
+        if warm_start or not self.options.batch:
             return super().solve_many(problem, X0, P, warm_start, x_ref)
         return self.solve_batch(problem, X0, P)
 
@@ -260,7 +267,7 @@ class GaussNewton(NonlinearAdapter):
         N, n = len(P), problem.n
         X = problem.project(np.broadcast_to(np.asarray(X0, dtype=float), (N, n)))
         tol, stat_tol = self._stop_tolerance(problem), problem.stationarity_tolerance
-        mu_min, mu_max = self.options["damping_min"], self.options["damping_max"]
+        mu_min, mu_max = self.options.damping_min, self.options.damping_max
         deadline = started + self.limits.time_limit * N
         gauss_newton = self._batch(problem, False)
 
@@ -275,7 +282,7 @@ class GaussNewton(NonlinearAdapter):
                     out_x[rows], out_info[:, rows] = model(X_[rows], P_[rows], mu_[rows])
             return out_x, out_info
 
-        mu = np.full(N, float(self.options["damping"]))
+        mu = np.full(N, float(self.options.damping))
         so = np.zeros(N, dtype=bool)
         slow = np.zeros(N, dtype=int)
         proposal, info = evaluate(X, P, mu, so)
@@ -302,7 +309,7 @@ class GaussNewton(NonlinearAdapter):
             reject = test & ~accept
             update = accept | ~test
             slow[idx] = np.where(accept, np.where(new_info[0] > SLOW_PROGRESS * rn, slow[idx] + 1, 0), slow[idx])
-            if self.options["second_order"]:
+            if self.options.second_order:
                 so[idx[slow[idx] >= SLOW_STEPS]] = True
             X[idx[accept]] = proposal[idx[accept]]
             info[:, idx[update]] = new_info[:, update]
@@ -318,5 +325,5 @@ class GaussNewton(NonlinearAdapter):
                            seconds=np.full(N, elapsed / N), messages=messages, batched=True)
 
 
-register_backend("gauss_newton", "nonlinear",
-                 "damped projected Gauss-Newton on CasADi Jacobians; batched over samples", options=None)(GaussNewton)
+register_backend("gauss_newton", "nonlinear", "damped projected Gauss-Newton on CasADi Jacobians; batched over samples",
+                 options=GaussNewtonOptions)(GaussNewton)

@@ -23,26 +23,35 @@ mapped rootfinder keeps no per-sample statistics, so a batch reports its
 iterations as -1 (unknown), and its time limit applies to the batch as a whole
 (``limits.time_limit`` per sample, checked after the call).
 
-Preset options: ``plugin`` (``newton`` or ``fast_newton``), ``abstolStep``,
-``line_search`` (``newton`` only). ``limits.max_iterations`` and
+Preset options: :class:`NewtonOptions`. ``limits.max_iterations`` and
 ``limits.tolerance`` become ``max_iter`` and ``abstol``.
 """
 
 from __future__ import annotations
 
 import time
+from typing import Literal
 
 import casadi as ca
 import numpy as np
+from pydantic import Field, StrictBool, StrictFloat
 
 from optikin.batch import batched
 from optikin.errors import SolverError
-from optikin.solvers import register_backend
 from optikin.fastcall import BufferedFunction
-from optikin.solvers.nonlinear import LeastSquaresProblem, NonlinearAdapter
+from optikin.options import Options
+from optikin.solvers import register_backend
 from optikin.solvers.base import Solution, SolutionBatch
+from optikin.solvers.nonlinear import LeastSquaresProblem, NonlinearAdapter
 
-PLUGINS = ("newton", "fast_newton")
+
+class NewtonOptions(Options):
+    """Preset options of backend ``newton``."""
+
+    plugin: Literal["newton", "fast_newton"] = Field("newton", description="CasADi rootfinder plugin")
+    abstolStep: StrictFloat = Field(1e-14, ge=0, description="stop when the Newton step's max-norm is at or "
+                                                             "below this (units of x)")
+    line_search: StrictBool = Field(True, description="backtracking line search (plugin newton only)")
 
 
 def optimality_system(problem: LeastSquaresProblem) -> tuple[ca.SX, ca.SX, ca.SX]:
@@ -69,12 +78,7 @@ def optimality_system(problem: LeastSquaresProblem) -> tuple[ca.SX, ca.SX, ca.SX
 class Newton(NonlinearAdapter):
     """CasADi rootfinder (module docstring)."""
 
-    defaults = {"plugin": "newton", "abstolStep": 1e-14, "line_search": True}
-
-    def __init__(self, preset):
-        super().__init__(preset)
-        if self.options["plugin"] not in PLUGINS:
-            raise self.option_error("plugin", f"{self.options['plugin']!r} is not one of {', '.join(PLUGINS)}")
+    options: NewtonOptions
 
     def rootfinder_function(self, problem: LeastSquaresProblem) -> ca.Function:
         """``(z0, [p; x_ref]) -> z``: CasADi's rootfinder on the system of :func:`optimality_system`."""
@@ -83,12 +87,12 @@ class Newton(NonlinearAdapter):
             z, parameters, G = optimality_system(problem)
             g = ca.Function(f"{problem.name}_newton_system", [z, parameters], [G])
             opts = {"max_iter": self.limits.max_iterations, "abstol": self.limits.tolerance,
-                    "abstolStep": self.options["abstolStep"], "error_on_fail": False,
+                    "abstolStep": self.options.abstolStep, "error_on_fail": False,
                     "show_eval_warnings": False}
-            if self.options["plugin"] == "newton":
-                opts["line_search"] = self.options["line_search"]
+            if self.options.plugin == "newton":
+                opts["line_search"] = self.options.line_search
             try:
-                problem.cache[key] = ca.rootfinder(f"{problem.name}_newton", self.options["plugin"], g, opts)
+                problem.cache[key] = ca.rootfinder(f"{problem.name}_newton", self.options.plugin, g, opts)
             except RuntimeError as exc:
                 raise SolverError(f"{self.preset.name}: building the rootfinder failed: {exc}") from None
         return problem.cache[key]
@@ -152,4 +156,5 @@ class Newton(NonlinearAdapter):
                            seconds=np.full(N, elapsed / N), messages=messages, batched=True)
 
 
-register_backend("newton", "nonlinear", "CasADi rootfinder (Newton) on r = 0 or its optimality system", options=None)(Newton)
+register_backend("newton", "nonlinear", "CasADi rootfinder (Newton) on r = 0 or its optimality system",
+                 options=NewtonOptions)(Newton)

@@ -14,9 +14,11 @@ is not exact (a penalised one, :mod:`optikin.solvers.nonlinear`), it is
 ``min 1/2 ||r(x, p)||^2`` within the bounds. A problem's ``constraints``
 (e.g. CBHA leg lengths within Table I) are added as inequality rows of ``g``.
 
-Preset options: ``settings``, a mapping handed to the plugin (IPOPT options
-for ``ipopt``; ``sqpmethod`` options such as ``qpsol``, ``hessian_approximation``
-for ``sqpmethod``); unknown names are reported with the preset field.
+Preset options: :class:`IpoptOptions` and :class:`SqpmethodOptions`, whose
+``settings`` are handed to the plugin (IPOPT options for ``ipopt``; ``sqpmethod``
+options such as ``qpsol``, ``hessian_approximation`` for ``sqpmethod``); the plugin
+is built once when the preset is validated, so an unknown name is reported as the
+preset field ``options.settings.<name>``.
 IPOPT runs with ``bound_relax_factor: 0``: with its default (1e-8 relative) a
 solution at a bound (e.g. ``theta`` at its limit) came back outside it, and once
 put back inside missed the target by about 2e-9 m, above the 1e-10 m tolerance (92
@@ -32,15 +34,20 @@ from __future__ import annotations
 
 import re
 import time
+from typing import Any, Callable
 
 import casadi as ca
 import numpy as np
+from pydantic import Field, ValidationError, field_validator
+from pydantic_core import InitErrorDetails, PydanticCustomError
 
 from optikin.errors import SolverError
-from optikin.solvers import register_backend
 from optikin.fastcall import BufferedFunction
-from optikin.solvers.nonlinear import LeastSquaresProblem, NonlinearAdapter
+from optikin.options import Options
+from optikin.solvers import register_backend
 from optikin.solvers.base import Solution
+from optikin.solvers.nonlinear import LeastSquaresProblem, NonlinearAdapter
+from optikin.spec import LimitsSpec
 
 QUIET_QP = {"print_iter": False, "print_header": False, "error_on_fail": False}
 
@@ -68,34 +75,110 @@ def nlp_of(problem: LeastSquaresProblem) -> tuple[dict, np.ndarray, np.ndarray, 
     return {"x": x, "p": ca.vertcat(p, x_ref), "f": f, "g": g}, lbx, ubx, lbg, ubg
 
 
+def ipopt_options(limits: LimitsSpec, settings: dict[str, Any]) -> dict[str, Any]:
+    """``nlpsol`` options of plugin ``ipopt``: the limits (module docstring), then the preset's ``settings``."""
+    ipopt = {"print_level": 0, "sb": "yes", "tol": limits.tolerance, "bound_relax_factor": 0.0,
+             "max_iter": limits.max_iterations, "max_wall_time": limits.time_limit}
+    ipopt.update(settings)
+    return {"ipopt": ipopt, "print_time": False, "error_on_fail": False, "show_eval_warnings": False}
+
+
+def sqpmethod_options(limits: LimitsSpec, settings: dict[str, Any]) -> dict[str, Any]:
+    """``nlpsol`` options of plugin ``sqpmethod``: quiet qrqp QPs and the limits, then the preset's ``settings``."""
+    options = {"qpsol": "qrqp", "qpsol_options": dict(QUIET_QP), "max_iter": limits.max_iterations,
+               "print_header": False, "print_iteration": False, "print_status": False,
+               "tol_pr": limits.tolerance}
+    options.update(settings)
+    options.update({"print_time": False, "error_on_fail": False, "show_eval_warnings": False})
+    return options
+
+
+PluginOptions = Callable[[LimitsSpec, dict[str, Any]], dict[str, Any]]
+PLUGIN_OPTIONS: dict[str, PluginOptions] = {"ipopt": ipopt_options, "sqpmethod": sqpmethod_options}
+"""Plugin -> how its ``nlpsol`` options are made from a preset's limits and settings."""
+
+UNKNOWN_OPTION = re.compile(r"(?:Unknown option|No such IPOPT option):?\s*'?([A-Za-z_0-9.]+)")
+
+
+class SettingError(Exception):
+    """A plugin refused a setting (``name``) or could not be built (``name`` empty)."""
+
+    def __init__(self, name: str, message: str):
+        super().__init__(message)
+        self.name, self.message = name, message
+
+
+def build_nlpsol(name: str, plugin: str, nlp: dict, options: dict[str, Any]) -> ca.Function:
+    """``ca.nlpsol(name, plugin, nlp, options)``; a refused setting is a :class:`SettingError` naming it."""
+    try:
+        return ca.nlpsol(name, plugin, nlp, options)
+    except RuntimeError as exc:
+        text = str(exc)
+        match = UNKNOWN_OPTION.search(text)
+        if match:
+            raise SettingError(match.group(1), f"not an option of {plugin}: {text.strip().splitlines()[-1]}") from None
+        raise SettingError("", f"building {plugin} failed: {text}") from None
+
+
+def checked_settings(plugin: str, settings: dict[str, Any]) -> dict[str, Any]:
+    """``settings`` once the plugin accepted them on a one-variable NLP (default limits).
+
+    Raises
+    ------
+    ValidationError
+        Located at the refused setting's name (or at ``settings`` when the plugin fails otherwise).
+    """
+    x = ca.SX.sym("x")
+    try:
+        build_nlpsol("optikin_check", plugin, {"x": x, "f": x * x, "g": x},
+                     PLUGIN_OPTIONS[plugin](LimitsSpec(), settings))
+    except SettingError as exc:
+        loc: tuple[str, ...] = (exc.name,) if exc.name else ()
+        error = PydanticCustomError("plugin_setting", "{message}", {"message": exc.message})
+        raise ValidationError.from_exception_data(
+            "settings", [InitErrorDetails(type=error, loc=loc, input=settings.get(exc.name, settings))]) from None
+    return settings
+
+
+class IpoptOptions(Options):
+    """Preset options of backend ``ipopt``."""
+
+    settings: dict[str, Any] = Field(default_factory=dict, description="IPOPT options (e.g. mu_strategy, "
+                                                                       "hessian_approximation), over optikin's")
+
+    @field_validator("settings")
+    @classmethod
+    def _accepted_by_ipopt(cls, settings: dict[str, Any]) -> dict[str, Any]:
+        return checked_settings("ipopt", settings)
+
+
+class SqpmethodOptions(Options):
+    """Preset options of backend ``sqpmethod``."""
+
+    settings: dict[str, Any] = Field(default_factory=dict, description="sqpmethod options (e.g. qpsol, "
+                                                                       "hessian_approximation), over optikin's")
+
+    @field_validator("settings")
+    @classmethod
+    def _accepted_by_sqpmethod(cls, settings: dict[str, Any]) -> dict[str, Any]:
+        return checked_settings("sqpmethod", settings)
+
+
 class NlpsolAdapter(NonlinearAdapter):
     """A CasADi ``nlpsol`` plugin (module docstring); subclasses set :attr:`plugin`."""
 
     plugin = ""
-    defaults = {"settings": {}}
+    options: IpoptOptions | SqpmethodOptions
 
-    def __init__(self, preset):
-        super().__init__(preset)
-        self._validate_settings()
-
-    def plugin_options(self) -> dict:
-        raise NotImplementedError
-
-    def _validate_settings(self) -> None:
-        """Build the plugin once on a one-variable NLP so a bad setting fails here, naming the field."""
-        x = ca.SX.sym("x")
-        self._build("optikin_check", {"x": x, "f": x * x, "g": x})
+    def plugin_options(self) -> dict[str, Any]:
+        """The ``nlpsol`` options of this preset (limits and settings)."""
+        return PLUGIN_OPTIONS[self.plugin](self.limits, self.options.settings)
 
     def _build(self, name: str, nlp: dict) -> ca.Function:
         try:
-            return ca.nlpsol(name, self.plugin, nlp, self.plugin_options())
-        except RuntimeError as exc:
-            text = str(exc)
-            match = re.search(r"(?:Unknown option|No such IPOPT option):?\s*'?([A-Za-z_0-9.]+)", text)
-            if match:
-                raise self.option_error(f"settings.{match.group(1)}",
-                                        f"not an option of {self.plugin}: {text.strip().splitlines()[-1]}") from None
-            raise SolverError(f"{self.preset.name}: building {self.plugin} failed: {text}") from None
+            return build_nlpsol(name, self.plugin, nlp, self.plugin_options())
+        except SettingError as exc:
+            raise SolverError(f"{self.preset.name}: {exc.message}") from None
 
     def solver(self, problem: LeastSquaresProblem) -> tuple[BufferedFunction, np.ndarray, np.ndarray, np.ndarray,
                                                           np.ndarray]:
@@ -128,26 +211,17 @@ class NlpsolAdapter(NonlinearAdapter):
 
 
 class Ipopt(NlpsolAdapter):
-    plugin = "ipopt"
+    """IPOPT through ``nlpsol`` (module docstring)."""
 
-    def plugin_options(self) -> dict:
-        settings = {"print_level": 0, "sb": "yes", "tol": self.limits.tolerance, "bound_relax_factor": 0.0,
-                    "max_iter": self.limits.max_iterations, "max_wall_time": self.limits.time_limit}
-        settings.update(self.options["settings"])
-        return {"ipopt": settings, "print_time": False, "error_on_fail": False, "show_eval_warnings": False}
+    plugin = "ipopt"
 
 
 class Sqpmethod(NlpsolAdapter):
+    """CasADi's ``sqpmethod`` through ``nlpsol`` (module docstring)."""
+
     plugin = "sqpmethod"
 
-    def plugin_options(self) -> dict:
-        options = {"qpsol": "qrqp", "qpsol_options": dict(QUIET_QP), "max_iter": self.limits.max_iterations,
-                   "print_header": False, "print_iteration": False, "print_status": False,
-                   "tol_pr": self.limits.tolerance}
-        options.update(self.options["settings"])
-        options.update({"print_time": False, "error_on_fail": False, "show_eval_warnings": False})
-        return options
 
-
-register_backend("ipopt", "nonlinear", "interior point (IPOPT) through CasADi nlpsol", options=None)(Ipopt)
-register_backend("sqpmethod", "nonlinear", "CasADi's SQP method (qrqp QPs) through nlpsol", options=None)(Sqpmethod)
+register_backend("ipopt", "nonlinear", "interior point (IPOPT) through CasADi nlpsol", options=IpoptOptions)(Ipopt)
+register_backend("sqpmethod", "nonlinear", "CasADi's SQP method (qrqp QPs) through nlpsol",
+                 options=SqpmethodOptions)(Sqpmethod)

@@ -50,10 +50,10 @@ import casadi as ca
 import numpy as np
 
 from optikin.batch import batched
-from optikin.errors import SpecError
 from optikin.fastcall import BufferedFunction
+from optikin.options import Options
 from optikin.solvers.base import Solution, SolutionBatch
-from optikin.spec import SolverSpec, available
+from optikin.spec import SolverSpec
 
 FAMILY = "nonlinear"
 BOUND_TOLERANCE = 1e-9
@@ -278,50 +278,23 @@ class LeastSquaresProblem:
         return status, rn, messages
 
 
-def preset_path(preset: SolverSpec) -> str:
-    """The file a preset most likely came from, for error messages."""
-    return str(available("solvers").get(preset.name, f"solver preset {preset.name!r}"))
-
-
 class NonlinearAdapter:
-    """Common part of the ``nonlinear`` adapters: option checking, limits, the sample loop.
+    """Common part of the ``nonlinear`` adapters: the preset, its limits and typed options, the sample loop.
 
-    Subclasses set :attr:`defaults` (the accepted ``options`` of the preset and their default
-    values) and implement :meth:`solve`.
+    Parameters
+    ----------
+    preset:
+        The solver preset (its ``limits`` bound every solve).
+    options:
+        The preset's ``options`` validated against the backend's options model.
+
+    Subclasses implement :meth:`solve`; :meth:`solve_many` loops over samples unless overridden.
     """
 
-    defaults: dict[str, Any] = {}
-    untyped: tuple[str, ...] = ()
-    """Options whose type is checked by the subclass (e.g. a number or a keyword)."""
-
-    def __init__(self, preset: SolverSpec):
+    def __init__(self, preset: SolverSpec, options: Options):
         self.preset = preset
         self.limits = preset.limits
-        self.options = self.checked_options(preset)
-
-    def checked_options(self, preset: SolverSpec) -> dict[str, Any]:
-        """The preset's options merged over :attr:`defaults`; unknown or mistyped ones name the field."""
-        options = dict(self.defaults)
-        for key, value in preset.options.items():
-            if key not in self.defaults:
-                known = ", ".join(self.defaults) or "none"
-                raise SpecError(preset_path(preset), f"options.{key}",
-                                f"unknown option of backend {preset.backend!r}; known: {known}")
-            default = self.defaults[key]
-            if key in self.untyped:
-                pass
-            elif isinstance(default, bool) and not isinstance(value, bool):
-                raise SpecError(preset_path(preset), f"options.{key}", f"expected true or false, got {value!r}")
-            if isinstance(default, (int, float)) and not isinstance(default, bool):
-                if isinstance(value, bool) or not isinstance(value, (int, float)):
-                    raise SpecError(preset_path(preset), f"options.{key}", f"expected a number, got {value!r}")
-            if isinstance(default, dict) and not isinstance(value, dict):
-                raise SpecError(preset_path(preset), f"options.{key}", f"expected a mapping, got {value!r}")
-            options[key] = value
-        return options
-
-    def option_error(self, key: str, message: str) -> SpecError:
-        return SpecError(preset_path(self.preset), f"options.{key}", message)
+        self.options = options
 
     def solve(self, problem: LeastSquaresProblem, x0: np.ndarray, p: np.ndarray,
               x_ref: np.ndarray | None = None) -> Solution:

@@ -20,20 +20,57 @@ iteration limit is scipy's ``max_nfev`` (``limits.max_iterations``); the time
 limit is enforced inside the residual callback, which stops the solve and
 keeps the best point seen.
 
-Preset options: ``ftol``, ``xtol``, ``gtol``, ``x_scale`` (``weights``, ``jac``
-or a number), ``regularisation``, and for ``trf`` ``tr_solver``.
+Preset options: :class:`LeastSquaresOptions` (``lm``) and :class:`TrfOptions` (``trf``).
 """
 
 from __future__ import annotations
 
 import time
+from typing import Any, Literal
 
 import numpy as np
+from pydantic import Field, StrictFloat, field_validator
+from pydantic_core import PydanticCustomError
 from scipy.optimize import least_squares
 
+from optikin.options import Options
 from optikin.solvers import register_backend
-from optikin.solvers.nonlinear import LeastSquaresProblem, NonlinearAdapter
 from optikin.solvers.base import Solution
+from optikin.solvers.nonlinear import LeastSquaresProblem, NonlinearAdapter
+
+EPS = float(np.finfo(float).eps)
+
+
+class LeastSquaresOptions(Options):
+    """Preset options of backend ``lm`` (and, with ``tr_solver``, ``trf``): scipy's tolerances and scaling."""
+
+    ftol: StrictFloat = Field(1e-15, ge=EPS, description="relative change of the cost that stops the solve")
+    xtol: StrictFloat = Field(1e-15, ge=EPS, description="relative change of the scaled variables that stops it")
+    gtol: StrictFloat = Field(1e-15, ge=EPS, description="scaled gradient norm that stops it")
+    x_scale: Literal["weights", "jac"] | StrictFloat = Field(
+        "weights", description="scale of the variables: 'weights' (their ranges, 1/W), 'jac' (scipy's Jacobian "
+                               "scaling) or a positive number (units of x)")
+    regularisation: StrictFloat = Field(0.0, ge=0, description="Tikhonov rows sqrt(regularisation) W (x - x_ref) "
+                                                               "on a redundant problem (dimensionless)")
+
+    @field_validator("x_scale", mode="wrap")
+    @classmethod
+    def _scale(cls, value: Any, handler: Any) -> Any:
+        error = PydanticCustomError("x_scale", "expected 'weights', 'jac' or a positive number, got {value}",
+                                    {"value": repr(value)})
+        try:
+            scale = handler(value)
+        except ValueError:
+            raise error from None
+        if isinstance(scale, float) and not scale > 0:
+            raise error
+        return scale
+
+
+class TrfOptions(LeastSquaresOptions):
+    """Preset options of backend ``trf``."""
+
+    tr_solver: Literal["exact", "lsmr"] = Field("exact", description="scipy's trust-region subproblem solver")
 
 
 class _TimeLimit(Exception):
@@ -104,28 +141,15 @@ class ScipyLeastSquares(NonlinearAdapter):
     """``scipy.optimize.least_squares`` with method :attr:`method` (module docstring)."""
 
     method = ""
-    defaults = {"ftol": 1e-15, "xtol": 1e-15, "gtol": 1e-15, "x_scale": "weights", "regularisation": 0.0}
     transform_bounds = False
-    untyped = ("x_scale",)
-
-    def __init__(self, preset):
-        super().__init__(preset)
-        for key in ("ftol", "xtol", "gtol"):
-            if not self.options[key] >= np.finfo(float).eps:
-                raise self.option_error(key, f"must be at least machine epsilon {np.finfo(float).eps:.3g}")
-        x_scale = self.options["x_scale"]
-        if not (x_scale in ("jac", "weights") or (isinstance(x_scale, (int, float)) and not isinstance(x_scale, bool)
-                                     and x_scale > 0)):
-            raise self.option_error("x_scale", f"expected 'weights', 'jac' or a positive number, got {x_scale!r}")
-        if self.options["regularisation"] < 0:
-            raise self.option_error("regularisation", "must be non-negative")
+    options: LeastSquaresOptions
 
     def extra(self, problem: LeastSquaresProblem) -> dict:
         return {}
 
     def x_scale(self, residual: _Residual) -> np.ndarray | str | float:
         """Scale of the solver variables: the variables' ranges (``1/W``), 1 for sine-mapped ones."""
-        scale = self.options["x_scale"]
+        scale = self.options.x_scale
         if scale != "weights":
             return scale
         problem = residual.problem
@@ -137,12 +161,12 @@ class ScipyLeastSquares(NonlinearAdapter):
         started = time.perf_counter()
         x0 = problem.project(x0)
         reference = x0 if x_ref is None else np.asarray(x_ref, dtype=float)
-        residual = _Residual(problem, p, reference, self.options["regularisation"],
+        residual = _Residual(problem, p, reference, self.options.regularisation,
                              started + self.limits.time_limit, transform=self.transform_bounds)
-        o = self.options
         try:
             result = least_squares(residual.fun, residual.to_z(x0), jac=residual.jac, method=self.method,
-                                   ftol=o["ftol"], xtol=o["xtol"], gtol=o["gtol"], x_scale=self.x_scale(residual),
+                                   ftol=self.options.ftol, xtol=self.options.xtol,
+                                   gtol=self.options.gtol, x_scale=self.x_scale(residual),
                                    max_nfev=self.limits.max_iterations, **self.extra(problem))
             x, iterations = residual.to_x(result.x), result.nfev
         except _TimeLimit:
@@ -153,24 +177,25 @@ class ScipyLeastSquares(NonlinearAdapter):
 
 
 class LevenbergMarquardt(ScipyLeastSquares):
+    """MINPACK's Levenberg-Marquardt, bounds through the sine map (module docstring)."""
+
     method = "lm"
     transform_bounds = True
 
 
 class TrustRegionReflective(ScipyLeastSquares):
-    method = "trf"
-    defaults = {**ScipyLeastSquares.defaults, "tr_solver": "exact"}
+    """scipy's trust-region reflective method with the bounds (module docstring)."""
 
-    def __init__(self, preset):
-        super().__init__(preset)
-        if self.options["tr_solver"] not in ("exact", "lsmr"):
-            raise self.option_error("tr_solver", "must be 'exact' or 'lsmr'")
+    method = "trf"
+    options: TrfOptions
 
     def extra(self, problem: LeastSquaresProblem) -> dict:
         lower = np.where(problem.periodic, -np.inf, problem.lower)
         upper = np.where(problem.periodic, np.inf, problem.upper)
-        return {"bounds": (lower, upper), "tr_solver": self.options["tr_solver"]}
+        return {"bounds": (lower, upper), "tr_solver": self.options.tr_solver}
 
 
-register_backend("lm", "nonlinear", "scipy least_squares, MINPACK Levenberg-Marquardt", options=None)(LevenbergMarquardt)
-register_backend("trf", "nonlinear", "scipy least_squares, trust-region reflective with bounds", options=None)(TrustRegionReflective)
+register_backend("lm", "nonlinear", "scipy least_squares, MINPACK Levenberg-Marquardt",
+                 options=LeastSquaresOptions)(LevenbergMarquardt)
+register_backend("trf", "nonlinear", "scipy least_squares, trust-region reflective with bounds",
+                 options=TrfOptions)(TrustRegionReflective)
