@@ -141,6 +141,10 @@ def test_store_is_reused_and_refused_for_another_database(tmp_path):
     ({"options__penalty": -1.0}, "options.penalty"),
     ({"data__params": {"z_range_mm": [8, 25]}}, "data"),
     ({"data__params": {"grid": True}}, "data.params.grid"),
+    ({"data__params": {"split": [0.7, 0.2, 0.2]}}, "data.params.split"),
+    ({"data__params": {"coupling": "vertebra"}}, "data.params.coupling"),
+    ({"options__setting": "medium"}, "options.setting"),
+    ({"options__exact_samples": 0}, "options.exact_samples"),
     ({"baselines": ["qp-osqp"]}, "baselines.0"),
     ({"baselines": ["least_squares"]}, "baselines.0"),
     ({"solver": "newton"}, "solver"),
@@ -157,6 +161,6 @@ def test_shipped_problem_files_are_valid(name):
     ctx = ProblemContext(spec=spec, path=path, arm=CBHAArm(**spec.arm.params),
                          progress=SILENT)
     o, db_spec = options(ctx), database_spec(ctx)
-    assert o["setting"] == "full" and db_spec.split == (0.70, 0.15, 0.15)
+    assert o.setting == "full" and db_spec.split == (0.70, 0.15, 0.15)
     assert db_spec.coupling == ("section" if name.endswith("coupled") else "platform")
     assert db_spec.z_range == (0.0, 0.025) and db_spec.angle_range == pytest.approx((-np.pi / 4, np.pi / 4))

@@ -36,17 +36,30 @@ admissible: the section then bends with constant curvature, its legs are nearly
 in the fixed proportions of the seed's Fig. 6, and it has 3 degrees of freedom
 instead of 24. That is an assumption about the seed's data, not its text; it
 gives the networks the easy problem the low MSEs of Tables II and III suggest.
+
+The database is the data source ``fig7`` of the family ``nn_database`` (the
+``data`` section of the ``nn_fkm`` and ``nn_ikm`` problem files): ``data.seed``
+and ``data.samples`` are :attr:`DatabaseSpec.seed` and
+:attr:`DatabaseSpec.candidates`, ``data.params`` is :class:`Fig7Params`.
 """
 
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
 from functools import cached_property
+from pathlib import Path
+from typing import Literal
 
 import numpy as np
+from pydantic import Field, field_validator
 
-from optikin.arms.cbha import CBHAArm, CBHAGeometry, platform_bounds, platform_leg_vectors
 from optikin.algebra import dq_translation
+from optikin.arms.base import ArmModel
+from optikin.arms.cbha import CBHAArm, CBHAGeometry, platform_bounds, platform_leg_vectors
+from optikin.data.sources import register_source
+from optikin.errors import SpecError
+from optikin.options import Options
+from optikin.spec import DataSpec
 
 WIDE_Z_RANGE = (0.0, 0.025)
 """Default range of ``Z_k`` drawn in Fig. 7 [m]: from 0 to above every Table I maximum."""
@@ -272,3 +285,70 @@ def build_database(geometry: CBHAGeometry | None = None, spec: DatabaseSpec | No
     return LearningDatabase(geometry=geometry, spec=spec, configurations=configurations, leg_lengths=leg_lengths,
                             section_ends=section_ends, kept=np.array(kept), kept_table_i=np.array(kept_table_i),
                             train=train, validation=validation, test=test)
+
+
+# ---------------------------------------------------------------------------------------- data source
+class Fig7Params(Options):
+    """``data.params`` of the source ``fig7``: the wide box of Fig. 7, admissibility, coupling and split."""
+
+    z_range_mm: tuple[float, float] = Field((0.0, 25.0), description="range of Z_k drawn [mm], [low, high]")
+    angle_range_deg: tuple[float, float] = Field(
+        (-45.0, 45.0), description="range of theta_k and psi_k drawn [deg], [low, high]")
+    require_upright: bool = Field(True, description="keep only draws whose upper attachment points lie above "
+                                                    "the lower vertebra")
+    coupling: Literal["platform", "section"] = Field(
+        "platform", description="platform: every platform drawn on its own (Fig. 7); section: one draw per section "
+                                "shared by its platforms")
+    split: tuple[float, float, float] = Field(
+        (0.70, 0.15, 0.15), description="fractions of the rows for training, validation and test")
+
+    @field_validator("z_range_mm", "angle_range_deg")
+    @classmethod
+    def _increasing(cls, value: tuple[float, float]) -> tuple[float, float]:
+        if not value[0] < value[1]:
+            raise ValueError(f"must be [low, high] with low < high, got {list(value)}")
+        return value
+
+    @field_validator("split")
+    @classmethod
+    def _fractions(cls, value: tuple[float, float, float]) -> tuple[float, float, float]:
+        if min(value) <= 0 or abs(sum(value) - 1.0) > 1e-9:
+            raise ValueError(f"must be three positive fractions adding up to 1, got {list(value)}")
+        return value
+
+    def database_spec(self, data: DataSpec) -> DatabaseSpec:
+        """The :class:`DatabaseSpec` of these params with the ``data`` section's seed and draws.
+
+        Parameters
+        ----------
+        data:
+            The problem file's ``data`` section: ``samples`` draws per unit, ``seed``.
+
+        Returns
+        -------
+        DatabaseSpec
+            Ranges in SI units (``Z`` [m], angles [rad]).
+        """
+        return DatabaseSpec(candidates=data.samples, seed=data.seed,
+                            z_range=tuple(v / 1e3 for v in self.z_range_mm),
+                            angle_range=tuple(np.radians(v) for v in self.angle_range_deg),
+                            require_upright=self.require_upright, split=self.split, coupling=self.coupling)
+
+
+@register_source("nn_database", "fig7", "seed 004 Fig. 7: platform variables drawn on a wide box, kept within "
+                                        "Table I", params=Fig7Params)
+def load_fig7(arm: ArmModel, data: DataSpec, params: Fig7Params, path: Path) -> LearningDatabase:
+    """The learning database of ``data`` for the CBHA ``arm`` (:func:`build_database`).
+
+    Raises
+    ------
+    SpecError
+        On ``arm.type`` for an arm other than the CBHA, on ``data`` when the wide box misses a
+        platform's feasible box or too few rows are kept.
+    """
+    if not isinstance(arm, CBHAArm):
+        raise SpecError(path, "arm.type", f"the fig7 database is drawn for the CBHA of seed 004, not {arm.name!r}")
+    try:
+        return build_database(arm.geometry, params.database_spec(data))
+    except ValueError as exc:
+        raise SpecError(path, "data", str(exc)) from None

@@ -56,17 +56,19 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Literal
 
 import matplotlib.pyplot as plt
 import numpy as np
+from pydantic import Field
 
 from optikin.arms.cbha import CBHAArm
-from optikin.baselines.nn_database import DatabaseSpec, LearningDatabase, build_database
+from optikin.baselines.nn_database import DatabaseSpec, Fig7Params, LearningDatabase
 from optikin.baselines.nn_models import (
     SETTINGS, Task, TrainedModel, TrainingSetting, forward_tasks, hybrid_forward_configurations,
     hybrid_inverse_configurations, inverse_tasks, split_mse, split_rmse_by_variable, train_model)
 from optikin.baselines.nn_store import load_models, save_models
+from optikin.options import Options, validate_options
 from optikin.problems import ProblemContext, ProblemKind, register_kind
 from optikin.ik.formulation import Formulation, build_problem, rest_configuration
 from optikin.ik.platform import linearised_start, platform_problems, realise, solve_platforms
@@ -83,54 +85,44 @@ TIP_TOLERANCE = 1e-10
 """Largest tip error [m] of a solved tip-position IK."""
 REALISER = "newton"
 """The solver preset that finds the pose commanded leg lengths produce (:func:`realise`)."""
-DATA_DEFAULTS: dict[str, Any] = {"z_range_mm": [0.0, 25.0], "angle_range_deg": [-45.0, 45.0],
-                                 "require_upright": True, "coupling": "platform", "split": [0.70, 0.15, 0.15]}
-OPTION_DEFAULTS: dict[str, Any] = {"variants": ["seed", "adam"], "setting": "full", "penalty": 1e-3, "store": None,
-                                   "exact_samples": 200, "latency_repeats": 50}
+SettingName = Literal["seed", "adam", "adam-wide"]
+"""A training setting of :data:`optikin.baselines.nn_models.SETTINGS`."""
+
+
+class NNOptions(Options):
+    """``options`` of the ``nn_fkm`` and ``nn_ikm`` kinds."""
+
+    variants: tuple[SettingName, ...] = Field(
+        ("seed", "adam"), min_length=1, description="training settings, one trained variant each "
+                                                    "(optikin.baselines.nn_models.SETTINGS)")
+    setting: Literal["full", "small"] = Field(
+        "full", description="full: the settings as named; small: two widths, at most 15 epochs (tests, notebooks)")
+    penalty: float = Field(1e-3, ge=0, description="lambda of eq. (11) (nn_ikm only)")
+    store: str | None = Field(None, description="folder of trained models (relative to the working directory): "
+                                                "loaded when it matches the problem, otherwise trained and written")
+    exact_samples: int = Field(200, ge=1, description="test samples given to the exact solvers (the first ones)")
+    latency_repeats: int = Field(50, ge=1, description="one-sample calls timed for the latency")
 
 
 # ---------------------------------------------------------------------------------------- reading the file
 def database_spec(ctx: ProblemContext) -> DatabaseSpec:
-    """The :class:`DatabaseSpec` of the problem's ``data`` section."""
-    data = ctx.spec.data
-    if data.source != "fig7":
-        raise ctx.error("data.source", f"{data.source!r}: the nn kinds draw their own database, source 'fig7'")
-    for key in data.params:
-        if key not in DATA_DEFAULTS:
-            raise ctx.error(f"data.params.{key}", f"unknown parameter; known: {', '.join(DATA_DEFAULTS)}")
-    p = {**DATA_DEFAULTS, **data.params}
-    try:
-        return DatabaseSpec(candidates=data.samples, seed=data.seed,
-                            z_range=tuple(v / MM for v in p["z_range_mm"]),
-                            angle_range=tuple(np.radians(v) for v in p["angle_range_deg"]),
-                            require_upright=bool(p["require_upright"]), split=tuple(p["split"]),
-                            coupling=str(p["coupling"]))
-    except (TypeError, ValueError) as exc:
-        raise ctx.error("data.params", str(exc)) from None
+    """The :class:`DatabaseSpec` of the problem's ``data`` section (its ``data.params`` validated
+    against :class:`Fig7Params` when ``ctx`` was built by hand)."""
+    params = ctx.data_params
+    if not isinstance(params, Fig7Params):
+        params = validate_options(Fig7Params, ctx.spec.data.params, ctx.path, "data.params")
+    return params.database_spec(ctx.spec.data)
 
 
-def options(ctx: ProblemContext) -> dict[str, Any]:
-    for key in ctx.spec.options:
-        if key not in OPTION_DEFAULTS:
-            raise ctx.error(f"options.{key}", f"unknown option; known: {', '.join(OPTION_DEFAULTS)}")
-    o = {**OPTION_DEFAULTS, **ctx.spec.options}
-    if o["setting"] not in ("full", "small"):
-        raise ctx.error("options.setting", f"{o['setting']!r} is not 'full' or 'small'")
-    if not isinstance(o["variants"], list) or not o["variants"]:
-        raise ctx.error("options.variants", "a non-empty list of training settings")
-    for i, name in enumerate(o["variants"]):
-        if name not in SETTINGS:
-            raise ctx.error(f"options.variants.{i}", f"unknown setting {name!r}; known: {', '.join(SETTINGS)}")
-    for key in ("exact_samples", "latency_repeats"):
-        if not isinstance(o[key], int) or o[key] < 1:
-            raise ctx.error(f"options.{key}", "must be a positive integer")
-    if not isinstance(o["penalty"], (int, float)) or o["penalty"] < 0:
-        raise ctx.error("options.penalty", "must be a non-negative number")
-    return o
+def options(ctx: ProblemContext) -> NNOptions:
+    """The validated options of ``ctx`` (validated here when ``ctx`` was built by hand)."""
+    if isinstance(ctx.options, NNOptions):
+        return ctx.options
+    return validate_options(NNOptions, ctx.spec.options, ctx.path, "options")
 
 
-def settings_of(o: dict[str, Any]) -> list[TrainingSetting]:
-    return [SETTINGS[n].small() if o["setting"] == "small" else SETTINGS[n] for n in o["variants"]]
+def settings_of(o: NNOptions) -> list[TrainingSetting]:
+    return [SETTINGS[n].small() if o.setting == "small" else SETTINGS[n] for n in o.variants]
 
 
 def cbha_arm(ctx: ProblemContext) -> CBHAArm:
@@ -242,7 +234,7 @@ def draw_tip_errors(path: Path, errors: dict[str, np.ndarray], title: str) -> No
 
 
 # ---------------------------------------------------------------------------------------- nn_fkm
-def prepare(ctx: ProblemContext) -> tuple[CBHAArm, dict[str, Any], LearningDatabase, float]:
+def prepare(ctx: ProblemContext) -> tuple[CBHAArm, NNOptions, LearningDatabase, float]:
     """Either kind's checked inputs: the arm, the options, the learning database of the ``data``
     section and the seconds it took to build. The networks are the method under test, so a
     ``solver`` is refused: exact solvers are named as baselines."""
@@ -251,16 +243,13 @@ def prepare(ctx: ProblemContext) -> tuple[CBHAArm, dict[str, Any], LearningDatab
         raise ctx.error("solver", f"{ctx.solver.name!r}: the nn kinds train networks; list the exact solver "
                                   "presets to compare with under baselines")
     o = options(ctx)
-    try:
-        db, seconds = timed(lambda: build_database(arm.geometry, database_spec(ctx)))
-    except ValueError as exc:
-        raise ctx.error("data", str(exc)) from None
+    db, seconds = timed(ctx.load_data)
     return arm, o, db, seconds
 
 
 def network_row(label: str, models: list[TrainedModel], db: LearningDatabase, trained: bool,
                 hybrid: Callable[[np.ndarray], Any], inputs: np.ndarray, errors: np.ndarray,
-                o: dict[str, Any], metrics: dict[str, Any], extra: dict[str, Any] | None = None) -> MethodRow:
+                o: NNOptions, metrics: dict[str, Any], extra: dict[str, Any] | None = None) -> MethodRow:
     """The comparison row of one trained variant (its model metrics are added to ``metrics``)."""
     hybrid(inputs[:1])
     _, seconds = timed(lambda: hybrid(inputs), BATCH_REPEATS)
@@ -270,7 +259,7 @@ def network_row(label: str, models: list[TrainedModel], db: LearningDatabase, tr
     row |= {f"neurons {m.task.key}": m.neurons for m in models}
     row |= error_stats(errors) | (extra or {})
     row |= {"time per sample, batch [us]": seconds / len(inputs) * 1e6,
-            "latency, one sample [us]": latency(hybrid, inputs, o["latency_repeats"]) * 1e6,
+            "latency, one sample [us]": latency(hybrid, inputs, o.latency_repeats) * 1e6,
             "training time [s]": sum(m.training_time for m in models)}
     return MethodRow(label, "solver", row)
 
@@ -309,7 +298,7 @@ def run_fkm(ctx: ProblemContext) -> Result:
     comparison, searches, errors, arrays = [], {}, {}, {}
     metrics: dict[str, Any] = {"database": db.summary(), "database time [s]": t_db, "test samples": n}
     for setting in settings_of(o):
-        models, trained = obtain_models(ctx, db, forward_tasks(db), setting, 0.0, o["store"], f"fkm-{setting.name}")
+        models, trained = obtain_models(ctx, db, forward_tasks(db), setting, 0.0, o.store, f"fkm-{setting.name}")
 
         def hybrid(L, models=models):
             return arm.evaluate("fk_position", hybrid_forward_configurations(models, L))
@@ -322,7 +311,7 @@ def run_fkm(ctx: ProblemContext) -> Result:
         searches |= {f"{label} {m.task.key}": m.search for m in models}
         arrays |= {f"tip_{setting.name}": tip, f"configurations_{setting.name}": Q}
 
-    k = min(n, o["exact_samples"])
+    k = min(n, o.exact_samples)
     problems = platform_problems(arm, PLATFORM_TOLERANCE)
     for name in spec.baselines:
         adapter = build_preset(name)
@@ -338,7 +327,7 @@ def run_fkm(ctx: ProblemContext) -> Result:
         comparison.append(solver_row(name, report, errors[name], seconds, {
             "max |platform variables - truth|": float(np.max(np.abs(report.x - db.configurations[test[:k]]))),
             "max leg residual [m]": float(np.max(report.residual)),
-            "latency, one sample [us]": latency(solve, legs, o["latency_repeats"]) * 1e6}))
+            "latency, one sample [us]": latency(solve, legs, o.latency_repeats) * 1e6}))
 
     arrays |= {"test_rows": test, "leg_lengths": legs, "configurations": db.configurations[test], "tip": truth_tip}
     return comparison_result(ctx, arm, comparison, errors, searches, metrics, arrays, t_db, "FKM",
@@ -356,9 +345,9 @@ def run_ikm(ctx: ProblemContext) -> Result:
 
     comparison, searches, errors, arrays = [], {}, {}, {}
     metrics: dict[str, Any] = {"database": db.summary(), "database time [s]": t_db, "test samples": n,
-                               "penalty (eq. 11)": o["penalty"]}
+                               "penalty (eq. 11)": o.penalty}
     for setting in settings_of(o):
-        models, trained = obtain_models(ctx, db, inverse_tasks(db), setting, float(o["penalty"]), o["store"],
+        models, trained = obtain_models(ctx, db, inverse_tasks(db), setting, o.penalty, o.store,
                                         f"ikm-{setting.name}")
 
         def hybrid(P, models=models):
@@ -376,7 +365,7 @@ def run_ikm(ctx: ProblemContext) -> Result:
         arrays |= {f"tip_{setting.name}": realised.tip, f"leg_lengths_{setting.name}": realised.commanded,
                    f"predicted_{setting.name}": Q, f"configurations_{setting.name}": realised.configurations}
 
-    k = min(n, o["exact_samples"])
+    k = min(n, o.exact_samples)
     formulation = Formulation(target="position", redundancy="rest", rest=rest_configuration(arm),
                               weights=1.0 / (arm.upper - arm.lower), tolerance=TIP_TOLERANCE)
     problem = build_problem(arm, formulation)
@@ -400,7 +389,8 @@ def run_ikm(ctx: ProblemContext) -> Result:
 
 
 register_kind(ProblemKind(
-    options=None,
+    options=NNOptions,
+    data_family="nn_database",
     name="nn_fkm",
     summary="seed 004 hybrid forward kinematics (MLP per section) against exact platform solvers",
     run=run_fkm,
@@ -409,7 +399,8 @@ register_kind(ProblemKind(
 ))
 
 register_kind(ProblemKind(
-    options=None,
+    options=NNOptions,
+    data_family="nn_database",
     name="nn_ikm",
     summary="seed 004 hybrid inverse kinematics (MLPs NN1-NN4, eq. 11) against exact tip IK solvers",
     run=run_ikm,
