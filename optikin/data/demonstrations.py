@@ -25,6 +25,16 @@ hemisphere-continuous) to learn from.
 
 The noise figures are assumptions stated where they are used; the seed gives
 none (its data came from hardware).
+
+Each is also a data source of the family ``demonstrations`` (``data.source``
+of the ``dmp`` kind): ``imu``, ``kinect``, ``smooth``, ``gimbal`` and ``csv``,
+``data.params`` the keyword arguments of the function (validated by
+:class:`ImuParams`, :class:`KinectParams`, :class:`SmoothParams`,
+:class:`GimbalParams`, :class:`CsvParams`), ``data.samples`` and ``data.seed``
+its sample count and seed. A loader returns the recording (an
+:class:`InterfaceRecording`, a :class:`KinectRecording` or a
+:class:`PoseDemonstration`); :func:`pose_demonstration` is the demonstration
+in it.
 """
 
 from __future__ import annotations
@@ -32,8 +42,10 @@ from __future__ import annotations
 import csv
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any, Callable
 
 import numpy as np
+from pydantic import Field
 from scipy.interpolate import CubicSpline
 
 from optikin.algebra import (
@@ -51,7 +63,11 @@ from optikin.arms.constant_curvature import (
     relative_section_quaternions,
     section_angles_from_quaternion,
 )
-from optikin.errors import InputDataError
+from optikin.arms.base import ArmModel
+from optikin.data.sources import register_source
+from optikin.errors import InputDataError, SpecError
+from optikin.options import Options
+from optikin.spec import DataSpec
 
 CSV_COLUMNS = ("t", "x", "y", "z", "qw", "qx", "qy", "qz")
 
@@ -395,3 +411,114 @@ def resample_uniform(demo: PoseDemonstration, samples: int | None = None) -> Pos
     position = demo.position[k] + u[:, None] * (demo.position[k + 1] - demo.position[k])
     quaternion = quat_slerp(demo.quaternion[k], demo.quaternion[k + 1], u)
     return PoseDemonstration(t=t, position=position, quaternion=quat_hemisphere_continuous(quaternion))
+
+
+# ----------------------------------------------------------------------------- data sources of the dmp kind
+
+Recording = PoseDemonstration | InterfaceRecording | KinectRecording
+"""What a source of the ``demonstrations`` family returns."""
+
+Triple = tuple[float, float, float]
+
+
+def pose_demonstration(recording: Recording) -> PoseDemonstration:
+    """The demonstration to learn from in a recording (a :class:`PoseDemonstration` is its own)."""
+    return recording if isinstance(recording, PoseDemonstration) else recording.demonstration
+
+
+class ImuParams(Options):
+    """``data.params`` of source ``imu`` (:func:`imu_interface_recording`)."""
+
+    rate: float = Field(100.0, gt=0, description="IMU sample rate [Hz]")
+    via_points: int = Field(2, ge=0, description="random via points of the smooth section-angle path")
+    theta_range: tuple[float, float] = Field((0.15, 1.2), description="range of each section's bending angle [rad]")
+    noise_deg: float = Field(0.1, ge=0, description="white orientation noise per axis of each IMU [deg]")
+    drift_deg_per_s: float = Field(0.02, ge=0, description="largest yaw drift rate of an IMU [deg/s]")
+    section_lengths: tuple[float, float] | None = Field(
+        None, description="lengths of the interface's two sections [m]; null: the arm's")
+
+
+class KinectParams(Options):
+    """``data.params`` of source ``kinect`` (:func:`kinect_recording`)."""
+
+    rate: float = Field(30.0, gt=0, description="frame rate [frames/s]")
+    via_points: int = Field(3, ge=0, description="random via points of the smooth wrist paths")
+    position_noise: float = Field(0.008, ge=0, description="skeleton jitter of the right wrist per axis [m]")
+    orientation_noise_deg: float = Field(3.0, ge=0, description="jitter of the left wrist's orientation per axis "
+                                                                "[deg]")
+    window: int = Field(5, ge=1, description="samples M of the moving average of eq. (31)")
+    cube_edge: float = Field(0.36, gt=0, description="edge of the workspace cube the wrist is scaled into [m]")
+    workspace_centre: Triple = Field((0.0, 0.0, 0.27), description="centre of that cube in the robot base frame [m]")
+    spine_shoulder: Triple = Field((0.0, 0.35, 2.2), description="spine-shoulder joint in the camera frame [m]")
+
+
+class SmoothParams(Options):
+    """``data.params`` of source ``smooth`` (:func:`smooth_pose_demonstration`)."""
+
+    duration: float = Field(10.0, gt=0, description="length of the motion [s]")
+    reach: float = Field(0.12, ge=0, description="half-width of the cube start and goal are drawn in [m]")
+    turn: float = Field(1.2, ge=0, description="largest rotation-vector norm of start and goal [rad]")
+    centre: Triple = Field((0.0, 0.0, 0.30), description="centre of that cube [m]")
+
+
+class GimbalParams(Options):
+    """``data.params`` of source ``gimbal`` (:func:`gimbal_demonstration`)."""
+
+    duration: float = Field(10.0, gt=0, description="length of the motion [s]")
+    peak_pitch_deg: float = Field(120.0, description="pitch at the end of the motion (eq. 30) [deg]")
+    reach: float = Field(0.1, ge=0, description="size of the position detour [m]")
+
+
+class CsvParams(Options):
+    """``data.params`` of source ``csv`` (:func:`read_csv`)."""
+
+    path: str = Field(description="the CSV file (columns t,x,y,z,qw,qx,qy,qz), relative to the problem file")
+    samples: int | None = Field(None, ge=3, description="resample to this many equally spaced samples; null: as "
+                                                        "many as the file has (resampled only if its steps vary)")
+
+
+def _generated(maker: Callable[..., Any], data: DataSpec, path: Path, **params: Any) -> Any:
+    """``maker(samples, seed, **params)``; a value it refuses is a :class:`SpecError` on ``data.params``."""
+    try:
+        return maker(samples=data.samples, seed=data.seed, **params)
+    except ValueError as exc:
+        raise SpecError(path, "data.params", str(exc)) from None
+
+
+@register_source("demonstrations", "imu", "IMU teleoperation interface of seed 000 sec. III-A", params=ImuParams)
+def load_imu(arm: ArmModel, data: DataSpec, params: ImuParams, path: Path) -> InterfaceRecording:
+    """The IMU recording; its sections default to the arm's (a two-section constant-curvature arm)."""
+    values = params.model_dump()
+    if values["section_lengths"] is None:
+        lengths = getattr(arm, "section_lengths", None)
+        values["section_lengths"] = (0.18, 0.18) if lengths is None else tuple(lengths)
+    return _generated(imu_interface_recording, data, path, **values)
+
+
+@register_source("demonstrations", "kinect", "Kinect v2 wrist capture of seed 000 sec. IV", params=KinectParams)
+def load_kinect(arm: ArmModel, data: DataSpec, params: KinectParams, path: Path) -> KinectRecording:
+    """The Kinect recording."""
+    return _generated(kinect_recording, data, path, **params.model_dump())
+
+
+@register_source("demonstrations", "smooth", "a clean rest-to-rest pose motion", params=SmoothParams)
+def load_smooth(arm: ArmModel, data: DataSpec, params: SmoothParams, path: Path) -> PoseDemonstration:
+    """The smooth pose demonstration."""
+    return _generated(smooth_pose_demonstration, data, path, **params.model_dump())
+
+
+@register_source("demonstrations", "gimbal", "a motion through pitch 90 degrees (gimbal lock)", params=GimbalParams)
+def load_gimbal(arm: ArmModel, data: DataSpec, params: GimbalParams, path: Path) -> PoseDemonstration:
+    """The gimbal-lock demonstration."""
+    return _generated(gimbal_demonstration, data, path, **params.model_dump())
+
+
+@register_source("demonstrations", "csv", "a recorded demonstration (t,x,y,z,qw,qx,qy,qz)", params=CsvParams)
+def load_csv(arm: ArmModel, data: DataSpec, params: CsvParams, path: Path) -> PoseDemonstration:
+    """The file's demonstration, resampled to ``params.samples`` or onto a fixed step if its steps vary."""
+    file = Path(params.path)
+    demo = read_csv(file if file.is_absolute() else path.parent / file)
+    steps = np.diff(demo.t)
+    if params.samples is not None or not np.allclose(steps, steps.mean(), rtol=1e-6):
+        demo = resample_uniform(demo, params.samples)
+    return demo

@@ -38,14 +38,17 @@ use this update; ``zeta = -ln 0.01`` brings the phase to 0.01 at ``t = tau``
 
 from __future__ import annotations
 
+from typing import Literal, get_args
+
 import casadi as ca
 import numpy as np
 
 from optikin.algebra import backend as B
 from optikin.algebra.backend import Array
 
-
-PHASE_STOPPING = ("tracking", "seed")
+PhaseStopping = Literal["tracking", "seed"]
+"""Which error slows the phase (the module docstring)."""
+PHASE_STOPPING: tuple[PhaseStopping, ...] = get_args(PhaseStopping)
 
 
 def goal_stopping_weight(mode: str) -> float:

@@ -20,10 +20,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, replace
+from typing import Literal, get_args
 
 import numpy as np
 
-GAIN_NAMES = ("beta", "gamma", "zeta", "beta_g0", "alpha_s", "alpha")
+GainName = Literal["beta", "gamma", "zeta", "beta_g0", "alpha_s", "alpha"]
+"""The name of one gain (the table above)."""
+GAIN_NAMES: tuple[GainName, ...] = get_args(GainName)
+"""Every gain, in the order of :meth:`Gains.vector` and of the roll-out's ``gains`` input."""
 
 
 @dataclass(frozen=True)

@@ -34,13 +34,17 @@
 
 from __future__ import annotations
 
+from typing import Literal, get_args
+
 import numpy as np
 
 from optikin.algebra import dq_rotation, dq_translation
 from optikin.dmp.model import DMP
 from optikin.dmp.spaces import Euclidean, Product, UnitDualQuaternion, UnitQuaternion
 
-POSE_VARIANTS = ("seed", "dual-quaternion", "cartesian")
+PoseVariant = Literal["seed", "dual-quaternion", "cartesian"]
+"""The label of a pose DMP (the module docstring)."""
+POSE_VARIANTS: tuple[PoseVariant, ...] = get_args(PoseVariant)
 
 
 def seed_dual_quaternion_dmp(n_basis: int = 50, **options) -> DMP:

@@ -18,13 +18,16 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from typing import Literal, get_args
 
 import cvxpy as cp
 import numpy as np
 
 from optikin.errors import SolverError
 
-METHODS = ("lstsq", "cvxpy", "lwr")
+Method = Literal["lstsq", "cvxpy", "lwr"]
+"""A weight-regression method."""
+METHODS: tuple[Method, ...] = get_args(Method)
 
 
 @dataclass(frozen=True)

@@ -29,7 +29,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
-from typing import Callable
+from typing import Callable, Literal, get_args
 
 import casadi as ca
 import numpy as np
@@ -42,7 +42,9 @@ from optikin.dmp.model import DMP
 from optikin.dmp.rollout import rollout_function
 from optikin.errors import SolverError
 
-SCENARIOS = ("reproduction", "goal")
+Scenario = Literal["reproduction", "goal"]
+"""What eq. (29) measures: the reproduction of the demonstration, or the approach to a new goal."""
+SCENARIOS: tuple[Scenario, ...] = get_args(Scenario)
 RIDGE = 1e-10
 """Ridge weight of the regression inside the graph: keeps ``X'X`` invertible, far below the data's scale."""
 

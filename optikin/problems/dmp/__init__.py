@@ -47,7 +47,6 @@ tolerance from its goal.
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -67,84 +66,23 @@ from optikin.algebra import (
 )
 from optikin.data import demonstrations as sources
 from optikin.dmp import DMP, Euclidean, Gains, UnitQuaternion
-from optikin.dmp.canonical import PHASE_STOPPING
-from optikin.dmp.gains import GAIN_NAMES
 from optikin.dmp.pose import POSE_VARIANTS, pose_dmp
-from optikin.dmp.regression import METHODS
-from optikin.dmp.tuning import SCENARIOS, tune_genetic, tune_gradient, tuning_problem
+from optikin.dmp.tuning import tune_genetic, tune_gradient, tuning_problem
 from optikin.errors import InputDataError, OptikinError, SpecError
 from optikin.problems import ProblemContext, ProblemKind, register_kind
+from optikin.problems.dmp.options import Coupling, DmpOptions, GoalSwitch, Tuning
 from optikin.results import MethodRow, Result
 
-VARIANTS = ("seed", "dual-quaternion", "cartesian", "quaternion", "rpy", "position")
-SOURCES = ("imu", "kinect", "smooth", "gimbal", "csv")
-OPTION_DEFAULTS: dict[str, Any] = {
-    "variants": ["cartesian"], "n_basis": 50, "smoothing": None, "gains": {}, "regression": {}, "goal_switches": [],
-    "disturbance": None, "couplings": {"coupled": {"alpha_s": 5.0}}, "tuning": None, "settle": 5.0,
-    "tolerance": {"position_mm": 0.01, "orientation_mrad": 0.01},
-}
-REGRESSION_DEFAULTS = {"method": "cvxpy", "ridge": 0.0, "bound": None}
-TUNING_DEFAULTS = {"gains": ["beta", "gamma", "zeta"], "variant": None, "scenario": "reproduction",
-                   "max_iterations": 60, "screen": 16, "starts": 2, "population": 20, "generations": 15}
-DISTURBANCE_DEFAULTS = {"start": 5.0, "stop": 7.0, "amplitude": 1.0, "component": 0}
-COUPLING_DEFAULTS = {"alpha_s": 0.0, "alpha": 0.0, "phase_stopping": "tracking"}
 MM, MRAD = 1e3, 1e3
 
 
 # ----------------------------------------------------------------------------- reading the problem file
 
 
-def _settings(ctx: ProblemContext, given: Any, defaults: dict, where: str) -> dict:
-    if not isinstance(given, dict):
-        raise ctx.error(where, f"expected a mapping with keys from {', '.join(defaults)}")
-    for key in given:
-        if key not in defaults:
-            raise ctx.error(f"{where}.{key}", f"unknown setting; known: {', '.join(defaults)}")
-    return {**defaults, **given}
-
-
-def _vector(ctx: ProblemContext, value: Any, n: int, field: str) -> np.ndarray:
-    try:
-        v = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ctx.error(field, f"expected {n} numbers, got {value!r}") from None
-    if v.shape != (n,) or not np.all(np.isfinite(v)):
-        raise ctx.error(field, f"expected {n} finite numbers, got {value!r}")
-    return v
-
-
 def load_demonstration(ctx: ProblemContext) -> tuple[sources.PoseDemonstration, Any]:
-    """The demonstration of ``data`` and the full recording it came from (``None`` for csv / smooth)."""
-    data = ctx.spec.data
-    params = dict(data.params)
-    makers = {"imu": sources.imu_interface_recording, "kinect": sources.kinect_recording,
-              "smooth": sources.smooth_pose_demonstration, "gimbal": sources.gimbal_demonstration}
-    if data.source == "csv":
-        p = _settings(ctx, params, {"path": None, "samples": None}, "data.params")
-        if p["path"] is None:
-            raise ctx.error("data.params.path", "required: the CSV file (columns t,x,y,z,qw,qx,qy,qz)")
-        path = Path(p["path"])
-        path = path if path.is_absolute() else ctx.path.parent / path
-        demo = sources.read_csv(path)
-        if p["samples"] is not None or not np.allclose(np.diff(demo.t), np.diff(demo.t).mean(), rtol=1e-6):
-            demo = sources.resample_uniform(demo, p["samples"])
-        return demo, None
-    if data.source not in makers:
-        raise ctx.error("data.source", f"unknown demonstration source {data.source!r}; known: {', '.join(SOURCES)}")
-    maker = makers[data.source]
-    known = [k for k in maker.__code__.co_varnames[:maker.__code__.co_argcount] if k not in ("samples", "seed")]
-    for key in params:
-        if key not in known:
-            raise ctx.error(f"data.params.{key}", f"unknown parameter of source {data.source!r}; known: "
-                                                  f"{', '.join(known)}")
-    if data.source == "imu" and "section_lengths" not in params and hasattr(ctx.arm, "section_lengths"):
-        params["section_lengths"] = tuple(ctx.arm.section_lengths)  # the interface has the arm's sections
-    try:
-        recording = maker(samples=data.samples, seed=data.seed, **params)
-    except (TypeError, ValueError) as exc:
-        raise ctx.error("data.params", str(exc)) from None
-    demo = recording if isinstance(recording, sources.PoseDemonstration) else recording.demonstration
-    return demo, recording
+    """The demonstration of ``data`` and the recording it came from."""
+    recording = ctx.load_data()
+    return sources.pose_demonstration(recording), recording
 
 
 # ----------------------------------------------------------------------------- variants
@@ -225,32 +163,15 @@ def _summary(errors: dict[str, np.ndarray], prefix: str) -> dict[str, float]:
 
 def run(ctx: ProblemContext) -> Result:
     spec = ctx.spec
-    o = _settings(ctx, spec.options, OPTION_DEFAULTS, "options")
-    variants = list(o["variants"])
-    for i, v in enumerate(variants):
-        if v not in VARIANTS:
-            raise ctx.error(f"options.variants.{i}", f"unknown DMP variant {v!r}; known: {', '.join(VARIANTS)}")
-    if not variants:
-        raise ctx.error("options.variants", "list at least one DMP variant")
-    n_basis = int(o["n_basis"])
-    if n_basis < 2:
-        raise ctx.error("options.n_basis", "at least 2 basis functions")
-    smoothing = o["smoothing"]
-    if smoothing is not None and (not isinstance(smoothing, (int, float)) or not smoothing > 0):
-        raise ctx.error("options.smoothing", f"expected a cutoff frequency in Hz (> 0) or null, got {smoothing!r}")
-    gains_given = _settings(ctx, o["gains"], {n: None for n in GAIN_NAMES}, "options.gains")
-    try:
-        gains = Gains(**{k: float(v) for k, v in gains_given.items() if v is not None})
-    except (TypeError, ValueError) as exc:
-        raise ctx.error("options.gains", str(exc)) from None
-    regression = _settings(ctx, o["regression"], REGRESSION_DEFAULTS, "options.regression")
-    if regression["method"] not in METHODS:
-        raise ctx.error("options.regression.method", f"unknown method; known: {', '.join(METHODS)}")
-    bound = regression["bound"]
-    if bound is not None and regression["method"] != "cvxpy":
-        raise ctx.error("options.regression.bound", "bounds on the weights need method cvxpy")
-    settle = float(o["settle"])
-    tolerance = _settings(ctx, o["tolerance"], OPTION_DEFAULTS["tolerance"], "options.tolerance")
+    o: DmpOptions = ctx.options
+    variants = list(o.variants)
+    n_basis = o.n_basis
+    smoothing = o.smoothing
+    gains = o.gains.gains()
+    regression = o.regression
+    bound = regression.bound
+    settle = o.settle
+    tolerance = o.tolerance
 
     demo, recording = load_demonstration(ctx)
     tau = float(demo.t[-1] - demo.t[0])
@@ -258,7 +179,7 @@ def run(ctx: ProblemContext) -> Result:
     final_rpy = np.unwrap(rpy_from_quat(demo.quaternion), axis=0)[-1]
 
     def fit(dmp: DMP, variant: str, method: str, source: str):
-        kwargs = {"ridge": float(regression["ridge"])}
+        kwargs: dict[str, Any] = {"ridge": regression.ridge}
         if method == "cvxpy" and bound is not None:
             kwargs.update(lower=-float(bound), upper=float(bound))
         if method == "lwr":
@@ -284,7 +205,7 @@ def run(ctx: ProblemContext) -> Result:
     with ctx.progress.task(f"dmp: {len(variants)} variants", total=len(variants)) as advance:
         for variant in variants:
             dmp = make_dmp(variant, n_basis, gains, smoothing=smoothing)
-            fits[variant] = fit(dmp, variant, regression["method"], source)
+            fits[variant] = fit(dmp, variant, regression.method, source)
             models[variant] = dmp
             out = dmp.rollout()
             rollouts[(variant, "reproduction")] = out.y
@@ -296,13 +217,13 @@ def run(ctx: ProblemContext) -> Result:
             row["unit-norm error"] = unit_error(variant, out.y)
             labels.append(f"{variant}: reproduction")
             status.append(_status(out.y, row["unit-norm error"]))
-            comparison.append(MethodRow(f"dmp {variant} ({regression['method']})", "solver", row))
+            comparison.append(MethodRow(f"dmp {variant} ({regression.method})", "solver", row))
             advance()
 
     # The regression methods compared on the first variant.
     first = variants[0]
     for method in spec.baselines:
-        if method not in ("lstsq", "lwr") or method == regression["method"]:
+        if method not in ("lstsq", "lwr") or method == regression.method:
             continue
         dmp = make_dmp(first, n_basis, gains, smoothing=smoothing)
         baseline_fit = fit(dmp, first, method, source)
@@ -312,7 +233,7 @@ def run(ctx: ProblemContext) -> Result:
             "fit residual": baseline_fit.residual, "fit time [ms]": baseline_fit.seconds * 1e3,
             "roll-out time [ms]": out.seconds * 1e3, **_summary(errors, "reproduction")}))
 
-    goals = _goal_switches(ctx, o["goal_switches"], demo, tau)
+    goals = _goal_switches(ctx, o.goal_switches, demo, tau)
     if goals:
         for variant, dmp in models.items():
             switches = [(when, variant_data(variant, p, q, final_rpy)) for when, p, q in goals]
@@ -323,44 +244,33 @@ def run(ctx: ProblemContext) -> Result:
             metrics |= {f"{variant}: goal switch final {k} [{'mm' if k == 'position' else 'mrad'}]":
                         float(v[0] * (MM if k == "position" else MRAD)) for k, v in final.items()}
             labels.append(f"{variant}: goal switch")
-            converged = (final.get("position", np.zeros(1))[0] * MM <= tolerance["position_mm"]
-                         and final.get("orientation", np.zeros(1))[0] * MRAD <= tolerance["orientation_mrad"])
+            converged = (final.get("position", np.zeros(1))[0] * MM <= tolerance.position_mm
+                         and final.get("orientation", np.zeros(1))[0] * MRAD <= tolerance.orientation_mrad)
             state = _status(out.y, unit_error(variant, out.y))
             status.append(state if state != "ok" or converged else "not_converged")
 
-    if o["disturbance"] is not None:
-        d = _settings(ctx, o["disturbance"], DISTURBANCE_DEFAULTS, "options.disturbance")
-        if not isinstance(o["couplings"], dict) or not o["couplings"]:
-            raise ctx.error("options.couplings", "expected a mapping label -> {alpha_s, alpha, phase_stopping}")
-        couplings = {str(label): _settings(ctx, gains_of, COUPLING_DEFAULTS, f"options.couplings.{label}")
-                     for label, gains_of in o["couplings"].items()}
-        for label, coupling in couplings.items():
-            if coupling["phase_stopping"] not in PHASE_STOPPING:
-                raise ctx.error(f"options.couplings.{label}.phase_stopping",
-                                f"unknown phase stopping; known: {', '.join(PHASE_STOPPING)}")
-            if coupling["phase_stopping"] == "tracking" and float(coupling["alpha"]) > 0:
-                raise ctx.error(f"options.couplings.{label}.alpha",
-                                "phase stopping on the tracking error needs the robot's pose as the reference; "
-                                "here the DMP is coupled to the demonstration (eq. 27), which runs on in time, so "
-                                "the lag the stopping creates would feed itself (optikin.dmp.canonical): use "
-                                "phase_stopping: seed (eq. 28) or alpha: 0")
+    if o.disturbance is not None:
+        d = o.disturbance
+        couplings = o.couplings
         for variant in variants:
             dim = models[variant].space.dim
-            component = int(d["component"])
+            component = d.component
             if not 0 <= component < dim:
                 raise ctx.error("options.disturbance.component", f"must be in 0 .. {dim - 1} for {variant}")
 
             def step(t, component=component, dim=dim):
                 force = np.zeros((t.size, dim))
-                force[(t >= d["start"]) & (t < d["stop"]), component] = float(d["amplitude"])
+                force[(t >= d.start) & (t < d.stop), component] = d.amplitude
                 return force
 
-            for label, extra in [("plain", {})] + list(couplings.items()):
-                coupled_gains = gains.with_values(**{k: float(extra[k]) for k in ("alpha_s", "alpha") if k in extra})
+            runs: list[tuple[str, Coupling | None]] = [("plain", None), *couplings.items()]
+            for label, extra in runs:
+                coupled_gains = gains if extra is None else gains.with_values(alpha_s=extra.alpha_s,
+                                                                              alpha=extra.alpha)
                 dmp = make_dmp(variant, n_basis, coupled_gains, smoothing=smoothing,
-                               phase_stopping=extra.get("phase_stopping", "tracking"))
-                fit(dmp, variant, regression["method"], source)
-                coupled_to = dmp.demo.Y if extra else None  # the demonstration as learned (smoothed if asked)
+                               phase_stopping="tracking" if extra is None else extra.phase_stopping)
+                fit(dmp, variant, regression.method, source)
+                coupled_to = None if extra is None else dmp.demo.Y  # the demonstration as learned (smoothed if asked)
                 calm = dmp.rollout(reference=coupled_to)
                 out = dmp.rollout(disturbance=step, reference=coupled_to)
                 rollouts[(variant, f"perturbation {label}")] = out.y
@@ -376,8 +286,8 @@ def run(ctx: ProblemContext) -> Result:
                 labels.append(f"{variant}: perturbation {label}")
                 status.append(_status(out.y, unit_error(variant, out.y)))
 
-    if o["tuning"] is not None:
-        comparison += _tuning(ctx, o["tuning"], demo, variants, n_basis, gains, smoothing, goals, final_rpy)
+    if o.tuning is not None:
+        comparison += _tuning(ctx, o.tuning, demo, variants, n_basis, gains, smoothing, goals, final_rpy)
 
     arrays: dict[str, np.ndarray] = {"t": demo.t, "demo_position": demo.position, "demo_quaternion": demo.quaternion}
     for (variant, scenario), y in rollouts.items():
@@ -394,7 +304,7 @@ def run(ctx: ProblemContext) -> Result:
                      f"{np.linalg.norm(demo.dual_quaternion[-1, 4:]):.4f}), so the tip cannot change its "
                      "distance from the origin (optikin.dmp.pose)")
     notes.append(f"labels of the per-roll-out status: {labels}")
-    return Result(problem=spec.name, kind=spec.kind, solver=f"{regression['method']} regression",
+    return Result(problem=spec.name, kind=spec.kind, solver=f"{regression.method} regression",
                   title=spec.title, arm={"demonstration": spec.data.source}, status=status,
                   timings={"fit [ms]": fits[first].seconds * 1e3}, metrics=metrics, comparison=comparison,
                   arrays=arrays, figures=_figures(spec.name, demo, variants, rollouts), notes=notes)
@@ -413,58 +323,40 @@ def _status(y: np.ndarray, unit: float) -> str:
     return "ok" if np.isfinite(y).all() and unit < 1e-9 else "failed"
 
 
-def _goal_switches(ctx: ProblemContext, given: Any, demo, tau: float) -> list[tuple[float, np.ndarray, np.ndarray]]:
+def _goal_switches(ctx: ProblemContext, given: tuple[GoalSwitch, ...], demo,
+                   tau: float) -> list[tuple[float, np.ndarray, np.ndarray]]:
     """``(time, position, quaternion)`` of each new goal, each relative to the goal before it."""
-    if not isinstance(given, list):
-        raise ctx.error("options.goal_switches", "expected a list of {time, rotate, translate}")
     goals, position, quaternion = [], demo.position[-1], demo.quaternion[-1]
-    for i, item in enumerate(given):
-        s = _settings(ctx, item, {"time": None, "rotate": [0, 0, 0], "translate": [0, 0, 0]},
-                      f"options.goal_switches.{i}")
-        if s["time"] is None or not 0 <= float(s["time"]) <= 3 * tau:
-            raise ctx.error(f"options.goal_switches.{i}.time", f"required, within 0 .. {3 * tau:.3g} s")
-        position = position + _vector(ctx, s["translate"], 3, f"options.goal_switches.{i}.translate")
-        quaternion = quat_multiply(quat_exp(0.5 * _vector(ctx, s["rotate"], 3, f"options.goal_switches.{i}.rotate")),
-                                   quaternion)
-        goals.append((float(s["time"]), position, quaternion))
+    for i, switch in enumerate(given):
+        if not switch.time <= 3 * tau:
+            raise ctx.error(f"options.goal_switches.{i}.time", f"must be within 0 .. {3 * tau:.3g} s")
+        position = position + np.asarray(switch.translate)
+        quaternion = quat_multiply(quat_exp(0.5 * np.asarray(switch.rotate)), quaternion)
+        goals.append((switch.time, position, quaternion))
     return goals
 
 
-def _tuning(ctx: ProblemContext, given: Any, demo, variants: list[str], n_basis: int, gains: Gains,
+def _tuning(ctx: ProblemContext, s: Tuning, demo, variants: list[str], n_basis: int, gains: Gains,
             smoothing: float | None, goals, final_rpy) -> list[MethodRow]:
-    s = _settings(ctx, given, TUNING_DEFAULTS, "options.tuning")
-    names = tuple(s["gains"])
-    for i, name in enumerate(names):
-        if name not in GAIN_NAMES:
-            raise ctx.error(f"options.tuning.gains.{i}", f"unknown gain {name!r}; known: {', '.join(GAIN_NAMES)}")
-    variant = s["variant"] or variants[0]
-    if variant not in VARIANTS:
-        raise ctx.error("options.tuning.variant", f"unknown DMP variant {variant!r}; known: {', '.join(VARIANTS)}")
-    if s["scenario"] not in SCENARIOS:
-        raise ctx.error("options.tuning.scenario", f"unknown scenario; known: {', '.join(SCENARIOS)}")
+    names = tuple(s.gains)
+    variant = s.variant or variants[0]
     extra = {}
-    if s["scenario"] == "goal":
+    if s.scenario == "goal":
         if not goals:
             raise ctx.error("options.tuning.scenario", "the goal scenario needs options.goal_switches")
         when, p, q = goals[0]
         extra = {"new_goal": variant_data(variant, p, q, final_rpy), "switch_time": when}
-    for key in ("max_iterations", "starts", "population"):
-        if not isinstance(s[key], int) or s[key] < 1:
-            raise ctx.error(f"options.tuning.{key}", f"expected a positive integer, got {s[key]!r}")
-    for key in ("screen", "generations"):
-        if not isinstance(s[key], int) or s[key] < 0:
-            raise ctx.error(f"options.tuning.{key}", f"expected a non-negative integer, got {s[key]!r}")
     dmp = make_dmp(variant, n_basis, gains, smoothing=smoothing)
     problem = tuning_problem(dmp, demo.t, variant_data(variant, demo.position, demo.quaternion), names,
-                             scenario=s["scenario"], **extra)
+                             scenario=s.scenario, **extra)
     rows = []
     with ctx.progress.task(f"dmp: tuning {', '.join(names)}", total=2) as advance:
-        results = [tune_gradient(problem, max_iterations=s["max_iterations"], screen=s["screen"],
-                                 starts=s["starts"], seed=ctx.spec.data.seed)]
+        results = [tune_gradient(problem, max_iterations=s.max_iterations, screen=s.screen,
+                                 starts=s.starts, seed=ctx.spec.data.seed)]
         advance()
         if "genetic" in ctx.spec.baselines:
-            results.append(tune_genetic(problem, population=int(s["population"]),
-                                        generations=int(s["generations"]), seed=ctx.spec.data.seed))
+            results.append(tune_genetic(problem, population=s.population, generations=s.generations,
+                                        seed=ctx.spec.data.seed))
         advance()
     for result in results:
         metrics = {"eq. 29 error": result.error, "eq. 29 error at start": result.initial_error,
@@ -519,11 +411,12 @@ def _figures(name: str, demo, variants: list[str], rollouts: dict[tuple[str, str
 
 
 register_kind(ProblemKind(
-    options=None,
     name="dmp",
     summary="learn a demonstrated motion with DMPs (cvxpy regression, NLP gain tuning) and generalise it",
     run=run,
     backend_families=(),
     default_solver=None,
     baselines=("lstsq", "lwr", "genetic"),
+    options=DmpOptions,
+    data_family="demonstrations",
 ))
