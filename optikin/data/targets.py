@@ -1,17 +1,18 @@
-"""Inverse-kinematics targets: tip positions or tip poses, with the configurations that made them.
+"""Inverse-kinematics targets: tip positions, tip poses or CBHA leg lengths, with the configurations that made them.
 
-Every source takes the arm, the problem file's ``data`` section, its path and
-the target kind (``position`` or ``pose``) and returns :class:`Targets`.
+The sources of data family ``targets`` (:mod:`optikin.data.sources`), each with its
+params model, are called ``load(arm, data, params, path, kind)`` with ``kind`` the
+target kind of :data:`TARGET_KINDS` and return :class:`Targets`:
 
 ``random``      forward kinematics of configurations drawn uniformly inside the
                 bounds (reachable by construction); ``params.unreachable`` adds
-                that many targets placed outside the workspace.
-``trajectory``  forward kinematics of the smooth configuration motion of
-                :func:`optikin.data.configurations.smooth_trajectory` (same
-                params), to be solved in order, warm-started.
+                that many targets placed outside the workspace (:class:`RandomParams`).
+``trajectory``  forward kinematics of a smooth configuration motion, every variable a
+                sinusoid about its mid-range (:class:`TrajectoryParams`), to be solved
+                in order, warm-started.
 ``csv``         targets read from a file (``params.file``, relative to the problem
                 file) with columns ``x, y, z`` in metres, plus ``qw, qx, qy, qz`` for
-                poses and optionally ``t``.
+                poses and optionally ``t`` (:class:`CsvParams`).
 
 Unreachable targets lie beyond the arm's reach bound (:func:`reach_bound`) by a
 factor drawn from ``params.margin`` (default ``[1.1, 1.5]``), in a uniformly random
@@ -22,20 +23,25 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
+from typing import Literal, get_args
 
 import numpy as np
+from pydantic import Field, StrictBool, StrictFloat, StrictInt, field_validator
 
 from optikin.algebra import dq_from_rotation_translation, dq_translation, quat_normalize
 from optikin.arms.base import ArmModel
 from optikin.arms.constant_curvature import ConstantCurvatureArm
-from optikin.data.configurations import _params, read_configuration_csv, smooth_trajectory
+from optikin.data.configurations import read_configuration_csv
+from optikin.data.sources import register_source
 from optikin.errors import InputDataError, SpecError
-from optikin.registry import Registry
+from optikin.options import Options
 from optikin.spec import DataSpec
 
-TARGET_KINDS = ("position", "pose", "legs")
+TargetKind = Literal["position", "pose", "legs"]
+TARGET_KINDS: tuple[str, ...] = get_args(TargetKind)
 """Tip position (3), tip pose as a unit dual quaternion (8), or the leg lengths of a CBHA (48)."""
+FAMILY = "targets"
+"""The data family of the ``ik`` kind."""
 
 
 @dataclass
@@ -60,10 +66,6 @@ class Targets:
     @property
     def positions(self) -> np.ndarray:
         return self.values if self.kind == "position" else dq_translation(self.values)
-
-
-TargetSource = Callable[[ArmModel, DataSpec, Path, str], Targets]
-TARGET_SOURCES: Registry[TargetSource] = Registry("target source")
 
 
 def reach_bound(arm: ArmModel) -> float:
@@ -99,16 +101,47 @@ def unreachable_targets(arm: ArmModel, count: int, kind: str, rng: np.random.Gen
     return dq_from_rotation_translation(orientation, position)
 
 
-@TARGET_SOURCES.register("random")
-def random_targets(arm: ArmModel, data: DataSpec, path: Path, kind: str) -> Targets:
-    """Forward kinematics of uniform random configurations, plus ``params.unreachable`` targets outside."""
-    p = _params(data, path, {"unreachable": 0, "margin": [1.1, 1.5]})
-    extra = p["unreachable"]
-    if isinstance(extra, bool) or not isinstance(extra, int) or extra < 0:
-        raise SpecError(path, "data.params.unreachable", f"expected a count >= 0, got {extra!r}")
-    margin = tuple(float(v) for v in p["margin"])
-    if len(margin) != 2 or not 1.0 < margin[0] <= margin[1]:
-        raise SpecError(path, "data.params.margin", f"expected [low, high] with 1 < low <= high, got {p['margin']}")
+class RandomParams(Options):
+    """``data.params`` of source ``random``."""
+
+    unreachable: StrictInt = Field(0, ge=0, description="targets added outside the workspace (count)")
+    margin: tuple[StrictFloat, StrictFloat] = Field(
+        (1.1, 1.5), description="[low, high]: an unreachable target's distance from the base, as a factor of the "
+                                "reach bound (1 < low <= high)")
+
+    @field_validator("margin")
+    @classmethod
+    def _beyond_reach(cls, margin: tuple[float, float]) -> tuple[float, float]:
+        if not 1.0 < margin[0] <= margin[1]:
+            raise ValueError(f"expected [low, high] with 1 < low <= high, got {list(margin)}")
+        return margin
+
+
+class TrajectoryParams(Options):
+    """``data.params`` of source ``trajectory``."""
+
+    rate: StrictFloat = Field(100.0, gt=0, description="sample rate [Hz]")
+    amplitude: StrictFloat = Field(0.8, ge=0, le=1, description="amplitude of every variable, as a fraction of "
+                                                                 "its half range")
+    frequency: tuple[StrictFloat, StrictFloat] = Field(
+        (0.1, 0.4), description="[low, high]: the range each variable's frequency is drawn from [Hz]")
+
+
+class CsvParams(Options):
+    """``data.params`` of source ``csv``."""
+
+    file: str = Field(min_length=1, description="CSV file with a header row, relative to the problem file")
+    trajectory: StrictBool = Field(False, description="solve the rows in order, each warm-started from the "
+                                                      "previous solution")
+
+
+@register_source(FAMILY, "random", "forward kinematics of uniform random configurations, optionally with "
+                                   "targets outside the workspace", params=RandomParams)
+def random_targets(arm: ArmModel, data: DataSpec, params: RandomParams, path: Path,
+                   kind: str = "position") -> Targets:
+    """Forward kinematics of ``data.samples`` uniform random configurations, plus ``params.unreachable``
+    targets outside the workspace (module docstring); every draw from ``data.seed``."""
+    extra = params.unreachable
     rng = np.random.default_rng(data.seed)
     Q = arm.sample_configurations(data.samples, rng)
     values = forward_targets(arm, Q, kind)
@@ -116,27 +149,38 @@ def random_targets(arm: ArmModel, data: DataSpec, path: Path, kind: str) -> Targ
     if extra and kind == "legs":
         raise SpecError(path, "data.params.unreachable", "leg-length targets have no unreachable variant")
     if extra:
-        values = np.concatenate([values, unreachable_targets(arm, extra, kind, rng, margin)])
+        values = np.concatenate([values, unreachable_targets(arm, extra, kind, rng, params.margin)])
         Q = np.concatenate([Q, np.full((extra, arm.n_config), np.nan)])
         reachable = np.concatenate([reachable, np.zeros(extra, dtype=bool)])
     return Targets(kind, values, Q, reachable)
 
 
-@TARGET_SOURCES.register("trajectory")
-def trajectory_targets(arm: ArmModel, data: DataSpec, path: Path, kind: str) -> Targets:
-    """Forward kinematics of a smooth configuration motion (see ``smooth_trajectory``)."""
-    Q, t = smooth_trajectory(arm, data, path)
+def smooth_motion(arm: ArmModel, samples: int, seed: int, params: TrajectoryParams) -> tuple[np.ndarray, np.ndarray]:
+    """``(Q (samples, n_config), t (samples,) [s])``: every variable a sinusoid about its mid-range,
+    ``amplitude`` times its half range, with a frequency drawn from ``frequency`` and a phase from
+    ``[-pi, pi)`` (the motion of the ``configurations`` source ``trajectory``)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(samples) / params.rate
+    freq = rng.uniform(*params.frequency, arm.n_config)
+    phase = rng.uniform(-np.pi, np.pi, arm.n_config)
+    mid, half = 0.5 * (arm.lower + arm.upper), 0.5 * (arm.upper - arm.lower)
+    return mid + params.amplitude * half * np.sin(2 * np.pi * freq * t[:, None] + phase), t
+
+
+@register_source(FAMILY, "trajectory", "forward kinematics of a smooth configuration motion, solved in order",
+                 params=TrajectoryParams)
+def trajectory_targets(arm: ArmModel, data: DataSpec, params: TrajectoryParams, path: Path,
+                       kind: str = "position") -> Targets:
+    """Forward kinematics of :func:`smooth_motion`, flagged as a trajectory (warm-started solves)."""
+    Q, t = smooth_motion(arm, data.samples, data.seed, params)
     values = forward_targets(arm, Q, kind)
     return Targets(kind, values, Q, np.ones(len(Q), dtype=bool), t=t, trajectory=True)
 
 
-@TARGET_SOURCES.register("csv")
-def csv_targets(arm: ArmModel, data: DataSpec, path: Path, kind: str) -> Targets:
+@register_source(FAMILY, "csv", "targets read from a CSV file (x, y, z [, qw, qx, qy, qz] [, t])", params=CsvParams)
+def csv_targets(arm: ArmModel, data: DataSpec, params: CsvParams, path: Path, kind: str = "position") -> Targets:
     """Targets from a CSV file with a header row (module docstring); reachability unknown (treated as reachable)."""
-    p = _params(data, path, {"file": None, "trajectory": False})
-    if not p["file"]:
-        raise SpecError(path, "data.params.file", "required by source 'csv'")
-    csv_path = (Path(path).parent / str(p["file"])).resolve()
+    csv_path = (Path(path).parent / params.file).resolve()
     names = ("x", "y", "z") if kind == "position" else ("x", "y", "z", "qw", "qx", "qy", "qz")
     values, t = read_configuration_csv(csv_path, names)
     values, t = values[: data.samples], (None if t is None else t[: data.samples])
@@ -149,4 +193,4 @@ def csv_targets(arm: ArmModel, data: DataSpec, path: Path, kind: str) -> Targets
         values = dq_from_rotation_translation(values[:, 3:], values[:, :3])
     configurations = np.full((len(values), arm.n_config), np.nan)
     return Targets(kind, values, configurations, np.ones(len(values), dtype=bool), t=t,
-                   trajectory=bool(p["trajectory"]))
+                   trajectory=params.trajectory)

@@ -105,8 +105,7 @@ from optikin import plots
 from optikin.algebra import dq_translation, quat_angle, quat_conjugate, quat_multiply
 from optikin.arms.base import ArmModel
 from optikin.arms.cbha import CBHAArm
-from optikin.data.targets import TARGET_KINDS, TARGET_SOURCES, Targets, reach_bound
-from optikin.errors import SpecError
+from optikin.data.targets import FAMILY as TARGETS, TARGET_KINDS, Targets, reach_bound
 from optikin.problems import ProblemContext, ProblemKind, register_kind
 from optikin.ik.cbha import distribution_deviation, leg_checks, leg_margins
 from optikin.problems.ik_figures import draw_comparison
@@ -412,11 +411,7 @@ def method_metrics(report: SolutionBatch, targets: Targets, formulation: Formula
 def run(ctx: ProblemContext) -> Result:
     spec, arm = ctx.spec, ctx.arm
     settings = Settings(ctx)
-    try:
-        source = TARGET_SOURCES.get(spec.data.source)
-    except Exception as exc:
-        raise SpecError(ctx.path, "data.source", str(exc)) from None
-    targets = source(arm, spec.data, ctx.path, settings.target)
+    targets = ctx.data_source.load(arm, spec.data, ctx.data_params, ctx.path, kind=settings.target)
     methods = methods_of(ctx, settings)
 
     reports: dict[str, SolutionBatch] = {}
@@ -495,4 +490,5 @@ register_kind(ProblemKind(
     backend_families=(FAMILY,),
     default_solver="gauss-newton",
     baselines=(),
+    data_family=TARGETS,
 ))
