@@ -111,7 +111,7 @@ def _paths(arm, Q: np.ndarray, Q_call: np.ndarray, with_compiled: bool, flags: t
     import casadi as ca
 
     from optikin.problems.fk import numpy_tip_dq
-    from optikin.solvers.evaluation import CallEvaluator, CompiledEvaluator, MapEvaluator
+    from optikin.solvers.evaluation import CallEvaluator, CompiledEvaluator, CompiledOptions, MapEvaluator
     from optikin.spec import SolverSpec
 
     n, f = Q.shape[0], arm.fk_dq
@@ -132,8 +132,8 @@ def _paths(arm, Q: np.ndarray, Q_call: np.ndarray, with_compiled: bool, flags: t
     }
     skipped = {}
     if with_compiled:
-        compiled = CompiledEvaluator(SolverSpec(name="bench-compiled", backend="casadi_compiled",
-                                                options={"flags": list(flags), "compiler": compiler}))
+        options = CompiledOptions.model_validate({"flags": list(flags), "compiler": compiler})
+        compiled = CompiledEvaluator(SolverSpec(name="bench-compiled", backend="casadi_compiled"), options)
         paths["compiled"] = (lambda: compiled.evaluate(arm, "fk_dq", Q)[:, :, 0], n)
     else:
         skipped["compiled"] = "disabled by --no-compiled"
