@@ -17,13 +17,21 @@ from optikin.baselines.pseudo_inverse import DampedLeastSquaresController, Pseud
 from optikin.control.qp import QPController
 from optikin.control.reference import minimum_jerk_path, reference_from_configurations
 from optikin.control.simulate import Plant, simulate
+from optikin.solvers.qp import step_solver
 
 ARM = ConstantCurvatureArm()
 RATE = 200.0
 DT = 1.0 / RATE
 START = np.array([0.18, 0.6, 0.3, 0.18, 0.5, -1.0])
 INSIDE = np.array([0.17, 1.0, 0.8, 0.19, -0.4, -0.5])
-CONTROLLERS = (QPController, PseudoInverseController, DampedLeastSquaresController, MRACController)
+
+
+def OSQPController(arm, dt, task="pose"):
+    """The QP controller with the default OSQP step solver."""
+    return QPController(arm, dt, task, solver=step_solver("qp_osqp", arm.n_config, 8 if task == "pose" else 3))
+
+
+CONTROLLERS = (OSQPController, PseudoInverseController, DampedLeastSquaresController, MRACController)
 PHI = [2, 5]
 
 
@@ -87,7 +95,7 @@ def test_qp_never_leaves_the_limits_while_the_classical_controllers_do(task):
     beyond = START.copy()
     beyond[1], beyond[3] = 1.3 * ARM.theta_max, 1.2 * ARM.upper[3]
     ref = reference([START, beyond], task)
-    qp = simulate(QPController(ARM, DT, task), ref, START)
+    qp = simulate(OSQPController(ARM, DT, task), ref, START)
     assert np.all(qp.q >= ARM.lower) and np.all(qp.q[:, [0, 1, 3, 4]] <= ARM.upper[[0, 1, 3, 4]])
     assert qp.metrics()["fallback steps"] == 0
     qp_rate = np.abs(qp.qdot).max(axis=0)
@@ -105,7 +113,7 @@ def test_qp_steers_back_from_outside_the_limits_at_the_rate_limit_and_never_fart
     q0 = START.copy()
     q0[1] = ARM.theta_max + 0.3  # theta_1 17 deg past its limit
     q0[3] = ARM.lower[3] - 0.004  # S_2 4 mm short of its range
-    run = simulate(QPController(ARM, DT, "pose"), reference([START, INSIDE]), q0)
+    run = simulate(OSQPController(ARM, DT, "pose"), reference([START, INSIDE]), q0)
     excess = outside_by(run.q)
     assert np.all(np.diff(excess, axis=0) <= 1e-15)  # never farther out
     rate = np.array([0.1, np.pi, 2 * np.pi] * 2)
@@ -147,8 +155,8 @@ def test_mrac_gains_only_grow_and_saturate_at_the_limit_and_this_is_reported():
 def test_model_mismatch_is_rejected_with_tip_feedback_and_not_with_model_feedback():
     """True arc lengths 5 % longer than modelled: a tip sensor closes the loop on the truth, the model cannot."""
     ref = reference([START, INSIDE])
-    with_tip = simulate(QPController(ARM, DT, "pose"), ref, START, Plant(length_scale=1.05))
-    with_model = simulate(QPController(ARM, DT, "pose"), ref, START, Plant(length_scale=1.05, feedback="model"))
+    with_tip = simulate(OSQPController(ARM, DT, "pose"), ref, START, Plant(length_scale=1.05))
+    with_model = simulate(OSQPController(ARM, DT, "pose"), ref, START, Plant(length_scale=1.05, feedback="model"))
     assert with_tip.metrics()["position error final [mm]"] < 0.05
     # converged in the model, so the true tip is off by roughly 5 % of its distance from the base
     reach = np.linalg.norm(ref.position[-1]) * 1e3
@@ -157,7 +165,7 @@ def test_model_mismatch_is_rejected_with_tip_feedback_and_not_with_model_feedbac
 
 def test_qp_rejects_a_step_disturbance_without_leaving_the_limits():
     plant = Plant(disturbance=(0.0, 0.3, 0.0, 0.0, -0.3, 0.0), disturbance_window=(1.0, 2.0))
-    run = simulate(QPController(ARM, DT, "pose"), reference([START, INSIDE]), START, plant)
+    run = simulate(OSQPController(ARM, DT, "pose"), reference([START, INSIDE]), START, plant)
     metrics = run.metrics()
     assert metrics["position error max [mm]"] > 20.0  # the disturbance was felt
     assert metrics["position error final [mm]"] < 0.1

@@ -112,8 +112,9 @@ def test_bad_tracking_input_names_the_field(tmp_path, key, value, field):
 def test_a_qp_preset_with_an_unknown_solver_is_named(tmp_path):
     preset = tmp_path / "qp-nothing.yaml"
     preset.write_text("name: qp-nothing\nbackend: qp_qpsolvers\noptions: {solver: nothing}\n")
-    with pytest.raises(SpecError, match="qp-nothing: options: .*nothing"):
+    with pytest.raises(SpecError, match="qp-nothing.yaml: options.solver: .*'nothing'") as error:
         solve(str(shortened(tmp_path, "track-nominal")), solver=str(preset))
+    assert error.value.field == "options.solver"
 
 
 def test_an_evaluation_preset_cannot_solve_a_tracking_problem(tmp_path):

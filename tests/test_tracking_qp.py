@@ -4,7 +4,8 @@ Cross-checks are independent of the controller's code: bounds recomputed by
 hand, the QP solved by scipy's bounded-variable least squares (BVLS) on the
 stacked system [J; sqrt(lambda) I] qdot = [v; 0] with J from the arm's
 Jacobian, the unconstrained step from the damped least-squares formula, and
-OSQP's public Python API.
+OSQP's public Python API. Every backend is reached through its registered
+step solver (:mod:`optikin.solvers.qp`), answering ``solve(QPData) -> Solution``.
 """
 
 from __future__ import annotations
@@ -22,8 +23,11 @@ from scipy.optimize import lsq_linear
 from optikin.arms.constant_curvature import ConstantCurvatureArm
 from optikin.control.limits import RateBounds
 from optikin.control.qp import QPController
-from optikin.control.qp_backends import OSQPBackend, installed_qpsolvers
 from optikin.control.task import TaskModel, upper_triangle_csc_indices
+from optikin.solvers.base import Solution
+from optikin.solvers.qp import step_solver
+from optikin.solvers.qp.qp_osqp import OSQPOptions, OSQPStepSolver
+from optikin.solvers.qp.qp_qpsolvers import installed_solvers
 
 ARM = ConstantCurvatureArm()
 DT = 0.01
@@ -71,6 +75,12 @@ def near_limit_problems(count, seed=3):
         q_ref = q + rng.normal(size=6) * np.array([0.01, 0.3, 0.3, 0.01, 0.3, 0.3])
         out.append((q, tip(q), tip(q_ref)))
     return out
+
+
+def qp_controller(backend="qp_osqp", fallback="hold", **options):
+    """The QP controller of the tests (pose task) with a step solver of ``backend`` and ``options``."""
+    return QPController(ARM, DT, "pose", gain=GAIN, damping=DAMPING, fallback=fallback,
+                        solver=step_solver(backend, 6, 8, **options))
 
 
 def command(controller, q, x, x_ref):
@@ -122,19 +132,22 @@ def test_rate_bounds_reject_a_margin_that_closes_the_range():
 
 
 def backend_choices():
-    choices = [("osqp", None)] + [("qpsolvers", s) for s in installed_qpsolvers()]
-    return choices + [("cvxpy", "CLARABEL"), ("cvxpy", "OSQP")]
+    choices = [("qp_osqp", {})] + [("qp_qpsolvers", {"solver": s}) for s in installed_solvers()]
+    return choices + [("qp_cvxpy", {"solver": "CLARABEL"}), ("qp_cvxpy", {"solver": "OSQP"}),
+                      ("qp_cvxpy_rebuild", {"solver": "CLARABEL"})]
 
 
-@pytest.mark.parametrize("backend,solver", backend_choices(), ids=lambda v: str(v))
-def test_every_backend_gives_the_bounded_least_squares_step(backend, solver):
-    controller = QPController(ARM, DT, "pose", gain=GAIN, damping=DAMPING, backend=backend, solver=solver)
+@pytest.mark.parametrize("backend,options", backend_choices(), ids=lambda v: str(v))
+def test_every_backend_gives_the_bounded_least_squares_step(backend, options):
+    controller = qp_controller(backend, **options)
     active = 0
     for q, x, x_ref in near_limit_problems(4):
         expected, lb, ub = bounded_least_squares(q, x_ref)
         active += int(np.sum((expected <= lb + 1e-9) | (expected >= ub - 1e-9)))
         qdot = command(controller, q, x, x_ref)
         assert controller.status == "ok"
+        assert isinstance(controller.solution, Solution) and controller.solution.ok
+        assert controller.solution.seconds > 0
         assert np.all(qdot >= lb) and np.all(qdot <= ub)
         np.testing.assert_allclose(qdot, expected, atol=1e-4, rtol=0)
     assert active >= 4  # the data really exercise the bounds
@@ -146,7 +159,7 @@ def test_unconstrained_step_is_damped_least_squares():
     q[[1, 4]] = 0.5, -0.7  # well inside every limit
     x_ref = tip(q + 1e-3 * rng.normal(size=6))
     x_dot_ref = tip(q + 1e-3) - tip(q)
-    controller = QPController(ARM, DT, "pose", gain=GAIN, damping=DAMPING)
+    controller = qp_controller()
     qdot = controller.command(q, tip(q), x_ref, x_dot_ref)
     J = np.asarray(ARM.jac_dq(q))
     v = x_dot_ref + GAIN * (x_ref - tip(q))
@@ -159,7 +172,7 @@ def test_osqp_fast_path_matches_the_public_api(fast_path):
     the private handle (``fast_path=False``: an osqp release without it) the backend uses that API."""
     rng = np.random.default_rng(1)
     n = 6
-    backend = OSQPBackend(n)
+    backend = OSQPStepSolver(n, 8, OSQPOptions())
     if not fast_path:
         backend._solver = None
     rows, cols = upper_triangle_csc_indices(n)
@@ -169,7 +182,10 @@ def test_osqp_fast_path_matches_the_public_api(fast_path):
         g, lb = rng.normal(size=n), -rng.uniform(0.1, 1, n)
         ub = rng.uniform(0.1, 1, n)
         data = type("Data", (), {"H_upper": H[rows, cols], "g": g, "lb": lb, "ub": ub})
-        fast = backend.solve(data).copy()
+        solution = backend.solve(data)
+        assert solution.status == "ok" and solution.iterations > 0 and solution.seconds > 0
+        assert set(solution.extras) == {"primal_residual", "dual_residual"}
+        fast = solution.x.copy()
         public = osqp.OSQP()
         public.setup(sp.csc_matrix(np.triu(H)), g, sp.identity(n, format="csc"), lb, ub, verbose=False,
                      eps_abs=1e-9, eps_rel=1e-9, polishing=False)
@@ -180,24 +196,24 @@ def test_osqp_fast_path_matches_the_public_api(fast_path):
 
 
 class RaisingSolver:
-    name, last_status = "raising", "not run"
+    name = "raising"
 
     def solve(self, data):
         raise RuntimeError("solver crashed")
 
 
 class EmptySolver:
-    name, last_status = "empty", "no solution"
+    name = "empty"
 
     def solve(self, data):
-        return None
+        return Solution(np.full(data.n, np.nan), "failed", message="no solution")
 
 
 class NaNSolver:
-    name, last_status = "nan", "solved"
+    name = "nan"
 
     def solve(self, data):
-        return np.full(data.n, np.nan)
+        return Solution(np.full(data.n, np.nan), "ok")
 
 
 @pytest.mark.parametrize("solver,reason", [(RaisingSolver(), "raised RuntimeError: solver crashed"),
@@ -207,7 +223,7 @@ def test_a_failing_solver_is_reported_and_the_fallback_stays_inside_the_bounds(s
     q, x, x_ref = near_limit_problems(1)[0]
     q_outside = q.copy()
     q_outside[3] = ARM.upper[3] + 0.01  # S2 past its limit: the fallback must steer back
-    controller = QPController(ARM, DT, "pose", gain=GAIN, damping=DAMPING, backend=solver, fallback=fallback)
+    controller = QPController(ARM, DT, "pose", gain=GAIN, damping=DAMPING, solver=solver, fallback=fallback)
     for q_now in (q, q_outside):
         qdot = command(controller, q_now, tip(q_now), x_ref)
         assert controller.status.startswith(f"fallback ({fallback})") and reason in controller.status
@@ -222,17 +238,18 @@ def test_a_failing_solver_is_reported_and_the_fallback_stays_inside_the_bounds(s
 
 def test_an_osqp_iteration_limit_is_a_reported_failure():
     q, x, x_ref = near_limit_problems(1)[0]
-    controller = QPController(ARM, DT, "pose", gain=GAIN, damping=DAMPING,
-                              backend_options={"max_iter": 1, "check_termination": 1})
+    controller = qp_controller(max_iter=1, check_termination=1)
     command(controller, q, x, x_ref)
     assert controller.status.startswith("fallback (hold)") and "maximum iterations" in controller.status
+    solution = controller.solution
+    assert solution.status == "failed" and "maximum iterations" in solution.message
+    assert np.all(np.isnan(solution.x)) and solution.iterations == 1
 
 
 def test_a_loose_osqp_tolerance_would_let_bounds_slip_and_the_projection_removes_it():
     """OSQP's default eps = 1e-3 returns rates outside the box by ~1e-4..1e-3; the chosen 1e-7 by < 1e-6."""
-    loose = QPController(ARM, DT, "pose", gain=GAIN, damping=DAMPING,
-                         backend_options={"eps_abs": 1e-3, "eps_rel": 1e-3})
-    tight = QPController(ARM, DT, "pose", gain=GAIN, damping=DAMPING)
+    loose = qp_controller(eps_abs=1e-3, eps_rel=1e-3)
+    tight = qp_controller()
     loose_slips, tight_slips = [], []
     for q, x, x_ref in near_limit_problems(5):
         _, lb, ub = bounded_least_squares(q, x_ref)

@@ -13,7 +13,7 @@ a diagonal ``K`` and a diagonal ``gamma_a`` outside, so it is read component-wis
 
 where ``x`` is the measured task value (the seed's "actual behaviour"
 ``Qbar_dual``) and ``x_m`` is the output of the reference model. Because of the
-absolute value the gains can only grow (DESIGN.md), so each is saturated at
+absolute value the gains can only grow, so each is saturated at
 ``gain_limit`` as Fig. 12 prescribes; :attr:`MRACController.saturated` flags the
 saturated components after every step and the simulator counts them.
 

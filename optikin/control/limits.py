@@ -10,8 +10,8 @@ Outside a limit (a start there, a disturbance, sensor noise) the box can be
 empty: ``q`` above ``upper`` by more than ``r dt`` asks for ``qdot <= (upper-q)/dt < -r``.
 Both ends are therefore clipped into ``[-r, r]``, which keeps the box non-empty
 and, outside a limit, commands the return at the full rate, so the excess
-shrinks by ``r dt`` per step and never grows (pink and mink users' recurring
-"QP infeasible when starting outside the limits", ``../shared/ANCHORS.md``).
+shrinks by ``r dt`` per step and never grows (the recurring "QP infeasible when
+starting outside the limits" of differential-IK libraries such as pink and mink).
 ``margin`` (default 1e-9, in the variable's units) absorbs the rounding of ``q + dt qdot``.
 
 ``gain`` in (0, 1] scales the distance to a limit that one step may cover

@@ -27,6 +27,7 @@ import numpy as np
 
 from optikin.arms.base import ArmModel
 from optikin.fastcall import BufferedFunction
+from optikin.solvers.qp.common import upper_triangle_csc_indices
 
 Task = Literal["pose", "position"]
 TASK_FUNCTIONS = {"pose": ("fk_dq", "jac_dq"), "position": ("fk_position", "jac_position")}
@@ -40,13 +41,6 @@ def _checked(task: str) -> str:
     if task not in TASK_FUNCTIONS:
         raise ValueError(f"unknown task {task!r}; known: {', '.join(TASK_FUNCTIONS)}")
     return task
-
-
-def upper_triangle_csc_indices(n: int) -> tuple[np.ndarray, np.ndarray]:
-    """Row and column of each entry of an ``n x n`` upper triangle in compressed-column order."""
-    rows = np.array([i for j in range(n) for i in range(j + 1)])
-    cols = np.array([j for j in range(n) for _ in range(j + 1)])
-    return rows, cols
 
 
 def task_step_function(arm: ArmModel, task: Task) -> ca.Function:

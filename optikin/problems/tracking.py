@@ -200,7 +200,7 @@ def _controllers(ctx: ProblemContext, o: dict, dt: float, task: str) -> dict[str
     m = task_dimension(task)
     mrac = _settings(ctx, o["mrac"], dict.fromkeys(MRAC_KEYS), "options.mrac")
     try:
-        qp = QPController(arm, dt, task, o["gain"], o["damping"], backend=ctx.adapter.create(arm.n_config, m),
+        qp = QPController(arm, dt, task, o["gain"], o["damping"], solver=ctx.adapter.create(arm.n_config, m),
                           rate_limits=o["rate_limits"], margin=o["limit_margin"], limit_gain=o["limit_gain"],
                           fallback=o["fallback"], **common)
         controllers: dict[str, Any] = {"qp": qp}

@@ -26,15 +26,21 @@ from optikin.arms.constant_curvature import ConstantCurvatureArm
 from optikin.baselines.mrac import MRACController
 from optikin.baselines.pseudo_inverse import DampedLeastSquaresController, PseudoInverseController
 from optikin.control.qp import QPController
-from optikin.control.qp_backends import installed_qpsolvers
 from optikin.control.reference import minimum_jerk_path, reference_from_configurations
 from optikin.control.simulate import simulate
+from optikin.solvers.qp import step_solver
+from optikin.solvers.qp.qp_qpsolvers import installed_solvers
 
 RATE, STEPS = 1000.0, 400
 ARM = ConstantCurvatureArm()
 GROUP = f"tracking: time per control step, two-section CC arm, pose task, {RATE:.0f} Hz"
 _medians: dict[str, float] = {}
 _osqp_steps: list[np.ndarray] = []
+
+
+def qp(backend="qp_osqp", compiled=False, **options):
+    """The QP controller at the benchmark's rate with a step solver of ``backend``."""
+    return QPController(ARM, 1 / RATE, compiled=compiled, solver=step_solver(backend, ARM.n_config, 8, **options))
 
 
 @pytest.fixture(scope="module", autouse=True)
@@ -50,7 +56,7 @@ def steps():
     beyond[1], beyond[3] = 1.3 * ARM.theta_max, 1.2 * ARM.upper[3]
     t, Q, Qdot = minimum_jerk_path(np.array([start, beyond]), 1.0, RATE)
     ref = reference_from_configurations(ARM, t, Q, Qdot, "pose")
-    run = simulate(QPController(ARM, 1 / RATE, "pose"), ref, start)
+    run = simulate(qp(), ref, start)
     pick = range(len(t) // 2 - STEPS // 2, len(t) // 2 + STEPS // 2)  # where the limits start to bite
     return [(run.q[k], run.x[k], ref.value[k], ref.rate[k]) for k in pick]
 
@@ -80,24 +86,24 @@ def _bench(benchmark, name, controller, steps):
 
 
 def test_cvxpy_rebuilt_every_step(benchmark, steps):
-    _bench(benchmark, "cvxpy rebuild", QPController(ARM, 1 / RATE, backend="cvxpy_rebuild"), steps[:100])
+    _bench(benchmark, "cvxpy rebuild", qp("qp_cvxpy_rebuild"), steps[:100])
 
 
 @pytest.mark.parametrize("compiled", [False, True], ids=["casadi-vm", "compiled"])
 def test_osqp_updated_in_place(benchmark, steps, compiled):
-    commands = _bench(benchmark, f"osqp {compiled}", QPController(ARM, 1 / RATE, compiled=compiled), steps)
+    commands = _bench(benchmark, f"osqp {compiled}", qp(compiled=compiled), steps)
     if not _osqp_steps:
         _osqp_steps.extend(commands)
 
 
-@pytest.mark.parametrize("solver", installed_qpsolvers())
+@pytest.mark.parametrize("solver", installed_solvers())
 def test_qpsolvers(benchmark, steps, solver):
-    _bench(benchmark, f"qpsolvers {solver}", QPController(ARM, 1 / RATE, backend="qpsolvers", solver=solver), steps)
+    _bench(benchmark, f"qpsolvers {solver}", qp("qp_qpsolvers", solver=solver), steps)
 
 
 @pytest.mark.parametrize("solver", ["CLARABEL", "OSQP"])
 def test_cvxpy_parameters(benchmark, steps, solver):
-    _bench(benchmark, f"cvxpy {solver}", QPController(ARM, 1 / RATE, backend="cvxpy", solver=solver), steps)
+    _bench(benchmark, f"cvxpy {solver}", qp("qp_cvxpy", solver=solver), steps)
 
 
 @pytest.mark.parametrize("Controller", [MRACController, PseudoInverseController, DampedLeastSquaresController],

@@ -1,0 +1,96 @@
+"""What every backend of the per-step tracking QP shares: the QP's data, the factory, the options base.
+
+The QP of one control step (:mod:`optikin.control.qp`) is
+
+    min_qdot  1/2 qdot' H qdot + g' qdot    s.t.  lb <= qdot <= ub,
+
+with ``H = J'J + lambda I`` and ``g = -J'v``; equivalently
+``min ||J qdot - v||^2 + lambda ||qdot||^2`` over the rate box. :class:`QPData`
+holds views of the arrays the controller refreshes in place every step; a
+backend reads what it needs (OSQP ``H_upper``, ``g``, ``lb``, ``ub``; qpsolvers
+``H``; cvxpy ``J``, ``v``, ``damping``).
+
+A backend is registered once (:func:`optikin.solvers.register_backend`, family
+``qp``) with a pydantic options model; its adapter is a :class:`StepSolverFactory`
+whose ``create(n, m)`` returns a fresh step solver for one controller (OSQP and
+cvxpy keep per-problem state), keeping :class:`optikin.solvers.base.QPBackend`.
+A step solver's ``solve(data)`` answers with a :class:`~optikin.solvers.base.Solution`:
+``x`` the joint rates (NaN when the solver returned none), ``status`` ``"ok"`` or
+``"failed"``, ``message`` the solver's own status when it failed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Callable, Generic, TypeVar
+
+import numpy as np
+
+from optikin.options import Options
+from optikin.solvers.base import QPStepSolver, Solution
+
+OptionsT = TypeVar("OptionsT", bound=Options)
+
+
+@dataclass
+class QPData:
+    """The per-step QP; every array is a view the controller refreshes in place.
+
+    Attributes
+    ----------
+    J, v:
+        Task Jacobian ``(m, n)`` and requested task velocity ``(m,)``.
+    damping:
+        ``lambda``, the weight of ``||qdot||^2``.
+    H, H_upper, g:
+        ``H = J'J + lambda I`` ``(n, n)``, its upper triangle in compressed-column
+        order (:func:`upper_triangle_csc_indices`) and ``g = -J'v`` ``(n,)``.
+    lb, ub:
+        The rate box ``(n,)`` [m/s, rad/s].
+    """
+
+    J: np.ndarray
+    v: np.ndarray
+    damping: float
+    H: np.ndarray
+    H_upper: np.ndarray
+    g: np.ndarray
+    lb: np.ndarray
+    ub: np.ndarray
+
+    @property
+    def n(self) -> int:
+        return int(self.H.shape[0])
+
+
+def upper_triangle_csc_indices(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Row and column of each entry of an ``n x n`` upper triangle in compressed-column order."""
+    rows = np.array([i for j in range(n) for i in range(j + 1)])
+    cols = np.array([j for j in range(n) for _ in range(j + 1)])
+    return rows, cols
+
+
+def failed(n: int, message: str, seconds: float = 0.0, iterations: int = -1,
+           extras: dict[str, Any] | None = None) -> Solution:
+    """A failed step: ``x`` all NaN, ``message`` the solver's reason."""
+    return Solution(np.full(n, np.nan), "failed", iterations, seconds=seconds, message=message,
+                    extras=extras or {})
+
+
+class StepSolverFactory(Generic[OptionsT]):
+    """The adapter of a ``qp`` backend: ``create(n, m)`` builds one controller's step solver.
+
+    Parameters
+    ----------
+    make:
+        ``make(n, m, options) -> step solver``.
+    options:
+        The preset's validated options.
+    """
+
+    def __init__(self, make: Callable[[int, int, OptionsT], QPStepSolver], options: OptionsT):
+        self.make, self.options = make, options
+
+    def create(self, n: int, m: int) -> QPStepSolver:
+        """A fresh step solver for ``n`` rates and ``m`` task rows."""
+        return self.make(n, m, self.options)
