@@ -17,8 +17,7 @@ import numpy as np
 
 from optikin import plots
 from optikin.algebra import dq_from_rotation_translation, dq_norm_residual, dq_translation
-from optikin.data.configurations import CONFIGURATION_SOURCES
-from optikin.errors import SpecError
+import optikin.data.configurations  # noqa: F401 - registers the configuration sources
 from optikin.problems import ProblemContext, ProblemKind, register_kind
 from optikin.results import MethodRow, Result
 
@@ -43,11 +42,7 @@ def numpy_tip_dq(arm, Q: np.ndarray) -> np.ndarray:
 
 def run(ctx: ProblemContext) -> Result:
     spec, arm = ctx.spec, ctx.arm
-    try:
-        source = CONFIGURATION_SOURCES.get(spec.data.source)
-    except Exception as exc:
-        raise SpecError(ctx.path, "data.source", str(exc)) from None
-    Q, t = source(arm, spec.data, ctx.path)
+    Q, t = ctx.load_data()
     Q = arm.validate(Q, source=f"{ctx.path.name}: data ({spec.data.source})")
     n = Q.shape[0]
     evaluator = ctx.adapter
@@ -123,4 +118,5 @@ register_kind(ProblemKind(
     backend_families=("evaluation",),
     default_solver="casadi-map",
     baselines=("numpy",),
+    data_family="configurations",
 ))
