@@ -176,13 +176,9 @@ def test_basin_check_leaves_the_worse_branch_a_warm_start_follows(free_model):
     worse minimum (measured over the 100 postures: 19 samples up to 4.1 above a cold three-start
     IPOPT); with the basin check every sample's energy is at most the warm one's, and here matches
     IPOPT's to 1e-3 (over 100 postures: 3 samples off, by at most 1e-3)."""
-    from optikin.arms.cbha import CBHAArm
-    from optikin.data.markers import MARKER_SOURCES
-    from optikin.problems.ph_common import backbone_lengths, end_data
-    from optikin.spec import load_problem
+    from optikin.problems.ph_common import backbone_lengths, end_data, recording_of
 
-    spec, path = load_problem("cbha-ph-shape")
-    recording = MARKER_SOURCES.get("synthetic")(CBHAArm(), spec.data, path).with_fixed_base().take(slice(0, 12))
+    recording = recording_of("cbha-ph-shape").with_fixed_base().take(slice(0, 12))
     samples = end_data(recording, backbone_lengths(recording, "model", "test"), "test")
     warm = free_model.solve_trajectory(samples, "newton")
     checked = free_model.solve_trajectory(samples, "newton", basin_check=True)

@@ -16,15 +16,14 @@ from optikin.curves.min_energy import EnergySettings, ShapeData
 from optikin.curves import ph_quintic_hermite
 from optikin.curves.ph_quintic import PHQuintic
 from optikin.curves.tubes import TubeLayout, tube_lengths
-from optikin.data.markers import MARKER_SOURCES, write_marker_csv
+from optikin.data.markers import write_marker_csv
 from optikin.errors import InputDataError, SpecError
-from optikin.problems.ph_common import arc_length_estimate, distances_to_curves, problem_variant
+from optikin.problems.ph_common import arc_length_estimate, distances_to_curves, problem_variant, recording_of
 from optikin.problems.ph_ik import tube_length_function
-from optikin.registry import BACKENDS
 from optikin.runner import solve
-from optikin.solvers import load_backends
+from optikin.solvers import load_preset, preset_of
 from optikin.solvers.ph_backends import shared_model
-from optikin.spec import SolverSpec, load_problem, load_solver
+from optikin.spec import SolverSpec
 
 PRESETS = ("ph-newton", "ph-newton-compiled", "ph-ipopt", "ph-ipopt-cold", "ph-grid")
 
@@ -38,18 +37,17 @@ def run_variant(tmp_path, name, **changes):
 
 
 def test_presets_load_and_bad_options_name_the_field():
-    load_backends()
     for name in PRESETS:
-        preset, _ = load_solver(name)
-        backend = BACKENDS.get(preset.backend)
-        assert backend.family == "ph"
-        backend.build(preset)
-    with pytest.raises(SpecError, match=r"options.tolerance: unknown option"):
-        BACKENDS.get("ph_newton").build(SolverSpec(name="x", backend="ph_newton", options={"tolerance": 1e-8}))
-    with pytest.raises(SpecError, match=r"options.n: must be an integer >= 2"):
-        BACKENDS.get("ph_grid").build(SolverSpec(name="x", backend="ph_grid", options={"n": 1.5}))
-    with pytest.raises(SpecError, match=r"options.compile: must be true or false"):
-        BACKENDS.get("ph_newton").build(SolverSpec(name="x", backend="ph_newton", options={"compile": "yes"}))
+        preset = load_preset(name)
+        assert preset.backend.family == "ph"
+        preset.build()
+    for backend, options, field, message in (("ph_newton", {"tolerance": 1e-8}, "options.tolerance", "unknown field"),
+                                             ("ph_grid", {"n": 1.5}, "options.n", "integer"),
+                                             ("ph_grid", {"n": 1}, "options.n", "greater than or equal to 2"),
+                                             ("ph_newton", {"compile": "yes"}, "options.compile", "boolean")):
+        with pytest.raises(SpecError, match=message) as err:
+            preset_of(SolverSpec(name="x", backend=backend, options=options))
+        assert err.value.field == field
 
 
 @pytest.mark.parametrize("theta, azimuth", [(1e-6, 0.0), (0.7, 1.0), (2.5, -2.0)])
@@ -81,8 +79,7 @@ def test_distances_to_curves_match_brute_force():
 
 def test_tube_length_function_equals_the_numpy_tubes():
     arm = CBHAArm()
-    spec, path = load_problem("cbha-ph-ik")
-    rec = MARKER_SOURCES.get("synthetic")(arm, spec.data.model_copy(update={"samples": 3}), path)
+    rec = recording_of("cbha-ph-ik", 3)
     layout = TubeLayout.cbha(arm.geometry)
     for free in (False, True):
         model = shared_model(EnergySettings(), free)
@@ -119,8 +116,7 @@ def test_ph_shape_methods_agree_and_the_nlp_is_never_worse_than_the_grid(tmp_pat
 
 
 def test_recorded_csv_runs_through_the_same_problem_file(tmp_path):
-    spec, path = load_problem("cbha-ph-shape")
-    recording = MARKER_SOURCES.get("synthetic")(CBHAArm(), spec.data.model_copy(update={"samples": 5}), path)
+    recording = recording_of("cbha-ph-shape", 5)
     write_marker_csv(recording, tmp_path / "recorded.csv")
     synthetic = run_variant(tmp_path / "a", "cbha-ph-shape", samples=5, baselines=[])
     recorded_file = problem_variant("cbha-ph-shape", tmp_path, samples=5, baselines=[],
@@ -136,8 +132,7 @@ def test_recorded_csv_runs_through_the_same_problem_file(tmp_path):
 def test_newton_raphson_on_a_csv_recording_needs_its_marker_layout(tmp_path):
     """A CSV file does not say which vertebrae its markers are on: the comparator asks for
     ``data.params.intermediate``; given, it reproduces the synthetic run."""
-    spec, path = load_problem("cbha-ph-ik")
-    recording = MARKER_SOURCES.get("synthetic")(CBHAArm(), spec.data.model_copy(update={"samples": 3}), path)
+    recording = recording_of("cbha-ph-ik", 3)
     write_marker_csv(recording, tmp_path / "recorded.csv")
     synthetic = run_variant(tmp_path / "a", "cbha-ph-ik", samples=3, baselines=["newton-raphson"])
 
@@ -255,17 +250,16 @@ def test_rope_chain_links_meet_and_fit_their_markers(tmp_path):
 
 
 def test_bad_options_and_data_are_named(tmp_path):
-    with pytest.raises(SpecError, match=r"options.length: must be one of arc, markers, model"):
+    with pytest.raises(SpecError, match=r"options.length"):
         run_variant(tmp_path, "cbha-ph-shape", samples=2, baselines=[], options={"length": "guess"})
     with pytest.raises(SpecError, match=r"options.frame"):
         run_variant(tmp_path, "cbha-ph-ik", samples=2, baselines=[], options={"frame": "frenet"})
     with pytest.raises(SpecError, match=r"options.twist: unknown option"):
         run_variant(tmp_path, "cbha-ph-shape", samples=2, baselines=[], options={"twist": 1.0})
-    with pytest.raises(SpecError, match=r"data.params.speed: unknown parameter"):
+    with pytest.raises(SpecError, match=r"data.params.speed: unknown field"):
         run_variant(tmp_path, "cbha-ph-shape", samples=2, baselines=[], data_params={"speed": 1.0})
     # a recording without reference tube lengths cannot be scored by ph_ik
-    spec, path = load_problem("cbha-ph-ik")
-    rec = MARKER_SOURCES.get("synthetic")(CBHAArm(), spec.data.model_copy(update={"samples": 2}), path)
+    rec = recording_of("cbha-ph-ik", 2)
     rec.tube_lengths = None
     write_marker_csv(rec, tmp_path / "no_lengths.csv")
     file = problem_variant("cbha-ph-ik", tmp_path, samples=2, baselines=[], data_params={"file": "no_lengths.csv"})

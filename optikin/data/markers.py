@@ -34,8 +34,10 @@ give the tube lengths (section V.B, Table II).
 :func:`synthetic_rope_chain` records the closed chain of section IV.B: two such arms
 and the rope they hold, hanging as an exact catenary.
 
-Problem files name a source in ``data.source`` (:data:`MARKER_SOURCES`): ``synthetic``
-or ``csv``.
+Problem files name a source of family ``markers`` in ``data.source`` (registered with
+:func:`optikin.data.sources.register_source`, params models :class:`SyntheticMarkerParams`
+and :class:`CsvMarkerParams`): ``synthetic`` or ``csv``. The rope chain has family
+``rope_chains``, source ``synthetic`` (:class:`RopeChainParams`).
 
 CSV files (:func:`read_marker_csv`, :func:`write_marker_csv`) have a header row and
 one row per posture, all lengths in metres, quaternions ``(w, x, y, z)``:
@@ -64,18 +66,19 @@ import math
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from pathlib import Path
-from typing import Callable
+from typing import Any
 
 import casadi as ca
 import numpy as np
+from pydantic import Field, field_validator
 
 from optikin.algebra import quat_from_axis_angle, quat_from_matrix, quat_multiply, quat_normalize, quat_rotate
 from optikin.arms.base import ArmModel
 from optikin.arms.cbha import LEG_DIRECTIONS, PLATFORM_LEG_LENGTHS, CBHAArm
 from optikin.curves.catenary import catenary
-from optikin.data.configurations import _params
+from optikin.data.sources import register_source
 from optikin.errors import InputDataError, SpecError
-from optikin.registry import Registry
+from optikin.options import Options
 from optikin.spec import DataSpec
 
 FRAME_RATE = 240.0
@@ -374,50 +377,69 @@ def read_marker_csv(path: Path) -> MarkerRecording:
         section_tube_lengths=stacked(["S1_L1", "S1_L2", "S1_L3"]) if has_section else None, source=source)
 
 
+
+
 # ------------------------------------------------------------------------------ sources of problem files
-MarkerSource = Callable[[ArmModel, DataSpec, Path], MarkerRecording]
-MARKER_SOURCES: Registry[MarkerSource] = Registry("marker source")
+class SyntheticMarkerParams(Options):
+    """``data.params`` of source ``synthetic`` (family ``markers``): :func:`synthetic_recording`'s settings."""
 
+    noise: float = Field(MARKER_NOISE, ge=0, description="standard deviation of each marker coordinate [m]")
+    rate: float = Field(FRAME_RATE, gt=0, description="camera frame rate [Hz]")
+    stride: int = Field(24, ge=1, description="frames between kept postures")
+    frequency: tuple[float, float] = Field((0.05, 0.2), description="[low, high] tube frequencies [Hz]")
+    amplitude: float = Field(0.9, ge=0, le=1, description="elongation amplitude, fraction of the Table I range")
+    intermediate: tuple[int, ...] = Field(INTERMEDIATE_VERTEBRAE, min_length=1,
+                                          description="1-based vertebrae carrying the intermediate markers")
 
-@MARKER_SOURCES.register("synthetic")
-def synthetic_source(arm: ArmModel, data: DataSpec, path: Path) -> MarkerRecording:
-    """:func:`synthetic_recording` of ``data.samples`` postures seeded by ``data.seed``.
-
-    params: ``noise`` (m, default 0.3e-3), ``rate`` (Hz, 240), ``stride`` (frames, 24),
-    ``frequency`` (``[low, high]`` Hz, ``[0.05, 0.2]``), ``amplitude`` (0.9),
-    ``intermediate`` (vertebrae, ``[5, 9, 13]``).
-    """
-    p = _params(data, path, {"noise": MARKER_NOISE, "rate": FRAME_RATE, "stride": 24, "frequency": [0.05, 0.2],
-                             "amplitude": 0.9, "intermediate": list(INTERMEDIATE_VERTEBRAE)})
-    if not isinstance(arm, CBHAArm):
-        raise SpecError(path, "arm.type", f"source 'synthetic' records a CBHA; got arm {arm.name!r}")
-    try:
-        frequency = tuple(float(f) for f in p["frequency"])
-        if len(frequency) != 2 or not 0 <= frequency[0] <= frequency[1]:
+    @field_validator("frequency")
+    @classmethod
+    def _ordered(cls, value: tuple[float, float]) -> tuple[float, float]:
+        if not 0 <= value[0] <= value[1]:
             raise ValueError("frequency must be [low, high] with 0 <= low <= high")
-        return synthetic_recording(arm, data.samples, np.random.default_rng([data.seed, 0]), noise=float(p["noise"]),
-                                   rate=float(p["rate"]), stride=int(p["stride"]), frequency=frequency,
-                                   amplitude=float(p["amplitude"]), intermediate=tuple(int(v) for v in p["intermediate"]),
+        return value
+
+    def motion(self) -> dict[str, Any]:
+        """The keyword arguments of :func:`synthetic_recording` these params give."""
+        return dict(noise=self.noise, rate=self.rate, stride=self.stride, frequency=self.frequency,
+                    amplitude=self.amplitude, intermediate=self.intermediate)
+
+
+class CsvMarkerParams(Options):
+    """``data.params`` of source ``csv`` (family ``markers``)."""
+
+    file: str = Field(description="the recording (columns in the module docstring), relative to the problem file")
+    intermediate: tuple[int, ...] | None = Field(
+        None, description="1-based vertebra of each intermediate marker, in column order (comparators that use "
+                          "a particular marker need it)")
+
+
+def _cbha(arm: ArmModel, path: Path, source: str) -> CBHAArm:
+    if not isinstance(arm, CBHAArm):
+        raise SpecError(path, "arm.type", f"source {source!r} records a CBHA; got arm {arm.name!r}")
+    return arm
+
+
+@register_source("markers", "synthetic", "the CBHA vertebra model driven by its tubes, recorded by motion capture",
+                 params=SyntheticMarkerParams)
+def synthetic_source(arm: ArmModel, data: DataSpec, params: SyntheticMarkerParams, path: Path) -> MarkerRecording:
+    """:func:`synthetic_recording` of ``data.samples`` postures seeded by ``data.seed``."""
+    cbha = _cbha(arm, path, "synthetic")
+    try:
+        return synthetic_recording(cbha, data.samples, np.random.default_rng([data.seed, 0]), **params.motion(),
                                    source=f"{Path(path).name}: synthetic")
-    except (TypeError, ValueError) as exc:
+    except ValueError as exc:
         raise SpecError(path, "data.params", str(exc)) from None
 
 
-@MARKER_SOURCES.register("csv")
-def csv_source(arm: ArmModel, data: DataSpec, path: Path) -> MarkerRecording:
-    """:func:`read_marker_csv` of ``params.file`` (relative to the problem file), first ``data.samples`` rows.
-
-    ``params.intermediate`` (optional): the 1-based vertebra of each intermediate marker,
-    in column order (needed by comparators that use a particular marker).
-    """
-    p = _params(data, path, {"file": None, "intermediate": None})
-    if not p["file"]:
-        raise SpecError(path, "data.params.file", "required by source 'csv'")
-    recording = read_marker_csv((Path(path).parent / str(p["file"])).resolve())
-    if p["intermediate"] is not None:
+@register_source("markers", "csv", "a recorded marker CSV file (columns in optikin.data.markers)",
+                 params=CsvMarkerParams)
+def csv_source(arm: ArmModel, data: DataSpec, params: CsvMarkerParams, path: Path) -> MarkerRecording:
+    """:func:`read_marker_csv` of ``params.file`` (relative to the problem file), first ``data.samples`` rows."""
+    recording = read_marker_csv((Path(path).parent / params.file).resolve())
+    if params.intermediate is not None:
         try:
-            recording = replace(recording, marker_vertebrae=tuple(int(v) for v in p["intermediate"]))
-        except (TypeError, ValueError) as exc:
+            recording = replace(recording, marker_vertebrae=params.intermediate)
+        except ValueError as exc:
             raise SpecError(path, "data.params.intermediate", f"{exc} (the file has {recording.markers.shape[1]} "
                                                               "marker columns)") from None
     return recording.take(slice(0, data.samples))
@@ -493,3 +515,29 @@ def synthetic_rope_chain(arm: CBHAArm, samples: int, rng: np.random.Generator, *
                            end / np.linalg.norm(end, axis=1, keepdims=True)], axis=1)
     markers = marker_truth + noise * rng.standard_normal(marker_truth.shape)
     return RopeChainRecording(arm1, arm2, float(rope_length), markers, directions, truth, marker_truth)
+
+
+
+class RopeChainParams(SyntheticMarkerParams):
+    """``data.params`` of source ``synthetic`` (family ``rope_chains``): the arms' motion and the rope."""
+
+    rope_length: float = Field(0.65, gt=0, description="rope length [m]")
+    base_distance: float = Field(0.25, gt=0, description="distance between the two arm bases [m]")
+    end_offset: float = Field(0.02, gt=0, description="rope marker distance from each end, along the rope [m]")
+    rope_markers: tuple[float, ...] = Field((0.25, 0.5, 0.75), min_length=1,
+                                            description="rope markers, as fractions of its length")
+
+
+@register_source("rope_chains", "synthetic", "two synthetic CBHAs holding a hanging rope (exact catenary)",
+                 params=RopeChainParams)
+def synthetic_rope_chain_source(arm: ArmModel, data: DataSpec, params: RopeChainParams,
+                                path: Path) -> RopeChainRecording:
+    """:func:`synthetic_rope_chain` of ``data.samples`` postures seeded by ``data.seed``."""
+    cbha = _cbha(arm, path, "synthetic")
+    try:
+        return synthetic_rope_chain(
+            cbha, data.samples, np.random.default_rng([data.seed, 0]), base_distance=params.base_distance,
+            rope_length=params.rope_length, rope_marker_fractions=params.rope_markers,
+            end_offset=params.end_offset, **params.motion(), source=f"{Path(path).name}: synthetic")
+    except ValueError as exc:
+        raise SpecError(path, "data.params", str(exc)) from None

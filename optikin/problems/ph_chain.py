@@ -34,18 +34,9 @@ from typing import Any
 
 import numpy as np
 
-from optikin.arms.cbha import CBHAArm
 from optikin.curves.chain import check_joints
 from optikin.curves.min_energy import ShapeData
-from optikin.data.configurations import _params
-from optikin.data.markers import (
-    FRAME_RATE,
-    INTERMEDIATE_VERTEBRAE,
-    MARKER_NOISE,
-    RopeChainRecording,
-    synthetic_rope_chain,
-)
-from optikin.errors import SpecError
+from optikin.data.markers import RopeChainRecording
 from optikin.problems import ProblemContext, ProblemKind, register_kind
 from optikin.problems import ph_figures as figures
 from optikin.problems.ph_common import (
@@ -69,25 +60,8 @@ DEFAULTS: dict[str, Any] = {**COMMON_DEFAULTS, "rope_free_speeds": True}
 
 
 def load_chain(ctx: ProblemContext) -> RopeChainRecording:
-    data, path = ctx.spec.data, ctx.path
-    if data.source != "synthetic":
-        raise SpecError(path, "data.source", f"kind ph_chain records a synthetic chain; got {data.source!r}")
-    if not isinstance(ctx.arm, CBHAArm):
-        raise SpecError(path, "arm.type", f"kind ph_chain needs CBHA arms; got {ctx.arm.name!r}")
-    p = _params(data, path, {"rope_length": 0.65, "base_distance": 0.25, "end_offset": 0.02,
-                             "rope_markers": [0.25, 0.5, 0.75], "noise": MARKER_NOISE, "rate": FRAME_RATE,
-                             "stride": 24, "frequency": [0.05, 0.2], "amplitude": 0.9,
-                             "intermediate": list(INTERMEDIATE_VERTEBRAE)})
-    try:
-        return synthetic_rope_chain(
-            ctx.arm, data.samples, np.random.default_rng([data.seed, 0]), base_distance=float(p["base_distance"]),
-            rope_length=float(p["rope_length"]), rope_marker_fractions=tuple(float(f) for f in p["rope_markers"]),
-            end_offset=float(p["end_offset"]), noise=float(p["noise"]), rate=float(p["rate"]),
-            stride=int(p["stride"]), frequency=tuple(float(f) for f in p["frequency"]),
-            amplitude=float(p["amplitude"]), intermediate=tuple(int(v) for v in p["intermediate"]),
-            source=f"{path.name}: synthetic")
-    except (TypeError, ValueError) as exc:
-        raise SpecError(path, "data.params", str(exc)) from None
+    """The chain of ``data.source`` (family ``rope_chains``, :mod:`optikin.data.markers`)."""
+    return ctx.load_data()
 
 
 def reversed_data(data: ShapeData) -> ShapeData:
@@ -187,6 +161,7 @@ def run(ctx: ProblemContext) -> Result:
 
 register_kind(ProblemKind(
     options=None,
+    data_family="rope_chains",
     name="ph_chain",
     summary="two CBHAs and a hanging rope, each link a PH quintic from its end poses (seed 002 IV.B, V.C)",
     run=run,

@@ -41,9 +41,13 @@ from optikin.curves.bernstein import bernstein_basis
 from optikin.curves.energy import DEFAULT_NODES
 from optikin.curves.min_energy import EnergySettings, ShapeData, ShapeEnergyModel, ShapeSolution
 from optikin.curves.ph_quintic import PHQuintic
-from optikin.data.markers import MARKER_SOURCES, MarkerRecording
-from optikin.errors import InputDataError, SpecError
-from optikin.problems import ProblemContext
+from optikin.data.markers import MarkerRecording
+from optikin.errors import InputDataError
+from optikin.arms import build_arm
+from optikin.data.sources import source_of
+from optikin.options import validate_options
+from optikin.problems import ProblemContext, load_kinds
+from optikin.registry import PROBLEM_KINDS
 from optikin.results import MethodRow
 from optikin.solvers import build_preset
 from optikin.solvers.ph_backends import PHAdapter
@@ -93,12 +97,22 @@ def ph_settings(ctx: ProblemContext, options: dict[str, Any]) -> PHSettings:
 
 
 def load_recording(ctx: ProblemContext) -> MarkerRecording:
-    """The recording of ``data.source`` (``synthetic`` or ``csv``, :mod:`optikin.data.markers`)."""
-    try:
-        source = MARKER_SOURCES.get(ctx.spec.data.source)
-    except Exception as exc:
-        raise SpecError(ctx.path, "data.source", str(exc)) from None
-    return source(ctx.arm, ctx.spec.data, ctx.path)
+    """The recording of ``data.source`` (family ``markers``, :mod:`optikin.data.markers`)."""
+    return ctx.load_data()
+
+
+def recording_of(problem: str, samples: int | None = None) -> Any:
+    """The recording a problem file's ``data`` describes (its source, params and arm), ``samples`` postures.
+
+    For notebooks and tests that look at a shipped problem's data without solving it.
+    """
+    spec, path = load_problem(problem)
+    load_kinds()
+    family = PROBLEM_KINDS.get(spec.kind).data_family
+    source = source_of(family, spec.data.source, path)
+    params = validate_options(source.params, spec.data.params, path, "data.params")
+    data = spec.data if samples is None else spec.data.model_copy(update={"samples": int(samples)})
+    return source.load(build_arm(spec.arm.type, spec.arm.params, path), data, params, path)
 
 
 # ------------------------------------------------------------------------------ end data
@@ -158,7 +172,7 @@ class MethodRun:
 
     @property
     def compiled(self) -> bool:
-        return bool(self.adapter.options.get("compile", False))
+        return self.model.compile
 
     @property
     def energies(self) -> np.ndarray:

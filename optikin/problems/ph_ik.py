@@ -227,6 +227,7 @@ def run(ctx: ProblemContext) -> Result:
 
 register_kind(ProblemKind(
     options=None,
+    data_family="markers",
     name="ph_ik",
     summary="CBHA tube lengths from the PH backbone of the end poses, against the reference (seed 002 V.B)",
     run=run,

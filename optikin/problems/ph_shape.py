@@ -127,6 +127,7 @@ def run(ctx: ProblemContext) -> Result:
 
 register_kind(ProblemKind(
     options=None,
+    data_family="markers",
     name="ph_shape",
     summary="CBHA backbones from end poses as minimum-energy PH quintics, against markers (seed 002 V.A)",
     run=run,

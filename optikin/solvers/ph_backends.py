@@ -6,9 +6,12 @@ Every adapter of the family offers
   :mod:`optikin.curves.min_energy` (built once per settings and kept, so methods
   in one run share it);
 * ``solve(model, samples) -> list[ShapeSolution]``: one solution per sample, in
-  order, each with its status, energy, iterations and wall time.
+  order, each with its status, energy, iterations and wall time. Samples are
+  solved along the trajectory, each warm-started from the previous ``ok``
+  solution when the backend's ``warm_start`` is on: this is the one warm-start
+  loop of the PH solvers.
 
-Backends (seed 002 section II.A posed as an NLP; issue 3 item 2):
+Backends (Singh et al. 2018, section II.A, posed as an NLP):
 
 ``ph_newton``  the fast path: Newton on the compiled (``compile: true``) or
                virtual-machine CasADi gradient and Hessian, warm-started from the
@@ -26,12 +29,15 @@ Backends (seed 002 section II.A posed as an NLP; issue 3 item 2):
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Sequence
+
+import numpy as np
+from pydantic import Field
 
 from optikin.curves.min_energy import EnergySettings, ShapeData, ShapeEnergyModel, ShapeSolution
-from optikin.errors import SpecError
+from optikin.options import Options
 from optikin.solvers import register_backend
-from optikin.spec import SolverSpec, available
+from optikin.spec import SolverSpec
 
 FAMILY = "ph"
 
@@ -47,83 +53,104 @@ def shared_model(settings: EnergySettings, free_speeds: bool, compile: bool = Fa
     return _MODELS[key]
 
 
-def preset_path(preset: SolverSpec) -> str:
-    """The file a preset most likely came from, for error messages."""
-    return str(available("solvers").get(preset.name, f"solver preset {preset.name!r}"))
+class NewtonOptions(Options):
+    """Options of backend ``ph_newton``."""
+
+    compile: bool = Field(False, strict=True, description="compile the Newton Functions to C (cached on disk)")
+    warm_start: bool = Field(True, strict=True, description="start each sample from the previous ok solution")
+    fallback: bool = Field(True, strict=True,
+                           description="coarse-grid restart, then IPOPT, when Newton does not converge")
+    basin_check: bool = Field(False, strict=True,
+                              description="also run Newton from the coarse grid on warm-started samples, "
+                                          "keep the lower minimum")
+    coarse_grid: int = Field(12, ge=2, strict=True, description="points per angle of the coarse start grid")
+
+
+class IpoptOptions(Options):
+    """Options of backend ``ph_ipopt``."""
+
+    warm_start: bool = Field(True, strict=True, description="start each sample from the previous ok solution")
+    starts: int = Field(3, ge=1, strict=True, description="coarse-grid starts of a cold solve (best result kept)")
+
+
+class GridOptions(Options):
+    """Options of backend ``ph_grid``."""
+
+    n: int = Field(64, ge=2, strict=True, description="points per free angle")
+    n_ratio: int = Field(9, ge=2, strict=True,
+                         description="end-speed ratios in [1/3, 3] (free end speeds only)")
 
 
 class PHAdapter:
-    """Common option checking; subclasses set :attr:`method` and :attr:`defaults`."""
+    """The warm-start loop shared by the ``ph`` backends; subclasses solve one sample."""
 
-    method = ""
-    defaults: dict[str, Any] = {}
+    warm_start = False
 
-    def __init__(self, preset: SolverSpec):
+    def __init__(self, preset: SolverSpec, options: Options):
         self.preset = preset
-        unknown = sorted(set(preset.options) - set(self.defaults))
-        if unknown:
-            raise SpecError(preset_path(preset), f"options.{unknown[0]}",
-                            f"unknown option of backend {preset.backend!r}; known: {', '.join(self.defaults)}")
-        self.options = {**self.defaults, **preset.options}
-        for key, default in self.defaults.items():
-            value = self.options[key]
-            if isinstance(default, bool) and not isinstance(value, bool):
-                raise SpecError(preset_path(preset), f"options.{key}", f"must be true or false, got {value!r}")
-            if isinstance(default, int) and not isinstance(default, bool) and not (
-                    isinstance(value, int) and not isinstance(value, bool) and value >= 2):
-                raise SpecError(preset_path(preset), f"options.{key}", f"must be an integer >= 2, got {value!r}")
+        self.options = options
 
     def model(self, settings: EnergySettings, free_speeds: bool) -> ShapeEnergyModel:
+        """The shared model of these settings (module docstring)."""
         return shared_model(settings, free_speeds)
 
-    def solve(self, model: ShapeEnergyModel, samples: list[ShapeData]) -> list[ShapeSolution]:
+    def solve_one(self, model: ShapeEnergyModel, data: ShapeData, previous: np.ndarray | None) -> ShapeSolution:
         raise NotImplementedError
+
+    def solve(self, model: ShapeEnergyModel, samples: Sequence[ShapeData]) -> list[ShapeSolution]:
+        """Solve ``samples`` in order, each from the previous ``ok`` solution when warm-starting."""
+        out: list[ShapeSolution] = []
+        previous = None
+        for data in samples:
+            sol = self.solve_one(model, data, previous)
+            out.append(sol)
+            previous = sol.x if (self.warm_start and sol.status == "ok") else None
+        return out
 
 
 class NewtonAdapter(PHAdapter):
-    method = "newton"
-    defaults = {"compile": False, "warm_start": True, "fallback": True, "basin_check": False, "coarse_grid": 12}
+    """``ph_newton``: the fast path (module docstring)."""
+
+    options: NewtonOptions
+
+    def __init__(self, preset: SolverSpec, options: NewtonOptions):
+        super().__init__(preset, options)
+        self.warm_start = options.warm_start
 
     def model(self, settings: EnergySettings, free_speeds: bool) -> ShapeEnergyModel:
-        return shared_model(settings, free_speeds, self.options["compile"], self.options["coarse_grid"])
+        return shared_model(settings, free_speeds, self.options.compile, self.options.coarse_grid)
 
-    def solve(self, model: ShapeEnergyModel, samples: list[ShapeData]) -> list[ShapeSolution]:
+    def solve_one(self, model: ShapeEnergyModel, data: ShapeData, previous: np.ndarray | None) -> ShapeSolution:
         limits = self.preset.limits
-        out, previous = [], None
-        for data in samples:
-            sol = model.solve_newton(data, previous, tolerance=limits.tolerance,
-                                     max_iterations=limits.max_iterations, fallback=self.options["fallback"],
-                                     basin_check=self.options["basin_check"])
-            out.append(sol)
-            previous = sol.x if (self.options["warm_start"] and sol.status == "ok") else None
-        return out
+        return model.solve_newton(data, previous, tolerance=limits.tolerance, max_iterations=limits.max_iterations,
+                                  fallback=self.options.fallback, basin_check=self.options.basin_check)
 
 
 class IpoptAdapter(PHAdapter):
-    method = "nlp"
-    defaults = {"warm_start": True, "starts": 3}
+    """``ph_ipopt``: the reference (module docstring)."""
 
-    def solve(self, model: ShapeEnergyModel, samples: list[ShapeData]) -> list[ShapeSolution]:
-        out, previous = [], None
-        for data in samples:
-            if previous is not None:
-                sol = model.solve_nlp(data, previous)
-            else:
-                sol = model.solve_nlp(data, starts=self.options["starts"])
-            out.append(sol)
-            previous = sol.x if (self.options["warm_start"] and sol.status == "ok") else None
-        return out
+    options: IpoptOptions
+
+    def __init__(self, preset: SolverSpec, options: IpoptOptions):
+        super().__init__(preset, options)
+        self.warm_start = options.warm_start
+
+    def solve_one(self, model: ShapeEnergyModel, data: ShapeData, previous: np.ndarray | None) -> ShapeSolution:
+        return model.solve_nlp(data, previous, starts=self.options.starts)
 
 
 class GridAdapter(PHAdapter):
-    method = "grid"
-    defaults = {"n": 64, "n_ratio": 9}
+    """``ph_grid``: the baseline (module docstring); no warm start."""
 
-    def solve(self, model: ShapeEnergyModel, samples: list[ShapeData]) -> list[ShapeSolution]:
-        return [model.solve_grid(data, n=self.options["n"], n_ratio=self.options["n_ratio"]) for data in samples]
+    options: GridOptions
+
+    def solve_one(self, model: ShapeEnergyModel, data: ShapeData, previous: np.ndarray | None) -> ShapeSolution:
+        return model.solve_grid(data, n=self.options.n, n_ratio=self.options.n_ratio)
 
 
-register_backend("ph_newton", FAMILY, "Newton on compiled CasADi derivatives, warm-started (PH fast path)", options=None)(
-    NewtonAdapter)
-register_backend("ph_ipopt", FAMILY, "CasADi nlpsol IPOPT, warm or cold (PH reference)", options=None)(IpoptAdapter)
-register_backend("ph_grid", FAMILY, "dense grid over the free PH angles (and speed ratios)", options=None)(GridAdapter)
+register_backend("ph_newton", FAMILY, "Newton on compiled CasADi derivatives, warm-started (PH fast path)",
+                 options=NewtonOptions)(NewtonAdapter)
+register_backend("ph_ipopt", FAMILY, "CasADi nlpsol IPOPT, warm or cold (PH reference)",
+                 options=IpoptOptions)(IpoptAdapter)
+register_backend("ph_grid", FAMILY, "dense grid over the free PH angles (and speed ratios)",
+                 options=GridOptions)(GridAdapter)

@@ -45,9 +45,8 @@ from threadpoolctl import threadpool_limits
 from optikin.arms.cbha import CBHAArm
 from optikin.curves.min_energy import EnergySettings, ShapeEnergyModel
 from optikin.curves.tubes import TubeLayout
-from optikin.data.markers import MARKER_SOURCES
 from optikin.fastcall import BufferedFunction
-from optikin.problems.ph_common import backbone_lengths, end_data
+from optikin.problems.ph_common import backbone_lengths, end_data, recording_of
 from optikin.ik.formulation import rest_configuration
 from optikin.baselines.ph_comparators import (
     NR_PRESET,
@@ -58,7 +57,6 @@ from optikin.baselines.ph_comparators import (
 )
 from optikin.problems.ph_ik import tube_length_function
 from optikin.solvers import build_preset
-from optikin.spec import load_problem
 
 GROUPS = {False: "PH shape, 100-posture CBHA trajectory, given speeds (seed setting): time per sample",
           True: "PH shape, 100-posture CBHA trajectory, free speeds, length held: time per sample"}
@@ -74,8 +72,7 @@ def one_blas_thread():
 
 @pytest.fixture(scope="module")
 def recording():
-    spec, path = load_problem("cbha-ph-shape")
-    return MARKER_SOURCES.get("synthetic")(CBHAArm(), spec.data, path).with_fixed_base()
+    return recording_of("cbha-ph-shape").with_fixed_base()
 
 
 @pytest.fixture(scope="module", params=[False, True], ids=["given-speeds", "free-speeds"])
