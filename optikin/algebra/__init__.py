@@ -1,4 +1,11 @@
-"""Quaternion and dual-quaternion algebra for numpy arrays and CasADi symbols."""
+"""Quaternion and dual-quaternion algebra for numpy arrays and CasADi symbols.
+
+Every function takes numpy arrays with the components on the last axis (batch
+first) or CasADi matrices with the components on the rows, and returns the same
+kind (:mod:`optikin.algebra.backend`). Quaternions are Hamilton ``(w, x, y, z)``;
+dual quaternions are ``(Q_r, Q_d)`` with ``Q_d = 0.5 (0, p) Q_r`` (Seleem et al.
+2020, eqs. 9-10). See ``docs/conventions.md``.
+"""
 
 from optikin.algebra.dual_quaternion import (
     dq_combined_conjugate,
@@ -43,4 +50,43 @@ from optikin.algebra.quaternion import (
     rpy_from_quat,
 )
 
-__all__ = [name for name in dir() if name.startswith(("quat_", "dq_", "matrix_", "rpy_", "transform_", "check_"))]
+__all__ = [
+    "check_unit_quaternions",
+    "dq_combined_conjugate",
+    "dq_conjugate",
+    "dq_dual_number_conjugate",
+    "dq_exp",
+    "dq_from_parts",
+    "dq_from_rotation_translation",
+    "dq_from_transform",
+    "dq_log",
+    "dq_multiply",
+    "dq_norm_residual",
+    "dq_parts",
+    "dq_pose_error",
+    "dq_power",
+    "dq_rotation",
+    "dq_sclerp",
+    "dq_transform_point",
+    "dq_translation",
+    "matrix_from_quat",
+    "quat_angle",
+    "quat_conjugate",
+    "quat_exp",
+    "quat_from_axis_angle",
+    "quat_from_matrix",
+    "quat_from_pure",
+    "quat_from_rpy",
+    "quat_hemisphere_continuous",
+    "quat_inverse",
+    "quat_log",
+    "quat_multiply",
+    "quat_norm",
+    "quat_normalize",
+    "quat_power",
+    "quat_rotate",
+    "quat_slerp",
+    "quat_vector",
+    "rpy_from_quat",
+    "transform_from_dq",
+]

@@ -12,38 +12,81 @@ Layout conventions
   ``(n, 1)`` for one element or ``(n, N)`` for ``N`` columns.
 
 ``components(x, n)`` splits an element into its ``n`` scalar components and
-``stack(parts, like)`` rebuilds one in the layout of ``like``. Every other
-helper dispatches on the type of its argument.
+``stack(parts)`` rebuilds one. Every other helper dispatches on the type of its
+arguments: CasADi if any argument is a CasADi matrix, numpy otherwise.
 """
 
 from __future__ import annotations
 
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 import casadi as ca
 import numpy as np
 
 Array = Any
-"""A numpy array or a CasADi ``SX``/``MX``/``DM`` matrix."""
+"""A numpy array (or a float) or a CasADi ``SX``/``MX``/``DM`` matrix."""
 
 _CASADI_TYPES = (ca.SX, ca.MX, ca.DM)
 
-# Below this magnitude a sinc-type ratio switches to its Taylor series.  The
-# series used below are accurate to double precision well past this band.
 SERIES_BAND = 1e-3
+"""Below this magnitude a sinc-type ratio switches to its Taylor series.
+
+The series used here are accurate to double precision well past this band.
+"""
 
 
 def is_casadi(x: Array) -> bool:
-    """True when ``x`` is a CasADi matrix (symbolic or numeric)."""
+    """Whether ``x`` is a CasADi matrix (symbolic or numeric).
+
+    Parameters
+    ----------
+    x : Array
+        Anything.
+
+    Returns
+    -------
+    bool
+        True for ``SX``, ``MX`` and ``DM``.
+    """
     return isinstance(x, _CASADI_TYPES)
 
 
 def any_casadi(*xs: Array) -> bool:
+    """Whether any of ``xs`` is a CasADi matrix.
+
+    Parameters
+    ----------
+    *xs : Array
+        Anything.
+
+    Returns
+    -------
+    bool
+        True when the operation on ``xs`` must build a CasADi expression.
+    """
     return any(is_casadi(x) for x in xs)
 
 
 def components(x: Array, n: int) -> list[Array]:
-    """Split ``x`` into its ``n`` components (see the module docstring)."""
+    """Split ``x`` into its ``n`` components.
+
+    Parameters
+    ----------
+    x : Array
+        numpy ``(..., n)`` or CasADi ``n x N``.
+    n : int
+        Number of components.
+
+    Returns
+    -------
+    list of Array
+        ``n`` arrays of the batch shape ``(...)`` (numpy) or ``1 x N`` rows (CasADi).
+
+    Raises
+    ------
+    ValueError
+        When the last axis (numpy) or the number of rows (CasADi) is not ``n``.
+    """
     if is_casadi(x):
         if x.shape[0] != n:
             raise ValueError(f"expected {n} rows, got a CasADi matrix of shape {x.shape}")
@@ -55,14 +98,36 @@ def components(x: Array, n: int) -> list[Array]:
 
 
 def stack(parts: Sequence[Array]) -> Array:
-    """Inverse of :func:`components`: CasADi parts are stacked as rows."""
+    """Inverse of :func:`components`.
+
+    Parameters
+    ----------
+    parts : sequence of Array
+        Scalar components: numpy arrays or floats (broadcast together) or CasADi rows.
+
+    Returns
+    -------
+    Array
+        numpy ``(..., len(parts))`` or CasADi ``len(parts) x N`` (parts stacked as rows).
+    """
     if any_casadi(*parts):
         return ca.vertcat(*parts)
     return np.stack(np.broadcast_arrays(*parts), axis=-1)
 
 
 def concat(a: Array, b: Array) -> Array:
-    """Join two elements along the component axis (e.g. Q_r and Q_d into a dual quaternion)."""
+    """Join two elements along the component axis (e.g. ``Q_r`` and ``Q_d`` into a dual quaternion).
+
+    Parameters
+    ----------
+    a, b : Array
+        numpy ``(..., n_a)`` and ``(..., n_b)`` (batch shapes broadcast) or CasADi ``n_a x N``, ``n_b x N``.
+
+    Returns
+    -------
+    Array
+        numpy ``(..., n_a + n_b)`` or CasADi ``(n_a + n_b) x N``.
+    """
     if any_casadi(a, b):
         return ca.vertcat(a, b)
     a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
@@ -73,7 +138,27 @@ def concat(a: Array, b: Array) -> Array:
 
 
 def split(x: Array, n_first: int, n_total: int) -> tuple[Array, Array]:
-    """Split an element into its first ``n_first`` and its remaining components."""
+    """Split an element into its first ``n_first`` and its remaining components.
+
+    Parameters
+    ----------
+    x : Array
+        numpy ``(..., n_total)`` or CasADi ``n_total x N``.
+    n_first : int
+        Number of components of the first part.
+    n_total : int
+        Number of components of ``x`` (checked).
+
+    Returns
+    -------
+    tuple of Array
+        ``(x[..., :n_first], x[..., n_first:])``, or the same row blocks for CasADi.
+
+    Raises
+    ------
+    ValueError
+        When ``x`` does not have ``n_total`` components.
+    """
     if is_casadi(x):
         if x.shape[0] != n_total:
             raise ValueError(f"expected {n_total} rows, got a CasADi matrix of shape {x.shape}")
@@ -84,46 +169,157 @@ def split(x: Array, n_first: int, n_total: int) -> tuple[Array, Array]:
     return x[..., :n_first], x[..., n_first:]
 
 
-def _pick(name: str, *xs: Array):
+def _pick(name: str, *xs: Array) -> Callable[..., Array]:
     return getattr(ca, name) if any_casadi(*xs) else getattr(np, name)
 
 
 def sin(x: Array) -> Array:
+    """Element-wise sine.
+
+    Parameters
+    ----------
+    x : Array
+        numpy array (or float) or CasADi matrix, in radians.
+
+    Returns
+    -------
+    Array
+        ``sin(x)``, of the same shape and kind.
+    """
     return _pick("sin", x)(x)
 
 
 def cos(x: Array) -> Array:
+    """Element-wise cosine.
+
+    Parameters
+    ----------
+    x : Array
+        numpy array (or float) or CasADi matrix, in radians.
+
+    Returns
+    -------
+    Array
+        ``cos(x)``, of the same shape and kind.
+    """
     return _pick("cos", x)(x)
 
 
 def sqrt(x: Array) -> Array:
+    """Element-wise square root.
+
+    Parameters
+    ----------
+    x : Array
+        numpy array (or float) or CasADi matrix, non-negative.
+
+    Returns
+    -------
+    Array
+        ``sqrt(x)``, of the same shape and kind.
+    """
     return _pick("sqrt", x)(x)
 
 
 def atan2(y: Array, x: Array) -> Array:
+    """Element-wise four-quadrant arctangent of ``y / x``.
+
+    Parameters
+    ----------
+    y, x : Array
+        numpy arrays (broadcast together) or CasADi matrices.
+
+    Returns
+    -------
+    Array
+        Angles in ``(-pi, pi]`` [rad].
+    """
     return ca.atan2(y, x) if any_casadi(y, x) else np.arctan2(y, x)
 
 
 def fabs(x: Array) -> Array:
+    """Element-wise absolute value.
+
+    Parameters
+    ----------
+    x : Array
+        numpy array (or float) or CasADi matrix.
+
+    Returns
+    -------
+    Array
+        ``|x|``, of the same shape and kind.
+    """
     return ca.fabs(x) if is_casadi(x) else np.abs(x)
 
 
 def fmax(a: Array, b: Array) -> Array:
+    """Element-wise maximum.
+
+    Parameters
+    ----------
+    a, b : Array
+        numpy arrays (broadcast together) or CasADi matrices.
+
+    Returns
+    -------
+    Array
+        ``max(a, b)``.
+    """
     return ca.fmax(a, b) if any_casadi(a, b) else np.maximum(a, b)
 
 
 def fmin(a: Array, b: Array) -> Array:
+    """Element-wise minimum.
+
+    Parameters
+    ----------
+    a, b : Array
+        numpy arrays (broadcast together) or CasADi matrices.
+
+    Returns
+    -------
+    Array
+        ``min(a, b)``.
+    """
     return ca.fmin(a, b) if any_casadi(a, b) else np.minimum(a, b)
 
 
 def where(cond: Array, a: Array, b: Array) -> Array:
-    """Element-wise ``a if cond else b`` (both branches are evaluated)."""
+    """Element-wise ``a if cond else b``; both branches are evaluated.
+
+    Parameters
+    ----------
+    cond : Array
+        Boolean (numpy) or 0/1 (CasADi) condition.
+    a, b : Array
+        Values taken where ``cond`` is true and false.
+
+    Returns
+    -------
+    Array
+        ``numpy.where(cond, a, b)`` or ``casadi.if_else(cond, a, b)``.
+    """
     if any_casadi(cond, a, b):
         return ca.if_else(cond, a, b)
     return np.where(cond, a, b)
 
 
 def clip(x: Array, lo: float, hi: float) -> Array:
+    """Element-wise ``min(max(x, lo), hi)``.
+
+    Parameters
+    ----------
+    x : Array
+        numpy array or CasADi matrix.
+    lo, hi : float
+        Bounds, ``lo <= hi``.
+
+    Returns
+    -------
+    Array
+        ``x`` clipped to ``[lo, hi]``.
+    """
     return fmin(fmax(x, lo), hi)
 
 
@@ -133,43 +329,128 @@ def _sqrt_safe(x2: Array, small: Array) -> Array:
 
 
 def sinc_of_square(x2: Array) -> Array:
-    """sin(x)/x as a function of x^2: exact and smooth at x = 0, values and derivatives."""
+    """``sin(x)/x`` as a function of ``x^2``, exact and smooth at ``x = 0`` (values and derivatives).
+
+    Parameters
+    ----------
+    x2 : Array
+        ``x^2 >= 0``, any shape.
+
+    Returns
+    -------
+    Array
+        ``sin(x)/x``; the series ``1 - x^2/6 + x^4/120`` inside :data:`SERIES_BAND`.
+    """
     small = x2 < SERIES_BAND**2
     x = _sqrt_safe(x2, small)
     return where(small, 1.0 - x2 / 6.0 + x2 * x2 / 120.0, sin(x) / x)
 
 
 def cos_of_square(x2: Array) -> Array:
-    """cos(x) as a function of x^2 (differentiable through x = 0)."""
+    """``cos(x)`` as a function of ``x^2``, differentiable through ``x = 0``.
+
+    Parameters
+    ----------
+    x2 : Array
+        ``x^2 >= 0``, any shape.
+
+    Returns
+    -------
+    Array
+        ``cos(x)``; the series ``1 - x^2/2 + x^4/24`` inside :data:`SERIES_BAND`.
+    """
     small = x2 < SERIES_BAND**2
     x = _sqrt_safe(x2, small)
     return where(small, 1.0 - x2 / 2.0 + x2 * x2 / 24.0, cos(x))
 
 
 def inv_sinc_of_square(x2: Array) -> Array:
-    """x/sin(x) as a function of x^2, for |x| < pi."""
+    """``x/sin(x)`` as a function of ``x^2``, for ``|x| < pi``, smooth at ``x = 0``.
+
+    Parameters
+    ----------
+    x2 : Array
+        ``x^2`` in ``[0, pi^2)``, any shape.
+
+    Returns
+    -------
+    Array
+        ``x/sin(x)``; the series ``1 + x^2/6 + 7 x^4/360`` inside :data:`SERIES_BAND`.
+    """
     small = x2 < SERIES_BAND**2
     x = _sqrt_safe(x2, small)
     return where(small, 1.0 + x2 / 6.0 + 7.0 * x2 * x2 / 360.0, x / sin(x))
 
 
 def sinc(x: Array) -> Array:
-    """sin(x)/x, exact and smooth at x = 0."""
+    """``sin(x)/x``, exact and smooth at ``x = 0`` (see :func:`sinc_of_square`).
+
+    Parameters
+    ----------
+    x : Array
+        numpy array (or float) or CasADi matrix, in radians.
+
+    Returns
+    -------
+    Array
+        ``sin(x)/x``, 1 at ``x = 0``, of the same shape and kind.
+    """
     return sinc_of_square(x * x)
 
 
 def one_minus_cos_over_square(x: Array) -> Array:
-    """(1 - cos x)/x^2 = sinc(x/2)^2 / 2, exact and smooth at x = 0."""
+    """``(1 - cos x)/x^2 = sinc(x/2)^2 / 2``, exact and smooth at ``x = 0``.
+
+    The ratio of the constant-curvature tip position (seed 000 eq. 1, without the
+    singularity that its eq. 2 works around).
+
+    Parameters
+    ----------
+    x : Array
+        Angle [rad], any shape.
+
+    Returns
+    -------
+    Array
+        ``(1 - cos x)/x^2``, ``1/2`` at ``x = 0``.
+    """
     half = sinc(0.5 * x)
     return 0.5 * half * half
 
 
 def scale(t: Array, x: Array, n: int) -> Array:
-    """Every component of ``x`` times ``t``, where ``t`` has the batch shape (numpy) or is a row (CasADi)."""
+    """Every component of ``x`` times ``t``.
+
+    Parameters
+    ----------
+    t : Array
+        A scalar, or one factor per element: the batch shape ``(...)`` (numpy) or a ``1 x N`` row (CasADi).
+    x : Array
+        numpy ``(..., n)`` or CasADi ``n x N``.
+    n : int
+        Number of components of ``x``.
+
+    Returns
+    -------
+    Array
+        ``t x`` in the layout of ``x``.
+    """
     return stack([t * c for c in components(x, n)])
 
 
 def sum_squares(parts: Sequence[Array]) -> Array:
+    """``sum_i parts[i]^2``, element-wise.
+
+    Parameters
+    ----------
+    parts : sequence of Array
+        Components (e.g. from :func:`components`), at least one.
+
+    Returns
+    -------
+    Array
+        The sum of their squares, of their common (broadcast) shape.
+    """
     total = parts[0] * parts[0]
     for p in parts[1:]:
         total = total + p * p

@@ -1,8 +1,9 @@
-"""Unit dual quaternions ``Q = Q_r + eps Q_d`` for rigid transforms (seed 000 eqs. 9-10).
+"""Unit dual quaternions ``Q = Q_r + eps Q_d`` for rigid transforms (Seleem et al. 2020, seed 000 eqs. 9-10).
 
 A dual quaternion is stored as 8 components ``(Q_r, Q_d)``: on the last axis
 ``(..., 8)`` for numpy, on the rows ``(8, 1)``/``(8, N)`` for CasADi. A pose with
-rotation ``Q_r`` and translation ``p`` has ``Q_d = 0.5 (0, p) Q_r`` (seed 000 eq. 10).
+rotation ``Q_r`` and translation ``p`` (metres) has ``Q_d = 0.5 (0, p) Q_r``
+(seed 000 eq. 10): the point map ``x -> R(Q_r) x + p``.
 
 The logarithm and exponential are the true ones of the dual-number algebra
 (so ``Q^t = exp(t log Q)`` is the screw motion used by ScLERP). For a pure dual
@@ -30,34 +31,105 @@ from optikin.algebra.quaternion import (
 )
 
 IDENTITY = np.array([1.0, 0, 0, 0, 0, 0, 0, 0])
+"""The identity pose ``(1, 0, 0, 0, 0, 0, 0, 0)``."""
 
 
 def dq_parts(dq: Array) -> tuple[Array, Array]:
-    """``(Q_r, Q_d)`` of a dual quaternion."""
+    """The real and dual parts ``(Q_r, Q_d)`` of a dual quaternion.
+
+    Parameters
+    ----------
+    dq : Array
+        Dual quaternions: numpy ``(..., 8)`` or CasADi ``8 x N``.
+
+    Returns
+    -------
+    tuple of Array
+        ``(Q_r, Q_d)``, each numpy ``(..., 4)`` or CasADi ``4 x N``.
+    """
     return B.split(dq, 4, 8)
 
 
 def dq_from_parts(real: Array, dual: Array) -> Array:
+    """The dual quaternion ``real + eps dual``; inverse of :func:`dq_parts`.
+
+    Parameters
+    ----------
+    real, dual : Array
+        Quaternions ``Q_r``, ``Q_d``: numpy ``(..., 4)`` (batch shapes broadcast) or CasADi ``4 x N``.
+
+    Returns
+    -------
+    Array
+        numpy ``(..., 8)`` or CasADi ``8 x N``.
+    """
     return B.concat(real, dual)
 
 
 def dq_from_rotation_translation(q: Array, p: Array) -> Array:
-    """``Q_r + eps 0.5 (0, p) Q_r`` from a unit quaternion and a translation (seed 000 eqs. 9-10)."""
+    """Pose ``Q_r + eps 0.5 (0, p) Q_r`` from a rotation and a translation (seed 000 eqs. 9-10).
+
+    Parameters
+    ----------
+    q : Array
+        Unit quaternions ``(w, x, y, z)`` of the rotation: numpy ``(..., 4)`` or CasADi ``4 x N``.
+    p : Array
+        Translations [m]: numpy ``(..., 3)`` or CasADi ``3 x N`` (batch shapes broadcast).
+
+    Returns
+    -------
+    Array
+        Unit dual quaternions ``(Q_r, Q_d)``, numpy ``(..., 8)`` or CasADi ``8 x N``.
+    """
     return B.concat(q, 0.5 * quat_multiply(quat_from_pure(p), q))
 
 
 def dq_rotation(dq: Array) -> Array:
+    """The rotation ``Q_r`` of a unit dual quaternion.
+
+    Parameters
+    ----------
+    dq : Array
+        Dual quaternions: numpy ``(..., 8)`` or CasADi ``8 x N``.
+
+    Returns
+    -------
+    Array
+        Unit quaternions, numpy ``(..., 4)`` or CasADi ``4 x N``.
+    """
     return dq_parts(dq)[0]
 
 
 def dq_translation(dq: Array) -> Array:
-    """``p = 2 Q_d Q_r*`` (inverse of seed 000 eq. 10)."""
+    """The translation ``p = 2 vec(Q_d Q_r*)`` of a unit dual quaternion (seed 000 eq. 10 inverted).
+
+    Parameters
+    ----------
+    dq : Array
+        Unit dual quaternions: numpy ``(..., 8)`` or CasADi ``8 x N``.
+
+    Returns
+    -------
+    Array
+        Translations [m], numpy ``(..., 3)`` or CasADi ``3 x N``.
+    """
     real, dual = dq_parts(dq)
     return quat_vector(2.0 * quat_multiply(dual, quat_conjugate(real)))
 
 
 def dq_from_transform(T: Array) -> Array:
-    """Dual quaternion of a 4x4 homogeneous transform (numpy ``(..., 4, 4)`` or CasADi ``4 x 4``)."""
+    """Unit dual quaternion of a homogeneous transform ``[R, p; 0, 1]``.
+
+    Parameters
+    ----------
+    T : Array
+        Transforms (translation in metres): numpy ``(..., 4, 4)`` or one CasADi ``4 x 4``.
+
+    Returns
+    -------
+    Array
+        numpy ``(..., 8)`` or CasADi ``8 x 1``, with ``w >= 0`` in ``Q_r``.
+    """
     if B.is_casadi(T):
         return dq_from_rotation_translation(quat_from_matrix(T[:3, :3]), T[:3, 3])
     T = np.asarray(T, dtype=float)
@@ -65,7 +137,18 @@ def dq_from_transform(T: Array) -> Array:
 
 
 def transform_from_dq(dq: Array) -> Array:
-    """4x4 homogeneous transform of a unit dual quaternion."""
+    """Homogeneous transform ``[R(Q_r), p; 0, 1]`` of a unit dual quaternion; inverse of :func:`dq_from_transform`.
+
+    Parameters
+    ----------
+    dq : Array
+        Unit dual quaternions: numpy ``(..., 8)`` or one CasADi ``8 x 1``.
+
+    Returns
+    -------
+    Array
+        numpy ``(..., 4, 4)`` or CasADi ``4 x 4`` (translation in metres).
+    """
     R = matrix_from_quat(dq_rotation(dq))
     p = dq_translation(dq)
     if B.is_casadi(dq):
@@ -78,32 +161,89 @@ def transform_from_dq(dq: Array) -> Array:
 
 
 def dq_multiply(a: Array, b: Array) -> Array:
-    """``(a_r + eps a_d)(b_r + eps b_d) = a_r b_r + eps (a_r b_d + a_d b_r)``."""
+    """Product ``(a_r + eps a_d)(b_r + eps b_d) = a_r b_r + eps (a_r b_d + a_d b_r)``.
+
+    For poses, the composition: ``b`` expressed in the frame ``a`` (``T(a b) = T(a) T(b)``).
+
+    Parameters
+    ----------
+    a, b : Array
+        Dual quaternions: numpy ``(..., 8)`` (batch shapes broadcast) or CasADi ``8 x N``.
+
+    Returns
+    -------
+    Array
+        ``a b`` in the same layout.
+    """
     ar, ad = dq_parts(a)
     br, bd = dq_parts(b)
     return B.concat(quat_multiply(ar, br), quat_multiply(ar, bd) + quat_multiply(ad, br))
 
 
 def dq_conjugate(dq: Array) -> Array:
-    """Quaternion conjugate of both parts, ``Q_r* + eps Q_d*``: the inverse of a unit dual quaternion."""
+    """Quaternion conjugate of both parts, ``Q_r* + eps Q_d*``: the inverse of a unit dual quaternion.
+
+    Parameters
+    ----------
+    dq : Array
+        Dual quaternions: numpy ``(..., 8)`` or CasADi ``8 x N``.
+
+    Returns
+    -------
+    Array
+        Same layout.
+    """
     real, dual = dq_parts(dq)
     return B.concat(quat_conjugate(real), quat_conjugate(dual))
 
 
 def dq_dual_number_conjugate(dq: Array) -> Array:
-    """Dual-number conjugate ``Q_r - eps Q_d``."""
+    """Dual-number conjugate ``Q_r - eps Q_d``.
+
+    Parameters
+    ----------
+    dq : Array
+        Dual quaternions: numpy ``(..., 8)`` or CasADi ``8 x N``.
+
+    Returns
+    -------
+    Array
+        Same layout.
+    """
     real, dual = dq_parts(dq)
     return B.concat(real, -dual)
 
 
 def dq_combined_conjugate(dq: Array) -> Array:
-    """Both conjugates at once, ``Q_r* - eps Q_d*`` (used to transform points)."""
+    """Both conjugates at once, ``Q_r* - eps Q_d*`` (the form that transforms points).
+
+    Parameters
+    ----------
+    dq : Array
+        Dual quaternions: numpy ``(..., 8)`` or CasADi ``8 x N``.
+
+    Returns
+    -------
+    Array
+        Same layout.
+    """
     real, dual = dq_parts(dq)
     return B.concat(quat_conjugate(real), -quat_conjugate(dual))
 
 
 def dq_norm_residual(dq: Array) -> tuple[Array, Array]:
-    """How far ``dq`` is from unit: ``(|Q_r| - 1, Q_r . Q_d)``."""
+    """How far ``dq`` is from a unit dual quaternion: ``(|Q_r| - 1, Q_r . Q_d)``, both zero when unit.
+
+    Parameters
+    ----------
+    dq : Array
+        Dual quaternions: numpy ``(..., 8)`` or CasADi ``8 x N``.
+
+    Returns
+    -------
+    tuple of Array
+        The two residuals, each numpy ``(...)`` or CasADi ``1 x N``.
+    """
     real, dual = dq_parts(dq)
     r = B.components(real, 4)
     d = B.components(dual, 4)
@@ -111,7 +251,20 @@ def dq_norm_residual(dq: Array) -> tuple[Array, Array]:
 
 
 def dq_transform_point(dq: Array, point: Array) -> Array:
-    """Apply the rigid transform ``dq`` to a 3-D point."""
+    """Apply the rigid transform of ``dq`` to points: ``R(Q_r) x + p``.
+
+    Parameters
+    ----------
+    dq : Array
+        Unit dual quaternions: numpy ``(..., 8)`` or CasADi ``8 x N``.
+    point : Array
+        Points [m]: numpy ``(..., 3)`` or CasADi ``3 x N`` (batch shapes broadcast).
+
+    Returns
+    -------
+    Array
+        The transformed points [m], numpy ``(..., 3)`` or CasADi ``3 x N``.
+    """
     real = dq_rotation(dq)
     rotated = quat_vector(quat_multiply(quat_multiply(real, quat_from_pure(point)), quat_conjugate(real)))
     return rotated + dq_translation(dq)
@@ -128,11 +281,23 @@ def _dexp_coefficients(a2: Array) -> tuple[Array, Array, Array]:
 
 
 def dq_exp(xi: Array) -> Array:
-    """Exponential of the pure dual vector ``u + eps v`` given as 6 components ``(u, v)``.
+    """Exponential of the pure dual vector ``u + eps v``.
 
-    ``exp(u) + eps (-(u.v) sinc|u|, sinc|u| v + (u.v) h(|u|) u)`` with
-    ``h(a) = (cos a - sinc a)/a^2``. For a pose of rotation angle ``phi`` about
-    axis ``n`` and translation ``p`` with no rotation, ``u = phi/2 n`` and ``v = p/2``.
+    ``exp(u + eps v) = exp(u) + eps (-(u.v) sinc|u|, sinc|u| v + (u.v) h(|u|) u)`` with
+    ``h(a) = (cos a - sinc a)/a^2``: the dual part is the directional derivative of
+    :func:`~optikin.algebra.quaternion.quat_exp` at ``u`` along ``v``. A rotation by
+    ``phi`` about the axis ``n`` has ``u = phi/2 n``; a pure translation ``p`` has
+    ``u = 0``, ``v = p/2``. Exact and smooth at ``u = 0``.
+
+    Parameters
+    ----------
+    xi : Array
+        ``(u, v)``: numpy ``(..., 6)`` or CasADi ``6 x N``.
+
+    Returns
+    -------
+    Array
+        Unit dual quaternions, numpy ``(..., 8)`` or CasADi ``8 x N``.
     """
     u, v = B.split(xi, 3, 6)
     ux, uy, uz = B.components(u, 3)
@@ -149,7 +314,17 @@ def dq_log(dq: Array) -> Array:
 
     ``u = log Q_r`` and ``v = x / sinc a + (x.u) g(a) u - w sinc(a) u`` with
     ``(w, x) = Q_d``, ``a = |u|`` and ``g(a) = (cos a - a/sin a)/a^2``.
-    Requires ``Q_r`` in the hemisphere ``w >= 0`` for a shortest screw.
+    ``Q_r`` must be in the hemisphere ``w >= 0`` for the shortest screw.
+
+    Parameters
+    ----------
+    dq : Array
+        Unit dual quaternions: numpy ``(..., 8)`` or CasADi ``8 x N``.
+
+    Returns
+    -------
+    Array
+        ``(u, v)``: numpy ``(..., 6)`` or CasADi ``6 x N``.
     """
     real, dual = dq_parts(dq)
     u = quat_log(real)
@@ -169,7 +344,20 @@ def dq_log(dq: Array) -> Array:
 
 
 def dq_power(dq: Array, t: Array) -> Array:
-    """``Q^t = exp(t log Q)``: the screw motion scaled by ``t`` (a scalar or one exponent per element)."""
+    """Power ``Q^t = exp(t log Q)``: the screw motion of ``Q`` scaled by ``t``.
+
+    Parameters
+    ----------
+    dq : Array
+        Unit dual quaternions (``w >= 0`` in ``Q_r``): numpy ``(..., 8)`` or CasADi ``8 x N``.
+    t : Array
+        A scalar, or one exponent per element (numpy ``(...)``, CasADi ``1 x N``).
+
+    Returns
+    -------
+    Array
+        Unit dual quaternions, same layout.
+    """
     return dq_exp(B.scale(t, dq_log(dq), 6))
 
 
@@ -180,10 +368,35 @@ def _relative_shortest(a: Array, b: Array) -> Array:
 
 
 def dq_sclerp(a: Array, b: Array, t: Array) -> Array:
-    """Screw linear interpolation ``a (a* b)^t`` along the shorter screw."""
+    """Screw linear interpolation (ScLERP) ``a (a* b)^t`` along the shorter screw.
+
+    Parameters
+    ----------
+    a, b : Array
+        Unit dual quaternions: numpy ``(..., 8)`` or CasADi ``8 x N``.
+    t : Array
+        Interpolation parameter (``0 -> a``, ``1 -> +-b``): a scalar or one per element.
+
+    Returns
+    -------
+    Array
+        Unit dual quaternions, same layout.
+    """
     return dq_multiply(a, dq_power(_relative_shortest(a, b), t))
 
 
 def dq_pose_error(actual: Array, desired: Array) -> Array:
-    """Pose error as the 6-vector ``log(actual* desired)``, zero iff the poses agree (either sign)."""
+    """Pose error as the 6-vector ``log(actual* desired)``, zero iff the poses agree (either sign).
+
+    Parameters
+    ----------
+    actual, desired : Array
+        Unit dual quaternions: numpy ``(..., 8)`` or CasADi ``8 x N``.
+
+    Returns
+    -------
+    Array
+        ``(u, v)`` of :func:`dq_log` (``u``: half rotation vector [rad]; ``v``: metres),
+        numpy ``(..., 6)`` or CasADi ``6 x N``.
+    """
     return dq_log(_relative_shortest(actual, desired))

@@ -2,12 +2,13 @@
 
 Quaternions are Hamilton quaternions ``(w, x, y, z)``. numpy inputs carry the
 components on the last axis ``(..., 4)``; CasADi inputs carry them on the rows
-``(4, 1)`` or ``(4, N)`` (see :mod:`optikin.algebra.backend`).
+``(4, 1)`` or ``(4, N)`` (see :mod:`optikin.algebra.backend`). A rotation of
+angle ``a`` about the unit axis ``n`` is ``(cos(a/2), sin(a/2) n)``.
 
 The logarithm follows Ude, Nemec, Petric & Morimoto (ICRA 2014), the form the
-quaternion DMPs of seed 000 (eqs. 17-23) are built on: for ``q = (cos a, sin a n)``,
-``log q = a n`` (half the rotation angle along the axis) and ``exp`` is its inverse.
-Both are exact and smooth at the identity.
+quaternion DMPs of Seleem et al. 2020 (seed 000, eqs. 17-23) are built on: for
+``q = (cos a, sin a n)``, ``log q = a n`` (half the rotation angle along the axis)
+and ``exp`` is its inverse. Both are exact and smooth at the identity.
 """
 
 from __future__ import annotations
@@ -20,10 +21,23 @@ from optikin.algebra.backend import Array
 from optikin.errors import InputDataError
 
 IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
+"""The identity rotation ``(1, 0, 0, 0)``."""
+
 
 
 def quat_multiply(p: Array, q: Array) -> Array:
-    """Hamilton product ``p * q``."""
+    """Hamilton product ``p q``.
+
+    Parameters
+    ----------
+    p, q : Array
+        Quaternions ``(w, x, y, z)``: numpy ``(..., 4)`` (batch shapes broadcast) or CasADi ``4 x N``.
+
+    Returns
+    -------
+    Array
+        ``p q`` in the same layout; for rotations, ``q`` applied first, then ``p`` (``R(p q) = R(p) R(q)``).
+    """
     pw, px, py, pz = B.components(p, 4)
     qw, qx, qy, qz = B.components(q, 4)
     return B.stack(
@@ -37,40 +51,123 @@ def quat_multiply(p: Array, q: Array) -> Array:
 
 
 def quat_conjugate(q: Array) -> Array:
+    """Conjugate ``q* = (w, -x, -y, -z)``; the inverse of a unit quaternion.
+
+    Parameters
+    ----------
+    q : Array
+        Quaternions ``(w, x, y, z)``: numpy ``(..., 4)`` or CasADi ``4 x N``.
+
+    Returns
+    -------
+    Array
+        ``q*``, same layout.
+    """
     w, x, y, z = B.components(q, 4)
     return B.stack([w, -x, -y, -z])
 
 
 def quat_norm(q: Array) -> Array:
+    """Euclidean norm ``|q|``.
+
+    Parameters
+    ----------
+    q : Array
+        Quaternions ``(w, x, y, z)``: numpy ``(..., 4)`` or CasADi ``4 x N``.
+
+    Returns
+    -------
+    Array
+        numpy ``(...)`` or CasADi ``1 x N``.
+    """
     return B.sqrt(B.sum_squares(B.components(q, 4)))
 
 
 def quat_normalize(q: Array) -> Array:
+    """``q / |q|``.
+
+    Parameters
+    ----------
+    q : Array
+        Nonzero quaternions ``(w, x, y, z)``: numpy ``(..., 4)`` or CasADi ``4 x N``.
+
+    Returns
+    -------
+    Array
+        Unit quaternions, same layout.
+    """
     w, x, y, z = B.components(q, 4)
     n = quat_norm(q)
     return B.stack([w / n, x / n, y / n, z / n])
 
 
 def quat_inverse(q: Array) -> Array:
-    """``q^-1 = q* / |q|^2`` (equals the conjugate for a unit quaternion)."""
+    """Inverse ``q^-1 = q* / |q|^2`` (the conjugate for a unit quaternion).
+
+    Parameters
+    ----------
+    q : Array
+        Nonzero quaternions ``(w, x, y, z)``: numpy ``(..., 4)`` or CasADi ``4 x N``.
+
+    Returns
+    -------
+    Array
+        ``q^-1``, same layout.
+    """
     w, x, y, z = B.components(q, 4)
     n2 = B.sum_squares([w, x, y, z])
     return B.stack([w / n2, -x / n2, -y / n2, -z / n2])
 
 
 def quat_from_pure(v: Array) -> Array:
-    """The pure quaternion ``(0, v)`` of a 3-vector."""
+    """The pure quaternion ``(0, v)`` of a 3-vector.
+
+    Parameters
+    ----------
+    v : Array
+        Vectors: numpy ``(..., 3)`` or CasADi ``3 x N``.
+
+    Returns
+    -------
+    Array
+        numpy ``(..., 4)`` or CasADi ``4 x N``.
+    """
     x, y, z = B.components(v, 3)
     return B.stack([0.0 * x, x, y, z])
 
 
 def quat_vector(q: Array) -> Array:
-    """The vector part ``(x, y, z)``."""
+    """The vector part ``(x, y, z)`` of a quaternion.
+
+    Parameters
+    ----------
+    q : Array
+        Quaternions ``(w, x, y, z)``: numpy ``(..., 4)`` or CasADi ``4 x N``.
+
+    Returns
+    -------
+    Array
+        numpy ``(..., 3)`` or CasADi ``3 x N``.
+    """
     return B.split(q, 1, 4)[1]
 
 
 def quat_exp(v: Array) -> Array:
-    """``exp(v) = (cos|v|, sin|v| v/|v|)`` of a 3-vector ``v`` (Ude et al. 2014, seed 000 eq. 23)."""
+    """Exponential ``exp(v) = (cos|v|, sin|v| v/|v|)`` of a 3-vector, exact and smooth at ``v = 0``.
+
+    Ude et al. 2014; the update ``exp(eta dt / 2 tau) Q`` of seed 000 eq. (23).
+    ``exp(a/2 n)`` is the rotation by ``a`` about the unit axis ``n``.
+
+    Parameters
+    ----------
+    v : Array
+        Vectors (half rotation vectors, rad): numpy ``(..., 3)`` or CasADi ``3 x N``.
+
+    Returns
+    -------
+    Array
+        Unit quaternions, numpy ``(..., 4)`` or CasADi ``4 x N``.
+    """
     x, y, z = B.components(v, 3)
     a2 = B.sum_squares([x, y, z])
     s = B.sinc_of_square(a2)
@@ -78,11 +175,22 @@ def quat_exp(v: Array) -> Array:
 
 
 def quat_log(q: Array) -> Array:
-    """``log q = a n`` for a unit ``q = (cos a, sin a n)``, with ``a`` in [0, pi].
+    """Logarithm ``log q = a n`` of a unit ``q = (cos a, sin a n)``, with ``a`` in ``[0, pi]``.
 
-    Exact and smooth at the identity. At ``q = -1`` (a full turn) the axis is
-    undefined: the result is ``(pi, 0, 0)``. Keep sequences in one hemisphere
-    (:func:`quat_hemisphere_continuous`) to stay away from it.
+    Ude et al. 2014; the gap ``2 log(Q_g conj(Q))`` of seed 000 eq. (19) is the rotation
+    vector from ``Q`` to ``Q_g``. Exact and smooth at the identity. At ``q = -1`` (a full
+    turn) the axis is undefined: the result is ``(pi, 0, 0)``. Keep sequences in one
+    hemisphere (:func:`quat_hemisphere_continuous`) to stay away from it.
+
+    Parameters
+    ----------
+    q : Array
+        Unit quaternions ``(w, x, y, z)``: numpy ``(..., 4)`` or CasADi ``4 x N``.
+
+    Returns
+    -------
+    Array
+        Half rotation vectors [rad], numpy ``(..., 3)`` or CasADi ``3 x N``; inverse of :func:`quat_exp`.
     """
     w, x, y, z = B.components(q, 4)
     s2 = B.sum_squares([x, y, z])
@@ -98,18 +206,55 @@ def quat_log(q: Array) -> Array:
 
 
 def quat_angle(q: Array) -> Array:
-    """Rotation angle in [0, pi] of a unit quaternion (either sign)."""
+    """Rotation angle of a unit quaternion, either sign (``q`` and ``-q`` give the same).
+
+    Parameters
+    ----------
+    q : Array
+        Unit quaternions ``(w, x, y, z)``: numpy ``(..., 4)`` or CasADi ``4 x N``.
+
+    Returns
+    -------
+    Array
+        Angles in ``[0, pi]`` [rad], numpy ``(...)`` or CasADi ``1 x N``.
+    """
     w, x, y, z = B.components(q, 4)
     return 2.0 * B.atan2(B.sqrt(B.sum_squares([x, y, z])), B.fabs(w))
 
 
 def quat_power(q: Array, t: Array) -> Array:
-    """``q^t = exp(t log q)`` of a unit quaternion; ``t`` a scalar or one exponent per quaternion."""
+    """Power ``q^t = exp(t log q)`` of a unit quaternion: the rotation scaled by ``t``.
+
+    Parameters
+    ----------
+    q : Array
+        Unit quaternions ``(w, x, y, z)``: numpy ``(..., 4)`` or CasADi ``4 x N``.
+    t : Array
+        A scalar, or one exponent per quaternion (numpy ``(...)``, CasADi ``1 x N``).
+
+    Returns
+    -------
+    Array
+        Unit quaternions, same layout as ``q``.
+    """
     return quat_exp(B.scale(t, quat_log(q), 3))
 
 
 def quat_from_axis_angle(axis: Array, angle: Array) -> Array:
-    """Rotation by ``angle`` about the unit vector ``axis``."""
+    """Rotation by ``angle`` about the unit vector ``axis``: ``(cos(angle/2), sin(angle/2) axis)``.
+
+    Parameters
+    ----------
+    axis : Array
+        Unit vectors: numpy ``(..., 3)`` or CasADi ``3 x N``.
+    angle : Array
+        Angles [rad], broadcast against the batch shape of ``axis`` (CasADi: a scalar or ``1 x N``).
+
+    Returns
+    -------
+    Array
+        Unit quaternions, numpy ``(..., 4)`` or CasADi ``4 x N``.
+    """
     x, y, z = B.components(axis, 3)
     h = 0.5 * angle
     s = B.sin(h)
@@ -117,14 +262,42 @@ def quat_from_axis_angle(axis: Array, angle: Array) -> Array:
 
 
 def quat_rotate(q: Array, v: Array) -> Array:
-    """Rotate the 3-vector ``v`` by the unit quaternion ``q`` (``q v q*``)."""
+    """Rotate 3-vectors by unit quaternions: ``vec(q (0, v) q*) = R(q) v``.
+
+    Parameters
+    ----------
+    q : Array
+        Unit quaternions ``(w, x, y, z)``: numpy ``(..., 4)`` or CasADi ``4 x N``.
+    v : Array
+        Vectors: numpy ``(..., 3)`` or CasADi ``3 x N`` (batch shapes broadcast).
+
+    Returns
+    -------
+    Array
+        The rotated vectors, numpy ``(..., 3)`` or CasADi ``3 x N``.
+    """
     return quat_vector(quat_multiply(quat_multiply(q, quat_from_pure(v)), quat_conjugate(q)))
 
 
 def matrix_from_quat(q: Array) -> Array:
-    """Rotation matrix of a unit quaternion (seed 000 eq. 6, derived again).
+    """Rotation matrix ``R(q)`` of a unit quaternion (seed 000 eq. 6, derived again: its diagonal is garbled).
 
-    numpy: ``(..., 4) -> (..., 3, 3)``; CasADi: ``(4, 1) -> (3, 3)``.
+    ``R(q) v = vec(q (0, v) q*)``: it maps vectors of the rotated frame to the reference frame.
+
+    Parameters
+    ----------
+    q : Array
+        Unit quaternions ``(w, x, y, z)``: numpy ``(..., 4)``, or one CasADi ``4 x 1``.
+
+    Returns
+    -------
+    Array
+        numpy ``(..., 3, 3)`` or CasADi ``3 x 3``.
+
+    Raises
+    ------
+    ValueError
+        For a CasADi input with more than one column.
     """
     w, x, y, z = B.components(q, 4)
     rows = [
@@ -140,11 +313,25 @@ def matrix_from_quat(q: Array) -> Array:
 
 
 def quat_from_matrix(R: Array) -> Array:
-    """Unit quaternion (w >= 0) of a rotation matrix, by Shepperd's method.
+    """Unit quaternion (``w >= 0``) of a rotation matrix, by Shepperd's method (Shepperd 1978).
 
     Of the four algebraically equal formulas, the one with the largest pivot is
-    used, so the result is accurate for every rotation. numpy: ``(..., 3, 3)``;
-    CasADi: ``3 x 3``.
+    used, so the result is accurate for every rotation; inverse of :func:`matrix_from_quat`.
+
+    Parameters
+    ----------
+    R : Array
+        Rotation matrices: numpy ``(..., 3, 3)`` or one CasADi ``3 x 3``.
+
+    Returns
+    -------
+    Array
+        numpy ``(..., 4)`` or CasADi ``4 x 1``.
+
+    Raises
+    ------
+    ValueError
+        When the matrices are not 3 x 3.
     """
     if B.is_casadi(R):
         if R.shape != (3, 3):
@@ -182,7 +369,18 @@ def quat_from_matrix(R: Array) -> Array:
 
 
 def quat_from_rpy(roll: Array, pitch: Array, yaw: Array) -> Array:
-    """Quaternion of ``R = Rz(yaw) Ry(pitch) Rx(roll)``, the convention of seed 000 eq. (30)."""
+    """Quaternion of ``R = Rz(yaw) Ry(pitch) Rx(roll)``, the convention of seed 000 eq. (30).
+
+    Parameters
+    ----------
+    roll, pitch, yaw : Array
+        Angles [rad] about x, y and z: numpy arrays (broadcast together) or CasADi rows ``1 x N``.
+
+    Returns
+    -------
+    Array
+        Unit quaternions, numpy ``(..., 4)`` or CasADi ``4 x N``; inverse of :func:`rpy_from_quat`.
+    """
     cr, sr = B.cos(0.5 * roll), B.sin(0.5 * roll)
     cp, sp = B.cos(0.5 * pitch), B.sin(0.5 * pitch)
     cy, sy = B.cos(0.5 * yaw), B.sin(0.5 * yaw)
@@ -197,13 +395,23 @@ def quat_from_rpy(roll: Array, pitch: Array, yaw: Array) -> Array:
 
 
 def rpy_from_quat(q: Array) -> Array:
-    """Roll, pitch, yaw of a unit quaternion, seed 000 eq. (30) (printed denominators garbled).
+    """Roll, pitch, yaw of a unit quaternion, seed 000 eq. (30) (its printed denominators are garbled).
 
     ``roll = atan2(2(w x + y z), 1 - 2(x^2 + y^2))``,
-    ``pitch = asin(2(w y - x z))`` (clipped to [-1, 1]),
-    ``yaw = atan2(2(w z + x y), 1 - 2(y^2 + z^2))``.
-    At pitch = +-90 degrees (gimbal lock) roll and yaw are not unique.
-    Returns ``(..., 3)`` for numpy, ``3 x N`` for CasADi.
+    ``pitch = asin(2(w y - x z))`` (argument clipped to [-1, 1]),
+    ``yaw = atan2(2(w z + x y), 1 - 2(y^2 + z^2))``, so that
+    ``R = Rz(yaw) Ry(pitch) Rx(roll)``. At pitch = +-90 degrees (gimbal lock) roll
+    and yaw are not unique.
+
+    Parameters
+    ----------
+    q : Array
+        Unit quaternions ``(w, x, y, z)``: numpy ``(..., 4)`` or CasADi ``4 x N``.
+
+    Returns
+    -------
+    Array
+        ``(roll, pitch, yaw)`` [rad], numpy ``(..., 3)`` or CasADi ``3 x N``.
     """
     w, x, y, z = B.components(q, 4)
     roll = B.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
@@ -214,10 +422,29 @@ def rpy_from_quat(q: Array) -> Array:
 
 
 def check_unit_quaternions(q: np.ndarray, source: str = "quaternions", tolerance: float = 1e-6) -> np.ndarray:
-    """Return ``q`` as a float array ``(..., 4)``, or raise naming the first sample that is not a unit quaternion.
+    """Check that ``q`` holds unit quaternions; raise naming the first sample that is not one.
 
     Rejects a wrong shape, NaN or infinite components, and ``| |q| - 1 | > tolerance``
     (sensor quaternions are unit only to a few decimals; normalise them before use).
+
+    Parameters
+    ----------
+    q : numpy.ndarray
+        Quaternions ``(w, x, y, z)``, shape ``(..., 4)``; the first axis is the sample.
+    source : str
+        Where the data came from, for the error message.
+    tolerance : float
+        Largest accepted ``| |q| - 1 |``.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``q`` as a float array ``(..., 4)``.
+
+    Raises
+    ------
+    optikin.errors.InputDataError
+        Naming ``source``, the sample and (for ``q.ndim > 2``) the quaternion's index.
     """
     q = np.asarray(q, dtype=float)
     if q.ndim == 0 or q.shape[-1] != 4:
@@ -237,7 +464,26 @@ def check_unit_quaternions(q: np.ndarray, source: str = "quaternions", tolerance
 
 
 def quat_hemisphere_continuous(qs: np.ndarray) -> np.ndarray:
-    """Flip signs along a sequence ``(T, 4)`` so consecutive quaternions have a positive dot product."""
+    """Flip signs along a sequence so consecutive quaternions have a non-negative dot product.
+
+    ``q`` and ``-q`` are the same rotation; a continuous sequence keeps logarithms and
+    interpolation away from the full-turn branch of :func:`quat_log`.
+
+    Parameters
+    ----------
+    qs : numpy.ndarray
+        Quaternions ``(T, 4)`` ``(w, x, y, z)``, in time order.
+
+    Returns
+    -------
+    numpy.ndarray
+        A copy ``(T, 4)`` with the first quaternion unchanged.
+
+    Raises
+    ------
+    ValueError
+        When ``qs`` is not ``(T, 4)``.
+    """
     qs = np.array(qs, dtype=float)
     if qs.ndim != 2 or qs.shape[1] != 4:
         raise ValueError(f"expected a sequence of shape (T, 4), got {qs.shape}")
@@ -247,7 +493,20 @@ def quat_hemisphere_continuous(qs: np.ndarray) -> np.ndarray:
 
 
 def quat_slerp(q0: Array, q1: Array, t: Array) -> Array:
-    """Spherical linear interpolation along the shorter arc: ``q0 (q0* q1)^t``."""
+    """Spherical linear interpolation along the shorter arc: ``q0 (q0* q1)^t``.
+
+    Parameters
+    ----------
+    q0, q1 : Array
+        Unit quaternions ``(w, x, y, z)``: numpy ``(..., 4)`` or CasADi ``4 x N``.
+    t : Array
+        Interpolation parameter (``0 -> q0``, ``1 -> +-q1``): a scalar or one per element.
+
+    Returns
+    -------
+    Array
+        Unit quaternions, same layout.
+    """
     rel = quat_multiply(quat_conjugate(q0), q1)
     sign = B.where(B.components(rel, 4)[0] < 0, -1.0, 1.0)
     return quat_multiply(q0, quat_power(B.scale(sign, rel, 4), t))

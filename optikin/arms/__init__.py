@@ -1,9 +1,18 @@
-"""Symbolic arm models and the factory that builds them from a problem file's ``arm`` section."""
+"""Symbolic arm models and the factory that builds them from a problem file's ``arm`` section.
+
+* :class:`ConstantCurvatureArm`: ``m`` constant-curvature sections, ``(S, theta, phi)`` each
+  (Seleem et al. 2020).
+* :class:`CBHAArm`: the Compact Bionic Handling Assistant as 16 parallel platforms,
+  ``(Z, theta, psi)`` each (Lakhal et al. 2016).
+
+Configurations, frames and layouts: ``docs/conventions.md``.
+"""
 
 from __future__ import annotations
 
 import inspect
 from pathlib import Path
+from typing import Any, cast
 
 from optikin.arms.base import ArmModel
 from optikin.arms.cbha import CBHAArm, CBHAGeometry
@@ -17,18 +26,39 @@ ARMS.register("cbha")(CBHAArm)
 __all__ = ["ArmModel", "CBHAArm", "CBHAGeometry", "ConstantCurvatureArm", "build_arm"]
 
 
-def build_arm(arm_type: str, params: dict, path: str | Path = "<arm>") -> ArmModel:
-    """Build the registered arm ``arm_type`` with ``params``; bad names or values name the field."""
+def build_arm(arm_type: str, params: dict[str, Any], path: str | Path = "<arm>") -> ArmModel:
+    """Build the registered arm ``arm_type`` from a problem file's ``arm`` section.
+
+    Parameters
+    ----------
+    arm_type : str
+        A name registered in :data:`optikin.registry.ARMS` (``constant_curvature``, ``cbha``).
+    params : dict
+        Keyword arguments of the arm's constructor (SI units).
+    path : str or pathlib.Path
+        The problem file, for error messages.
+
+    Returns
+    -------
+    ArmModel
+        The arm.
+
+    Raises
+    ------
+    optikin.errors.SpecError
+        Naming ``arm.type`` for an unknown arm, ``arm.params.<name>`` for an unknown
+        parameter, ``arm.params`` for a value the constructor rejects.
+    """
     try:
         factory = ARMS.get(arm_type)
     except Exception as exc:
-        raise SpecError(path, "arm.type", str(exc)) from None
+        raise SpecError(str(path), "arm.type", str(exc)) from None
     accepted = inspect.signature(factory).parameters
     for key in params:
         if key not in accepted or key == "self":
             known = ", ".join(p for p in accepted if p != "self")
-            raise SpecError(path, f"arm.params.{key}", f"unknown parameter of {arm_type}; known: {known}")
+            raise SpecError(str(path), f"arm.params.{key}", f"unknown parameter of {arm_type}; known: {known}")
     try:
-        return factory(**params)
+        return cast(ArmModel, factory(**params))
     except (TypeError, ValueError) as exc:
-        raise SpecError(path, "arm.params", str(exc)) from None
+        raise SpecError(str(path), "arm.params", str(exc)) from None

@@ -25,15 +25,18 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from functools import cached_property
+from typing import Any
 
 import casadi as ca
 import numpy as np
 
 from optikin.algebra import dq_from_rotation_translation, dq_translation, transform_from_dq
+from optikin.algebra.backend import Array
 from optikin.batch import batch_evaluate
 from optikin.errors import InputDataError
 
 FUNCTION_NAMES = ("fk_dq", "fk_position", "fk_transform", "section_dq", "jac_position", "jac_dq", "backbone")
+"""The Functions every arm offers (table in the module docstring)."""
 
 
 class ArmModel(ABC):
@@ -41,17 +44,24 @@ class ArmModel(ABC):
 
     Parameters
     ----------
-    name:
-        Short identifier used in problem files and reports.
-    config_names:
+    name : str
+        Short identifier used in problem files, Function names and reports.
+    config_names : tuple of str
         One name per configuration variable, e.g. ``("S1", "theta1", "phi1", ...)``.
-    lower, upper:
-        Bounds of each configuration variable (SI units).
-    backbone_points_per_section:
+    lower, upper : numpy.ndarray
+        Bounds of each configuration variable, ``(n_config,)``, SI units (m, rad).
+    backbone_points_per_section : int
         Resolution of :attr:`backbone`.
-    periodic:
+    periodic : tuple of bool, optional
         One flag per variable: True for angles the kinematics are 2 pi-periodic in
         (solvers and controllers wrap them instead of clipping at the bounds).
+        Default: none.
+
+    Raises
+    ------
+    ValueError
+        When the bounds or the flags do not have one entry per variable, or a lower
+        bound lies above its upper bound.
     """
 
     def __init__(
@@ -62,7 +72,7 @@ class ArmModel(ABC):
         upper: np.ndarray,
         backbone_points_per_section: int = 20,
         periodic: tuple[bool, ...] | None = None,
-    ):
+    ) -> None:
         self.name = name
         self.config_names = tuple(config_names)
         self.lower = np.asarray(lower, dtype=float)
@@ -79,20 +89,47 @@ class ArmModel(ABC):
 
     @property
     def n_config(self) -> int:
+        """Number of configuration variables ``n``."""
         return len(self.config_names)
 
     @property
     @abstractmethod
     def n_sections(self) -> int:
-        """Number of sections whose end poses :attr:`section_dq` reports."""
+        """Number of sections ``m`` whose end poses :attr:`section_dq` reports."""
 
     @abstractmethod
-    def section_frames(self, q: ca.SX) -> list[tuple[ca.SX, ca.SX]]:
-        """``(quaternion 4x1, position 3x1)`` of the end of every section, in the base frame."""
+    def section_frames(self, q: Array) -> list[tuple[Array, Array]]:
+        """End pose of every section in the base frame, base section first.
+
+        Parameters
+        ----------
+        q : Array
+            Configurations: a CasADi column ``n_config x 1`` (every arm) or a numpy batch
+            ``(..., n_config)`` (arms whose kinematics are written on :mod:`optikin.algebra.backend`).
+
+        Returns
+        -------
+        list of (Array, Array)
+            ``m`` pairs ``(quaternion, position [m])``: CasADi ``4 x 1`` and ``3 x 1``, or
+            numpy ``(..., 4)`` and ``(..., 3)``.
+        """
 
     @abstractmethod
     def backbone_points(self, q: ca.SX, points_per_section: int) -> ca.SX:
-        """Points along the backbone from base to tip, ``3 x K`` (base point included)."""
+        """Points along the backbone from base to tip, in the base frame.
+
+        Parameters
+        ----------
+        q : casadi.SX
+            Configuration, ``n_config x 1``.
+        points_per_section : int
+            Points per section after the base point.
+
+        Returns
+        -------
+        casadi.SX
+            ``3 x K`` [m], ``K = 1 + m points_per_section``, the base point first.
+        """
 
     # ------------------------------------------------------------------ Functions
     @cached_property
@@ -108,31 +145,38 @@ class ArmModel(ABC):
 
     @cached_property
     def fk_dq(self) -> ca.Function:
+        """``q (n x 1) -> dq (8 x 1)``: tip pose as a unit dual quaternion ``(Q_r, Q_d)`` (seed 000 eqs. 9-10)."""
         return self._function("fk_dq", self._section_dq_expr[-1], "dq")
 
     @cached_property
     def fk_position(self) -> ca.Function:
+        """``q (n x 1) -> p (3 x 1)``: tip position [m] in the base frame."""
         return self._function("fk_position", dq_translation(self._section_dq_expr[-1]), "p")
 
     @cached_property
     def fk_transform(self) -> ca.Function:
+        """``q (n x 1) -> T (4 x 4)``: tip pose as a homogeneous transform (translation in metres)."""
         return self._function("fk_transform", transform_from_dq(self._section_dq_expr[-1]), "T")
 
     @cached_property
     def section_dq(self) -> ca.Function:
+        """``q (n x 1) -> dq (8 x m)``: end pose of every section as unit dual quaternions, base section first."""
         return self._function("section_dq", ca.horzcat(*self._section_dq_expr), "dq")
 
     @cached_property
     def jac_position(self) -> ca.Function:
+        """``q (n x 1) -> J (3 x n)``: ``d p_tip / d q`` by automatic differentiation (seed 000 eqs. 3-4)."""
         p = dq_translation(self._section_dq_expr[-1])
         return self._function("jac_position", ca.jacobian(p, self._q), "J")
 
     @cached_property
     def jac_dq(self) -> ca.Function:
+        """``q (n x 1) -> J_d (8 x n)``: ``d Q_tip / d q``, the dual-quaternion Jacobian of seed 000 eq. (33)."""
         return self._function("jac_dq", ca.jacobian(self._section_dq_expr[-1], self._q), "J")
 
     @cached_property
     def backbone(self) -> ca.Function:
+        """``q (n x 1) -> points (3 x K)``: :meth:`backbone_points` at :attr:`backbone_points_per_section`."""
         pts = self.backbone_points(self._q, self.backbone_points_per_section)
         return self._function("backbone", pts, "points")
 
@@ -141,16 +185,46 @@ class ArmModel(ABC):
     """Names of the arm's own cached Functions beyond :data:`FUNCTION_NAMES`."""
 
     def function(self, name: str) -> ca.Function:
-        """The Function called ``name``: one of :data:`FUNCTION_NAMES` or :attr:`extra_function_names`."""
+        """The Function called ``name``.
+
+        Parameters
+        ----------
+        name : str
+            One of :data:`FUNCTION_NAMES` or :attr:`extra_function_names`.
+
+        Returns
+        -------
+        casadi.Function
+            Built on first use and cached; one input ``q`` (``n_config x 1``).
+
+        Raises
+        ------
+        KeyError
+            For an unknown name, listing the known ones.
+        """
         known = FUNCTION_NAMES + self.extra_function_names
         if name not in known:
             raise KeyError(f"{self.name} has no function {name!r}; known: {', '.join(known)}")
         return getattr(self, name)
 
     def evaluate(self, name: str, configurations: np.ndarray) -> np.ndarray:
-        """Evaluate Function ``name`` on a batch ``(N, n_config)``; returns ``(N, *out_shape)``.
+        """Evaluate the Function ``name`` on a batch of configurations.
 
         One zero-copy call into CasADi for the whole batch (:func:`optikin.batch.batch_evaluate`).
+
+        Parameters
+        ----------
+        name : str
+            A name accepted by :meth:`function`.
+        configurations : numpy.ndarray
+            ``(N, n_config)``, or one configuration ``(n_config,)``.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(N, rows)`` for a column output (e.g. ``fk_dq``: ``(N, 8)``), ``(N, rows, cols)``
+            otherwise (e.g. ``section_dq``: ``(N, 8, m)``); without the leading ``N`` for one
+            configuration.
         """
         Q = np.asarray(configurations, dtype=float)
         single = Q.ndim == 1
@@ -161,10 +235,31 @@ class ArmModel(ABC):
 
     def validate(self, configurations: np.ndarray, source: str = "configurations", check_bounds: bool = True,
                  tolerance: float = 1e-12) -> np.ndarray:
-        """Return ``configurations`` as a float array ``(N, n_config)`` or raise naming the bad sample.
+        """Check a batch of configurations; raise naming the bad sample and variable.
 
         Rejects a wrong shape, NaN or infinite entries and (unless ``check_bounds`` is false)
         values outside ``[lower - tolerance, upper + tolerance]``.
+
+        Parameters
+        ----------
+        configurations : numpy.ndarray
+            ``(N, n_config)`` or one configuration ``(n_config,)``, SI units.
+        source : str
+            Where the data came from, for the error message.
+        check_bounds : bool
+            Whether to check the bounds :attr:`lower`, :attr:`upper`.
+        tolerance : float
+            Slack on the bounds, in the variables' units.
+
+        Returns
+        -------
+        numpy.ndarray
+            The configurations as floats, ``(N, n_config)``.
+
+        Raises
+        ------
+        optikin.errors.InputDataError
+            Naming ``source``, the sample and the variable.
         """
         Q = np.asarray(configurations, dtype=float)
         if Q.ndim == 1:
@@ -192,11 +287,31 @@ class ArmModel(ABC):
         return Q
 
     def sample_configurations(self, n: int, rng: np.random.Generator) -> np.ndarray:
-        """``n`` configurations drawn uniformly inside the bounds."""
+        """Configurations drawn uniformly inside the bounds.
+
+        Parameters
+        ----------
+        n : int
+            Number of configurations.
+        rng : numpy.random.Generator
+            Source of the draws.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(n, n_config)``.
+        """
         return rng.uniform(self.lower, self.upper, size=(n, self.n_config))
 
-    def describe(self) -> dict:
-        """Geometry and bounds, for reports and result files."""
+    def describe(self) -> dict[str, Any]:
+        """Geometry and bounds, for reports and result files.
+
+        Returns
+        -------
+        dict
+            JSON-serialisable: ``name``, ``config_names``, ``lower``, ``upper``, ``periodic``
+            (subclasses add their geometry).
+        """
         return {
             "name": self.name,
             "config_names": list(self.config_names),
@@ -206,10 +321,17 @@ class ArmModel(ABC):
         }
 
     def transform_of(self, q: np.ndarray) -> np.ndarray:
-        """Numeric 4x4 tip transform of one configuration."""
+        """Numeric tip transform of one configuration.
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            One configuration ``(n_config,)``.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(4, 4)`` homogeneous transform, translation in metres.
+        """
         return np.asarray(self.fk_transform(np.asarray(q, dtype=float)))
 
-
-def as_transform(dq: np.ndarray) -> np.ndarray:
-    """4x4 transforms of numeric dual quaternions ``(..., 8)``."""
-    return transform_from_dq(np.asarray(dq, dtype=float))

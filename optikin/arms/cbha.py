@@ -37,6 +37,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 from functools import cached_property
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -62,17 +63,18 @@ LEG_DIRECTIONS = np.array([[-1.0, 0.0, 0.0], [0.5, np.sqrt(3.0) / 2.0, 0.0], [0.
 """Rows ``u_m``: the attachment points of eq. (3) are ``A_{m,n} = r_n u_m`` in the frame of vertebra ``n``."""
 
 CBHA_FUNCTION_NAMES = ("leg_lengths", "vertebra_positions", "vertebra_frames", "tube_points", "tube_lengths")
+"""The CBHA's Functions beyond :data:`optikin.arms.base.FUNCTION_NAMES` (table in :class:`CBHAArm`)."""
 
 
 @dataclass(frozen=True)
 class CBHAGeometry:
     """Every constant of the CBHA model; lengths in metres.
 
-    Attributes
+    Parameters
     ----------
-    n_vertebrae:
+    n_vertebrae : int
         ``N = 17`` (seed 004, section III-A).
-    r_max, r_min:
+    r_max, r_min : float
         Circumradius of the leg triangle at the base and at the apex (eq. 2). Seed 004
         gives no value and no published CBHA dimension was found, so both are assumptions.
         ``r_max = 40 mm``: with it, Table I lets each section bend about 90-110 degrees in
@@ -80,13 +82,20 @@ class CBHAGeometry:
         describes for the bellows of its Bionic Handling Assistant ("Servopneumatics lets
         robot mimic nature", Power & Motion) over the trunk's straight length at mid
         elongation, ``sum_k (q_min + q_max)/2 = 210 mm``, i.e. ``0.21 tan 3 deg = 11 mm``.
-    leg_min, leg_max:
-        Limits of the 3 legs of platform ``k = 1..N-1``: seed 004 Table I, mm -> m.
-    platforms_per_section:
+    leg_min, leg_max : tuple of float
+        Limits [m] of the 3 legs of platform ``k = 1..N-1``: seed 004 Table I, mm -> m.
+    platforms_per_section : tuple of int
         Platforms 1-8 form section 1, platforms 9-16 section 2 (seed 004 section IV-A).
-    tool_offset:
-        Distance of the tool point along the tip vertebra's z axis. Default 0: the seed
+    tool_offset : float
+        Distance [m] of the tool point along the tip vertebra's z axis. Default 0: the seed
         takes vertebra 17 as the tip and does not model the wrist and gripper.
+
+    Raises
+    ------
+    ValueError
+        For fewer than 2 vertebrae, radii not ``0 < r_min <= r_max``, limits not one per
+        platform or not ``|r_k - r_{k+1}| < leg_min <= leg_max``, sections that do not add
+        up to the platforms, or a non-finite tool offset.
     """
 
     n_vertebrae: int = 17
@@ -97,7 +106,7 @@ class CBHAGeometry:
     platforms_per_section: tuple[int, ...] = (8, 8)
     tool_offset: float = 0.0
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         for name, kind in (("leg_min", float), ("leg_max", float), ("platforms_per_section", int)):
             object.__setattr__(self, name, tuple(kind(v) for v in getattr(self, name)))
         n_platforms = self.n_vertebrae - 1
@@ -120,13 +129,29 @@ class CBHAGeometry:
 
     @property
     def n_platforms(self) -> int:
+        """Number of platforms (inter-vertebrae), ``N - 1``."""
         return self.n_vertebrae - 1
 
     def vertebra_radius(self, n: int | np.ndarray) -> float | np.ndarray:
-        """``r_n = r_max + (n - 1)/(N - 1) (r_min - r_max)``, ``n = 1..N`` (seed 004 eq. 2, re-indexed).
+        """Leg-circle radius of vertebra ``n``: ``r_n = r_max + (n - 1)/(N - 1) (r_min - r_max)`` (seed 004 eq. 2).
 
-        The printed ``k/N`` would leave the base vertebra below ``r_max``; this form puts
-        ``r_max`` at vertebra 1 and ``r_min`` at vertebra ``N``, as the text defines them.
+        Re-indexed: the printed ``k/N`` would leave the base vertebra below ``r_max``; this form
+        puts ``r_max`` at vertebra 1 and ``r_min`` at vertebra ``N``, as the text defines them.
+
+        Parameters
+        ----------
+        n : int or numpy.ndarray
+            Vertebra index (or indices) in ``1..N``.
+
+        Returns
+        -------
+        float or numpy.ndarray
+            ``r_n`` [m], of the shape of ``n``.
+
+        Raises
+        ------
+        ValueError
+            For an index that is not an integer in ``1..N``.
         """
         n_arr = np.asarray(n)
         if np.any((n_arr < 1) | (n_arr > self.n_vertebrae)) or np.any(n_arr != np.round(n_arr)):
@@ -136,8 +161,8 @@ class CBHAGeometry:
 
     @property
     def radii(self) -> np.ndarray:
-        """``r_1 .. r_N`` (eq. 2)."""
-        return self.vertebra_radius(np.arange(1, self.n_vertebrae + 1))
+        """Radii ``r_1 .. r_N`` [m] of every vertebra (eq. 2), shape ``(N,)``."""
+        return np.asarray(self.vertebra_radius(np.arange(1, self.n_vertebrae + 1)))
 
 
 # ---------------------------------------------------------------------------------------- one platform
@@ -147,10 +172,24 @@ def _transform_entries(Z: Array, theta: Array, psi: Array) -> list[list[Array]]:
 
 
 def platform_transform(Z: Array, theta: Array, psi: Array) -> Array:
-    """Seed 004 eq. (5): pose of vertebra ``k + 1`` in the frame of vertebra ``k``.
+    """Pose of vertebra ``k + 1`` in the frame of vertebra ``k`` (seed 004 eq. 5).
 
-    ``[Ry(theta) Rx(psi), (0, 0, Z); 0 0 0 1]``. CasADi inputs give a 4x4 CasADi matrix;
-    numpy inputs broadcast to ``(..., 4, 4)``.
+    ``[Ry(theta) Rx(psi), (0, 0, Z); 0 0 0 1]``.
+
+    Parameters
+    ----------
+    Z : Array
+        Height of vertebra ``k + 1`` along ``z_k`` [m].
+    theta : Array
+        Pitch about ``y_k`` [rad].
+    psi : Array
+        Roll about ``x_k`` [rad].
+
+    Returns
+    -------
+    Array
+        A CasADi ``4 x 4`` for CasADi scalars; for numpy inputs (broadcast together)
+        ``(..., 4, 4)``.
     """
     rows = _transform_entries(Z, theta, psi)
     if B.any_casadi(Z, theta, psi):
@@ -160,20 +199,47 @@ def platform_transform(Z: Array, theta: Array, psi: Array) -> Array:
 
 
 def platform_quaternion(theta: Array, psi: Array) -> Array:
-    """Unit quaternion of ``Ry(theta) Rx(psi)`` (eq. 5), composed from the two axis rotations.
+    """Unit quaternion of the platform rotation ``Ry(theta) Rx(psi)`` (seed 004 eq. 5).
 
-    Smooth in both angles; no matrix-to-quaternion branching.
+    Composed from the two axis rotations, so smooth in both angles, with no
+    matrix-to-quaternion branching.
+
+    Parameters
+    ----------
+    theta : Array
+        Pitch about ``y_k`` [rad]: numpy array or CasADi scalar/row.
+    psi : Array
+        Roll about ``x_k`` [rad], broadcast against ``theta``.
+
+    Returns
+    -------
+    Array
+        ``(w, x, y, z)``: numpy ``(..., 4)`` or CasADi ``4 x N``.
     """
     return quat_multiply(quat_from_axis_angle(np.array([0.0, 1.0, 0.0]), theta),
                          quat_from_axis_angle(np.array([1.0, 0.0, 0.0]), psi))
 
 
 def platform_leg_vectors(Z: Array, theta: Array, psi: Array, r_lower: Array, r_upper: Array) -> list[Array]:
-    """Seed 004 eq. (4): ``[Q_1, Q_2, Q_3]`` with ``Q_m = T (r_{k+1} u_m, 1) - (r_k u_m, 1)``.
+    """Leg vectors of one platform, ``Q_m = T (r_{k+1} u_m, 1) - (r_k u_m, 1)`` (seed 004 eq. 4).
 
-    ``r_lower = r_k`` (vertebra ``k``), ``r_upper = r_{k+1}``. The product with the matrix
-    ``T`` of eq. (5) is written out row by row (``A`` has no z component), so each ``Q_m`` is
-    a 3x1 CasADi vector or a numpy ``(..., 3)`` batch.
+    The product with the matrix ``T`` of eq. (5) is written out row by row (the attachment
+    points ``A = r u_m`` of eq. 3 have no z component).
+
+    Parameters
+    ----------
+    Z, theta, psi : Array
+        Platform variables (m, rad, rad): CasADi scalars or numpy arrays (broadcast together).
+    r_lower : Array
+        ``r_k``, the radius of the lower vertebra ``k`` [m].
+    r_upper : Array
+        ``r_{k+1}``, the radius of the upper vertebra ``k + 1`` [m].
+
+    Returns
+    -------
+    list of Array
+        ``[Q_1, Q_2, Q_3]`` [m] in the frame of vertebra ``k``, each a CasADi ``3 x 1`` or a
+        numpy ``(..., 3)``.
     """
     T = _transform_entries(Z, theta, psi)
     return [B.stack([T[i][0] * r_upper * ux + T[i][1] * r_upper * uy + T[i][3] - r_lower * a
@@ -182,6 +248,7 @@ def platform_leg_vectors(Z: Array, theta: Array, psi: Array, r_lower: Array, r_u
 
 
 def _platform_leg_lengths_function() -> ca.Function:
+    """The CasADi Function of :data:`PLATFORM_LEG_LENGTHS`."""
     args = [ca.SX.sym(s) for s in ("Z", "theta", "psi", "r_k", "r_k1")]
     lengths = ca.vertcat(*[ca.norm_2(Q) for Q in platform_leg_vectors(*args)])
     return ca.Function("cbha_platform_leg_lengths", args, [lengths], ["Z", "theta", "psi", "r_k", "r_k1"], ["q"])
@@ -192,9 +259,22 @@ PLATFORM_LEG_LENGTHS = _platform_leg_lengths_function()
 
 
 def printed_leg_lengths(Z: Array, theta: Array, psi: Array, r_k: Array, r_k1: Array) -> tuple[Array, Array, Array]:
-    """Seed 004 eqs. (7)-(9) exactly as printed ("sqrt" split by the extraction), for cross-checks.
+    """Leg lengths of one platform by seed 004 eqs. (7)-(9) as printed ("sqrt" split by the extraction).
 
-    The model itself uses :data:`PLATFORM_LEG_LENGTHS`, derived from eqs. (3)-(6).
+    For cross-checks: the model itself uses :data:`PLATFORM_LEG_LENGTHS`, derived from
+    eqs. (3)-(6); the tests show both agree.
+
+    Parameters
+    ----------
+    Z, theta, psi : Array
+        Platform variables (m, rad, rad): numpy arrays (broadcast together) or CasADi scalars.
+    r_k, r_k1 : Array
+        Radii ``r_k`` and ``r_{k+1}`` of the lower and upper vertebra [m].
+
+    Returns
+    -------
+    tuple of Array
+        ``(q_1, q_2, q_3)`` [m], each of the broadcast shape (numpy) or a CasADi scalar.
     """
     ct, st, cp, sp = B.cos(theta), B.sin(theta), B.cos(psi), B.sin(psi)
     s3 = np.sqrt(3.0)
@@ -206,7 +286,7 @@ def printed_leg_lengths(Z: Array, theta: Array, psi: Array, r_k: Array, r_k1: Ar
 
 
 def platform_bounds(geometry: CBHAGeometry) -> tuple[np.ndarray, np.ndarray]:
-    """Bounds ``(lower, upper)``, each ``(N-1, 3)``, on ``(Z_k, theta_k, psi_k)`` implied by Table I.
+    """Box bounds on ``(Z_k, theta_k, psi_k)`` of every platform implied by Table I of seed 004.
 
     With ``d = r_k - r_{k+1}``, summing eq. (6) over the legs gives the identity
 
@@ -226,6 +306,17 @@ def platform_bounds(geometry: CBHAGeometry) -> tuple[np.ndarray, np.ndarray]:
       the tilt. ``alpha >= |theta|, |psi|`` holds when both cosines are positive, which the
       identity guarantees if ``q_max^2 - d^2 < r_k r_{k+1}``; otherwise the bound
       ``arccos(1 - (q_max^2 - d^2) / (r_k r_{k+1}))`` from the identity alone is used.
+
+    Parameters
+    ----------
+    geometry : CBHAGeometry
+        Radii and leg limits.
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        ``(lower, upper)``, each ``(N - 1, 3)``: row ``k - 1`` bounds ``(Z_k [m], theta_k [rad],
+        psi_k [rad])``.
     """
     r = geometry.radii
     r_k, r_k1 = r[:-1], r[1:]
@@ -260,21 +351,25 @@ class CBHAArm(ArmModel):
                             (section, tube), 2 x 3
     ======================  ==============================================================
 
+    ``Z_k`` is in metres, ``theta_k`` (pitch about ``y_k``) and ``psi_k`` (roll about ``x_k``)
+    in radians; the base frame is vertebra 1, its z axis along the unbent trunk.
+
     Parameters
     ----------
-    geometry:
+    geometry : CBHAGeometry or Mapping, optional
         A :class:`CBHAGeometry`, or a mapping of its fields (e.g. from a problem file).
-    name:
-        Identifier in problem files and reports.
-    backbone_points_per_section:
+        Default: ``CBHAGeometry()``.
+    name : str
+        Identifier in problem files, Function names and reports.
+    backbone_points_per_section : int
         Points per section in :attr:`backbone`; the default, one per platform, gives the
         vertebra centres exactly.
     """
 
     extra_function_names = CBHA_FUNCTION_NAMES
 
-    def __init__(self, geometry: CBHAGeometry | Mapping | None = None, name: str = "cbha",
-                 backbone_points_per_section: int = 8):
+    def __init__(self, geometry: CBHAGeometry | Mapping[str, Any] | None = None, name: str = "cbha",
+                 backbone_points_per_section: int = 8) -> None:
         if geometry is None:
             geometry = CBHAGeometry()
         elif isinstance(geometry, Mapping):
@@ -287,6 +382,7 @@ class CBHAArm(ArmModel):
 
     @property
     def n_sections(self) -> int:
+        """Number of sections (2 by default)."""
         return len(self.geometry.platforms_per_section)
 
     @property
@@ -296,10 +392,20 @@ class CBHAArm(ArmModel):
 
     # ------------------------------------------------------------------ kinematics
     def vertebra_chain(self, q: Array) -> list[tuple[Array, Array]]:
-        """``(quaternion, position)`` of vertebrae 1..N in the base frame, by the chain of eq. (5).
+        """Poses of vertebrae 1..N in the base frame, by the chain of seed 004 eq. (5).
 
-        ``p_{k+1} = p_k + R_k (0, 0, Z_k)``, ``R_{k+1} = R_k Ry(theta_k) Rx(psi_k)``; works on a
-        CasADi column and on a numpy batch ``(..., 3(N-1))``.
+        ``p_{k+1} = p_k + R_k (0, 0, Z_k)``, ``R_{k+1} = R_k Ry(theta_k) Rx(psi_k)``.
+
+        Parameters
+        ----------
+        q : Array
+            A CasADi column ``3(N-1) x 1`` or a numpy batch ``(..., 3(N-1))``.
+
+        Returns
+        -------
+        list of (Array, Array)
+            ``N`` pairs ``(quaternion, position [m])``, vertebra 1 (the identity) first: CasADi
+            ``4 x 1`` and ``3 x 1``, or numpy ``(..., 4)`` and ``(..., 3)``.
         """
         v = B.components(q, self.n_config)
         zero = 0.0 * v[0]
@@ -313,7 +419,18 @@ class CBHAArm(ArmModel):
         return frames
 
     def section_frames(self, q: Array) -> list[tuple[Array, Array]]:
-        """Frames of vertebrae 9 and 17; the last is moved by the tool offset along its z axis."""
+        """End poses of the sections: vertebrae 9 and 17 by default, the last moved by the tool offset.
+
+        Parameters
+        ----------
+        q : Array
+            A CasADi column ``3(N-1) x 1`` or a numpy batch ``(..., 3(N-1))``.
+
+        Returns
+        -------
+        list of (Array, Array)
+            One ``(quaternion, position [m])`` per section, as :meth:`vertebra_chain`.
+        """
         chain = self._chain_of(q)
         frames = [chain[i] for i in self.section_end_vertebrae]
         quat, pos = frames[-1]
@@ -327,6 +444,18 @@ class CBHAArm(ArmModel):
         Point ``j`` of a section of ``P`` platforms lies at platform parameter ``j P / points``
         along it, linearly interpolated between vertebra centres; a multiple of ``P`` gives
         every centre. The tool offset is not part of the backbone.
+
+        Parameters
+        ----------
+        q : casadi.SX
+            Configuration ``3(N-1) x 1``.
+        points_per_section : int
+            Points per section after the base point.
+
+        Returns
+        -------
+        casadi.SX
+            ``3 x (1 + sections points_per_section)`` [m] in the base frame.
         """
         centres = [pos for _, pos in self._chain_of(q)]
         points, start = [centres[0]], 0
@@ -342,7 +471,18 @@ class CBHAArm(ArmModel):
         return ca.horzcat(*points)
 
     def leg_length_expressions(self, q: ca.SX) -> ca.SX:
-        """``q_{m,k}`` of every platform (eq. 6), ordered ``(q_{1,1}, q_{2,1}, q_{3,1}, q_{1,2}, ...)``."""
+        """Leg lengths ``q_{m,k} = |Q_{m,k}|`` of every platform (seed 004 eq. 6).
+
+        Parameters
+        ----------
+        q : casadi.SX
+            Configuration ``3(N-1) x 1``.
+
+        Returns
+        -------
+        casadi.SX
+            ``3(N-1) x 1`` [m], ordered ``(q_{1,1}, q_{2,1}, q_{3,1}, q_{1,2}, ...)`` as :attr:`leg_names`.
+        """
         r = self.geometry.radii
         return ca.vertcat(*[PLATFORM_LEG_LENGTHS(q[3 * k], q[3 * k + 1], q[3 * k + 2], r[k], r[k + 1])
                             for k in range(self.geometry.n_platforms)])
@@ -358,19 +498,23 @@ class CBHAArm(ArmModel):
 
     @cached_property
     def leg_lengths(self) -> ca.Function:
+        """``q -> lengths (3(N-1) x 1)``: every leg [m] (:meth:`leg_length_expressions`)."""
         return self._function("leg_lengths", self.leg_length_expressions(self._q), "lengths")
 
     @cached_property
     def vertebra_positions(self) -> ca.Function:
+        """``q -> positions (3 x N)``: centres of vertebrae 1..N [m] in the base frame."""
         return self._function("vertebra_positions", ca.horzcat(*[p for _, p in self._chain_expr]), "positions")
 
     @cached_property
     def vertebra_frames(self) -> ca.Function:
+        """``q -> dq (8 x N)``: poses of vertebrae 1..N as unit dual quaternions."""
         dqs = [dq_from_rotation_translation(quat, p) for quat, p in self._chain_expr]
         return self._function("vertebra_frames", ca.horzcat(*dqs), "dq")
 
     @cached_property
     def tube_points(self) -> ca.Function:
+        """``q -> points (3 x 3N)``: attachment points ``A_{m,n}`` [m]; tube 1's N points, then tube 2's, tube 3's."""
         r = self.geometry.radii
         chain = self._chain_expr
         offsets = [ca.mtimes(matrix_from_quat(quat), r[n] * LEG_DIRECTIONS.T) for n, (quat, _) in enumerate(chain)]
@@ -379,6 +523,7 @@ class CBHAArm(ArmModel):
 
     @cached_property
     def tube_lengths(self) -> ca.Function:
+        """``q -> lengths (sections x 3)``: ``sum_k q_{m,k}`` [m] over each section's platforms, per tube."""
         legs = ca.reshape(self.leg_length_expressions(self._q), 3, self.geometry.n_platforms)  # tube x platform
         bounds = (0,) + self.section_end_vertebrae
         rows = [ca.sum2(legs[:, a:b]).T for a, b in zip(bounds[:-1], bounds[1:])]
@@ -386,15 +531,40 @@ class CBHAArm(ArmModel):
 
     # ------------------------------------------------------------------ legs and limits
     def leg_limits(self) -> tuple[np.ndarray, np.ndarray]:
-        """Table I limits ``(min, max)`` in metres, one per leg in the order of :attr:`leg_lengths`."""
+        """Table I limits of every leg.
+
+        Returns
+        -------
+        tuple of numpy.ndarray
+            ``(min, max)`` [m], each ``(3(N-1),)`` in the order of :attr:`leg_lengths`.
+        """
         return np.repeat(self.geometry.leg_min, 3), np.repeat(self.geometry.leg_max, 3)
 
     def check_leg_lengths(self, lengths: np.ndarray, source: str = "leg lengths",
                           tolerance: float = 1e-9) -> np.ndarray:
-        """Return ``lengths`` as ``(N, 3(N_v - 1))`` metres, or raise naming the sample and the leg.
+        """Check leg lengths against Table I of seed 004; raise naming the sample and the leg.
 
-        Rejects a wrong shape, non-finite values and lengths outside Table I (seed 004)
-        by more than ``tolerance``.
+        Rejects a wrong shape, non-finite values and lengths outside Table I by more than
+        ``tolerance``.
+
+        Parameters
+        ----------
+        lengths : numpy.ndarray
+            ``(N, 3(N_v - 1))`` [m] in the order of :attr:`leg_names`, or one row.
+        source : str
+            Where the data came from, for the error message.
+        tolerance : float
+            Slack on the limits [m].
+
+        Returns
+        -------
+        numpy.ndarray
+            The lengths as floats, ``(N, 3(N_v - 1))`` [m].
+
+        Raises
+        ------
+        optikin.errors.InputDataError
+            Naming ``source``, the sample and the leg (``q{m}_{k}``).
         """
         L = np.asarray(lengths, dtype=float)
         L = L[None, :] if L.ndim == 1 else L
@@ -418,7 +588,29 @@ class CBHAArm(ArmModel):
 
     def validate(self, configurations: np.ndarray, source: str = "configurations", check_bounds: bool = True,
                  tolerance: float = 1e-12) -> np.ndarray:
-        """As :meth:`ArmModel.validate`; with ``check_bounds`` also every leg within Table I."""
+        """As :meth:`ArmModel.validate`; with ``check_bounds`` also every leg within Table I.
+
+        Parameters
+        ----------
+        configurations : numpy.ndarray
+            ``(N, 3(N_v - 1))`` or one configuration.
+        source : str
+            Where the data came from, for the error message.
+        check_bounds : bool
+            Whether to check the box bounds and the leg limits.
+        tolerance : float
+            Slack on the box bounds.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(N, 3(N_v - 1))``.
+
+        Raises
+        ------
+        optikin.errors.InputDataError
+            Naming ``source``, the sample and the variable or leg.
+        """
         Q = super().validate(configurations, source, check_bounds, tolerance)
         if check_bounds:
             self.check_leg_lengths(self.evaluate("leg_lengths", Q).reshape(len(Q), -1), source)
@@ -428,6 +620,21 @@ class CBHAArm(ArmModel):
         """The straight pose with every leg at ``q_min + fraction (q_max - q_min)`` (Table I).
 
         ``theta_k = psi_k = 0`` and ``Z_k = sqrt(q_k^2 - (r_k - r_{k+1})^2)``.
+
+        Parameters
+        ----------
+        fraction : float
+            Where in ``[0, 1]`` each leg lies between its limits.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(3(N_v - 1),)``; the tip lies on the base z axis.
+
+        Raises
+        ------
+        ValueError
+            For a fraction outside ``[0, 1]``.
         """
         if not 0.0 <= fraction <= 1.0:
             raise ValueError(f"fraction must be within [0, 1], got {fraction}")
@@ -442,6 +649,18 @@ class CBHAArm(ArmModel):
         Each platform is drawn uniformly inside its bounds and redrawn until its three legs
         are within Table I and their upper ends above the lower vertebra (the assumption of
         :func:`platform_bounds`): the database generation of seed 004, Fig. 7.
+
+        Parameters
+        ----------
+        n : int
+            Number of configurations.
+        rng : numpy.random.Generator
+            Source of the draws.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(n, 3(N_v - 1))``.
         """
         g, r = self.geometry, self.geometry.radii
         lower, upper = self.lower.reshape(-1, 3), self.upper.reshape(-1, 3)
@@ -450,12 +669,20 @@ class CBHAArm(ArmModel):
             kept = np.empty((0, 3))
             while len(kept) < n:
                 draw = rng.uniform(lower[k], upper[k], size=(max(4 * n, 64), 3))
-                Q = np.stack(platform_leg_vectors(*draw.T, r[k], r[k + 1]), axis=1)  # (draw, leg, xyz)
+                Z, theta, psi = draw.T
+                Q = np.stack(platform_leg_vectors(Z, theta, psi, r[k], r[k + 1]), axis=1)  # (draw, leg, xyz)
                 legs = np.linalg.norm(Q, axis=-1)
                 ok = np.all((legs >= g.leg_min[k]) & (legs <= g.leg_max[k]) & (Q[..., 2] >= 0.0), axis=1)
                 kept = np.vstack([kept, draw[ok]])
             out[:, k] = kept[:n]
         return out.reshape(n, -1)
 
-    def describe(self) -> dict:
+    def describe(self) -> dict[str, Any]:
+        """:meth:`ArmModel.describe` plus ``kind`` and the ``geometry`` fields.
+
+        Returns
+        -------
+        dict
+            JSON-serialisable geometry and bounds (lengths in metres, angles in radians).
+        """
         return super().describe() | {"kind": "cbha", "geometry": asdict(self.geometry)}

@@ -1,9 +1,9 @@
-"""Multi-section constant-curvature (CC) arm, seed 000 section II.
+"""Multi-section constant-curvature (CC) arm, Seleem et al. 2020 (seed 000) section II.
 
 Each section ``i`` has configuration ``(S_i, theta_i, phi_i)``: arc length,
 bending angle (``theta = kappa S``) and bending-plane angle. The section's
-rotation relative to its base is ``R = Rz(phi) Ry(theta) Rz(-phi)`` and its tip
-lies at
+rotation relative to its base is ``R = Rz(phi) Ry(theta) Rz(-phi)`` (the
+convention of Webster & Jones 2010) and its tip lies at
 
     p = S [cos(phi) (1 - cos theta)/theta,  sin(phi) (1 - cos theta)/theta,  sin(theta)/theta].
 
@@ -26,6 +26,8 @@ a twist about the tip axis (which a CC section cannot make) is discarded.
 
 from __future__ import annotations
 
+from typing import Any, Sequence, cast
+
 import casadi as ca
 import numpy as np
 
@@ -43,22 +45,69 @@ DEFAULT_THETA_MAX = 2.0 * np.pi / 3.0
 
 
 def section_quaternion(theta: Array, phi: Array) -> Array:
-    """Rotation ``Rz(phi) Ry(theta) Rz(-phi)`` of one CC section as a unit quaternion."""
+    """Rotation ``Rz(phi) Ry(theta) Rz(-phi)`` of one CC section relative to its base, as a unit quaternion.
+
+    ``(cos(theta/2), -sin(theta/2) sin(phi), sin(theta/2) cos(phi), 0)``: the rotation by
+    ``theta`` about the axis ``(-sin phi, cos phi, 0)``; seed 000 eq. (1), derived again.
+
+    Parameters
+    ----------
+    theta : Array
+        Bending angle [rad]: numpy array or CasADi scalar/row.
+    phi : Array
+        Bending-plane angle [rad], broadcast against ``theta``.
+
+    Returns
+    -------
+    Array
+        Unit quaternions ``(w, x, y, z)``: numpy ``(..., 4)`` or CasADi ``4 x N``.
+    """
     h = 0.5 * theta
     s = B.sin(h)
     return B.stack([B.cos(h), -s * B.sin(phi), s * B.cos(phi), 0.0 * theta])
 
 
 def section_position(length: Array, theta: Array, phi: Array) -> Array:
-    """Tip position of one CC section relative to its base, exact at ``theta = 0``."""
+    """Tip position of one CC section relative to its base (seed 000 eq. 1, derived again).
+
+    ``S [cos(phi) (1 - cos theta)/theta, sin(phi) (1 - cos theta)/theta, sin(theta)/theta]``,
+    with both ratios exact and smooth at ``theta = 0`` (instead of the Taylor form of eq. 2).
+
+    Parameters
+    ----------
+    length : Array
+        Arc length ``S`` [m]: numpy array or CasADi scalar/row.
+    theta : Array
+        Bending angle [rad], broadcast against ``length``.
+    phi : Array
+        Bending-plane angle [rad], broadcast against ``length``.
+
+    Returns
+    -------
+    Array
+        Positions [m] in the section's base frame: numpy ``(..., 3)`` or CasADi ``3 x N``.
+    """
     radial = length * theta * B.one_minus_cos_over_square(theta)
     return B.stack([radial * B.cos(phi), radial * B.sin(phi), length * B.sinc(theta)])
 
 
 def section_angles_from_quaternion(q: Array) -> tuple[Array, Array]:
-    """``(theta, phi)`` of a CC section from its relative orientation quaternion (seed 000 eq. 8, derived again).
+    """Section angles from the orientation of a CC section relative to its base (seed 000 eq. 8, derived again).
 
-    ``theta`` is in [0, pi]; ``phi`` in (-pi, pi] (0 when the section is straight).
+    The tip z axis is ``R e_z = (sin theta cos phi, sin theta sin phi, cos theta)``, so
+    ``theta = atan2(sqrt(R13^2 + R23^2), R33)`` and ``phi = atan2(R23, R13)``; a twist about
+    the tip axis is discarded.
+
+    Parameters
+    ----------
+    q : Array
+        Unit quaternions ``(w, x, y, z)``: numpy ``(..., 4)`` or CasADi ``4 x N``.
+
+    Returns
+    -------
+    tuple of Array
+        ``(theta, phi)`` [rad], each numpy ``(...)`` or CasADi ``1 x N``; ``theta`` in
+        ``[0, pi]``, ``phi`` in ``(-pi, pi]`` (0 when the section is straight).
     """
     w, x, y, z = B.components(q, 4)
     r13 = 2 * (x * z + w * y)
@@ -70,10 +119,27 @@ def section_angles_from_quaternion(q: Array) -> tuple[Array, Array]:
 
 
 def relative_section_quaternions(imu_quaternions: np.ndarray, source: str = "IMU quaternions") -> np.ndarray:
-    """Seed 000 eq. (7): each section's orientation relative to the previous section's tip.
+    """Each section's orientation relative to the previous section's tip (seed 000 eq. 7).
 
-    ``imu_quaternions`` has shape ``(..., m, 4)``, each IMU reading in the base frame; a reading
-    that is not a unit quaternion is rejected, naming the sample.
+    ``Q_rel,i = Q_{i-1}^-1 Q_i`` with ``Q_0`` the identity.
+
+    Parameters
+    ----------
+    imu_quaternions : numpy.ndarray
+        ``(..., m, 4)``: the reading ``(w, x, y, z)`` of the IMU at the tip of each of the ``m``
+        sections, in the base frame; the first axis is the sample.
+    source : str
+        Where the readings came from, for the error message.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(..., m, 4)`` relative orientations, the input of :func:`section_angles_from_quaternion`.
+
+    Raises
+    ------
+    optikin.errors.InputDataError
+        When a reading is not a unit quaternion, naming the sample.
     """
     Q = check_unit_quaternions(imu_quaternions, source)
     previous = np.concatenate([np.broadcast_to([1.0, 0, 0, 0], Q[..., :1, :].shape), Q[..., :-1, :]], axis=-2)
@@ -83,14 +149,26 @@ def relative_section_quaternions(imu_quaternions: np.ndarray, source: str = "IMU
 class ConstantCurvatureArm(ArmModel):
     """An ``m``-section constant-curvature arm, ``q = (S_1, theta_1, phi_1, ..., S_m, theta_m, phi_m)``.
 
+    The base frame has its z axis along the unbent backbone; section ``i`` starts at the
+    end frame of section ``i - 1``. ``phi_i`` is periodic (solvers wrap it).
+
     Parameters
     ----------
-    section_lengths:
-        Nominal length of each section in metres (default: two 18 cm sections, seed 000).
-    length_range:
-        Bounds of ``S_i`` as fractions of the nominal length.
-    theta_max:
-        Bound on ``|theta_i|`` in radians.
+    section_lengths : tuple of float
+        Nominal length of each section [m] (default: two 18 cm sections, seed 000 section VII).
+    length_range : tuple of float
+        Bounds ``(low, high)`` of ``S_i`` as fractions of the nominal length, ``0 < low <= high``.
+    theta_max : float
+        Bound on ``|theta_i|`` [rad], in ``(0, pi]``.
+    name : str
+        Identifier in problem files, Function names and reports.
+    backbone_points_per_section : int
+        Points per section in :attr:`backbone`.
+
+    Raises
+    ------
+    ValueError
+        For non-positive lengths or bounds outside the ranges above.
     """
 
     def __init__(
@@ -100,7 +178,7 @@ class ConstantCurvatureArm(ArmModel):
         theta_max: float = DEFAULT_THETA_MAX,
         name: str = "cc",
         backbone_points_per_section: int = 20,
-    ):
+    ) -> None:
         lengths = np.asarray(section_lengths, dtype=float)
         if lengths.ndim != 1 or len(lengths) == 0 or np.any(lengths <= 0):
             raise ValueError(f"section_lengths must be positive, got {section_lengths}")
@@ -121,21 +199,49 @@ class ConstantCurvatureArm(ArmModel):
 
     @property
     def n_sections(self) -> int:
+        """Number of sections ``m``."""
         return len(self.section_lengths)
 
     def section_frames(self, q: Array) -> list[tuple[Array, Array]]:
-        """Chain the section transforms: ``p_i = p_{i-1} + R_{i-1} p_rel``, ``q_i = q_{i-1} q_rel`` (eq. 5).
+        """End pose of every section in the base frame, by chaining the sections (seed 000 eq. 5).
 
-        Works on a CasADi column ``q`` and on a numpy batch ``(..., 3m)`` alike.
+        ``p_i = p_{i-1} + R_{i-1} p_rel,i`` and ``q_i = q_{i-1} q_rel,i`` with ``p_rel`` from
+        :func:`section_position` and ``q_rel`` from :func:`section_quaternion`.
+
+        Parameters
+        ----------
+        q : Array
+            A CasADi column ``3m x 1`` or a numpy batch ``(..., 3m)`` of
+            ``(S_1, theta_1, phi_1, ..., S_m, theta_m, phi_m)``.
+
+        Returns
+        -------
+        list of (Array, Array)
+            ``m`` pairs ``(quaternion, position [m])``: CasADi ``4 x 1`` and ``3 x 1``, or numpy
+            ``(..., 4)`` and ``(..., 3)``.
         """
         return self._chain(q, fractions=())[0]
 
     def backbone_points(self, q: ca.SX, points_per_section: int) -> ca.SX:
-        """Points at equal arc-length fractions along every section, base point first."""
-        fractions = np.linspace(0.0, 1.0, points_per_section + 1)[1:]
-        return ca.horzcat(ca.DM.zeros(3), *self._chain(q, fractions)[1])
+        """Points at equal arc-length fractions along every section, base point first.
 
-    def _chain(self, q: Array, fractions) -> tuple[list[tuple[Array, Array]], list[Array]]:
+        Parameters
+        ----------
+        q : casadi.SX
+            Configuration ``3m x 1``.
+        points_per_section : int
+            Points per section; the last of each is the section's end.
+
+        Returns
+        -------
+        casadi.SX
+            ``3 x (1 + m points_per_section)`` [m] in the base frame.
+        """
+        fractions = np.linspace(0.0, 1.0, points_per_section + 1)[1:]
+        return cast(ca.SX, ca.horzcat(ca.DM.zeros(3), *self._chain(q, fractions)[1]))
+
+    def _chain(self, q: Array,
+               fractions: Sequence[float] | np.ndarray) -> tuple[list[tuple[Array, Array]], list[Array]]:
         """Section end frames and the points at ``fractions`` of every section."""
         variables = B.components(q, self.n_config)
         quat, pos = np.array([1.0, 0.0, 0.0, 0.0]), np.zeros(3)
@@ -149,10 +255,23 @@ class ConstantCurvatureArm(ArmModel):
         return frames, points
 
     def straight_configuration(self) -> np.ndarray:
-        """All sections straight at their nominal lengths."""
+        """All sections straight at their nominal lengths: ``(L_1, 0, 0, ..., L_m, 0, 0)``.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(3m,)``; the tip lies at ``(0, 0, sum L_i)``.
+        """
         return np.ravel([[L, 0.0, 0.0] for L in self.section_lengths])
 
-    def describe(self) -> dict:
+    def describe(self) -> dict[str, Any]:
+        """:meth:`ArmModel.describe` plus ``kind``, ``section_lengths``, ``length_range`` and ``theta_max``.
+
+        Returns
+        -------
+        dict
+            JSON-serialisable geometry and bounds (lengths in metres, angles in radians).
+        """
         return super().describe() | {
             "kind": "constant_curvature",
             "section_lengths": self.section_lengths.tolist(),
