@@ -4,8 +4,8 @@ Converting numpy to ``DM`` and back costs more than the arithmetic, so the batch
 is handed to CasADi with ``Function.buffer()``: no copies, the configurations
 ``(N, n)`` in C order *are* the column-major ``n x N`` input of ``f.map(N)``, and
 the ``rows x (cols N)`` output lands directly in a numpy array ``(N, cols, rows)``.
-Building ``f.map(n)`` the first time costs ~1 us per sample, so big batches run in
-chunks through one cached ``map(4096)`` (:class:`BatchFunction`). Figures in
+Building ``f.map(n)`` costs time in proportion to ``n``, so big batches run in
+chunks through one cached ``map(4096)`` (:class:`BatchFunction`). Timings: see
 ``BENCHMARKS.md``.
 """
 
@@ -43,12 +43,11 @@ class BatchFunction:
     """Zero-copy batched evaluation of a one-input CasADi Function over ``(N, n)`` arrays.
 
     ``batch(Q)`` returns ``(N, rows, cols)`` for output 0, the same numbers as
-    ``f.map(N)(Q.T)``. Building ``f.map(n)`` costs about 1 us per sample the first
-    time (0.1 s for n = 100,000, 1.6 s for 1,000,000), so large batches run as
-    chunks of :attr:`chunk` samples through one cached ``map(chunk)``, plus one
-    map for the remainder; maps of the last ``max_sizes`` remainder sizes are
-    cached. Calls are serialised by a lock: a buffer holds raw pointers between
-    ``set_arg`` and the call.
+    ``f.map(N)(Q.T)``. Building ``f.map(n)`` the first time costs in proportion to
+    ``n`` (see ``BENCHMARKS.md``), so large batches run as chunks of :attr:`chunk`
+    samples through one cached ``map(chunk)``, plus one map for the remainder; maps
+    of the last ``max_sizes`` remainder sizes are cached. Calls are serialised by a
+    lock: a buffer holds raw pointers between ``set_arg`` and the call.
     """
 
     def __init__(self, f: ca.Function, chunk: int = 4096, max_sizes: int = 8):

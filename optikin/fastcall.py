@@ -1,11 +1,10 @@
 """Calling a small CasADi Function from Python without the overhead of ``f(x)``.
 
-``f(q)`` converts its arguments to ``DM`` and its results back, about 12 us for a
-two-section arm; ``Function.buffer()`` evaluates in place on numpy arrays
-allocated once, about 0.5 us with CasADi's SX virtual machine and about 0.2 us
-once code-generated and compiled (``../shared/ANCHORS.md``, "Calling CasADi
-from Python"). Outputs are densified first, so every array holds all entries of
-its matrix in column-major order.
+``f(q)`` converts its arguments to ``DM`` and its results back, which for a small
+Function costs far more than the arithmetic; ``Function.buffer()`` evaluates in
+place on numpy arrays allocated once, with CasADi's SX virtual machine or, faster
+still, code-generated and compiled. Outputs are densified first, so every array
+holds all entries of its matrix in column-major order.
 
 Two ways to call, same arrays: write the inputs in place and call with no
 arguments (control loops, :mod:`optikin.control`, :mod:`optikin.curves`), or pass

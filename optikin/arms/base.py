@@ -4,7 +4,7 @@ An arm subclasses :class:`ArmModel` and writes its kinematics once, as CasADi
 ``SX`` expressions, in :meth:`ArmModel.section_frames` (the pose of the end of
 every section in the base frame) and :meth:`ArmModel.backbone_points`. From
 those the base class builds, once and lazily, the Functions that solvers,
-controllers and baselines call (DESIGN.md: one model, many uses):
+controllers and baselines call (one model, many uses):
 
 ========================  =====================================================
 ``fk_dq``                 q -> tip pose as a unit dual quaternion (8)
