@@ -142,9 +142,13 @@ def _paths(arm, Q: np.ndarray, Q_call: np.ndarray, with_compiled: bool, flags: t
 
 def bench_arm(arm, samples: int, call_samples: int, repeats: int, seed: int, tolerance: float,
               with_compiled: bool = True, flags: tuple[str, ...] = ("-O3",), compiler: str = "gcc",
-              advance: Callable[[int], None] = lambda k=1: None) -> list[PathResult]:
+              advance: Callable[[int], None] | None = None) -> list[PathResult]:
     """Time every path on ``arm``; the first result is numpy's."""
     from optikin.errors import OptikinError
+
+    if advance is None:
+        def advance(k: int = 1) -> None:
+            return None
 
     rng = np.random.default_rng(seed)
     Q = _configurations(arm, samples, rng)
@@ -165,6 +169,7 @@ def bench_arm(arm, samples: int, call_samples: int, repeats: int, seed: int, tol
         if name == "numpy":
             reference = value
         else:
+            assert reference is not None  # numpy is the first path
             result.max_abs_diff = float(np.abs(value - reference[:n]).max()) if n else 0.0
             result.agrees = bool(result.max_abs_diff <= tolerance)
         advance(1)
@@ -177,8 +182,9 @@ def bench_arm(arm, samples: int, call_samples: int, repeats: int, seed: int, tol
             advance(1)
 
     for r in results.values():
-        r.median_ms = float(np.median(r.times_ms)) if r.times_ms else None
-        r.per_sample_ns = r.median_ms * 1e6 / r.samples if r.times_ms and r.samples else None
+        median = float(np.median(r.times_ms)) if r.times_ms else None
+        r.median_ms = median
+        r.per_sample_ns = median * 1e6 / r.samples if median is not None and r.samples else None
     base = results["numpy"].per_sample_ns
     for r in results.values():
         if base and r.per_sample_ns:
@@ -198,7 +204,7 @@ def machine_info() -> dict:
         "nproc": os.cpu_count(),
         "usable_cpus": len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count(),
         "python": platform.python_version(),
-        "casadi": casadi.__version__,
+        "casadi": casadi.CasadiMeta.version(),
         "numpy": np.__version__,
         "machine": platform.machine(),
         "system": f"{platform.system()} {platform.release()}",

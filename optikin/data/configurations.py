@@ -123,12 +123,12 @@ def sweep(arm: ArmModel, data: DataSpec, params: SweepParams, path: Path) -> Con
     """
     name = arm.config_names[1] if params.variable is None else params.variable
     if name not in arm.config_names:
-        raise SpecError(path, "data.params.variable",
+        raise SpecError(str(path), "data.params.variable",
                         f"{name!r} is not a variable of {arm.name}; known: {', '.join(arm.config_names)}")
     q = 0.5 * (arm.lower + arm.upper)
     for key, value in params.fixed.items():
         if key not in arm.config_names:
-            raise SpecError(path, f"data.params.fixed.{key}", f"not a variable of {arm.name}")
+            raise SpecError(str(path), f"data.params.fixed.{key}", f"not a variable of {arm.name}")
         q[arm.config_names.index(key)] = float(value)
     j = arm.config_names.index(name)
     Q = np.tile(q, (data.samples, 1))
@@ -146,7 +146,25 @@ def configurations_from_csv(arm: ArmModel, data: DataSpec, params: CsvParams, pa
 
 
 def read_configuration_csv(csv_path: Path, names: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray | None]:
-    """Columns ``names`` (and ``t`` if present) of a CSV file with a header row."""
+    """Columns ``names`` (and ``t`` if present) of a CSV file with a header row.
+
+    Parameters
+    ----------
+    csv_path:
+        The file.
+    names:
+        The columns wanted, in order (other columns are ignored).
+
+    Returns
+    -------
+    values, t:
+        ``(rows, len(names))`` and the ``t`` column ``(rows,)``, or None without one.
+
+    Raises
+    ------
+    InputDataError
+        The file cannot be read, is empty, lacks a column or holds a cell that is not a number.
+    """
     try:
         with open(csv_path, newline="") as fh:
             rows = list(csv.reader(fh))
@@ -175,11 +193,3 @@ def read_configuration_csv(csv_path: Path, names: tuple[str, ...]) -> tuple[np.n
     t = values[:, len(names)] if "t" in wanted else None
     return values[:, : len(names)], t
 
-
-def _params(data: DataSpec, path: Path, allowed: dict[str, object]) -> dict[str, object]:
-    """TRANSITIONAL: the hand-written params check still imported by sources not yet given params models."""
-    for key in data.params:
-        if key not in allowed:
-            raise SpecError(path, f"data.params.{key}",
-                            f"unknown parameter of source {data.source!r}; known: {', '.join(allowed) or 'none'}")
-    return {**allowed, **data.params}
