@@ -3,7 +3,7 @@
 Every expected value comes from a source other than the code under test:
 pytransform3d, scipy's ``Rotation``, closed forms evaluated in extended
 precision (``np.longdouble``), or the power series of the exponential in the
-dual-quaternion algebra (summed in extended precision). Conventions (DESIGN.md):
+dual-quaternion algebra (summed in extended precision). Conventions (docs/conventions.md):
 quaternions ``(w, x, y, z)`` Hamilton; ``Q = Q_r + eps Q_d`` with
 ``Q_d = 0.5 (0, p) Q_r``; ``quat_log`` returns half the rotation vector.
 """
@@ -803,7 +803,7 @@ def test_dq_pose_error_recovers_the_relative_screw(pose, s):
 
 @pytest.mark.parametrize("offset", [0.0, 1e-3], ids=["same", "nearby"])
 def test_dq_pose_error_does_not_depend_on_the_sign_of_the_dual_quaternion(offset):
-    """Q and -Q are the same rigid pose (DESIGN: pose error 'zero iff the poses agree')."""
+    """Q and -Q are the same rigid pose: the pose error is zero iff the poses agree, either sign."""
     A = dq_from_rotation_translation(quat_from_axis_angle(unit([0.3, -0.5, 0.8]), 0.9), np.array([0.1, 0.2, 0.3]))
     B_ = dq_multiply(A, dq_exp(np.r_[0, 0, offset, offset, 0, 0]))  # B = A exp(xi)
     expected = np.r_[0, 0, offset, offset, 0, 0]
@@ -815,7 +815,7 @@ def test_dq_pose_error_does_not_depend_on_the_sign_of_the_dual_quaternion(offset
 
 
 def test_log_of_minus_one_is_not_nan():
-    """q = -1 is a full turn: log q has norm pi about any axis; a NaN is the one wrong answer (DESIGN)."""
+    """q = -1 is a full turn: log q has norm pi about any axis; a NaN is the one wrong answer."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         u = quat_log(np.array([-1.0, 0, 0, 0]))
