@@ -9,6 +9,8 @@ import pytest
 import yaml
 
 from optikin.errors import SpecError
+from optikin.problems.tracking.figures import figures, traces
+from optikin.results import read_result, redraw
 from optikin.runner import solve
 from optikin.spec import available, load_problem, project_root
 
@@ -120,3 +122,72 @@ def test_a_qp_preset_with_an_unknown_solver_is_named(tmp_path):
 def test_an_evaluation_preset_cannot_solve_a_tracking_problem(tmp_path):
     with pytest.raises(SpecError, match="cannot solve kind 'tracking'"):
         solve(str(shortened(tmp_path, "track-nominal")), solver=str(project_root() / "solvers/casadi-map.yaml"))
+
+
+FIGURES = {"tracking", "errors", "limits", "lyapunov", "step_times"}
+
+
+def test_the_figures_are_drawn_again_from_the_written_arrays_and_summary(tmp_path):
+    result, written = solve(str(shortened(tmp_path, "track-position", baselines=True)), out=tmp_path / "out")
+    assert {path.stem for path in written.glob("*.png")} == FIGURES
+    summary, arrays = read_result(written)
+    drawers = figures(arrays, summary)
+    assert set(drawers) == FIGURES
+    again = tmp_path / "again"
+    again.mkdir()
+    assert {path.stem for path in redraw(again, figures, summary, arrays)} == FIGURES
+    assert all((again / f"{name}.png").stat().st_size > 10_000 for name in FIGURES)
+    # the curves are labelled and ordered as the comparison rows, and are the runs' own
+    assert list(traces(arrays, summary)) == [row.method for row in result.comparison]
+    qp_trace = traces(arrays, summary)[result.comparison[0].method]
+    np.testing.assert_allclose(qp_trace.position_error, result.residuals, rtol=1e-12, atol=1e-15)
+
+
+def test_a_figure_whose_arrays_are_missing_is_left_out(tmp_path):
+    _, written = solve(str(shortened(tmp_path, "track-nominal")), out=tmp_path / "out", figures=False)
+    summary, arrays = read_result(written)
+    kept = {k: v for k, v in arrays.items() if not k.startswith(("V_", "step_time_"))}
+    assert set(figures(kept, summary)) == FIGURES - {"lyapunov", "step_times"}
+    assert figures({}, summary) == {}
+
+
+# --------------------------------------------------------------------------- typos in every option section
+
+
+def preset(tmp_path: Path, backend: str, options: dict) -> Path:
+    name = f"qp-typo-{backend.replace('_', '-')}"
+    out = tmp_path / f"{name}.yaml"
+    out.write_text(yaml.safe_dump({"name": name, "backend": backend, "options": options}))
+    return out
+
+
+@pytest.mark.parametrize("problem,key", [
+    ("track-nominal", "options.gian"),
+    ("track-nominal", "options.plant.lenght_scale"),
+    ("track-nominal", "options.mrac.gain_limt"),
+    ("track-nominal", "options.tolerance.position"),
+    ("track-nominal", "data.params.segment_tme"),
+    ("track-dmp", "data.params.basis_functions"),
+])
+def test_a_typo_in_an_option_section_is_an_unknown_field(tmp_path, problem, key):
+    with pytest.raises(SpecError) as error:
+        solve(str(shortened(tmp_path, problem, **{key: 1.0})))
+    assert error.value.field == key
+    assert "unknown field" in str(error.value)
+
+
+@pytest.mark.parametrize("backend,options,field,words", [
+    ("qp_osqp", {"eps_ab": 1e-7}, "options.eps_ab", "unknown field"),
+    ("qp_osqp", {"eps_abs": -1}, "options.eps_abs", "greater than 0"),
+    ("qp_osqp", {"max_iter": "many"}, "options.max_iter", "integer"),
+    ("qp_qpsolvers", {"solver": "daqp", "setings": {}}, "options.setings", "unknown field"),
+    ("qp_cvxpy", {"solvr": "CLARABEL"}, "options.solvr", "unknown field"),
+    ("qp_cvxpy", {"solver": "GUROBI9"}, "options.solver", "GUROBI9"),
+    ("qp_cvxpy_rebuild", {"solver": "CLARABEL", "warm": True}, "options.warm", "unknown field"),
+])
+def test_a_bad_qp_preset_option_names_the_preset_and_the_field(tmp_path, backend, options, field, words):
+    path = preset(tmp_path, backend, options)
+    with pytest.raises(SpecError) as error:
+        solve(str(shortened(tmp_path, "track-nominal")), solver=str(path))
+    assert error.value.path == str(path) and error.value.field == field
+    assert words in str(error.value)

@@ -1,0 +1,71 @@
+"""Problem kind ``tracking``: a continuum arm follows a tip reference in closed loop (Seleem et al. 2020, V-VI).
+
+The solver under study is the constrained QP per control step
+(:mod:`optikin.control.qp`, any ``qp`` backend preset of :mod:`optikin.solvers.qp`);
+the baselines, run on the same reference, plant and noise draws, are the paper's
+MRAC (``mrac``, :mod:`optikin.baselines.mrac`), the plain pseudo-inverse
+(``pseudo_inverse``) and damped least squares (``damped_least_squares``).
+
+The reference (``data``, family ``references`` of :mod:`optikin.data.references`)
+is either the forward kinematics of a minimum-jerk configuration path (source
+``waypoints``) or the roll-out of a pose DMP learned from the flexible-interface
+IMU demonstration (source ``dmp``: params ``task``, ``rate``, ``variant``,
+``basis``, ``demonstration_samples``, ``hold``, ``smoothing``; the run starts
+from the interface's first configuration)::
+
+    data:
+      source: waypoints
+      seed: 1                       # sensor-noise draws
+      params:
+        task: pose                  # pose (dual quaternion, 8 rows) | position (3 rows)
+        rate: 500                   # control rate [Hz], 100 .. 1000
+        waypoints: [[S1, theta1, phi1, S2, theta2, phi2], ...]   # SI units
+        segment_time: 1.5           # seconds per segment (one value or one per segment)
+        hold: 1.0                   # seconds at the last waypoint
+
+Options (all optional; :class:`~optikin.problems.tracking.options.TrackingOptions`)::
+
+    start: [..]                  # initial configuration (default: where the reference starts)
+    start_offset: [..]           # added to the start
+    gain: 10.0                   # K of the QP, pseudo-inverse and DLS (scalar or one per task row) [1/s]
+    damping: 1.0e-4              # lambda of the QP and DLS
+    rate_limits: {S: 0.1, theta: 3.14159, phi: 6.28319}   # by name or prefix [m/s, rad/s]
+    limit_margin: 1.0e-9         # kept from the configuration limits by the QP (scalar or per variable)
+    limit_gain: 1.0              # fraction of the distance to a limit one step may cover (pink: 0.5)
+    fallback: hold               # hold | damped_least_squares, when the QP solver fails
+    compiled: false              # compile the per-step CasADi Function with gcc
+    plant: {length_scale: 1.05, disturbance: [..], disturbance_window: [t_on, t_off],
+            configuration_noise: [..], tip_position_noise: 0.0005, tip_angle_noise: 0.005, feedback: tip}
+    mrac: {gain: [..], adaptation: [..], gain_limit: 100, natural_frequency: 10, damping_ratio: 1}
+    tolerance: {position_mm: 0.05, orientation_deg: 0.05}   # convergence check on the last 10 % of the run
+
+Per-step status: ``ok``, or ``failed`` where the QP solver failed and the
+fallback was applied (the reason is in the notes).
+"""
+
+from __future__ import annotations
+
+import optikin.data.references  # noqa: F401  (registers the references sources)
+from optikin.problems import ProblemContext, ProblemKind, register_kind
+from optikin.problems.tracking import figures, report
+from optikin.problems.tracking.options import TrackingOptions
+from optikin.problems.tracking.run import BASELINES, run
+from optikin.results import Result
+
+
+def solve(ctx: ProblemContext) -> Result:
+    """Run every closed loop of the problem and report it."""
+    return report.result(ctx, run(ctx))
+
+
+register_kind(ProblemKind(
+    name="tracking",
+    summary="closed-loop tip tracking: a bounded QP per control step vs MRAC, pseudo-inverse, DLS",
+    run=solve,
+    backend_families=("qp",),
+    default_solver="qp-osqp",
+    baselines=tuple(BASELINES),
+    options=TrackingOptions,
+    data_family="references",
+    figures=figures.figures,
+))

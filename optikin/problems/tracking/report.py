@@ -1,0 +1,90 @@
+"""The ``tracking`` outcome as a Result: the QP's metrics, a comparison row per controller, the arrays, notes."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from optikin.control.simulate import TrackingRun
+from optikin.problems import ProblemContext
+from optikin.problems.tracking.options import ToleranceOptions
+from optikin.problems.tracking.run import TrackingOutcome
+from optikin.results import MethodRow, Result
+
+COMPARED = {
+    "rms [mm]": "position error rms [mm]", "final [mm]": "position error final [mm]",
+    "final [deg]": "orientation error final [deg]", "outside limits": "samples outside limits",
+    "excess S [mm]": "max limit excess S [mm]", "excess theta [deg]": "max limit excess theta [deg]",
+    "step [us]": "step time median [us]",
+}
+"""Columns of the comparison table: short name -> metric of :meth:`TrackingRun.metrics`."""
+
+
+def result(ctx: ProblemContext, outcome: TrackingOutcome) -> Result:
+    """The Result of ``outcome``: per-step status of the QP (``ok``, or ``failed`` where its fallback acted)."""
+    spec, runs = ctx.spec, outcome.runs
+    qp_run = runs["qp"]
+    summaries = {name: tracking.metrics() for name, tracking in runs.items()}
+    comparison = [_row(name, tracking, summaries[name], outcome.tolerance) for name, tracking in runs.items()]
+    metrics = summaries["qp"] | {"converged": comparison[0].metrics["converged"]}
+    for name, tracking in runs.items():
+        if summaries[name].get("gain saturation steps") is not None:
+            metrics[f"{tracking.controller}: gain saturation steps"] = summaries[name]["gain saturation steps"]
+    timings = {f"{name} run [s]": value for name, value in outcome.wall.items()} | {
+        "qp step median [us]": metrics["step time median [us]"], "qp step p95 [us]": metrics["step time p95 [us]"]}
+    return Result(
+        problem=spec.name, kind=spec.kind, solver=None if ctx.solver is None else ctx.solver.name, title=spec.title,
+        arm=ctx.arm.describe(), status=["ok" if s == "ok" else "failed" for s in qp_run.status],
+        residuals=qp_run.position_error, timings=timings, metrics=metrics, comparison=comparison,
+        arrays=arrays(outcome), notes=notes(runs, summaries),
+    )
+
+
+def _row(name: str, tracking: TrackingRun, full: dict[str, Any], tolerance: ToleranceOptions) -> MethodRow:
+    row = {short: full[key] for short, key in COMPARED.items() if key in full}
+    row["converged"] = converged(full, tolerance)
+    return MethodRow(tracking.controller, "solver" if name == "qp" else "baseline", row)
+
+
+def converged(metrics: dict[str, Any], tolerance: ToleranceOptions) -> bool:
+    """Whether the final position (and orientation) errors are below the tolerance."""
+    ok = metrics["position error final [mm]"] < tolerance.position_mm
+    if "orientation error final [deg]" in metrics:
+        ok = ok and metrics["orientation error final [deg]"] < tolerance.orientation_deg
+    return bool(ok)
+
+
+def arrays(outcome: TrackingOutcome) -> dict[str, np.ndarray]:
+    """The reference and, per controller name, its configurations, rates, tip, ``V(e)`` and step times."""
+    reference = outcome.reference
+    out: dict[str, np.ndarray] = {"t": reference.t, "reference": reference.value,
+                                  "reference_position": reference.position}
+    for name, tracking in outcome.runs.items():
+        out |= {f"q_{name}": tracking.q, f"qdot_{name}": tracking.qdot, f"x_{name}": tracking.x,
+                f"V_{name}": tracking.lyapunov, f"step_time_{name}": tracking.step_time}
+        if tracking.gains is not None:
+            out[f"gains_{name}"] = tracking.gains
+    return out
+
+
+def notes(runs: dict[str, TrackingRun], summaries: dict[str, dict[str, Any]]) -> list[str]:
+    """QP failures, excursions outside the limits, and MRAC gain saturation, in words."""
+    out = []
+    qp_run = runs["qp"]
+    failed = [(t, s) for t, s in zip(qp_run.t, qp_run.status) if s != "ok"]
+    if failed:
+        out.append(f"QP solver failed on {len(failed)} steps; first at t = {failed[0][0]:.4g} s: {failed[0][1]}")
+    for name, tracking in runs.items():
+        m = summaries[name]
+        if m["samples outside limits"]:
+            worst = ", ".join(f"{variable} {m[f'max limit excess {variable} [{unit}]']:.3g} {unit}"
+                              for variable, unit in (("S", "mm"), ("theta", "deg"))
+                              if m.get(f"max limit excess {variable} [{unit}]", 0) > 0)
+            out.append(f"{tracking.controller}: outside the configuration limits on {m['samples outside limits']} "
+                       f"steps ({m['steps the controller kept or took outside']} by its own command); "
+                       f"farthest: {worst}")
+        if m.get("gain saturation steps"):
+            out.append(f"{tracking.controller}: adaptive gain saturated on {m['gain saturation steps']} steps, "
+                       f"first at t = {m['first gain saturation [s]']:.4g} s")
+    return out

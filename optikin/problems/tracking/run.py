@@ -1,0 +1,128 @@
+"""The ``tracking`` run: the reference from the data source, the start, the plant, the controllers, the closed loops."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from optikin.baselines.mrac import MRACController
+from optikin.baselines.pseudo_inverse import DampedLeastSquaresController, PseudoInverseController
+from optikin.control.base import Controller
+from optikin.control.qp import QPController
+from optikin.control.reference import Reference
+from optikin.control.simulate import Plant, TrackingRun, simulate
+from optikin.control.task import task_dimension
+from optikin.data.references import TrackingReference
+from optikin.problems import ProblemContext
+from optikin.problems.tracking.options import PlantOptions, ToleranceOptions, TrackingOptions
+
+BASELINES: dict[str, type[Controller]] = {"mrac": MRACController, "pseudo_inverse": PseudoInverseController,
+                                          "damped_least_squares": DampedLeastSquaresController}
+"""The kind's own baselines: ``baselines:`` name -> controller (its ``name`` labels its rows and curves)."""
+
+
+@dataclass
+class TrackingOutcome:
+    """The closed-loop runs of one problem.
+
+    Attributes
+    ----------
+    reference:
+        The tip reference every controller tracked.
+    runs:
+        ``"qp"`` and every baseline's name -> its run, in that order.
+    wall:
+        Seconds each run took, per name.
+    tolerance:
+        The convergence check of ``options.tolerance``.
+    """
+
+    reference: Reference
+    runs: dict[str, TrackingRun]
+    wall: dict[str, float]
+    tolerance: ToleranceOptions
+
+
+def run(ctx: ProblemContext) -> TrackingOutcome:
+    """Load the reference, build the plant and the controllers from ``ctx``, and run every closed loop."""
+    if "samples" in ctx.spec.data.model_fields_set:
+        raise ctx.error("data.samples", "not used by tracking: the run length follows from the path and rate")
+    source: TrackingReference = ctx.load_data()
+    options: TrackingOptions = ctx.options
+    q0 = _start(ctx, options, source.start)
+    plant = _plant(ctx, options.plant)
+    reference = source.reference
+    controllers = _controllers(ctx, options, reference.dt, reference.task)
+    runs: dict[str, TrackingRun] = {}
+    wall: dict[str, float] = {}
+    with ctx.progress.task(f"tracking: {len(controllers)} controllers x {len(reference.t)} steps",
+                           total=len(controllers)) as advance:
+        for name, controller in controllers.items():
+            start = time.perf_counter()
+            runs[name] = simulate(controller, reference, q0, plant, seed=ctx.spec.data.seed)
+            wall[name] = time.perf_counter() - start
+            advance()
+    return TrackingOutcome(reference, runs, wall, options.tolerance)
+
+
+def _vector(ctx: ProblemContext, value: float | list[float], n: int, field: str,
+            allow_scalar: bool = False) -> np.ndarray:
+    """``value`` as ``n`` numbers (a scalar repeated where allowed); otherwise an error naming ``field``."""
+    v = np.asarray(value, dtype=float)
+    if allow_scalar and v.ndim == 0:
+        v = np.full(n, float(v))
+    if v.shape != (n,):
+        raise ctx.error(field, f"expected {n} numbers{' or one' if allow_scalar else ''}, got {value!r}")
+    return v
+
+
+def _start(ctx: ProblemContext, options: TrackingOptions, path_start: np.ndarray) -> np.ndarray:
+    """The initial configuration: ``options.start`` (else the reference's start) plus ``options.start_offset``."""
+    n = ctx.arm.n_config
+    q0 = path_start if options.start is None else _vector(ctx, options.start, n, "options.start")
+    if options.start_offset is not None:
+        q0 = q0 + _vector(ctx, options.start_offset, n, "options.start_offset")
+    return q0
+
+
+def _plant(ctx: ProblemContext, options: PlantOptions) -> Plant:
+    """The simulated plant of ``options.plant``, its vectors checked against the arm."""
+    n = ctx.arm.n_config
+    disturbance = None
+    if options.disturbance is not None:
+        disturbance = tuple(_vector(ctx, options.disturbance, n, "options.plant.disturbance"))
+    noise = tuple(_vector(ctx, options.configuration_noise, n, "options.plant.configuration_noise",
+                          allow_scalar=True))
+    scale = options.length_scale
+    plant = Plant(length_scale=tuple(scale) if isinstance(scale, list) else scale, disturbance=disturbance,
+                  disturbance_window=options.disturbance_window or (0.0, np.inf), configuration_noise=noise,
+                  tip_position_noise=options.tip_position_noise, tip_angle_noise=options.tip_angle_noise,
+                  feedback=options.feedback)
+    try:
+        plant.length_factors(ctx.arm)
+    except ValueError as exc:
+        raise ctx.error("options.plant.length_scale", str(exc)) from None
+    return plant
+
+
+def _controllers(ctx: ProblemContext, options: TrackingOptions, dt: float, task: str) -> dict[str, Controller]:
+    """The QP controller (the preset's step solver) and every baseline of ``baselines:``, by name."""
+    arm, o = ctx.arm, options
+    common = {"compiled": o.compiled}
+    try:
+        controllers: dict[str, Controller] = {"qp": QPController(
+            arm, dt, task, o.gain, o.damping, solver=ctx.adapter.create(arm.n_config, task_dimension(task)),
+            rate_limits=o.rate_limits, margin=o.limit_margin, limit_gain=o.limit_gain, fallback=o.fallback,
+            **common)}
+        for name in ctx.spec.baselines:
+            if name == "mrac":
+                controllers[name] = MRACController(arm, dt, task, **o.mrac.model_dump(), **common)
+            elif name == "damped_least_squares":
+                controllers[name] = DampedLeastSquaresController(arm, dt, task, o.gain, o.damping, **common)
+            else:
+                controllers[name] = PseudoInverseController(arm, dt, task, o.gain, **common)
+    except ValueError as exc:
+        raise ctx.error("options", str(exc)) from None
+    return controllers
