@@ -69,7 +69,7 @@ def test_shipped_problems_and_solvers_validate():
         ({"params: {section_lengths: [0.18, 0.18]}": "params: {theta_max: 9.0}"}, "arm.params", "theta_max"),
         ({"type: constant_curvature": "type: octopus"}, "arm.type", "unknown arm 'octopus'"),
         ({"kind: fk": "kind: teleport"}, "kind", "unknown problem kind 'teleport'"),
-        ({"source: random": "source: dreams"}, "data.source", "unknown configuration source 'dreams'"),
+        ({"source: random": "source: dreams"}, "data.source", "unknown configurations source 'dreams'; known: csv, random, sweep, trajectory"),
         ({"baselines: [numpy]": "baselines: [numpy, oracle]"}, "baselines.1",
          "'oracle' is neither a baseline of kind 'fk'"),
         ({"baselines: [numpy]": "baselines: [qp-osqp]"}, "baselines.0", "solver preset 'qp-osqp' (qp) cannot solve"),
