@@ -92,7 +92,7 @@ class BatchFunction:
         out = np.empty((n, self.nnz_out))
         if n == 0:
             return out
-        x, y = memoryview(Q.reshape(-1)), memoryview(out.reshape(-1))
+        x, y = Q.reshape(-1).data, out.reshape(-1).data
         a, b, c = self.n_in, self.nnz_out, self.chunk
         with self._lock:
             full = n - n % c if n > c else 0

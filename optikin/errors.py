@@ -6,6 +6,8 @@ line prints its message and exits non-zero.
 
 from __future__ import annotations
 
+from os import PathLike
+
 
 class OptikinError(Exception):
     """Base of every error optikin raises on bad input or failed solves."""
@@ -14,7 +16,7 @@ class OptikinError(Exception):
 class SpecError(OptikinError):
     """A problem or solver file is malformed: names the file and the field."""
 
-    def __init__(self, path: str, field: str, message: str):
+    def __init__(self, path: str | PathLike[str], field: str, message: str) -> None:
         self.path, self.field = str(path), field
         where = f"{self.path}: {field}" if field else self.path
         super().__init__(f"{where}: {message}")
@@ -23,7 +25,7 @@ class SpecError(OptikinError):
 class UnknownNameError(OptikinError):
     """A name (problem, solver, kind, arm, backend) that no registry holds."""
 
-    def __init__(self, what: str, name: str, known: list[str] | tuple[str, ...]):
+    def __init__(self, what: str, name: str, known: list[str] | tuple[str, ...]) -> None:
         self.what, self.name, self.known = what, name, sorted(known)
         choices = ", ".join(self.known) if self.known else "none registered"
         super().__init__(f"unknown {what} {name!r}; known: {choices}")
@@ -35,7 +37,7 @@ class InputDataError(OptikinError):
     ``source`` says where the data came from, ``sample`` which row, ``field`` which column.
     """
 
-    def __init__(self, message: str, *, source: str = "", sample: int | None = None, field: str = ""):
+    def __init__(self, message: str, *, source: str = "", sample: int | None = None, field: str = "") -> None:
         self.source, self.sample, self.field = source, sample, field
         where = [w for w in (source, f"sample {sample}" if sample is not None else "", field) if w]
         super().__init__(f"{': '.join(where)}: {message}" if where else message)

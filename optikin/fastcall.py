@@ -15,7 +15,7 @@ overwritten by the next call: copy what you keep.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, cast
 
 import casadi as ca
 import numpy as np
@@ -46,11 +46,13 @@ class BufferedFunction:
         self.function = dense
         self.inputs = [np.zeros(dense.nnz_in(i)) for i in range(dense.n_in())]
         self.outputs = [np.zeros(dense.nnz_out(i)) for i in range(dense.n_out())]
-        self._buffer, self._trigger = dense.buffer()
+        buffer, self._trigger = dense.buffer()
+        # Any: CasADi's stub asks for a byte count that its Python binding does not take.
+        self._buffer: Any = cast(Any, buffer)
         for i, array in enumerate(self.inputs):
-            self._buffer.set_arg(i, memoryview(array))
+            self._buffer.set_arg(i, array.data)
         for i, array in enumerate(self.outputs):
-            self._buffer.set_res(i, memoryview(array))
+            self._buffer.set_res(i, array.data)
 
     def __call__(self, *args: Any) -> list[np.ndarray]:
         """Evaluate; arguments given (the first ones, in order) are copied into :attr:`inputs` first.
@@ -82,7 +84,7 @@ def _densified(f: ca.Function) -> ca.Function:
     """
     if all(f.sparsity_out(i).is_dense() for i in range(f.n_out())):
         return f
-    symbol = ca.SX if f.is_a("SXFunction") else ca.MX
+    symbol: Any = ca.SX if f.is_a("SXFunction") else ca.MX
     args = [symbol.sym(f.name_in(i), f.sparsity_in(i)) for i in range(f.n_in())]
-    outs = [ca.densify(o) for o in f(*args)]
+    outs = [ca.densify(o) for o in f.call(args)]
     return ca.Function(f"{f.name()}_dense", args, outs, f.name_in(), f.name_out())

@@ -4,17 +4,18 @@ from __future__ import annotations
 
 import sys
 from contextlib import contextmanager
-from typing import Iterator
+from typing import Any, Iterator
 
 
 class Progress:
     """Reports progress of named tasks; ``enabled=False`` (or no terminal) makes it silent."""
 
-    def __init__(self, enabled: bool = True):
+    def __init__(self, enabled: bool = True) -> None:
         self.enabled = enabled and sys.stderr.isatty()
 
     @contextmanager
     def task(self, description: str, total: int) -> Iterator["_Advance"]:
+        """Context manager of one task of ``total`` steps; yields ``advance(n=1)``."""
         if not self.enabled:
             yield _Advance(None, None)
             return
@@ -27,7 +28,7 @@ class Progress:
 
 
 class _Advance:
-    def __init__(self, bar, task_id):
+    def __init__(self, bar: Any, task_id: Any) -> None:
         self._bar, self._task = bar, task_id
 
     def __call__(self, n: int = 1) -> None:

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import shutil
-from typing import Any
+from typing import Any, Sequence
 
 from rich.console import Console
 from rich.markup import escape
@@ -50,8 +50,9 @@ def print_result(result: Result, console: Console | None = None) -> None:
         console.print(f"note: {escape(note)}")
 
 
-def print_listing(title: str, rows: list[tuple[str, ...]], columns: tuple[str, ...],
+def print_listing(title: str, rows: Sequence[tuple[str, ...]], columns: tuple[str, ...],
                   console: Console | None = None) -> None:
+    """A table titled ``title`` with ``columns`` and one row per entry of ``rows`` (e.g. ``optikin list``)."""
     console = console or wide_console()
     table = Table(title=title)
     for c in columns:
