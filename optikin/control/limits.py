@@ -91,8 +91,8 @@ class RateBounds:
         self.periodic = periodic_mask(arm, periodic)
         lower = np.array(arm.lower if lower is None else lower, dtype=float)
         upper = np.array(arm.upper if upper is None else upper, dtype=float)
-        margin = np.broadcast_to(np.asarray(margin, dtype=float), lower.shape)
-        lower, upper = lower + margin, upper - margin
+        margins = np.broadcast_to(np.asarray(margin, dtype=float), lower.shape)
+        lower, upper = lower + margins, upper - margins
         lower[self.periodic], upper[self.periodic] = -np.inf, np.inf
         if np.any(lower > upper):
             raise ValueError("margin leaves no room between the configuration limits")

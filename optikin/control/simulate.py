@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Any, Literal
 
 import casadi as ca
 import numpy as np
@@ -135,7 +135,7 @@ class TrackingRun:
         """How far each sample's configuration lies outside the limits, ``(N, n)``."""
         return limit_excess(self.arm, self.q)
 
-    def metrics(self, tail: float = 0.1, lyapunov_floor: float = 1e-10) -> dict[str, float | int | str | list]:
+    def metrics(self, tail: float = 0.1, lyapunov_floor: float = 1e-10) -> dict[str, Any]:
         """Summary numbers; ``final`` values are means over the last ``tail`` fraction of the run.
 
         ``V increasing steps`` counts steps where ``V`` grows to a value above
@@ -144,7 +144,7 @@ class TrackingRun:
         """
         names = self.arm.config_names
         last = max(1, int(round(tail * len(self.t))))
-        out: dict[str, float | int | str | list] = {}
+        out: dict[str, Any] = {}
         pos = self.position_error * MM
         out |= {"position error rms [mm]": _rms(pos), "position error max [mm]": float(pos.max()),
                 "position error final [mm]": float(pos[-last:].mean())}
@@ -177,7 +177,7 @@ class TrackingRun:
         if fallbacks:
             out["first fallback"] = f"t = {self.t[fallbacks[0]]:.4g} s: {self.status[fallbacks[0]]}"
         out["max bound slip removed"] = float(self.slip.max())
-        if self.saturated is not None:
+        if self.saturated is not None and self.gains is not None:
             steps = np.any(self.saturated, axis=1)
             out["gain saturation steps"] = int(steps.sum())
             out["first gain saturation [s]"] = float(self.t[np.argmax(steps)]) if steps.any() else None
@@ -236,8 +236,8 @@ def simulate(controller: Controller, reference: Reference, q0: np.ndarray, plant
         after[k] = q + dt * qdot
         status.append(controller.status)
         slip[k] = getattr(controller, "slip", 0.0)
-        if adaptive:
-            gains[k], saturated[k] = controller.gain, controller.saturated
+        if gains is not None and saturated is not None:
+            gains[k], saturated[k] = controller.gain, getattr(controller, "saturated")
         z = wrap_periodic(z + dt * qdot, wrapped)
     return TrackingRun(controller.name, arm, reference, Q, Qdot, X, limit_excess(arm, after), step_time, status,
                        slip, gains, saturated)

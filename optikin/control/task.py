@@ -51,6 +51,7 @@ def task_step_function(arm: ArmModel, task: Task) -> ca.Function:
     x, x_ref, xdot_ref, k = (ca.SX.sym(name, m) for name in ("x", "x_ref", "xdot_ref", "k"))
     damping = ca.SX.sym("damping")
     J = arm.function(jac_name)(q)
+    sign: ca.SX | float
     if task == "pose":
         sign = ca.if_else(ca.dot(x_ref[:4], x[:4]) < 0, -1.0, 1.0)
     else:

@@ -53,9 +53,10 @@ class TrackingView:
                                run.step_time) for label, run in runs.items()}
         return cls(first.t, first.reference.position, first.arm.describe(), traces)
 
-    def having(self, field: str) -> dict[str, Trace]:
-        """The traces that hold ``field``."""
-        return {label: trace for label, trace in self.traces.items() if getattr(trace, field) is not None}
+    def curves(self, field: str) -> dict[str, np.ndarray]:
+        """``field`` of every trace that holds it, by label."""
+        out = {label: getattr(trace, field) for label, trace in self.traces.items()}
+        return {label: curve for label, curve in out.items() if curve is not None}
 
 
 def figures(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -> dict[str, Drawer]:
@@ -73,7 +74,7 @@ def figures(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -> dic
     }
     return {name: partial(draw, view=view, title=f"{title}: {words}")
             for name, (draw, field, words) in drawn.items()
-            if view.having(field) and (name != "limits" or "config_names" in view.arm)}
+            if view.curves(field) and (name != "limits" or "config_names" in view.arm)}
 
 
 def traces(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -> dict[str, Trace]:
@@ -123,8 +124,8 @@ def reference_vs_actual(path: Path, view: TrackingView, title: str) -> None:
     fig, axes = plt.subplots(3, 1, figsize=(7.0, 7.0), sharex=True)
     for j, (ax, label) in enumerate(zip(axes, "xyz")):
         ax.plot(view.t, view.reference_position[:, j] * MM, "k--", lw=1.5, label="reference")
-        for name, trace in view.having("position").items():
-            ax.plot(view.t, trace.position[:, j] * MM, lw=1.0, label=name)
+        for name, position in view.curves("position").items():
+            ax.plot(view.t, position[:, j] * MM, lw=1.0, label=name)
         ax.set_ylabel(f"{label} [mm]")
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize=8, ncol=2)
@@ -133,13 +134,13 @@ def reference_vs_actual(path: Path, view: TrackingView, title: str) -> None:
 
 def errors(path: Path, view: TrackingView, title: str) -> None:
     """Position error [mm] and, for pose tracking, orientation error [deg] over time (Figs. 25, 27)."""
-    traces = view.having("position_error")
-    pose = any(trace.orientation_error is not None for trace in traces.values())
+    angles = view.curves("orientation_error")
+    pose = bool(angles)
     fig, axes = plt.subplots(2 if pose else 1, 1, figsize=(7.0, 5.0 if pose else 3.0), sharex=True, squeeze=False)
-    for name, trace in traces.items():
-        axes[0, 0].semilogy(view.t, np.maximum(trace.position_error * MM, 1e-6), lw=1.0, label=name)
-        if trace.orientation_error is not None:
-            axes[1, 0].semilogy(view.t, np.maximum(trace.orientation_error * DEG, 1e-6), lw=1.0, label=name)
+    for name, error in view.curves("position_error").items():
+        axes[0, 0].semilogy(view.t, np.maximum(error * MM, 1e-6), lw=1.0, label=name)
+        if name in angles:
+            axes[1, 0].semilogy(view.t, np.maximum(angles[name] * DEG, 1e-6), lw=1.0, label=name)
     axes[0, 0].set_ylabel("position error [mm]")
     if pose:
         axes[1, 0].set_ylabel("orientation error [deg]")
@@ -156,8 +157,8 @@ def limits(path: Path, view: TrackingView, title: str) -> None:
     fig, axes = plt.subplots(len(shown), 1, figsize=(7.0, 1.9 * len(shown)), sharex=True, squeeze=False)
     for ax, i in zip(axes[:, 0], shown):
         scale, unit = (MM, "mm") if names[i].startswith("S") else (DEG, "deg")
-        for method, trace in view.having("q").items():
-            ax.plot(view.t, trace.q[:, i] * scale, lw=1.0, label=method)
+        for method, q in view.curves("q").items():
+            ax.plot(view.t, q[:, i] * scale, lw=1.0, label=method)
         for bound in (lower[i], upper[i]):
             ax.axhline(bound * scale, color="r", lw=0.8, ls=":")
         ax.set_ylabel(f"{names[i]} [{unit}]")
@@ -169,8 +170,8 @@ def limits(path: Path, view: TrackingView, title: str) -> None:
 def lyapunov(path: Path, view: TrackingView, title: str) -> None:
     """``V(e) = e'e/2`` along every run (Seleem et al. 2020, eq. 36 with P = I)."""
     fig, ax = plt.subplots(figsize=(7.0, 3.0))
-    for name, trace in view.having("lyapunov").items():
-        ax.semilogy(view.t, np.maximum(trace.lyapunov, 1e-16), lw=1.0, label=name)
+    for name, V in view.curves("lyapunov").items():
+        ax.semilogy(view.t, np.maximum(V, 1e-16), lw=1.0, label=name)
     ax.set_ylabel("V(e) = e'e/2")
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8)
@@ -180,9 +181,9 @@ def lyapunov(path: Path, view: TrackingView, title: str) -> None:
 def step_times(path: Path, view: TrackingView, title: str) -> None:
     """Wall time of every control step (Jacobian evaluation included), per method."""
     fig, ax = plt.subplots(figsize=(7.0, 3.0))
-    for name, trace in view.having("step_time").items():
-        label = f"{name} (median {np.median(trace.step_time) * 1e6:.0f} us)"
-        ax.semilogy(view.t, trace.step_time * 1e6, ".", ms=1.5, label=label)
+    for name, seconds in view.curves("step_time").items():
+        label = f"{name} (median {np.median(seconds) * 1e6:.0f} us)"
+        ax.semilogy(view.t, seconds * 1e6, ".", ms=1.5, label=label)
     ax.set_ylabel("step time [us]")
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8, markerscale=6)

@@ -32,7 +32,8 @@ def result(ctx: ProblemContext, outcome: TrackingOutcome) -> Result:
         if summaries[name].get("gain saturation steps") is not None:
             metrics[f"{tracking.controller}: gain saturation steps"] = summaries[name]["gain saturation steps"]
     timings = {f"{name} run [s]": value for name, value in outcome.wall.items()} | {
-        "qp step median [us]": metrics["step time median [us]"], "qp step p95 [us]": metrics["step time p95 [us]"]}
+        "qp step median [us]": float(metrics["step time median [us]"]),
+        "qp step p95 [us]": float(metrics["step time p95 [us]"])}
     return Result(
         problem=spec.name, kind=spec.kind, solver=None if ctx.solver is None else ctx.solver.name, title=spec.title,
         arm=ctx.arm.describe(), status=["ok" if s == "ok" else "failed" for s in qp_run.status],

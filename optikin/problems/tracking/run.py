@@ -13,7 +13,7 @@ from optikin.control.base import Controller
 from optikin.control.qp import QPController
 from optikin.control.reference import Reference
 from optikin.control.simulate import Plant, TrackingRun, simulate
-from optikin.control.task import task_dimension
+from optikin.control.task import Task, task_dimension
 from optikin.data.references import TrackingReference
 from optikin.problems import ProblemContext
 from optikin.problems.tracking.options import PlantOptions, ToleranceOptions, TrackingOptions
@@ -107,22 +107,22 @@ def _plant(ctx: ProblemContext, options: PlantOptions) -> Plant:
     return plant
 
 
-def _controllers(ctx: ProblemContext, options: TrackingOptions, dt: float, task: str) -> dict[str, Controller]:
+def _controllers(ctx: ProblemContext, options: TrackingOptions, dt: float, task: Task) -> dict[str, Controller]:
     """The QP controller (the preset's step solver) and every baseline of ``baselines:``, by name."""
     arm, o = ctx.arm, options
-    common = {"compiled": o.compiled}
+    compiled = o.compiled
     try:
         controllers: dict[str, Controller] = {"qp": QPController(
             arm, dt, task, o.gain, o.damping, solver=ctx.adapter.create(arm.n_config, task_dimension(task)),
             rate_limits=o.rate_limits, margin=o.limit_margin, limit_gain=o.limit_gain, fallback=o.fallback,
-            **common)}
+            compiled=compiled)}
         for name in ctx.spec.baselines:
             if name == "mrac":
-                controllers[name] = MRACController(arm, dt, task, **o.mrac.model_dump(), **common)
+                controllers[name] = MRACController(arm, dt, task, **o.mrac.model_dump(), compiled=compiled)
             elif name == "damped_least_squares":
-                controllers[name] = DampedLeastSquaresController(arm, dt, task, o.gain, o.damping, **common)
+                controllers[name] = DampedLeastSquaresController(arm, dt, task, o.gain, o.damping, compiled=compiled)
             else:
-                controllers[name] = PseudoInverseController(arm, dt, task, o.gain, **common)
+                controllers[name] = PseudoInverseController(arm, dt, task, o.gain, compiled=compiled)
     except ValueError as exc:
         raise ctx.error("options", str(exc)) from None
     return controllers
