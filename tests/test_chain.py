@@ -14,7 +14,7 @@ import pytest
 
 from optikin.curves.catenary import catenary
 from optikin.curves.chain import c1_links, check_joints, solve_chain
-from optikin.curves.min_energy import ShapeData, ShapeEnergyModel
+from optikin.curves import ShapeData, ShapeEnergyModel
 from optikin.errors import InputDataError
 
 

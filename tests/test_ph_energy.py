@@ -14,8 +14,11 @@ from scipy.integrate import quad
 
 from optikin.curves import ph_quintic_hermite
 from optikin.curves.energy import DEFAULT_NODES, bending_energy, twist_energy
-from optikin.curves.min_energy import EnergySettings, ShapeData, ShapeEnergyModel, wrap_angle
+from optikin.curves import EnergySettings, ShapeData, ShapeEnergyModel
+from optikin.curves.min_energy import wrap_angle
 from optikin.errors import InputDataError
+from optikin.solvers import preset_of
+from optikin.spec import SolverSpec
 
 LENGTH = 0.36  # two 18 cm sections, the default constant-curvature arm
 
@@ -59,6 +62,13 @@ def random_backbones(n: int, seed: int = 5) -> list[ShapeData]:
     return [cc_two_section_data(qi) for qi in q]
 
 
+def newton_adapter(**options):
+    """The ``ph_newton`` backend (warm-started along the samples) with Newton's own defaults."""
+    spec = SolverSpec(name="newton-test", backend="ph_newton", options=options,
+                      limits={"tolerance": 1e-10, "max_iterations": 50})
+    return preset_of(spec).build()
+
+
 @pytest.fixture(scope="module")
 def model():
     return ShapeEnergyModel()
@@ -87,7 +97,7 @@ def test_bending_energy_equals_adaptive_quadrature_of_generic_curvature():
 def test_default_quadrature_is_converged_on_minimum_energy_shapes(model, theta):
     """DEFAULT_NODES reproduces adaptive quadrature to 1e-10 on the optimum, for bends up to 240 degrees."""
     data = arc_data(theta)
-    curve = model.solve_nlp(data).curve(data)
+    curve = model.curve(model.solve_nlp(data), data)
     reference = quad(lambda t: curve.curvature(t) ** 2 * curve.parametric_speed(t), 0, 1,
                      epsabs=0, epsrel=1e-13, limit=500)[0]
     errors = {n: abs(bending_energy(curve, n) - reference) / reference for n in (4, 8, DEFAULT_NODES)}
@@ -98,7 +108,7 @@ def test_default_quadrature_is_converged_on_minimum_energy_shapes(model, theta):
 def test_planar_optimum_of_planar_data_has_no_twist_energy(model):
     data = arc_data(1.0, azimuth=0.0)  # the x-z plane
     sol = model.solve_nlp(data)
-    curve = sol.curve(data)
+    curve = model.curve(sol, data)
     assert np.max(np.abs(curve.point(np.linspace(0, 1, 11))[:, 1])) < 1e-12
     assert twist_energy(curve) < 1e-12 * sol.energy
 
@@ -112,7 +122,7 @@ def test_straight_segment_has_zero_energy_and_stays_straight(model):
                              speeds=(0.36, 0.3))
     sol = model.solve_nlp(data)
     assert sol.energy < 1e-12
-    points = sol.curve(data).point(np.linspace(0, 1, 21)) - data.p0
+    points = model.curve(sol, data).point(np.linspace(0, 1, 21)) - data.p0
     off_line = points - np.outer(points @ direction, direction)
     assert np.max(np.linalg.norm(off_line, axis=1)) < 1e-7
 
@@ -128,7 +138,7 @@ def test_minimum_energy_curve_is_close_to_the_circular_arc(model, free_model, th
     t = np.linspace(0, 1, 201)
     for m, bound in ((model, 6e-3), (free_model, 3e-3)):
         sol = m.solve_nlp(data)
-        distance = distance_to_arc(sol.curve(data).point(t), theta)
+        distance = distance_to_arc(m.curve(sol, data).point(t), theta)
         assert np.max(distance) < bound * LENGTH
         assert sol.energy == pytest.approx(theta**2 / LENGTH, rel=2e-2)
     assert free_model.solve_nlp(data).arc_length == pytest.approx(LENGTH, rel=1e-10)
@@ -163,7 +173,7 @@ def test_free_speeds_with_length_held(free_model):
 def test_warm_started_trajectory_follows_the_reference(model):
     thetas = np.linspace(0.2, 2.5, 12)
     samples = [arc_data(th, azimuth=0.3 + 0.2 * k) for k, th in enumerate(thetas)]
-    fast = model.solve_trajectory(samples, "newton")
+    fast = newton_adapter().solve(model, samples)
     for data, sol in zip(samples, fast):
         reference = model.solve_nlp(data)
         assert sol.status == "ok" and not sol.notes
@@ -180,8 +190,8 @@ def test_basin_check_leaves_the_worse_branch_a_warm_start_follows(free_model):
 
     recording = recording_of("cbha-ph-shape").with_fixed_base().take(slice(0, 12))
     samples = end_data(recording, backbone_lengths(recording, "model", "test"), "test")
-    warm = free_model.solve_trajectory(samples, "newton")
-    checked = free_model.solve_trajectory(samples, "newton", basin_check=True)
+    warm = newton_adapter().solve(free_model, samples)
+    checked = newton_adapter(basin_check=True).solve(free_model, samples)
     reference = np.array([free_model.solve_nlp(d, starts=3).energy for d in samples])
     warm_energy, checked_energy = (np.array([s.energy for s in sols]) for sols in (warm, checked))
     assert all(s.status == "ok" for s in warm + checked)
@@ -193,11 +203,11 @@ def test_basin_check_leaves_the_worse_branch_a_warm_start_follows(free_model):
 
 def test_twist_weight_lowers_the_twist_of_the_optimum():
     data = random_backbones(1, seed=21)[0]
-    bending_only = ShapeEnergyModel().solve_nlp(data)
-    weighted = ShapeEnergyModel(EnergySettings(twist_weight=0.5)).solve_nlp(data)
-    twist = [twist_energy(s.curve(data)) for s in (bending_only, weighted)]
+    plain, twisting = ShapeEnergyModel(), ShapeEnergyModel(EnergySettings(twist_weight=0.5))
+    bending_only, weighted = plain.solve_nlp(data), twisting.solve_nlp(data)
+    twist = [twist_energy(m.curve(s, data)) for m, s in ((plain, bending_only), (twisting, weighted))]
     assert twist[1] <= twist[0]
-    assert bending_energy(weighted.curve(data)) >= bending_only.energy * (1 - 1e-12)
+    assert bending_energy(twisting.curve(weighted, data)) >= bending_only.energy * (1 - 1e-12)
 
 
 # -- bad input ---------------------------------------------------------------------

@@ -12,13 +12,11 @@ import numpy as np
 import pytest
 
 from optikin.arms.cbha import CBHAArm
-from optikin.curves.min_energy import EnergySettings, ShapeData
-from optikin.curves import ph_quintic_hermite
-from optikin.curves.ph_quintic import PHQuintic
+from optikin.curves import EnergySettings, PHQuintic, ShapeData, arc_length_estimate, ph_quintic_hermite
 from optikin.curves.tubes import TubeLayout, tube_lengths
 from optikin.data.markers import write_marker_csv
 from optikin.errors import InputDataError, SpecError
-from optikin.problems.ph_common import arc_length_estimate, distances_to_curves, problem_variant, recording_of
+from optikin.problems.ph_common import distances_to_curves, problem_variant, recording_of
 from optikin.problems.ph_ik import tube_length_function
 from optikin.runner import solve
 from optikin.solvers import load_preset, preset_of
@@ -88,7 +86,7 @@ def test_tube_length_function_equals_the_numpy_tubes():
             data = ShapeData.checked(rec.base_position[i], rec.base_direction[i], rec.tip_position[i],
                                      rec.tip_direction[i], length=rec.truth.backbone_length[i])
             sol = model.solve_nlp(data)
-            expected = tube_lengths(sol.curve(data), rec.base_normal[i], layout)
+            expected = tube_lengths(model.curve(sol, data), rec.base_normal[i], layout)
             np.testing.assert_allclose(np.asarray(f(sol.x, data.parameters(), rec.base_normal[i])).ravel(), expected,
                                        rtol=1e-13)
 

@@ -17,9 +17,7 @@ import pytest
 
 from optikin.algebra import dq_rotation, dq_translation, quat_rotate
 from optikin.arms.cbha import CBHAArm, CBHAGeometry
-from optikin.curves import ph_quintic_hermite
-from optikin.curves.min_energy import ShapeData, ShapeEnergyModel
-from optikin.curves.ph_quintic import PHQuintic
+from optikin.curves import PHQuintic, ShapeData, ShapeEnergyModel, ph_quintic_hermite
 from optikin.curves.tubes import (
     CBHA_TUBE_ANGLES,
     DEFAULT_TUBE_NODES,
@@ -113,7 +111,7 @@ def test_tubes_around_a_circular_arc(free_model, frame, theta, azimuth):
     """
     length, rho = 0.25, 0.035
     data = arc_data(theta, length, azimuth)
-    curve = free_model.solve_nlp(data).curve(data)
+    curve = free_model.curve(free_model.solve_nlp(data), data)
     angles = (0.0, 0.9, np.pi / 2, np.pi, -2.5)
     layout = TubeLayout(rho, rho, angles, frame)
     n0 = np.array([np.cos(azimuth), np.sin(azimuth), 0.0])  # towards the centre of the arc
@@ -216,7 +214,7 @@ def test_cbha_tube_lengths_converge_to_the_ph_tubes_as_vertebrae_multiply(free_m
         q = np.column_stack([np.full(N, 0.2 / N), np.full(N, 1.2 / N), np.zeros(N)]).ravel()
         model_lengths = arm.evaluate("tube_lengths", q[None])[0].sum(axis=0)  # section 1 + section 2
         data, n0 = cbha_end_data(arm, q)
-        ph = tube_lengths(free_model.solve_nlp(data).curve(data), n0, TubeLayout.cbha(geometry))
+        ph = tube_lengths(free_model.curve(free_model.solve_nlp(data), data), n0, TubeLayout.cbha(geometry))
         np.testing.assert_allclose(model_lengths, [0.2 + 0.035 * 1.2, 0.2 - 0.0175 * 1.2, 0.2 - 0.0175 * 1.2],
                                    atol=0.2 / N**2)
         differences.append(np.max(np.abs(ph - model_lengths)))
@@ -235,7 +233,7 @@ def test_cbha_tube_lengths_from_its_own_end_poses(free_model):
     Q = arm.sample_configurations(5, np.random.default_rng(0))
     for q in Q:
         data, n0 = cbha_end_data(arm, q)
-        ph = tube_lengths(free_model.solve_nlp(data).curve(data), n0, TubeLayout.cbha(arm.geometry))
+        ph = tube_lengths(free_model.curve(free_model.solve_nlp(data), data), n0, TubeLayout.cbha(arm.geometry))
         model_lengths = arm.evaluate("tube_lengths", q[None])[0].sum(axis=0)
         assert np.max(np.abs(ph - model_lengths)) < 1e-3
 

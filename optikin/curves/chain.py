@@ -31,14 +31,11 @@ JOINT_TOLERANCE = 1e-9
 
 @dataclass
 class ChainLink:
-    """One link of a chain: its end data, its minimum-energy solution and the curve."""
+    """One link of a chain: its end data, its minimum-energy solution and its curve."""
 
     data: ShapeData
     solution: ShapeSolution
-
-    @property
-    def curve(self) -> PHQuintic:
-        return self.solution.curve(self.data)
+    curve: PHQuintic
 
 
 def c1_links(points: np.ndarray, directions: np.ndarray, speeds: np.ndarray, *, source: str = "") -> list[ShapeData]:
@@ -96,4 +93,8 @@ def solve_chain(links: Sequence[ShapeData], model: ShapeEnergyModel, continuity:
     solvers = {"newton": model.solve_newton, "nlp": model.solve_nlp, "grid": model.solve_grid}
     if method not in solvers:
         raise ValueError(f"unknown method {method!r}; known: {', '.join(solvers)}")
-    return [ChainLink(data, solvers[method](data)) for data in links]
+    links_out = []
+    for data in links:
+        solution = solvers[method](data)
+        links_out.append(ChainLink(data, solution, model.curve(solution, data)))
+    return links_out

@@ -26,14 +26,21 @@ Three solvers, one model (:class:`ShapeEnergyModel`):
 * :meth:`ShapeEnergyModel.solve_grid` - the baseline: a dense grid over the free
   parameters (for free speeds, over ``phi0, phi2, log(s0/s1)`` with the common
   speed scale solved to meet the length).
+
+One solve is one sample; the ``ph`` backends (:mod:`optikin.solvers.ph_backends`)
+solve a trajectory of samples, warm-starting each from the previous solution. The
+model builds the curve of a solution (:meth:`ShapeEnergyModel.curve`, or
+:meth:`ShapeEnergyModel.curves` for a batch) from the same parameter layout
+(:class:`ShapeParameters`) its CasADi expressions use.
 """
 
 from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
+from typing import Any, NamedTuple, Sequence
 
 import casadi as ca
 import numpy as np
@@ -41,8 +48,9 @@ import numpy as np
 from optikin.fastcall import BufferedFunction
 from optikin.curves.energy import DEFAULT_CURVATURE_FLOOR, DEFAULT_NODES, shape_energy
 from optikin.curves.newton import kkt_newton, kkt_newton_function, modified_newton, modified_newton_function
-from optikin.curves.ph_quintic import PHQuintic, hermite_family, ph_quintic_hermite
+from optikin.curves.ph_quintic import PHQuintic, hermite_family
 from optikin.errors import InputDataError
+from optikin.solvers.base import Solution
 
 SPEED_BOUNDS = (0.2, 5.0)
 """Bounds of free end speeds, as multiples of the backbone length."""
@@ -50,8 +58,42 @@ SPEED_BOUNDS = (0.2, 5.0)
 GRID_SECANT_STEPS = 12
 """Secant steps of the free-speed grid; points whose length is still off are left out."""
 
-N_PARAMETERS = 15
-"""Layout of the parameter vector: ``p0 (3), t0 (3), p1 (3), t1 (3), s0, s1, L``."""
+
+
+class ShapeParameters(NamedTuple):
+    """The parameter vector ``P`` of :class:`ShapeEnergyModel`, by name.
+
+    ``P`` is ``p0 (3), t0 (3), p1 (3), t1 (3), s0, s1, length``: the end points, unit
+    end tangents, given end speeds ``|r'(0)|, |r'(1)|`` [m] and backbone length [m].
+    The one place that knows where each lies in ``P``; the fields are numpy views or
+    CasADi expressions, whichever ``P`` is.
+    """
+
+    p0: Any
+    t0: Any
+    p1: Any
+    t1: Any
+    s0: Any
+    s1: Any
+    length: Any
+
+    @classmethod
+    def of(cls, P: Any) -> "ShapeParameters":
+        """The fields of a parameter vector ``P`` (numpy ``(N_PARAMETERS,)`` or CasADi ``N_PARAMETERS x 1``)."""
+        fields, start = [], 0
+        for size in PARAMETER_SIZES:
+            fields.append(P[start: start + size] if size > 1 else P[start])
+            start += size
+        return cls(*fields)
+
+    def vector(self) -> np.ndarray:
+        """The numpy parameter vector of numpy fields."""
+        return np.concatenate([self.p0, self.t0, self.p1, self.t1, [self.s0, self.s1, self.length]])
+
+
+PARAMETER_SIZES = (3, 3, 3, 3, 1, 1, 1)
+"""Sizes of the fields of :class:`ShapeParameters`, in the order they lie in ``P``."""
+N_PARAMETERS = sum(PARAMETER_SIZES)
 
 
 @dataclass(frozen=True)
@@ -113,43 +155,84 @@ class ShapeData:
     @cached_property
     def _parameters(self) -> np.ndarray:
         s0, s1 = self.speeds if self.speeds is not None else (self.length or 0.0, self.length or 0.0)
-        P = np.concatenate([self.p0, self.t0, self.p1, self.t1, [s0, s1, self.length or 0.0]])
+        P = ShapeParameters(self.p0, self.t0, self.p1, self.t1, s0, s1, self.length or 0.0).vector()
         P.setflags(write=False)
         return P
 
     def parameters(self) -> np.ndarray:
-        """``p0, t0, p1, t1, s0, s1, L`` (speeds default to the length; an absent length is 0)."""
+        """The parameter vector :class:`ShapeParameters` (speeds default to the length; an absent length is 0)."""
         return self._parameters
 
 
-@dataclass
-class ShapeSolution:
-    """One minimum-energy backbone: free parameters, energy, curve, and how the solve went."""
+def arc_length_estimate(p0: np.ndarray, t0: np.ndarray, p1: np.ndarray, t1: np.ndarray) -> np.ndarray:
+    """Backbone length from the end poses alone: the circular arc through them, ``c (D/2) / sin(D/2)``.
 
-    method: str
-    x: np.ndarray
-    energy: float
-    arc_length: float
-    status: str
-    iterations: int
-    seconds: float
+    ``c`` is the chord ``|p1 - p0|`` and ``D`` the sum of the angles of the unit
+    tangents ``t0``, ``t1`` with it. Exact for a planar circular arc (where both
+    angles are half the bend); a lower bound on the length of any other curve of
+    these end poses is the chord.
+
+    Parameters
+    ----------
+    p0, t0, p1, t1:
+        End points [m] and unit end tangents, shapes ``(..., 3)`` that broadcast.
+
+    Returns
+    -------
+    numpy.ndarray
+        The lengths [m], shape ``(...)``.
+    """
+    chord = p1 - p0
+    c = np.linalg.norm(chord, axis=-1)
+    u = chord / np.maximum(c, 1e-300)[..., None]
+    D = (np.arccos(np.clip(np.sum(t0 * u, axis=-1), -1.0, 1.0))
+         + np.arccos(np.clip(np.sum(t1 * u, axis=-1), -1.0, 1.0)))
+    half = 0.5 * D
+    return c * np.where(half > 1e-8, half / np.maximum(np.sin(half), 1e-300), 1.0 + half**2 / 6.0)
+
+
+@dataclass
+class ShapeSolution(Solution):
+    """One minimum-energy backbone: a :class:`~optikin.solvers.base.Solution` with the PH fields.
+
+    ``x`` holds the free parameters ``(phi0, phi2)`` or, with free end speeds,
+    ``(phi0, phi2, s0, s1)``; the curve is :meth:`ShapeEnergyModel.curve`.
+    ``residual`` is the energy (the family's measure of the answer); ``message``
+    joins the notes of a solve that is not ``ok``.
+
+    Attributes
+    ----------
+    method:
+        ``newton``, ``ipopt`` or ``grid``.
+    energy, arc_length:
+        Energy of the curve (units of the energy functional: 1/m for bending) and its length [m].
+    evaluations:
+        Energy evaluations of a grid solve.
+    multiplier:
+        The length constraint's Lagrange multiplier (free speeds), NaN otherwise.
+    quadrature_error:
+        ``|E(2 nodes) - E(nodes)|`` of an IPOPT solution.
+    notes:
+        What happened on the way (warm start failed, fallbacks, IPOPT return statuses).
+    """
+
+    method: str = ""
+    energy: float = math.nan
+    arc_length: float = math.nan
     evaluations: int = 0
     multiplier: float = math.nan
     quadrature_error: float = math.nan
     notes: list[str] = field(default_factory=list)
 
+    def __post_init__(self) -> None:
+        self.residual = self.energy
+        if self.status != "ok" and not self.message:
+            self.message = "; ".join(self.notes)
+
     @property
     def angles(self) -> np.ndarray:
+        """The free angles ``(phi0, phi2)`` [rad]."""
         return self.x[:2]
-
-    def speeds(self, data: ShapeData) -> np.ndarray:
-        if self.x.size == 4:
-            return self.x[2:].copy()
-        return data.parameters()[12:14]
-
-    def curve(self, data: ShapeData) -> PHQuintic:
-        s0, s1 = self.speeds(data)
-        return ph_quintic_hermite(data.p0, s0 * data.t0, data.p1, s1 * data.t1, self.x[0], self.x[1], 0.0)
 
 
 def wrap_angle(a: np.ndarray | float) -> np.ndarray | float:
@@ -177,13 +260,42 @@ class ShapeEnergyModel:
         self.n_x = 4 if free_speeds else 2
         P = ca.SX.sym("P", N_PARAMETERS)
         x = ca.SX.sym("x", self.n_x)
-        p0, t0, p1, t1 = P[0:3], P[3:6], P[6:9], P[9:12]
-        s0, s1 = (x[2], x[3]) if free_speeds else (P[12], P[13])
-        curve = hermite_family(p0, s0 * t0, p1, s1 * t1).member(x[0], x[1], 0.0)
+        self._parameters = ShapeParameters.of(P)
+        curve = self._member(x, self._parameters)
         energy = shape_energy(curve, settings.twist_weight, settings.nodes, settings.curvature_floor)
-        self._x, self._P, self._energy, self._length = x, P, energy, curve.arc_length()
+        self._x, self._P, self._curve, self._energy, self._length = x, P, curve, energy, curve.arc_length()
         self.energy_function = ca.Function("ph_energy", [x, P], [energy, self._length], ["x", "P"], ["E", "S"])
         self._maps: dict[int, BufferedFunction] = {}
+
+    # -- curves -------------------------------------------------------------------
+    def _member(self, x: Any, P: ShapeParameters) -> PHQuintic:
+        """The family member at free parameters ``x`` of the data ``P`` (numpy or CasADi)."""
+        s0, s1 = (x[2], x[3]) if self.free_speeds else (P.s0, P.s1)
+        return hermite_family(P.p0, s0 * P.t0, P.p1, s1 * P.t1).member(x[0], x[1], 0.0)
+
+    def symbols(self) -> tuple[ca.SX, ca.SX, PHQuintic]:
+        """``(x, P, curve)``: the CasADi free parameters, parameter vector and the curve built from them.
+
+        For Functions of the model's curve (e.g. tube lengths) that take the same
+        ``x`` and ``P`` as the energy.
+        """
+        return self._x, self._P, self._curve
+
+    def curve(self, solution: Solution | np.ndarray, data: ShapeData) -> PHQuintic:
+        """The numpy curve of a solution (or of free parameters ``x``) for the end data ``data``."""
+        x = solution.x if isinstance(solution, Solution) else np.asarray(solution, dtype=float)
+        return self._member(x, ShapeParameters.of(data.parameters()))
+
+    def curves(self, solutions: Sequence[Solution], samples: Sequence[ShapeData]) -> PHQuintic:
+        """The curves of ``solutions`` as one numpy batch ``(N, ...)``; samples without a point get NaN coefficients."""
+        batch = []
+        for sol, data in zip(solutions, samples):
+            if np.all(np.isfinite(sol.x)):
+                batch.append(self.curve(sol, data))
+            else:
+                nan = np.full(4, np.nan)
+                batch.append(PHQuintic(data.p0, nan, nan, nan))
+        return PHQuintic(*(np.stack([getattr(c, k) for c in batch]) for k in ("p0", "A0", "A1", "A2")))
 
     # -- data checks --------------------------------------------------------------
     def _check(self, data: ShapeData, source: str = "", sample: int | None = None) -> np.ndarray:
@@ -198,7 +310,7 @@ class ShapeEnergyModel:
     def _bounds(self, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         if not self.free_speeds:
             return np.full(2, -np.inf), np.full(2, np.inf)
-        L = P[14]
+        L = ShapeParameters.of(P).length
         lo, hi = SPEED_BOUNDS
         return np.array([-np.inf, -np.inf, lo * L, lo * L]), np.array([np.inf, np.inf, hi * L, hi * L])
 
@@ -218,10 +330,13 @@ class ShapeEnergyModel:
         return E.copy(), S.copy()
 
     def coarse_starts(self, P: np.ndarray, count: int = 1) -> np.ndarray:
-        """The ``count`` best points of a ``coarse_grid`` x ``coarse_grid`` angle grid (speeds at ``L``), ``n_x x count``."""
+        """The ``count`` best points of the ``coarse_grid`` x ``coarse_grid`` angle grid (speeds at ``L``).
+
+        Returns ``n_x x count`` starts, best first.
+        """
         X = self._angle_grid(self.coarse_grid)
         if self.free_speeds:
-            X = np.vstack([X, np.full((2, X.shape[1]), P[14])])
+            X = np.vstack([X, np.full((2, X.shape[1]), ShapeParameters.of(P).length)])
         E, _ = self._evaluate_many(X, P)
         E = np.where(np.isfinite(E), E, np.inf)
         return X[:, np.argsort(E)[:count]]
@@ -231,7 +346,7 @@ class ShapeEnergyModel:
     def _nlp(self) -> ca.Function:
         problem = {"x": self._x, "p": self._P, "f": self._energy}
         if self.free_speeds:
-            problem["g"] = self._length - self._P[14]
+            problem["g"] = self._length - self._parameters.length
         options = {"print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes", "ipopt.tol": 1e-12,
                    "ipopt.max_iter": 200}
         return ca.nlpsol("ph_min_energy", "ipopt", problem, options)
@@ -257,14 +372,13 @@ class ShapeEnergyModel:
                 best = (energy, np.asarray(sol["x"]).ravel(), multiplier)
         seconds = time.perf_counter() - tic
         if best is None:
-            return ShapeSolution("ipopt", X0[:, 0], math.nan, math.nan, "failed", iterations, seconds,
-                                 notes=statuses)
+            return ShapeSolution(X0[:, 0], "failed", iterations, seconds=seconds, method="ipopt", notes=statuses)
         x = best[1].copy()
         x[:2] = wrap_angle(x[:2])
         E, S = self.energy_function(x, P)
         E_fine, _ = self._fine_energy_function(x, P)
-        return ShapeSolution("ipopt", x, float(E), float(S), "ok", iterations, seconds, multiplier=best[2],
-                             quadrature_error=abs(float(E_fine) - float(E)), notes=statuses)
+        return ShapeSolution(x, "ok", iterations, seconds=seconds, method="ipopt", energy=float(E), arc_length=float(S),
+                             multiplier=best[2], quadrature_error=abs(float(E_fine) - float(E)), notes=statuses)
 
     @cached_property
     def _fine_energy_function(self) -> ca.Function:
@@ -296,11 +410,11 @@ class ShapeEnergyModel:
         k = int(np.argmin(E))
         seconds = time.perf_counter() - tic
         status = "ok" if np.isfinite(E[k]) else "failed"
-        return ShapeSolution("grid", X[:, k].copy(), float(E[k]), float(S[k]), status, 0, seconds,
-                             evaluations=X.shape[1])
+        return ShapeSolution(X[:, k].copy(), status, 0, seconds=seconds, method="grid", energy=float(E[k]),
+                             arc_length=float(S[k]), evaluations=X.shape[1])
 
     def _grid_on_length(self, X2: np.ndarray, r: np.ndarray, P: np.ndarray):
-        L = P[14]
+        L = ShapeParameters.of(P).length
         lo, hi = SPEED_BOUNDS
 
         def length_at(k):
@@ -326,7 +440,8 @@ class ShapeEnergyModel:
     @cached_property
     def _newton_function(self) -> BufferedFunction:
         if self.free_speeds:
-            f = kkt_newton_function(self._energy, self._length - self._P[14], self._length, self._x, self._P)
+            f = kkt_newton_function(self._energy, self._length - self._parameters.length, self._length, self._x,
+                                    self._P)
         else:
             f = modified_newton_function(self._energy, self._length, self._x, self._P)
         return BufferedFunction(f, compiled=self.compile)
@@ -362,12 +477,11 @@ class ShapeEnergyModel:
         if not ok and fallback:
             notes.append("Newton failed; IPOPT fallback")
             ref = self.solve_nlp(data, starts=3)
-            ref.method, ref.seconds = "newton", time.perf_counter() - tic
-            ref.notes = notes + ref.notes
-            return ref
+            return replace(ref, method="newton", seconds=time.perf_counter() - tic, notes=notes + ref.notes,
+                           message="")
         x[0], x[1] = _wrap(x[0]), _wrap(x[1])
-        return ShapeSolution("newton", x, E, S, "ok" if ok else "not_converged", iterations,
-                             time.perf_counter() - tic, multiplier=lam, notes=notes)
+        return ShapeSolution(x, "ok" if ok else "not_converged", iterations, seconds=time.perf_counter() - tic,
+                             method="newton", energy=E, arc_length=S, multiplier=lam, notes=notes)
 
     def _newton(self, x: np.ndarray, P: np.ndarray, tol: float, max_iterations: int):
         """``(x, multiplier, E, S, iterations, converged)``; the multiplier is NaN without the length constraint."""
@@ -376,24 +490,6 @@ class ShapeEnergyModel:
         if not self.free_speeds:
             x, E, S, iterations, ok = modified_newton(fn, x, tol, max_iterations)
             return x, math.nan, E, S, iterations, ok
-        L = P[14]
+        L = ShapeParameters.of(P).length
         bounds = (SPEED_BOUNDS[0] * L, SPEED_BOUNDS[1] * L)
         return kkt_newton(fn, x, tol, L, {2: bounds, 3: bounds}, max_iterations)
-
-    # -- trajectories ---------------------------------------------------------------
-    def solve_trajectory(self, samples: list[ShapeData], method: str = "newton", **options) -> list[ShapeSolution]:
-        """Solve samples in order, each warm-started from the previous solution (grid: no warm start)."""
-        solutions: list[ShapeSolution] = []
-        previous = None
-        for data in samples:
-            if method == "newton":
-                sol = self.solve_newton(data, previous, **options)
-            elif method == "nlp":
-                sol = self.solve_nlp(data, previous, **options) if previous is not None else self.solve_nlp(data, **options)
-            elif method == "grid":
-                sol = self.solve_grid(data, **options)
-            else:
-                raise ValueError(f"unknown method {method!r}; known: newton, nlp, grid")
-            solutions.append(sol)
-            previous = sol.x if sol.status == "ok" else None
-        return solutions

@@ -44,7 +44,6 @@ from optikin.problems.ph_common import (
     MM,
     backbone_lengths,
     check_options,
-    curve_batch,
     distances_to_curves,
     end_data,
     method_rows,
@@ -98,7 +97,7 @@ def run(ctx: ProblemContext) -> Result:
     markers = {"CBHA 1": arm1.markers, "rope": chain.rope_markers, "CBHA 2": arm2.markers}
     truths = {"CBHA 1": arm1.truth.vertebrae, "rope": chain.rope_truth, "CBHA 2": arm2.truth.vertebrae}
     main = {name: runs[name][ctx.solver.name] for name in LINKS}
-    curves = {name: curve_batch(main[name].solutions, links[name]) for name in LINKS}
+    curves = {name: main[name].curves for name in LINKS}
     marker_distance = {name: distances_to_curves(curves[name], markers[name]) * MM for name in LINKS}
     truth_distance = {name: distances_to_curves(curves[name], truths[name]).max(axis=1) * MM for name in LINKS}
 
@@ -106,7 +105,7 @@ def run(ctx: ProblemContext) -> Result:
     for name in LINKS:
         extra = {}
         for method, r in runs[name].items():
-            d = distances_to_curves(curve_batch(r.solutions, links[name]), markers[name]) * MM
+            d = distances_to_curves(r.curves, markers[name]) * MM
             extra[method] = {"mean marker distance [mm]": float(np.nanmean(d))}
         for row in method_rows(runs[name], extra):
             row.method = f"{row.method} ({name})"

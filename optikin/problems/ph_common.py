@@ -39,8 +39,7 @@ import yaml
 
 from optikin.curves.bernstein import bernstein_basis
 from optikin.curves.energy import DEFAULT_NODES
-from optikin.curves.min_energy import EnergySettings, ShapeData, ShapeEnergyModel, ShapeSolution
-from optikin.curves.ph_quintic import PHQuintic
+from optikin.curves import EnergySettings, PHQuintic, ShapeData, ShapeEnergyModel, ShapeSolution, arc_length_estimate
 from optikin.data.markers import MarkerRecording
 from optikin.errors import InputDataError
 from optikin.arms import build_arm
@@ -116,19 +115,6 @@ def recording_of(problem: str, samples: int | None = None) -> Any:
 
 
 # ------------------------------------------------------------------------------ end data
-def arc_length_estimate(p0: np.ndarray, t0: np.ndarray, p1: np.ndarray, t1: np.ndarray) -> np.ndarray:
-    """``c (D/2) / sin(D/2)``: chord ``c``, ``D`` the sum of the tangents' angles with the chord (module docstring).
-
-    Exact for a planar circular arc (where both angles are half the bend).
-    """
-    chord = p1 - p0
-    c = np.linalg.norm(chord, axis=-1)
-    u = chord / np.maximum(c, 1e-300)[..., None]
-    D = (np.arccos(np.clip(np.sum(t0 * u, axis=-1), -1.0, 1.0)) + np.arccos(np.clip(np.sum(t1 * u, axis=-1), -1.0, 1.0)))
-    half = 0.5 * D
-    return c * np.where(half > 1e-8, half / np.maximum(np.sin(half), 1e-300), 1.0 + half**2 / 6.0)
-
-
 def backbone_lengths(recording: MarkerRecording, mode: str | float, source: str) -> np.ndarray:
     """One backbone length per posture by ``mode`` (module docstring)."""
     n = len(recording)
@@ -169,6 +155,12 @@ class MethodRun:
     build_seconds: float
     adapter: PHAdapter
     model: ShapeEnergyModel
+    samples: list[ShapeData]
+
+    @property
+    def curves(self) -> PHQuintic:
+        """The solutions' curves as one batch (NaN coefficients where a sample has no point)."""
+        return self.model.curves(self.solutions, self.samples)
 
     @property
     def compiled(self) -> bool:
@@ -216,7 +208,7 @@ def solve_methods(ctx: ProblemContext, settings: PHSettings, samples: list[Shape
             model = adapter.model(settings.energy, settings.free_speeds)
             adapter.solve(model, samples[:1])  # build nlpsol / compile Newton outside the timing
             build = time.perf_counter() - tic
-            runs[name] = MethodRun(name, role, adapter.solve(model, samples), build, adapter, model)
+            runs[name] = MethodRun(name, role, adapter.solve(model, samples), build, adapter, model, samples)
             advance()
     return runs
 
@@ -253,18 +245,6 @@ def method_rows(runs: dict[str, MethodRun], extra: dict[str, dict[str, Any]] | N
 
 
 # ------------------------------------------------------------------------------ curves and distances
-def curve_batch(solutions: list[ShapeSolution], samples: list[ShapeData]) -> PHQuintic:
-    """The solutions' curves as one numpy batch ``(N, ...)``; failed samples get NaN coefficients."""
-    curves = []
-    for sol, data in zip(solutions, samples):
-        if np.all(np.isfinite(sol.x)):
-            curves.append(sol.curve(data))
-        else:
-            nan = np.full(4, np.nan)
-            curves.append(PHQuintic(data.p0, nan, nan, nan))
-    return PHQuintic(*(np.stack([getattr(c, k) for c in curves]) for k in ("p0", "A0", "A1", "A2")))
-
-
 def distances_to_curves(curves: PHQuintic, points: np.ndarray, coarse: int = 401, refine: int = 10) -> np.ndarray:
     """Distance of each point ``(N, K, 3)`` to curve ``n`` of the batch: ``(N, K)``.
 

@@ -37,8 +37,7 @@ import casadi as ca
 import numpy as np
 
 from optikin.arms.cbha import CBHAArm
-from optikin.curves.min_energy import N_PARAMETERS, ShapeData, ShapeEnergyModel
-from optikin.curves.ph_quintic import hermite_family
+from optikin.curves import ShapeData, ShapeEnergyModel
 from optikin.curves.tubes import CBHA_TUBE_ANGLES, FRAMES, TubeLayout, tube_lengths
 from optikin.errors import InputDataError
 from optikin.fastcall import BufferedFunction
@@ -50,7 +49,6 @@ from optikin.problems.ph_common import (
     MethodRun,
     backbone_lengths,
     check_options,
-    curve_batch,
     end_data,
     load_recording,
     method_rows,
@@ -74,12 +72,11 @@ SEED_TABLE_III_S = {"PH": 0.00027, NEWTON_RAPHSON: 0.23351, HYBRID: 0.01208}
 def tube_length_function(model: ShapeEnergyModel, layout: TubeLayout) -> ca.Function:
     """``(x, P, n0) -> (L_1, ..., L_M)``: the tubes of the model's curve at its free parameters ``x``.
 
-    The curve is built exactly as :class:`ShapeEnergyModel` builds it from its
-    parameter vector ``P`` (``p0, t0, p1, t1, s0, s1, L``); ``n0`` is the reference normal.
+    The curve is the model's own (:meth:`ShapeEnergyModel.symbols`), of the same
+    ``x`` and parameter vector ``P`` as its energy; ``n0`` is the reference normal.
     """
-    x, P, n0 = ca.SX.sym("x", model.n_x), ca.SX.sym("P", N_PARAMETERS), ca.SX.sym("n0", 3)
-    s0, s1 = (x[2], x[3]) if model.free_speeds else (P[12], P[13])
-    curve = hermite_family(P[0:3], s0 * P[3:6], P[6:9], s1 * P[9:12]).member(x[0], x[1], 0.0)
+    x, P, curve = model.symbols()
+    n0 = ca.SX.sym("n0", 3)
     return ca.Function("ph_tube_lengths", [x, P, n0], [tube_lengths(curve, n0, layout)], ["x", "P", "n0"], ["L"])
 
 
@@ -159,7 +156,7 @@ def run(ctx: ProblemContext) -> Result:
     comparison = method_rows(runs, extra)
 
     other = "euler_rodrigues" if layout.frame == "rmf" else "rmf"
-    curves = curve_batch(main.solutions, samples)
+    curves = main.curves
     other_tubes = tube_lengths(curves, normals, layout.with_frame(other))
     other_errors = np.abs(other_tubes - reference) * MM
     comparison.append(MethodRow(f"{ctx.solver.name}, {other} frame", "baseline",

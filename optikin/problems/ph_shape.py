@@ -29,7 +29,6 @@ from optikin.problems.ph_common import (
     MM,
     backbone_lengths,
     check_options,
-    curve_batch,
     distances_to_curves,
     end_data,
     load_recording,
@@ -58,11 +57,10 @@ def run(ctx: ProblemContext) -> Result:
 
     distances, extra = {}, {}
     for name, method in runs.items():
-        curves = curve_batch(method.solutions, samples)
-        distances[name] = distances_to_curves(curves, recording.markers)
+        distances[name] = distances_to_curves(method.curves, recording.markers)
         extra[name] = {"mean marker distance [mm]": float(np.nanmean(distances[name]) * MM)}
     main = runs[ctx.solver.name]
-    curves = curve_batch(main.solutions, samples)
+    curves = main.curves
     distance = distances[ctx.solver.name] * MM  # (N, K)
     K = distance.shape[1]
     metrics: dict[str, Any] = {

@@ -43,7 +43,7 @@ import pytest
 from threadpoolctl import threadpool_limits
 
 from optikin.arms.cbha import CBHAArm
-from optikin.curves.min_energy import EnergySettings, ShapeEnergyModel
+from optikin.curves import EnergySettings, ShapeEnergyModel
 from optikin.curves.tubes import TubeLayout
 from optikin.fastcall import BufferedFunction
 from optikin.problems.ph_common import backbone_lengths, end_data, recording_of
