@@ -1,4 +1,4 @@
-"""Model reference adaptive kinematic control, seed 000 section V (eqs. 32-35) with the saturation of its Fig. 12.
+"""Model reference adaptive kinematic control (Seleem et al. 2020, section V, eqs. 32-35) with Fig. 12's saturation.
 
 Control law (eq. 34):  ``qdot = J_d^+ (xdot_ref + K e)``, ``e = x_ref - x``, with
 ``J_d`` the Jacobian of the tip dual quaternion (eq. 33; the position
@@ -30,7 +30,7 @@ component (an assumption). ``gain_limit`` 100 1/s (an assumption: Euler
 integration of ``e' = -k e`` needs ``k dt < 2``, so 100 keeps a factor 2 at the
 slowest control rate, 100 Hz). ``w_n = 10`` rad/s, ``zeta = 1`` (assumed).
 
-Stability (seed 000 section VI, eqs. 36-39). With ``V = e'e/2`` the seed writes
+Stability (Seleem et al. 2020 section VI, eqs. 36-39). With ``V = e'e/2`` the seed writes
 ``Vdot = -e'Ke``, which needs ``J J^+ = I``. For the 8-row pose Jacobian
 ``J J^+`` is a projector of rank 5 (:mod:`optikin.baselines.pseudo_inverse`),
 so ``Vdot = e'(I - J J^+) xdot_ref - e' J J^+ K e``: monotone decrease is
@@ -52,7 +52,7 @@ from optikin.control.task import Task, task_dimension
 SEED_GAIN = {"pose": (7.45, 3.43, 3.70, 3.02, 9.62, 5.06, 4.69, 8.15), "position": (87.77, 1.12, 51.59)}
 """Seed 000 section VII: the optimised K for the dual-quaternion (Figs. 22-23) and position (Fig. 26) tracking."""
 SEED_ADAPTATION = {"pose": (50.0,) * 8, "position": (0.0863, 0.0864, 0.0146)}
-"""gamma_a: seed 000 section VII for position; assumed for the pose (Table 1 lost)."""
+"""gamma_a: Seleem et al. 2020 section VII for position; assumed for the pose (Table 1 lost)."""
 
 
 class SecondOrderReferenceModel:

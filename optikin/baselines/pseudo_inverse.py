@@ -1,10 +1,10 @@
 """Unconstrained Jacobian tracking baselines: the plain pseudo-inverse and damped least squares.
 
-Both command ``qdot = J^+ (xdot_ref + K e)`` with ``e = x_ref - x`` (seed 000
+Both command ``qdot = J^+ (xdot_ref + K e)`` with ``e = x_ref - x`` (Seleem et al. 2020
 eq. 34 with a constant gain ``K``):
 
 * :class:`PseudoInverseController`: ``J^+`` the Moore-Penrose pseudo-inverse
-  (seed 000 eq. 32). Singular values below ``rcond`` times the largest count as
+  (Seleem et al. 2020 eq. 32). Singular values below ``rcond`` times the largest count as
   zero: the dual-quaternion Jacobian of a two-section constant-curvature arm is
   8 x 6 of rank 5 everywhere (its tip pose has five independent directions;
   finite differences agree), and at a straight section (``theta_i = 0``) the
@@ -30,7 +30,7 @@ PINV_RCOND = 1e-10
 
 
 class PseudoInverseController(Controller):
-    """``qdot = J^+ (xdot_ref + K e)`` (seed 000 eqs. 32, 34) with a constant ``K``."""
+    """``qdot = J^+ (xdot_ref + K e)`` (Seleem et al. 2020 eqs. 32, 34) with a constant ``K``."""
 
     name = "pseudo-inverse"
 

@@ -35,7 +35,7 @@ from optikin.arms.base import ArmModel
 from optikin.fastcall import BufferedFunction
 
 DEFAULT_RATE_LIMITS = {"S": 0.1, "theta": np.pi, "phi": 2.0 * np.pi}
-"""Rate limits by variable prefix: m/s for lengths, rad/s for angles (assumed; seed 000 gives none)."""
+"""Rate limits by variable prefix: m/s for lengths, rad/s for angles (assumed; Seleem et al. 2020 gives none)."""
 
 
 def periodic_mask(arm: ArmModel, names: Sequence[str] | None = None) -> np.ndarray:

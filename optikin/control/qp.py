@@ -5,8 +5,8 @@ Each step solves
     min_qdot  ||J(q) qdot - (xdot_ref + K e)||^2 + lambda ||qdot||^2
     s.t.      lb <= qdot <= ub
 
-where ``J`` is the task Jacobian of the arm's own model (seed 000 eq. 33 for the
-dual-quaternion pose), ``e = x_ref - x`` and ``K = diag(k)`` as in seed 000
+where ``J`` is the task Jacobian of the arm's own model (Seleem et al. 2020 eq. 33 for the
+dual-quaternion pose), ``e = x_ref - x`` and ``K = diag(k)`` as in Seleem et al. 2020
 eq. (34), and the box (:class:`optikin.control.limits.RateBounds`) keeps every
 configuration limit after integrating the rate over the step and respects the
 rate limits, also when the arm starts outside a limit (it steers back at the

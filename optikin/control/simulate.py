@@ -4,14 +4,14 @@ Per control step ``k`` (period ``dt`` of the reference, 100 Hz to 1 kHz):
 
 1. the plant's configuration is ``q_k = z_k + d(t_k)``: the integrated
    commands ``z`` plus an optional step disturbance ``d`` (a configuration offset
-   switched on over ``[t_on, t_off)``, like seed 000's step of Figs. 20-21);
+   switched on over ``[t_on, t_off)``, like the step of Seleem et al. 2020, Figs. 20-21);
 2. the plant's tip is ``fk(q_k)`` of the arm with every arc length scaled by
    ``length_scale`` (model mismatch: the controller's model keeps the nominal
    lengths);
 3. sensors: the configuration with Gaussian noise; the tip either measured
    directly (``feedback="tip"``, e.g. motion capture: position noise in metres,
    orientation noise as a rotation angle) or computed by the controller's model
-   from the measured configuration (``feedback="model"``, e.g. the IMUs of seed 000);
+   from the measured configuration (``feedback="model"``, e.g. the IMUs of Seleem et al. 2020);
 4. the controller commands ``qdot_k`` (timed: wall time of ``command``,
    Jacobian evaluation included), held over the step: ``z_{k+1} = z_k + dt qdot_k``;
    periodic variables are wrapped.
@@ -110,7 +110,7 @@ class TrackingRun:
 
     @property
     def lyapunov(self) -> np.ndarray:
-        """``V(e) = e'e / 2`` (seed 000 eq. 36 with P = I) along the run."""
+        """``V(e) = e'e / 2`` (Seleem et al. 2020 eq. 36 with P = I) along the run."""
         return 0.5 * np.sum(self.error**2, axis=1)
 
     @property

@@ -6,8 +6,8 @@ configuration ``q``, the measured task value ``x``, the reference ``x_ref`` and
 its rate ``xdot_ref``, the feedback gains ``k`` (diagonal of ``K``) and the
 damping ``lambda``:
 
-* ``J``: the task Jacobian (``m x n``; seed 000 eq. 33 for the pose task),
-* ``e = x_ref - x`` (seed 000 eq. 34),
+* ``J``: the task Jacobian (``m x n``; Seleem et al. 2020 eq. 33 for the pose task),
+* ``e = x_ref - x`` (Seleem et al. 2020 eq. 34),
 * ``v = xdot_ref + K e``, the task velocity every controller asks for (eq. 34),
 * ``H = J'J + lambda I`` and ``g = -J'v``: the QP ``min 1/2 qdot'H qdot + g'qdot``
   equivalent to ``min ||J qdot - v||^2 + lambda ||qdot||^2``, with ``H``'s upper
