@@ -35,7 +35,7 @@ def numpy_error(demo, values: np.ndarray) -> float:
     """Eq. (29) through the numpy path: learn with lstsq under these gains, roll out, mean over samples."""
     dmp = DMP(UnitQuaternion(), n_basis=8, gains=Gains(**dict(zip(NAMES, values))))
     dmp.imitate(demo.t, demo.quaternion)
-    return float(np.sum((dmp.rollout().y - dmp.demo.Y) ** 2) / demo.t.size)
+    return float(np.sum((dmp.rollout().y - dmp.learned.Y) ** 2) / demo.t.size)
 
 
 def test_objective_equals_the_numpy_path(demo, problem):

@@ -1,6 +1,6 @@
-"""A real-coded genetic algorithm: the gain tuner of seed 000 (sec. III-C-5, Figs. 5-6), as a baseline.
+"""A real-coded genetic algorithm: the gain tuner of Seleem et al. (2020, sec. III-C-5, Figs. 5-6), as a baseline.
 
-Seed 000 tunes its DMP gains with MATLAB's GA; this is a small, seeded,
+Seleem et al. (2020) tune their DMP gains with MATLAB's GA; this is a small, seeded,
 dependency-free equivalent for box-bounded minimisation:
 
 * tournament selection (``tournament`` contestants),
@@ -24,9 +24,25 @@ import numpy as np
 
 @dataclass(frozen=True)
 class GeneticResult:
-    x: np.ndarray  # best point found
-    value: float  # its objective
-    history: np.ndarray  # best objective after each generation (generation 0 = initial population)
+    """The best point of a run.
+
+    Attributes
+    ----------
+    x:
+        ``(n,)`` best point found.
+    value:
+        Its objective.
+    history:
+        ``(generations + 1,)`` best objective after each generation (0: the initial population).
+    evaluations:
+        Objective evaluations.
+    seconds:
+        Wall time [s].
+    """
+
+    x: np.ndarray
+    value: float
+    history: np.ndarray
     evaluations: int
     seconds: float
 
@@ -35,7 +51,42 @@ def minimise(objective: Callable[[np.ndarray], np.ndarray], lower: np.ndarray, u
              population: int = 30, generations: int = 40, seed: int = 0, elite: int = 2,
              crossover: float = 0.9, mutation: float = 0.2, tournament: int = 3, blend: float = 0.5,
              initial: np.ndarray | None = None) -> GeneticResult:
-    """Minimise ``objective`` over the box ``[lower, upper]``; ``initial`` points seed the first population."""
+    """Minimise ``objective`` over the box ``[lower, upper]``.
+
+    Parameters
+    ----------
+    objective:
+        ``X (pop, n) -> (pop,)`` values; non-finite ones count as ``+inf``.
+    lower, upper:
+        ``(n,)`` bounds, ``lower < upper``.
+    population:
+        Individuals per generation (> ``elite``).
+    generations:
+        Generations after the initial population (>= 0).
+    seed:
+        Seed of every random draw.
+    elite:
+        Best individuals kept unchanged each generation.
+    crossover:
+        Probability of the blend crossover (BLX-``blend``).
+    mutation:
+        Probability of mutating each gene.
+    tournament:
+        Contestants per tournament.
+    blend:
+        ``alpha`` of BLX-alpha.
+    initial:
+        ``(k, n)`` or ``(n,)`` points placed in the first population (clipped into the box).
+
+    Returns
+    -------
+    GeneticResult
+
+    Raises
+    ------
+    ValueError
+        Inconsistent bounds or sizes.
+    """
     lower, upper = np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
     if lower.shape != upper.shape or lower.ndim != 1 or np.any(upper <= lower):
         raise ValueError("lower and upper must be 1-D arrays of equal length with lower < upper")

@@ -1,4 +1,4 @@
-"""Demonstrations to learn motions from (seed 000 secs. III-A and IV): synthetic sources and a CSV reader.
+"""Demonstrations to learn motions from (Seleem et al. 2020, secs. III-A and IV): synthetic sources and a CSV reader.
 
 Every source takes a seed and returns its recording with a
 :class:`PoseDemonstration` (times, tip positions, unit quaternions,
@@ -7,9 +7,9 @@ hemisphere-continuous) to learn from.
 * :func:`smooth_pose_demonstration` -- a clean rest-to-rest pose motion
   (minimum-jerk profile plus a smooth detour).
 * :func:`gimbal_demonstration` -- a motion through pitch +-90 degrees, where
-  the roll-pitch-yaw angles of eq. (30) jump (seed Figs. 13-14).
+  the roll-pitch-yaw angles of eq. (30) jump (Seleem et al.'s Figs. 13-14).
 * :func:`imu_interface_recording` -- the flexible teleoperation interface of
-  seed 000 sec. III-A: two 18 cm sections bent along a smooth human-like
+  Seleem et al. (2020) sec. III-A: two 18 cm sections bent along a smooth human-like
   motion, an MPU-6050-like IMU at each section tip sampled at 100 Hz (noise and
   yaw drift), the relative quaternion of eq. (7), the section angles
   (eq. 8, derived again in :mod:`optikin.arms.constant_curvature`) and the tip
@@ -23,7 +23,7 @@ hemisphere-continuous) to learn from.
   :func:`resample_uniform` puts a recording with jittery time stamps on the
   fixed step a DMP integrates with.
 
-The noise figures are assumptions stated where they are used; the seed gives
+The noise figures are assumptions stated where they are used; Seleem et al. give
 none (its data came from hardware).
 
 Each is also a data source of the family ``demonstrations`` (``data.source``
@@ -45,6 +45,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
+from numpy.typing import ArrayLike
 from pydantic import Field
 from scipy.interpolate import CubicSpline
 
@@ -82,7 +83,7 @@ class PoseDemonstration:
 
     @property
     def dual_quaternion(self) -> np.ndarray:
-        """``(N, 8)``: ``Q_r + eps 0.5 (0, p) Q_r`` (seed eqs. 9-10)."""
+        """``(N, 8)``: ``Q_r + eps 0.5 (0, p) Q_r`` (Seleem et al.'s eqs. 9-10)."""
         return dq_from_rotation_translation(self.quaternion, self.position)
 
     @property
@@ -102,7 +103,7 @@ def _times(samples: int, rate: float) -> np.ndarray:
     return np.arange(samples) / rate
 
 
-def smooth_path(t: np.ndarray, low: np.ndarray, high: np.ndarray, via_points: int,
+def smooth_path(t: np.ndarray, low: ArrayLike, high: ArrayLike, via_points: int,
                 rng: np.random.Generator) -> np.ndarray:
     """A human-like smooth path: a cubic spline through ``via_points + 2`` random points at equal times,
     at rest at both ends (clamped), each coordinate drawn in ``[low, high]``. Returns ``(N, d)``."""
@@ -152,7 +153,7 @@ def gimbal_demonstration(samples: int = 1000, duration: float = 10.0, seed: int 
     Roll and yaw change smoothly too (random, up to 40 degrees); the position
     is a smooth detour of size ``reach``. Past 90 degrees of pitch, eq. (30)
     reports the same orientation with pitch folded back below 90 and roll and
-    yaw jumped by 180 degrees: the per-angle representation of seed Fig. 13.
+    yaw jumped by 180 degrees: the per-angle representation of Seleem et al.'s Fig. 13.
     """
     rng = np.random.default_rng(seed)
     t = np.linspace(0.0, duration, samples)
@@ -173,7 +174,7 @@ def gimbal_demonstration(samples: int = 1000, duration: float = 10.0, seed: int 
 
 @dataclass(frozen=True)
 class InterfaceRecording:
-    """The flexible interface of seed 000 sec. III-A, recorded by two IMUs.
+    """The flexible interface of Seleem et al. (2020) sec. III-A, recorded by two IMUs.
 
     ``configuration (N, 6)`` true ``(S, theta, phi)`` per section; ``imu (N, 2, 4)``
     the IMU quaternions in the base frame; ``relative (N, 2, 4)`` each section
@@ -242,7 +243,7 @@ def imu_interface_recording(samples: int = 1000, rate: float = 100.0, seed: int 
 
 @dataclass(frozen=True)
 class KinectRecording:
-    """Kinect v2 wrist capture (seed 000 sec. IV).
+    """Kinect v2 wrist capture (Seleem et al. 2020, sec. IV).
 
     ``wrist (N, 3)`` right-wrist positions in the camera frame [m],
     ``orientation (N, 4)`` left-wrist quaternions in the camera frame,
@@ -263,7 +264,7 @@ class KinectRecording:
 
 
 def moving_average(x: np.ndarray, window: int) -> np.ndarray:
-    """Seed 000 eq. (31): ``o(i) = 1/M sum_{m=1..M} l(i - m)``, the mean of the ``M`` previous samples.
+    """Seleem et al. (2020) eq. (31): ``o(i) = 1/M sum_{m=1..M} l(i - m)``, the mean of the ``M`` previous samples.
 
     Causal, so it delays the signal by ``(M + 1)/2`` samples. The first
     samples average the previous samples there are (``o(0) = l(0)``).
@@ -305,7 +306,7 @@ def kinect_recording(samples: int = 300, rate: float = 30.0, seed: int = 0, via_
     centimetre and its wrist orientations are noisier still: assumptions).
     The wrist is expressed relative to the spine-shoulder joint, turned into
     robot axes (:data:`CAMERA_TO_ROBOT`) and scaled into the ``cube_edge``
-    cube (36 cm in the seed) about ``workspace_centre``. Orientations become
+    cube (36 cm in Seleem et al.) about ``workspace_centre``. Orientations become
     roll-pitch-yaw by eq. (30), are unwrapped and filtered by eq. (31) with
     ``window`` samples, as are the positions.
     """
@@ -482,10 +483,11 @@ def _generated(maker: Callable[..., Any], data: DataSpec, path: Path, **params: 
     try:
         return maker(samples=data.samples, seed=data.seed, **params)
     except ValueError as exc:
-        raise SpecError(path, "data.params", str(exc)) from None
+        raise SpecError(str(path), "data.params", str(exc)) from None
 
 
-@register_source("demonstrations", "imu", "IMU teleoperation interface of seed 000 sec. III-A", params=ImuParams)
+@register_source("demonstrations", "imu", "IMU teleoperation interface (Seleem et al. 2020, sec. III-A)",
+                 params=ImuParams)
 def load_imu(arm: ArmModel, data: DataSpec, params: ImuParams, path: Path) -> InterfaceRecording:
     """The IMU recording; its sections default to the arm's (a two-section constant-curvature arm)."""
     values = params.model_dump()
@@ -495,7 +497,8 @@ def load_imu(arm: ArmModel, data: DataSpec, params: ImuParams, path: Path) -> In
     return _generated(imu_interface_recording, data, path, **values)
 
 
-@register_source("demonstrations", "kinect", "Kinect v2 wrist capture of seed 000 sec. IV", params=KinectParams)
+@register_source("demonstrations", "kinect", "Kinect v2 wrist capture (Seleem et al. 2020, sec. IV)",
+                 params=KinectParams)
 def load_kinect(arm: ArmModel, data: DataSpec, params: KinectParams, path: Path) -> KinectRecording:
     """The Kinect recording."""
     return _generated(kinect_recording, data, path, **params.model_dump())

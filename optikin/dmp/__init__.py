@@ -1,4 +1,8 @@
-"""Dynamic movement primitives (seed 000 secs. III-C and IV): per angle, on unit quaternions, on dual quaternions.
+"""Dynamic movement primitives per angle, on unit quaternions, on dual quaternions (Seleem et al. 2020, III-C, IV).
+
+I. A. Seleem, H. El-Hussieny, S. F. M. Assal, H. Ishii, "Development and Stability Analysis of an Imitation
+Learning-Based Pose Planning Approach for Multi-Section Continuum Robot", IEEE Access, 2020
+(doi:10.1109/ACCESS.2020.2997636): the equation numbers in this package are theirs.
 
 * :mod:`~optikin.dmp.spaces` -- the spaces a DMP moves in (gap and advance operations).
 * :mod:`~optikin.dmp.canonical`, :mod:`~optikin.dmp.basis` -- phase (eqs. 15, 25, 28) and forcing-term basis (13-14).
@@ -6,7 +10,7 @@
 * :mod:`~optikin.dmp.imitation`, :mod:`~optikin.dmp.regression` -- targets (16, 21-22) and weight fits.
 * :mod:`~optikin.dmp.rollout` -- the roll-out as one CasADi Function (11-12, 17-18, 23-28).
 * :mod:`~optikin.dmp.model` -- :class:`DMP`: imitate, roll out, generalise.
-* :mod:`~optikin.dmp.pose` -- the seed's dual-quaternion DMP and the sound variants.
+* :mod:`~optikin.dmp.pose` -- Seleem et al.'s dual-quaternion DMP and the sound variants.
 * :mod:`~optikin.dmp.tuning` -- gains by minimising the reproduction error (eq. 29).
 """
 

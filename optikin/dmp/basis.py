@@ -1,4 +1,4 @@
-"""Gaussian basis of the forcing term (seed 000 eqs. 13-14, 20).
+"""Gaussian basis of the forcing term (Seleem et al. 2020, eqs. 13-14, 20).
 
 ``f(s) = s sum_j w_j psi_j(s) / sum_j psi_j(s)`` with ``psi_j(s) = exp(-h_j (s - c_j)^2)``.
 (The extracted text of eqs. 13 and 20 prints the factor ``s`` inside and again

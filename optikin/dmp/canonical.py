@@ -1,6 +1,6 @@
 """The canonical system of a discrete DMP: the phase ``s`` that clocks the forcing term.
 
-Seed 000 eq. (15): ``tau ds/dt = -zeta s``, ``s(0) = 1``, so ``s(t) = exp(-zeta t / tau)``.
+Seleem et al. (2020) eq. (15): ``tau ds/dt = -zeta s``, ``s(0) = 1``, so ``s(t) = exp(-zeta t / tau)``.
 With phase stopping the rate is divided by ``1 + alpha |e|``, where ``e`` is
 an error the motion should wait for:
 
@@ -21,12 +21,12 @@ Which error (:data:`PHASE_STOPPING`, chosen per DMP):
     ``alpha |dy_ref/dt|``): with ``alpha = alpha_s = 5`` the undisturbed
     roll-out coupled to the IMU demonstration drifts 2.9 rad off it.
 ``seed``
-    seed 000 as printed: eq. (25) slows the phase by the goal gap
+    Seleem et al. (2020) as printed: eq. (25) slows the phase by the goal gap
     ``|gap(g, y)|`` and eq. (28) by ``|e| + |r|``. The goal gap is large for
     most of any motion, so the phase lags even without a disturbance (0.57
     instead of 0.01 at ``tau`` with ``alpha = 5`` on the IMU demonstration)
     and the forcing term must be fitted along that slowed phase (eq. 25 in
-    the imitation). Kept, labelled, to reproduce the seed's Figs. 20-21.
+    the imitation). Kept, labelled, to reproduce Seleem et al.'s Figs. 20-21.
 
 On a fixed step ``dt`` with ``e`` held over the step this integrates exactly to
 ``s_{k+1} = s_k exp(-zeta dt / (tau (1 + alpha |e_k|)))``: positive, monotone,
@@ -52,7 +52,7 @@ PHASE_STOPPING: tuple[PhaseStopping, ...] = get_args(PhaseStopping)
 
 
 def goal_stopping_weight(mode: str) -> float:
-    """Weight of the goal gap in the phase-stopping error: 0 for ``tracking``, 1 for the seed's eqs. (25), (28)."""
+    """Weight of the goal gap in the phase-stopping error: 0 for ``tracking``, 1 for Seleem et al.'s eqs. (25), (28)."""
     if mode not in PHASE_STOPPING:
         raise ValueError(f"unknown phase stopping {mode!r}; choose from {PHASE_STOPPING}")
     return 1.0 if mode == "seed" else 0.0

@@ -1,7 +1,7 @@
-"""The gains of a DMP, named as in seed 000, and the bounds that keep the fixed-step roll-out stable.
+"""The gains of a DMP, named as in Seleem et al. (2020), and the bounds that keep the fixed-step roll-out stable.
 
 ====================  =========================================================  ==========
-name                  role                                                       seed eq.
+name                  role                                                       Seleem et al.'s eq.
 ====================  =========================================================  ==========
 ``beta``              damping of the transformation system (``alpha_z`` in       11, 17
                       Ijspeert et al. 2013, ``alpha_y`` in movement_primitives)
@@ -32,6 +32,14 @@ GAIN_NAMES: tuple[GainName, ...] = get_args(GainName)
 
 @dataclass(frozen=True)
 class Gains:
+    """The gains of one DMP (the module's table); all >= 0, ``beta, gamma, zeta > 0``, only ``beta_g0`` may be inf.
+
+    Raises
+    ------
+    ValueError
+        A gain outside those bounds.
+    """
+
     beta: float = 25.0
     gamma: float = 6.25
     zeta: float = -math.log(0.01)
@@ -47,15 +55,31 @@ class Gains:
             raise ValueError("DMP gains beta, gamma and zeta must be positive")
 
     def vector(self) -> np.ndarray:
+        """``(6,)`` gains in the order of :data:`GAIN_NAMES`."""
         return np.array([getattr(self, n) for n in GAIN_NAMES], dtype=float)
 
     def with_values(self, **values: float) -> "Gains":
+        """These gains with some replaced (checked again)."""
         return replace(self, **values)
 
 
 def stable_bounds(dt: float, tau: float, margin: float = 0.5) -> dict[str, tuple[float, float]]:
     """Upper bounds on ``beta``, ``gamma`` and ``alpha_s`` under which the semi-implicit roll-out is stable.
 
+    Parameters
+    ----------
+    dt, tau:
+        Step and time constant [s].
+    margin:
+        Fraction of the stability limit of ``k1 = beta dt / tau`` kept, at most 1.
+
+    Returns
+    -------
+    dict
+        ``{"beta": (low, high), "gamma": (low, high), "alpha_s": (low, high)}``.
+
+    Notes
+    -----
     Linearised about the goal, one gap component of the roll-out
     (:mod:`optikin.dmp.imitation`) with ``k1 = beta dt / tau`` and
     ``k2 = beta gamma (dt / tau)^2`` follows ``u' = (1 - k1) u - k2 e``,

@@ -1,10 +1,10 @@
-"""From a demonstration to the regression problem of the forcing-term weights (seed 000 eqs. 16, 21-22).
+"""From a demonstration to the regression problem of the forcing-term weights (Seleem et al. 2020, eqs. 16, 21-22).
 
 The roll-out (:mod:`optikin.dmp.rollout`) integrates the DMP on the fixed step
 ``dt`` of the demonstration, semi-implicitly (velocity first, then pose):
 
-    eta_{k+1} = eta_k + dt/tau [beta (gamma e_k - eta_k) + f_k]          (seed eqs. 11, 17)
-    y_{k+1}   = advance(y_k, dt/tau (eta_{k+1} + alpha_s e_k))            (seed eqs. 12, 18/23, 26)
+    eta_{k+1} = eta_k + dt/tau [beta (gamma e_k - eta_k) + f_k]          (Seleem et al.'s eqs. 11, 17)
+    y_{k+1}   = advance(y_k, dt/tau (eta_{k+1} + alpha_s e_k))            (Seleem et al.'s eqs. 12, 18/23, 26)
 
 with ``e_k = gap(g, y_k)`` (``g - y`` per angle, ``2 log(g conj(y))`` on a
 quaternion). The target forces are this recursion solved for ``f_k`` along the
@@ -13,10 +13,10 @@ demonstration ``y_0 .. y_{N-1}``, starting at rest (``eta_0 + alpha_s e_0 = 0``)
     eta_{k+1} = tau/dt gap(y_{k+1}, y_k) - alpha_s e_k
     f_k       = tau/dt (eta_{k+1} - eta_k) - beta (gamma e_k - eta_k),    k = 0 .. N-2.
 
-This is seed eq. (16) / (22) with the derivatives replaced by the differences
+This is Seleem et al.'s eq. (16) / (22) with the derivatives replaced by the differences
 the integrator uses, so a forcing term that matched the targets exactly would
 reproduce the demonstration exactly: what is left of the reproduction error is
-the regression's (seed eqs. 16 and 21 divide by ``g - y`` and by ``K_0``; the
+the regression's (Seleem et al.'s eqs. 16 and 21 divide by ``g - y`` and by ``K_0``; the
 amplitude scaling here divides by the start-goal gap instead, as eq. (11) and
 Ude et al.'s ``D_0`` do, and only when asked).
 
@@ -113,8 +113,22 @@ def _lift(x: np.ndarray, *gains: Array) -> Array:
 
 
 def target_forces(demo: Demonstration, beta: Array, gamma: Array, alpha_s: Array = 0.0) -> Array:
-    """``f_k``, ``k = 0 .. N-2``, that make the discrete DMP reproduce the demonstration: ``(N - 1, dim)``.
+    """``f_k``, ``k = 0 .. N-2``, that make the discrete DMP reproduce the demonstration (eqs. 16, 22).
 
+    Parameters
+    ----------
+    demo:
+        From :func:`prepare`.
+    beta, gamma, alpha_s:
+        Gains (numbers or CasADi symbols).
+
+    Returns
+    -------
+    Array
+        ``(N - 1, dim)`` target forces (a CasADi matrix when a gain is symbolic).
+
+    Notes
+    -----
     The DMP starts at rest: ``eta_0 = -alpha_s e_0`` cancels the coupling
     velocity, as the roll-out does.
     """
@@ -133,7 +147,7 @@ def demonstration_log_phase(demo: Demonstration, zeta: Array, alpha: Array = 0.0
     """``log s_k`` along the demonstration, ``k = 0 .. N-1``.
 
     The demonstration has no tracking error, so with ``tracking`` phase
-    stopping this is eq. (15); with the seed's it is slowed by the goal gap
+    stopping this is eq. (15); with Seleem et al.'s it is slowed by the goal gap
     when ``alpha > 0`` (eq. 25), as its roll-out will be.
     """
     alpha_goal = goal_stopping_weight(phase_stopping) * alpha
@@ -141,7 +155,7 @@ def demonstration_log_phase(demo: Demonstration, zeta: Array, alpha: Array = 0.0
 
 
 def amplitude(space: Space, start: np.ndarray, goal: np.ndarray, scale: bool, source: str = "") -> np.ndarray:
-    """Per-component factor of the forcing term: ``gap(goal, start)`` (seed eqs. 11, 20) or ones.
+    """Per-component factor of the forcing term: ``gap(goal, start)`` (Seleem et al.'s eqs. 11, 20) or ones.
 
     A component with a vanishing start-goal gap cannot be scaled (eq. 16 would
     divide by zero): that raises an :class:`InputDataError` naming it.
@@ -152,7 +166,8 @@ def amplitude(space: Space, start: np.ndarray, goal: np.ndarray, scale: bool, so
     small = np.flatnonzero(np.abs(amp) < 1e-9)
     if small.size:
         raise InputDataError(f"start and goal coincide in gap component {int(small[0])}, so the forcing term "
-                             "cannot be scaled by the start-goal gap (seed eq. 11); use scale_by_amplitude=False",
+                             "cannot be scaled by the start-goal gap (Seleem et al.'s eq. 11); use "
+                             "scale_by_amplitude=False",
                              source=source, field=f"gap[{int(small[0])}]")
     return amp
 

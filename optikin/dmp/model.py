@@ -1,11 +1,11 @@
 """A discrete DMP on any space of :mod:`optikin.dmp.spaces`: learn from a demonstration, roll out.
 
 >>> dmp = DMP(UnitQuaternion(), n_basis=50)
->>> fit = dmp.imitate(t, Q)                                   # seed eqs. 21-22, least squares
+>>> fit = dmp.imitate(t, Q)                                   # Seleem et al.'s eqs. 21-22, least squares
 >>> out = dmp.rollout(goal=q_new, tau=2 * dmp.tau)            # new goal, twice as slow
 >>> out = dmp.rollout(goal_switches=[(1.5, q_new)])           # goal filter, eq. 24
 
-Per-angle DMPs (seed eqs. 11-16) are ``DMP(Euclidean(3))`` on roll-pitch-yaw,
+Per-angle DMPs (Seleem et al.'s eqs. 11-16) are ``DMP(Euclidean(3))`` on roll-pitch-yaw,
 the quaternion DMP (eqs. 17-23) is ``DMP(UnitQuaternion())``, the pose DMPs
 are in :mod:`optikin.dmp.pose`. ``tau`` is the temporal scaling: the same
 weights replay the motion in ``tau`` seconds instead of the demonstration's.
@@ -36,7 +36,23 @@ PerStep = np.ndarray | Callable[[np.ndarray], np.ndarray] | None
 
 @dataclass(frozen=True)
 class Rollout:
-    """A roll-out: times ``(K+1,)``, poses ``(K+1, size)``, velocities ``eta (K+1, dim)``, phase, filtered goal."""
+    """A roll-out of :meth:`DMP.rollout`.
+
+    Attributes
+    ----------
+    t:
+        ``(K+1,)`` times [s] from 0.
+    y:
+        ``(K+1, size)`` poses in the space's layout.
+    eta:
+        ``(K+1, dim)`` scaled velocities ``tau dy/dt`` in gap units (eqs. 12, 18).
+    phase:
+        ``(K+1,)`` phase ``s`` (eq. 15, slowed by eqs. 25, 28).
+    goal:
+        ``(K+1, size)`` filtered goal (eq. 24).
+    seconds:
+        Wall time of the integration [s].
+    """
 
     t: np.ndarray
     y: np.ndarray
@@ -82,13 +98,38 @@ class RegressionProblem:
 
 
 class DMP:
-    """Discrete DMP (seed 000 eqs. 11-28) on ``space`` with ``n_basis`` Gaussians per gap component.
+    """Discrete DMP (Seleem et al. 2020, eqs. 11-28) on ``space`` with ``n_basis`` Gaussians per gap component.
 
-    ``smoothing``: cutoff [Hz] of the low-pass applied to demonstrations before
-    learning (:mod:`optikin.dmp.smoothing`; ``None``, the default, learns the
-    samples as given). ``phase_stopping``: the error that slows the phase when
-    ``gains.alpha > 0`` (:mod:`optikin.dmp.canonical`): ``tracking`` (default,
-    Ijspeert et al. 2013, Ude et al. 2014) or ``seed`` (eqs. 25, 28 as printed).
+    Parameters
+    ----------
+    space:
+        The space it moves in (:mod:`optikin.dmp.spaces`): ``size`` stored and
+        ``dim`` gap components.
+    n_basis:
+        Gaussian basis functions per gap component (eq. 13), at least 2.
+    gains:
+        ``beta, gamma, zeta, beta_g0, alpha_s, alpha`` (:class:`~optikin.dmp.Gains`).
+    overlap:
+        Value at which neighbouring Gaussians cross, in ``(0, 1)`` (:func:`optikin.dmp.basis.widths`).
+    scale_by_amplitude:
+        Scale the forcing term by the start-goal gap (eq. 11; Ude et al.'s ``D_0``).
+    smoothing:
+        Cutoff [Hz] of the low-pass applied to demonstrations before learning
+        (:mod:`optikin.dmp.smoothing`); ``None`` learns the samples as given.
+    phase_stopping:
+        The error that slows the phase when ``gains.alpha > 0``
+        (:mod:`optikin.dmp.canonical`): ``tracking`` (Ijspeert et al. 2013,
+        Ude et al. 2014) or ``seed`` (eqs. 25, 28 as printed).
+
+    Attributes
+    ----------
+    weights:
+        ``(dim, n_basis)`` forcing-term weights once learned (``None`` before :meth:`imitate`).
+    centres, widths, forcing_end:
+        The basis learned with them: centres ``(n_basis,)`` and widths
+        ``(n_basis,)`` in phase, and the phase below which the forcing term is off.
+    demo, fit:
+        The demonstration as learned and the fit of the weights.
     """
 
     def __init__(self, space: Space, n_basis: int = 50, gains: Gains = Gains(),
@@ -115,7 +156,24 @@ class DMP:
 
     # ------------------------------------------------------------------ learning
     def regression_problem(self, t: np.ndarray, Y: np.ndarray, source: str = "demonstration") -> RegressionProblem:
-        """Design matrix and target forces of a demonstration under this DMP's gains (seed eqs. 16, 21-22)."""
+        """Design matrix and target forces of a demonstration under this DMP's gains (eqs. 13, 16, 21-22).
+
+        Parameters
+        ----------
+        t:
+            ``(N,)`` equally spaced times [s].
+        Y:
+            ``(N, size)`` samples in the space's layout.
+        source:
+            Names the data in errors.
+
+        Returns
+        -------
+        RegressionProblem
+            ``X (N-1, n_basis)``, ``F (N-1, dim)`` (scaled by the amplitude), the
+            phase ``(N-1,)`` and activations ``(N-1, n_basis)`` along the rows, the
+            basis and its end phase.
+        """
         demo = prepare(self.space, t, Y, source, self.smoothing)
         g = self.gains
         X, s, c, h, s_end = design_matrix(demo, self.n_basis, g.zeta, g.alpha, self.overlap, self.phase_stopping)
@@ -126,7 +184,34 @@ class DMP:
     def imitate(self, t: np.ndarray, Y: np.ndarray, method: str = "lstsq", ridge: float = 0.0,
                 lower: float | np.ndarray | None = None, upper: float | np.ndarray | None = None,
                 source: str = "demonstration") -> regression.Fit:
-        """Learn the weights from samples ``Y (N, size)`` at equally spaced times ``t``; returns the fit."""
+        """Learn the weights from a demonstration (eqs. 16, 21-22) and keep them, with the demonstration and basis.
+
+        Parameters
+        ----------
+        t:
+            ``(N,)`` equally spaced times [s]; ``tau`` becomes ``t[-1] - t[0]``.
+        Y:
+            ``(N, size)`` samples in the space's layout (quaternion blocks of either sign).
+        method:
+            ``lstsq`` (closed form), ``cvxpy`` (all weights at once, optional bounds) or ``lwr``
+            (:mod:`optikin.dmp.regression`).
+        ridge:
+            Weight of ``|W|^2`` (``lstsq``, ``cvxpy``).
+        lower, upper:
+            Bounds on the weights, scalars or ``(n_basis, dim)`` (``cvxpy`` only).
+        source:
+            Names the data in errors.
+
+        Returns
+        -------
+        Fit
+            The weights ``(dim, n_basis)``, ``rms(X W^T - F)`` and the wall time [s].
+
+        Raises
+        ------
+        InputDataError
+            A demonstration that is not finite, not on a fixed step or too short.
+        """
         problem = self.regression_problem(t, Y, source)
         if method == "lstsq":
             if lower is not None or upper is not None:
@@ -144,11 +229,24 @@ class DMP:
 
     @property
     def tau(self) -> float:
+        """The learned demonstration's duration [s] (the time constant of eqs. 11-12, 15)."""
         return self._learned().tau
 
     @property
     def dt(self) -> float:
+        """The learned demonstration's sample step [s] (the roll-out's default step)."""
         return self._learned().dt
+
+    @property
+    def learned(self) -> Demonstration:
+        """The demonstration as learned (sign-continuous, smoothed if asked); :meth:`imitate` first."""
+        return self._learned()
+
+    def _basis(self) -> tuple[np.ndarray, np.ndarray, float]:
+        """Learned weights' basis: centres ``(n,)``, widths ``(n,)`` and the phase below which it is off."""
+        if self.centres is None or self.widths is None or self.forcing_end is None:
+            raise RuntimeError("the DMP has not learned a demonstration yet: call imitate() first")
+        return self.centres, self.widths, self.forcing_end
 
     def _learned(self) -> Demonstration:
         if self.demo is None or self.weights is None:
@@ -160,26 +258,48 @@ class DMP:
                 start: np.ndarray | None = None, goal: np.ndarray | None = None,
                 goal_switches: Sequence[tuple[float, np.ndarray]] = (), disturbance: PerStep = None,
                 reference: PerStep = None, gains: Gains | None = None, weights: np.ndarray | None = None) -> Rollout:
-        """Integrate the DMP from ``start`` at rest towards ``goal`` for ``duration`` seconds.
+        """Integrate the DMP from ``start`` at rest towards ``goal`` (eqs. 11-12, 15, 17-18, 23-28).
 
-        ``tau``: time scaling (default the demonstration's duration).
-        ``goal_switches``: ``(time, new goal)`` pairs; the goal moves to each new
-        goal through the filter of eq. (24) (rate ``gains.beta_g0``).
-        ``disturbance``: per-step force ``(K, dim)`` added to eq. (17), or a
-        function of the step times. ``reference``: per-step poses ``(K, size)``
-        the DMP is coupled to by eqs. (27)-(28), or a function of the times.
-        ``gains``/``weights`` override the learned ones (for tuning).
+        Parameters
+        ----------
+        duration:
+            Length of the roll-out [s]; default ``tau``. Past the demonstration's
+            phase the forcing term is off and the DMP is the spring on the goal.
+        tau:
+            Time scaling [s] (default the demonstration's duration): the same
+            weights replay the motion in ``tau`` seconds.
+        dt:
+            Step [s] (default the demonstration's).
+        start, goal:
+            ``(size,)`` poses (default the demonstration's first and last sample).
+        goal_switches:
+            ``(time [s], new goal (size,))`` pairs; the goal moves to each new goal
+            through the filter of eq. (24) (rate ``gains.beta_g0``).
+        disturbance:
+            Per-step force ``(K, dim)`` added to eq. (17), or a function of the step times ``(K,)``.
+        reference:
+            Per-step poses ``(K, size)`` the DMP is coupled to by eqs. (27)-(28),
+            or a function of the step times.
+        gains, weights:
+            Override the learned gains and weights ``(dim, n_basis)`` (tuning).
+
+        Returns
+        -------
+        Rollout
+            Times ``(K+1,)`` [s], poses ``(K+1, size)``, velocities ``(K+1, dim)``,
+            phase ``(K+1,)``, filtered goal ``(K+1, size)`` and the wall time [s].
         """
         gains = gains or self.gains
-        W = self.weights if weights is None else np.asarray(weights, dtype=float)
         plan = self.plan(duration, tau=tau, dt=dt, start=start, goal=goal, goal_switches=goal_switches,
-                         disturbance=disturbance, reference=reference)
+                         disturbance=disturbance, reference=reference)  # checks that the DMP has learned
+        W = np.asarray(self.weights if weights is None else weights, dtype=float)
         space, size, dim = self.space, self.space.size, self.space.dim
         x0 = np.concatenate([plan.start, -gains.alpha_s * plan.start_coupling, [1.0], plan.goal])
         f = rollout_function(space, self.n_basis, plan.steps)
         begin = time.perf_counter()
-        X = np.asarray(f(x0, plan.inputs.T, W, self.centres, self.widths, plan.amplitude, gains.vector(),
-                         plan.tau, plan.dt, self.forcing_end, self.goal_stopping)).T
+        c, h, s_end = self._basis()
+        X = np.asarray(f(x0, plan.inputs.T, W, c, h, plan.amplitude, gains.vector(), plan.tau, plan.dt, s_end,
+                         self.goal_stopping)).T
         seconds = time.perf_counter() - begin
         return Rollout(t=plan.t, y=X[:, :size], eta=X[:, size:size + dim], phase=X[:, size + dim],
                        goal=X[:, size + dim + 1:], seconds=seconds)
@@ -188,7 +308,15 @@ class DMP:
              start: np.ndarray | None = None, goal: np.ndarray | None = None,
              goal_switches: Sequence[tuple[float, np.ndarray]] = (), disturbance: PerStep = None,
              reference: PerStep = None) -> "RolloutPlan":
-        """The checked inputs of a roll-out (see :meth:`rollout`), before the gains and weights are chosen."""
+        """The checked inputs of a roll-out (parameters as :meth:`rollout`), before the gains and weights are chosen.
+
+        Returns
+        -------
+        RolloutPlan
+            Times ``(K+1,)``, step count ``K``, ``tau`` and ``dt`` [s], start and
+            goal ``(size,)``, the last goal, per-step inputs ``(K, nu)``, the
+            start coupling ``(dim,)`` and the amplitude ``(dim,)``.
+        """
         demo = self._learned()
         space = self.space
         tau = demo.tau if tau is None else float(tau)

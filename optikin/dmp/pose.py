@@ -1,7 +1,7 @@
-"""Pose DMPs: the seed's dual-quaternion DMP, a sound one on the dual-quaternion logarithm, and position x orientation.
+"""Pose DMPs: Seleem et al.'s dual-quaternion DMP, a sound one on the dual-quaternion log, and position x orientation.
 
 ``seed_dual_quaternion_dmp`` (label ``seed``)
-    Seed 000 (sec. III-C-2, Figs. 15-21) runs the unit-quaternion DMP of
+    Seleem et al. (2020, sec. III-C-2, Figs. 15-21) run the unit-quaternion DMP of
     eqs. (17)-(23) on ``Q_r`` and, separately, on ``Q_d``. That is unsound:
 
     1. ``Q_d = 0.5 (0, p) Q_r`` has norm ``|p| / 2``, not 1. The update of
@@ -10,7 +10,7 @@
        origin can never change and a goal at another distance is never
        reached. (The ``Q_d`` values printed with Fig. 16 have unit norm, which
        a true ``Q_d`` has only at ``|p| = 2`` m, far outside the 36 cm
-       workspace: the seed must have normalised ``Q_d``, discarding ``|p|``.)
+       workspace: Seleem et al. must have normalised ``Q_d``, discarding ``|p|``.)
     2. ``Q_r`` and ``Q_d`` are integrated independently, so the unit
        dual-quaternion condition ``Q_r . Q_d = 0`` is lost and
        ``2 Q_d conj(Q_r)`` acquires a scalar part: the output is not a rigid
@@ -18,7 +18,7 @@
     3. ``2 log(Q_dg conj(Q_d))`` is the angle between two directions in R^4,
        not a translation: the spring has no geometric meaning.
 
-    It is provided so the seed's figures can be reproduced and compared.
+    It is provided so Seleem et al.'s figures can be reproduced and compared.
 
 ``dual_quaternion_dmp`` (label ``dual-quaternion``, sound)
     One DMP on the group of unit dual quaternions: the gap is the screw
@@ -48,25 +48,52 @@ POSE_VARIANTS: tuple[PoseVariant, ...] = get_args(PoseVariant)
 
 
 def seed_dual_quaternion_dmp(n_basis: int = 50, **options) -> DMP:
-    """Seed 000's variant: quaternion DMPs on ``Q_r`` and on ``Q_d`` of ``(Q_r, Q_d)`` (unsound, see module doc).
+    """Seleem et al.'s variant: quaternion DMPs on ``Q_r`` and on ``Q_d`` of ``(Q_r, Q_d)`` (unsound, see module doc).
 
-    ``options``: the keyword arguments of :class:`~optikin.dmp.DMP` (gains, overlap, smoothing, ...).
+    Parameters
+    ----------
+    n_basis:
+        Basis functions per gap component.
+    **options:
+        The other keyword arguments of :class:`~optikin.dmp.DMP` (gains, overlap, smoothing, ...).
+
+    Returns
+    -------
+    DMP
+        On ``S^3 x S^3``: states ``(8,)`` ``(Q_r, Q_d)``, gaps ``(6,)``.
     """
     return DMP(Product(UnitQuaternion(), UnitQuaternion()), n_basis, **options)
 
 
 def dual_quaternion_dmp(n_basis: int = 50, **options) -> DMP:
-    """A DMP on unit dual quaternions through ``dq_log``/``dq_exp`` (sound); ``options`` as :class:`DMP`'s."""
+    """A DMP on unit dual quaternions through ``dq_log``/``dq_exp`` (sound): states ``(8,)``, gaps ``(6,)``.
+
+    Parameters as :func:`seed_dual_quaternion_dmp`.
+    """
     return DMP(UnitDualQuaternion(), n_basis, **options)
 
 
 def cartesian_dmp(n_basis: int = 50, **options) -> DMP:
-    """A translation DMP and a quaternion DMP on ``(x, y, z, qw, qx, qy, qz)`` (sound); ``options``: :class:`DMP`'s."""
+    """A translation DMP and a quaternion DMP on ``(x, y, z, qw, qx, qy, qz)`` (sound): states ``(7,)`` [m | -],
+    gaps ``(6,)``. Parameters as :func:`seed_dual_quaternion_dmp`."""
     return DMP(Product(Euclidean(3), UnitQuaternion()), n_basis, **options)
 
 
 def pose_dmp(variant: str, **options) -> DMP:
-    """The pose DMP of a variant label (:data:`POSE_VARIANTS`)."""
+    """The pose DMP of a variant label.
+
+    Parameters
+    ----------
+    variant:
+        ``seed``, ``dual-quaternion`` or ``cartesian`` (:data:`POSE_VARIANTS`).
+    **options:
+        ``n_basis`` and the keyword arguments of :class:`~optikin.dmp.DMP`.
+
+    Raises
+    ------
+    ValueError
+        An unknown label.
+    """
     makers = {"seed": seed_dual_quaternion_dmp, "dual-quaternion": dual_quaternion_dmp, "cartesian": cartesian_dmp}
     if variant not in makers:
         raise ValueError(f"unknown pose DMP variant {variant!r}; choose from {POSE_VARIANTS}")
@@ -74,7 +101,20 @@ def pose_dmp(variant: str, **options) -> DMP:
 
 
 def to_variant(variant: str, dq: np.ndarray) -> np.ndarray:
-    """Dual quaternions ``(..., 8)`` in the state layout of a variant (``(p, q)`` for ``cartesian``)."""
+    """Poses in the state layout of a variant.
+
+    Parameters
+    ----------
+    variant:
+        A label of :data:`POSE_VARIANTS`.
+    dq:
+        ``(..., 8)`` unit dual quaternions ``Q_r + eps Q_d`` (eqs. 9-10).
+
+    Returns
+    -------
+    ndarray
+        ``(..., 7)`` ``(x, y, z, qw, qx, qy, qz)`` [m | -] for ``cartesian``, else ``dq`` itself ``(..., 8)``.
+    """
     dq = np.asarray(dq, dtype=float)
     if variant == "cartesian":
         return np.concatenate([dq_translation(dq), dq_rotation(dq)], axis=-1)
@@ -82,10 +122,21 @@ def to_variant(variant: str, dq: np.ndarray) -> np.ndarray:
 
 
 def from_variant(variant: str, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``(positions (..., 3), quaternions (..., 4))`` of states of a variant.
+    """Positions and orientations of states of a variant (the inverse of :func:`to_variant`).
 
-    For the seed's variant the translation is read as ``2 Q_d conj(Q_r)``
-    (its scalar part, nonzero when ``Q_r . Q_d != 0``, is dropped).
+    Parameters
+    ----------
+    variant:
+        A label of :data:`POSE_VARIANTS`.
+    y:
+        ``(..., 7)`` or ``(..., 8)`` states in the variant's layout.
+
+    Returns
+    -------
+    tuple
+        Positions ``(..., 3)`` [m] and unit quaternions ``(..., 4)``. For
+        Seleem et al.'s variant the translation is read as ``2 Q_d conj(Q_r)``
+        (eq. 10; its scalar part, nonzero when ``Q_r . Q_d != 0``, is dropped).
     """
     y = np.asarray(y, dtype=float)
     if variant == "cartesian":

@@ -32,7 +32,21 @@ METHODS: tuple[Method, ...] = get_args(Method)
 
 @dataclass(frozen=True)
 class Fit:
-    """Weights ``(dim, n)`` of one fit, its residual ``rms(X W^T - F)``, wall time and solver status."""
+    """One fit of the forcing-term weights.
+
+    Attributes
+    ----------
+    method:
+        ``lstsq``, ``cvxpy`` or ``lwr``.
+    weights:
+        ``(dim, n)`` weights, one row per gap component.
+    residual:
+        ``rms(X W^T - F)`` in the units of the target forces (eqs. 16, 22).
+    seconds:
+        Wall time of the fit [s].
+    status:
+        The solver's status (``optimal`` for the closed forms).
+    """
 
     method: str
     weights: np.ndarray
@@ -46,7 +60,22 @@ def _residual(X: np.ndarray, F: np.ndarray, W: np.ndarray) -> float:
 
 
 def fit_lstsq(X: np.ndarray, F: np.ndarray, ridge: float = 0.0) -> Fit:
-    """Closed-form (ridge) least squares with ``numpy.linalg.lstsq``."""
+    """Closed-form (ridge) least squares ``min |X W^T - F|^2 + ridge |W|^2`` with ``numpy.linalg.lstsq``.
+
+    Parameters
+    ----------
+    X:
+        ``(K, n)`` design matrix (eq. 13).
+    F:
+        ``(K, dim)`` target forces (eqs. 16, 22).
+    ridge:
+        Weight of the ridge term, >= 0.
+
+    Returns
+    -------
+    Fit
+        Weights ``(dim, n)``.
+    """
     start = time.perf_counter()
     if ridge > 0:
         n = X.shape[1]
@@ -62,6 +91,28 @@ def fit_lstsq(X: np.ndarray, F: np.ndarray, ridge: float = 0.0) -> Fit:
 def fit_cvxpy(X: np.ndarray, F: np.ndarray, ridge: float = 0.0, lower: float | np.ndarray | None = None,
               upper: float | np.ndarray | None = None, solver: str = "CLARABEL") -> Fit:
     """All weights at once as a cvxpy least-squares problem with optional ridge term and bounds.
+
+    Parameters
+    ----------
+    X, F, ridge:
+        As :func:`fit_lstsq`.
+    lower, upper:
+        Bounds on the weights: scalars or ``(n, dim)`` arrays (``W^T``'s shape); ``None`` for none.
+    solver:
+        The cvxpy solver.
+
+    Returns
+    -------
+    Fit
+        Weights ``(dim, n)`` and the solver's status.
+
+    Raises
+    ------
+    SolverError
+        The solver failed or returned no optimal point.
+
+    Notes
+    -----
 
     The data term is first reduced exactly to ``n`` rows with a thin QR
     factorisation ``X = Q R``: ``|X W' - F|^2 = |R W' - Q'F|^2 + |F|^2 - |Q'F|^2``,
@@ -97,8 +148,21 @@ def fit_cvxpy(X: np.ndarray, F: np.ndarray, ridge: float = 0.0, lower: float | n
 def fit_lwr(s: np.ndarray, psi: np.ndarray, X: np.ndarray, F: np.ndarray) -> Fit:
     """Locally weighted regression: ``w_j = sum_k psi_jk s_k F_k / sum_k psi_jk s_k^2`` for each basis ``j``.
 
-    ``psi`` holds the unnormalised activations ``(K, n)``; ``X`` is only used
-    to report the residual on the same footing as the other fits.
+    Parameters
+    ----------
+    s:
+        ``(K,)`` phase of the rows.
+    psi:
+        ``(K, n)`` unnormalised activations (:func:`optikin.dmp.basis.activations`).
+    X:
+        ``(K, n)`` design matrix, only used to report the residual on the same footing as the other fits.
+    F:
+        ``(K, dim)`` target forces.
+
+    Returns
+    -------
+    Fit
+        Weights ``(dim, n)``.
     """
     start = time.perf_counter()
     s = np.asarray(s, dtype=float)

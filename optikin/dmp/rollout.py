@@ -1,6 +1,6 @@
 """The DMP roll-out as one CasADi Function: the whole loop runs in CasADi's virtual machine.
 
-One step (seed 000 eqs. 11-12 / 17-18, 15, 23-28, in the gap units of
+One step (Seleem et al. 2020, eqs. 11-12 / 17-18, 15, 23-28, in the gap units of
 :mod:`optikin.dmp.spaces`) on the state ``x = (y, eta, s, g)``:
 
     e   = gap(g, y)                      goal gap (eq. 19: 2 log(g conj(y)))
@@ -15,10 +15,10 @@ One step (seed 000 eqs. 11-12 / 17-18, 15, 23-28, in the gap units of
 The pose update ``advance(y, v) = exp(v/2) y`` keeps a unit quaternion (or
 unit dual quaternion) unit to rounding; the goal filter and the phase are
 integrated exactly for gaps held over the step. The coupling uses the filtered
-goal ``g`` (the seed writes the new goal in eq. 26, which would make the
+goal ``g`` (Seleem et al. write the new goal in eq. 26, which would make the
 velocity jump at a switch, what the filter is there to prevent). Phase
 stopping (:mod:`optikin.dmp.canonical`) uses the tracking error ``|r|`` alone
-(``w = 0``, the default) or, as the seed's eq. (28), the sum of the two gap
+(``w = 0``, the default) or, as Seleem et al.'s eq. (28), the sum of the two gap
 norms (``w = 1``).
 
 The loop is a ``mapaccum`` of the step wrapped in an MX Function per number of

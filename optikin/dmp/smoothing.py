@@ -1,6 +1,6 @@
 """Low-pass smoothing of a noisy demonstration before its target forces are computed (optional).
 
-The target forces (seed eqs. 16, 22) are second differences of the samples
+The target forces (Seleem et al.'s eqs. 16, 22) are second differences of the samples
 scaled by ``(tau/dt)^2``; on sensor data (the IMU interface: about 0.5 mm and
 a few mrad of white noise per sample at 100 Hz) they are dominated by noise.
 Inside the demonstration the least-squares forcing term averages most of it
@@ -11,7 +11,7 @@ demonstration). DMP imitation presumes derivatives that describe the motion
 (Ijspeert et al. 2013 build the target force from ``y, dy/dt, d2y/dt2`` of the
 demonstration, Ude et al. 2014 from ``q, omega, domega/dt``) and a motion that
 reaches its goal at rest, where the attractor ``(g, 0)`` takes over; on sampled
-sensor data that means low-pass filtering first, as the seed does for its
+sensor data that means low-pass filtering first, as Seleem et al. do for their
 Kinect data (eq. 31).
 
 :func:`smooth_demonstration` applies a zero-phase Whittaker smoother
@@ -84,7 +84,24 @@ def whittaker(x: np.ndarray, lam: float, order: int = ORDER) -> np.ndarray:
 
 
 def smooth_demonstration(space: Space, Y: np.ndarray, dt: float, cutoff: float) -> np.ndarray:
-    """Samples ``Y (N, size)`` (sign-continuous), low-passed at ``cutoff`` Hz in the tangent space of ``Y[-1]``."""
+    """Samples low-passed in the tangent space of the last one (Whittaker smoother, third differences).
+
+    Parameters
+    ----------
+    space:
+        The DMP's space.
+    Y:
+        ``(N, size)`` sign-continuous samples.
+    dt:
+        Sample step [s].
+    cutoff:
+        Half-power frequency [Hz], below the Nyquist frequency ``0.5 / dt``.
+
+    Returns
+    -------
+    ndarray
+        ``(N, size)`` smoothed samples (unit quaternions stay unit, dual quaternions rigid).
+    """
     anchor = Y[-1]
     gaps = np.asarray(space.gap(anchor, Y), dtype=float)
     smoothed = whittaker(gaps, smoothing_weight(cutoff, dt))

@@ -1,24 +1,24 @@
 """The spaces a DMP moves in: vectors, unit quaternions, unit dual quaternions, and products of them.
 
-Every DMP of seed 000 (eqs. 11-12 per angle, eqs. 17-23 on a unit quaternion)
+Every DMP of Seleem et al. (2020) (eqs. 11-12 per angle, eqs. 17-23 on a unit quaternion)
 has the same structure once two operations of its space are named:
 
 ``gap(target, y)``
     the error that drives the spring, in *gap units*: ``target - y`` for
     vectors; ``2 log(target * conj(y))`` for quaternions (the rotation vector,
-    seed eq. 19, Ude et al. 2014); ``2 log(target * conj(y))`` in the dual
+    Seleem et al.'s eq. 19, Ude et al. 2014); ``2 log(target * conj(y))`` in the dual
     algebra for unit dual quaternions (rotation vector and screw translation).
 ``advance(y, v)``
     move ``y`` by a gap-unit step ``v``: ``y + v`` for vectors,
-    ``exp(v / 2) * y`` for quaternions (seed eq. 23) and dual quaternions.
+    ``exp(v / 2) * y`` for quaternions (Seleem et al.'s eq. 23) and dual quaternions.
 
 ``gap(advance(y, v), y) = v`` (for rotations below a full turn), so the DMP of
 one space is written once (:mod:`optikin.dmp.rollout`) for all of them. Each
 operation accepts numpy batches (components on the last axis) and CasADi
 column vectors, like :mod:`optikin.algebra`.
 
-Quaternion parts of a state are unit on the demonstrations the seed uses; the
-seed also runs the quaternion DMP on ``Q_d`` (not unit): the same operations
+Quaternion parts of a state are unit on the demonstrations Seleem et al. use; the
+paper also runs the quaternion DMP on ``Q_d`` (not unit): the same operations
 apply (``quat_log`` of a product is scale invariant and ``exp(v/2) * y`` keeps
 ``|y|``), which is exactly why that variant cannot change ``|Q_d|``
 (:mod:`optikin.dmp.pose`).
@@ -67,9 +67,36 @@ class Space:
     """``(start, 4)`` of every 4-component block whose sign is free (q and -q are one rotation)."""
 
     def gap(self, target: Array, y: Array) -> Array:
+        """The error that drives the spring (eq. 19 on a quaternion), in gap units.
+
+        Parameters
+        ----------
+        target, y:
+            ``(..., size)`` elements (numpy, broadcast) or ``size x 1`` CasADi columns.
+
+        Returns
+        -------
+        Array
+            ``(..., dim)`` (or ``dim x 1``): ``target - y`` for vectors, the
+            rotation vector / screw ``2 log(target conj(y))`` [rad | m] otherwise.
+        """
         raise NotImplementedError
 
     def advance(self, y: Array, v: Array) -> Array:
+        """``y`` moved by a gap-unit step ``v`` (eq. 23 on a quaternion).
+
+        Parameters
+        ----------
+        y:
+            ``(..., size)`` elements (or a CasADi column).
+        v:
+            ``(..., dim)`` steps in gap units.
+
+        Returns
+        -------
+        Array
+            ``(..., size)``: ``y + v`` for vectors, ``exp(v/2) y`` otherwise (unit stays unit).
+        """
         raise NotImplementedError
 
     def align(self, x: np.ndarray, reference: np.ndarray) -> np.ndarray:
@@ -97,7 +124,7 @@ class Space:
 
 @dataclass(frozen=True, repr=False)
 class Euclidean(Space):
-    """``R^n`` (one DMP per degree of freedom, seed eqs. 11-12): ``gap = target - y``."""
+    """``R^n`` (one DMP per degree of freedom, Seleem et al.'s eqs. 11-12): ``gap = target - y``."""
 
     n: int
 
@@ -122,7 +149,8 @@ class Euclidean(Space):
 
 @dataclass(frozen=True, repr=False)
 class UnitQuaternion(Space):
-    """``S^3`` (seed eqs. 17-23, Ude et al. 2014): ``gap = 2 log(target conj(y))``, ``advance = exp(v/2) y``."""
+    """``S^3`` (Seleem et al.'s eqs. 17-23, Ude et al. 2014): ``gap = 2 log(target conj(y))``, ``advance = exp(v/2) y``.
+    """
 
     name = "S3"
     size = 4

@@ -1,6 +1,6 @@
-"""DMP gains chosen by optimisation: the reproduction error of seed 000 eq. (29) as a CasADi Function.
+"""DMP gains chosen by optimisation: the reproduction error of Seleem et al. (2020) eq. (29) as a CasADi Function.
 
-Seed 000 picks ``beta, gamma, zeta`` by a genetic algorithm minimising
+Seleem et al. (2020) pick ``beta, gamma, zeta`` by a genetic algorithm minimising
 ``FT = sum_i E_i^2`` (eq. 29), the squared error between demonstrated and
 reproduced ``Q_r`` (or ``Q_d``) over the components and samples, and
 ``beta_g0, alpha_s`` by the same algorithm minimising the error between the
@@ -29,7 +29,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
-from typing import Callable, Literal, get_args
+from typing import Any, Callable, Literal, get_args
 
 import casadi as ca
 import numpy as np
@@ -51,7 +51,22 @@ RIDGE = 1e-10
 
 @dataclass(frozen=True)
 class TuningProblem:
-    """``objective(log gains) -> eq. (29)`` for the gains ``names``, with bounds and the starting point."""
+    """``objective(log gains) -> eq. (29)`` for the gains ``names``, with bounds and the starting point.
+
+    Attributes
+    ----------
+    names:
+        The tuned gains (:data:`~optikin.dmp.gains.GAIN_NAMES`).
+    objective:
+        CasADi Function ``log_gains (n,) -> error``: eq. (29), the squared error
+        summed over components and averaged over samples (gap-layout units squared).
+    lower, upper:
+        ``(n,)`` bounds on the gains (not their logarithms).
+    initial:
+        ``(n,)`` starting gains (the DMP's, clipped into the bounds).
+    fixed:
+        The gains not tuned.
+    """
 
     names: tuple[str, ...]
     objective: ca.Function
@@ -61,21 +76,43 @@ class TuningProblem:
     fixed: Gains
 
     def gains(self, values: np.ndarray) -> Gains:
+        """The fixed gains with the tuned ones set to ``values (n,)``."""
         return self.fixed.with_values(**{n: float(v) for n, v in zip(self.names, values)})
 
     def error(self, values: np.ndarray) -> float:
+        """Eq. (29) at gains ``values (n,)`` (not logarithms)."""
         return float(self.objective(np.log(np.asarray(values, dtype=float))))
 
 
 @dataclass(frozen=True)
 class TuningResult:
+    """The gains a tuner found.
+
+    Attributes
+    ----------
+    method:
+        ``ipopt`` or ``genetic``.
+    gains:
+        The gains found (the fixed ones unchanged).
+    error, initial_error:
+        Eq. (29) at the gains found and at the starting gains.
+    seconds:
+        Wall time [s].
+    evaluations:
+        Objective (and gradient) evaluations.
+    history:
+        Best error after each iteration / generation.
+    status:
+        The solver's status.
+    """
+
     method: str
     gains: Gains
-    error: float  # eq. (29) at the gains found
+    error: float
     initial_error: float
     seconds: float
     evaluations: int
-    history: np.ndarray  # best error per iteration / generation
+    history: np.ndarray
     status: str
 
 
@@ -98,10 +135,38 @@ def default_bounds(dmp: DMP, names: tuple[str, ...]) -> tuple[np.ndarray, np.nda
 def tuning_problem(dmp: DMP, t: np.ndarray, Y: np.ndarray, names: tuple[str, ...] = ("beta", "gamma", "zeta"),
                    scenario: str = "reproduction", new_goal: np.ndarray | None = None,
                    switch_time: float = 0.0, bounds: tuple[np.ndarray, np.ndarray] | None = None) -> TuningProblem:
-    """Build the objective of ``names`` for a demonstration ``(t, Y)``; other gains stay at ``dmp.gains``.
+    """Build the objective of eq. (29) in the gains ``names``; the other gains stay at ``dmp.gains``.
 
-    ``dmp`` supplies the space, basis size, overlap, amplitude scaling and the
-    fixed gains; it learns the demonstration here (with its current gains).
+    Parameters
+    ----------
+    dmp:
+        Supplies the space, basis size, overlap, amplitude scaling, phase
+        stopping and the fixed gains; it learns the demonstration here (with its
+        current gains).
+    t:
+        ``(N,)`` equally spaced times [s].
+    Y:
+        ``(N, size)`` demonstration in the DMP's layout.
+    names:
+        The gains tuned.
+    scenario:
+        ``reproduction`` (the roll-out against the demonstration) or ``goal``
+        (the roll-out against ``new_goal`` from ``switch_time`` on).
+    new_goal:
+        ``(size,)`` the new goal of the ``goal`` scenario.
+    switch_time:
+        When the goal switches [s].
+    bounds:
+        ``(lower (n,), upper (n,))`` on the gains; default :func:`default_bounds`.
+
+    Returns
+    -------
+    TuningProblem
+
+    Raises
+    ------
+    ValueError
+        Unknown gains or scenario, or the goal scenario without a new goal.
     """
     unknown = [n for n in names if n not in GAIN_NAMES]
     if unknown or not names:
@@ -111,11 +176,11 @@ def tuning_problem(dmp: DMP, t: np.ndarray, Y: np.ndarray, names: tuple[str, ...
     if scenario == "goal" and new_goal is None:
         raise ValueError("the goal scenario needs new_goal")
     dmp.imitate(t, Y)
-    demo = dmp.demo
+    demo = dmp.learned
     space = dmp.space
 
     log_gains = ca.MX.sym("log_gains", len(names))
-    value = {n: getattr(dmp.gains, n) for n in GAIN_NAMES}
+    value: dict[str, Any] = {n: getattr(dmp.gains, n) for n in GAIN_NAMES}
     value["beta_g0"] = min(value["beta_g0"], 1e12)  # exp(-beta_g0 dt / tau) = 0 without an inf in the graph
     for i, n in enumerate(names):
         value[n] = ca.exp(log_gains[i])
@@ -136,6 +201,7 @@ def tuning_problem(dmp: DMP, t: np.ndarray, Y: np.ndarray, names: tuple[str, ...
         reference = demo.Y
         rows = slice(0, None)
     else:
+        assert new_goal is not None
         plan = dmp.plan(goal_switches=[(switch_time, new_goal)])
         reference = np.broadcast_to(plan.final_goal, demo.Y.shape)
         rows = slice(int(np.searchsorted(plan.t, switch_time)), None)
@@ -179,6 +245,31 @@ def tune_gradient(problem: TuningProblem, max_iterations: int = 60, tolerance: f
                   time_limit: float = 60.0, screen: int = 16, starts: int = 2, seed: int = 0) -> TuningResult:
     """Minimise eq. (29) over the log-gains: multi-start IPOPT (exact gradient, limited-memory Hessian, box bounds).
 
+    Parameters
+    ----------
+    problem:
+        From :func:`tuning_problem`.
+    max_iterations:
+        IPOPT iterations per start.
+    tolerance:
+        IPOPT's tolerance on the objective scaled by its starting value.
+    time_limit:
+        Wall time for all starts [s].
+    screen:
+        Latin-hypercube points screened (>= 0).
+    starts:
+        IPOPT runs, from the best screened points (>= 1).
+    seed:
+        Seed of the Latin hypercube.
+
+    Returns
+    -------
+    TuningResult
+        ``method="ipopt"``; ``status`` IPOPT's return status of the best run (``screening`` if none improved).
+
+    Notes
+    -----
+
     Eq. (29) is not convex in the gains (on the IMU demonstrations a single
     IPOPT run from the default gains stops at a local point or at its
     iteration limit, above what the GA's random population finds), so the
@@ -211,10 +302,11 @@ def tune_gradient(problem: TuningProblem, max_iterations: int = 60, tolerance: f
         remaining = time_limit - (time.perf_counter() - begin)
         if remaining <= 0:
             break
-        options = {"print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes",
+        options: dict[str, Any] = {"print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes",
                    "ipopt.hessian_approximation": "limited-memory", "ipopt.max_iter": int(max_iterations),
                    "ipopt.tol": float(tolerance), "ipopt.max_wall_time": float(remaining)}
-        solver = ca.nlpsol("dmp_gain_tuning", "ipopt", {"x": p, "f": scale * problem.objective(p)}, options)
+        nlp: dict[str, Any] = {"x": p, "f": scale * problem.objective(p)}
+        solver = ca.nlpsol("dmp_gain_tuning", "ipopt", nlp, options)
         solution = solver(x0=candidates[k], lbx=np.log(problem.lower), ubx=np.log(problem.upper))
         stats = solver.stats()
         evaluations += int(stats.get("n_call_nlp_f", 0)) + int(stats.get("n_call_nlp_grad_f", 0))
@@ -232,7 +324,20 @@ def tune_gradient(problem: TuningProblem, max_iterations: int = 60, tolerance: f
 
 
 def tune_genetic(problem: TuningProblem, population: int = 20, generations: int = 15, seed: int = 0) -> TuningResult:
-    """Minimise eq. (29) with the GA baseline over the log-gains, evaluating each generation in one mapped call."""
+    """Minimise eq. (29) with the GA baseline over the log-gains, evaluating each generation in one mapped call.
+
+    Parameters
+    ----------
+    problem:
+        From :func:`tuning_problem`.
+    population, generations, seed:
+        Of :func:`optikin.baselines.genetic.minimise` (the starting gains are in the first population).
+
+    Returns
+    -------
+    TuningResult
+        ``method="genetic"``.
+    """
     initial_error = problem.error(problem.initial)
     found = genetic.minimise(_batch(problem), np.log(problem.lower), np.log(problem.upper), population=population,
                              generations=generations, seed=seed, initial=np.log(problem.initial))

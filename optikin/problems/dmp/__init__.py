@@ -4,7 +4,7 @@ The methods under study are the weight regression posed in cvxpy (all weights
 at once, optional ridge and bounds) and the gain tuning by a gradient-based
 NLP (IPOPT through CasADi, :mod:`optikin.dmp.tuning`); the baselines, run on
 the same demonstration, are the closed-form fit (``lstsq``), locally weighted
-regression (``lwr``) and the seed's genetic algorithm (``genetic``). Each
+regression (``lwr``) and Seleem et al.'s genetic algorithm (``genetic``). Each
 DMP representation listed in ``variants`` learns the demonstration and is
 rolled out: reproduction, and optionally goal switches and a perturbation.
 

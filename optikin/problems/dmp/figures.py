@@ -76,6 +76,7 @@ def _quaternion_figure(arrays: Mapping[str, np.ndarray], variant: str, name: str
         from optikin import plots
 
         _, q = variant_pose(variant, y)
+        assert q is not None, f"variant {variant} has no orientation quaternion"
         t = np.arange(len(y)) * (demo_t[1] - demo_t[0])
         series = {f"{variant} Q_r": q}
         if dual:

@@ -24,7 +24,7 @@ from optikin.options import Options
 
 Variant = Literal["seed", "dual-quaternion", "cartesian", "quaternion", "rpy", "position"]
 """A DMP representation: the pose DMPs of :mod:`optikin.dmp.pose`, a unit-quaternion DMP on the orientation
-(seed 000 eqs. 17-23), per-angle DMPs on roll-pitch-yaw (eqs. 11-16) or a translation DMP on the position."""
+(Seleem et al. 2020, eqs. 17-23), per-angle DMPs on roll-pitch-yaw (eqs. 11-16) or a translation DMP on the position."""
 VARIANTS: tuple[Variant, ...] = get_args(Variant)
 
 _GAINS = Gains()

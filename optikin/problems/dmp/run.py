@@ -128,7 +128,7 @@ class Learner:
         except InputDataError:
             raise
         except OptikinError as exc:
-            raise SpecError(self.path, "options.regression", str(exc)) from None
+            raise SpecError(str(self.path), "options.regression", str(exc)) from None
 
     def reproduce(self, variant: str, method: str, role: str,
                   truth: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[DMP, Reproduction]:
@@ -249,7 +249,7 @@ def perturb(learner: Learner, variant: str, label: str, coupling: Coupling | Non
         gains = learner.gains.with_values(alpha_s=coupling.alpha_s, alpha=coupling.alpha)
         dmp = learner.dmp(variant, gains, coupling.phase_stopping)
     learner.fit(dmp, variant, learner.options.regression.method)
-    reference = None if coupling is None or dmp.demo is None else dmp.demo.Y  # smoothed if asked
+    reference = None if coupling is None else dmp.learned.Y  # smoothed if asked
     calm = dmp.rollout(reference=reference)
     out = dmp.rollout(disturbance=push, reference=reference)
     p_calm, q_calm = variant_pose(variant, calm.y)

@@ -3,7 +3,7 @@
 A variant (:data:`~optikin.problems.dmp.options.Variant`) is a DMP on one
 representation of the tip pose: ``seed``, ``dual-quaternion`` and
 ``cartesian`` are the pose DMPs of :mod:`optikin.dmp.pose`; ``quaternion`` a
-unit-quaternion DMP on the orientation (seed 000 eqs. 17-23); ``rpy`` three
+unit-quaternion DMP on the orientation (Seleem et al. 2020, eqs. 17-23); ``rpy`` three
 per-angle DMPs on roll-pitch-yaw (eqs. 11-16, angles by eq. 30); ``position``
 a translation DMP.
 """
