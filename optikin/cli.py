@@ -23,6 +23,7 @@ import signal
 import sys
 import traceback
 from pathlib import Path
+from typing import Any, Callable, Literal
 
 import yaml
 
@@ -32,7 +33,8 @@ from optikin.errors import OptikinError
 EXIT_OK, EXIT_FAILED_SAMPLES, EXIT_BAD_INPUT, EXIT_INTERNAL, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 
 
-def _listing(kind: str, load, describe) -> tuple[list[tuple[str, ...]], list[str]]:
+def _listing(kind: Literal["problems", "solvers"], load: Callable[[str], tuple[Any, Path]],
+             describe: Callable[[Any], tuple[str, ...]]) -> tuple[list[tuple[str, ...]], list[str]]:
     """Rows ``(name, *describe(spec))`` of every named file of ``kind``, and the errors of those that fail."""
     from optikin.spec import available
 
@@ -102,18 +104,18 @@ def _cmd_show(args: argparse.Namespace) -> int:
         from optikin.solvers import load_preset
 
         preset = load_preset(args.name)
-        spec, path = preset.spec, preset.path
+        path = preset.path
         model, title = preset.backend.options, f"options of backend {preset.spec.backend}"
-        data = spec.model_dump(mode="json")
+        data = preset.spec.model_dump(mode="json")
         if model is not None:
             data["options"] = preset.options.model_dump(mode="json")
     else:
         from optikin.runner import prepare
 
         kind, ctx = prepare(args.name)
-        spec, path = ctx.spec, ctx.path
+        path = ctx.path
         model, title = kind.options, f"options of kind {kind.name}"
-        data = spec.model_dump(mode="json")
+        data = ctx.spec.model_dump(mode="json")
         if model is not None:
             data["options"] = ctx.options.model_dump(mode="json")
         if ctx.data_params is not None:
@@ -214,7 +216,7 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _terminate(signum, frame):  # type: ignore[no-untyped-def]
+def _terminate(signum: int, frame: object) -> None:
     raise KeyboardInterrupt
 
 

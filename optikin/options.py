@@ -20,7 +20,7 @@ Example
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any, Mapping, TypeVar
 
 from pydantic import BaseModel, ConfigDict, ValidationError
 
@@ -44,7 +44,7 @@ def field_path(loc: tuple[Any, ...]) -> str:
     return ".".join(str(p) for p in loc if not str(p).startswith("function-"))
 
 
-def error_message(error: dict[str, Any]) -> str:
+def error_message(error: Mapping[str, Any]) -> str:
     """The one-line message of a pydantic error, in the words the rest of optikin uses."""
     kind = error["type"]
     if kind == "extra_forbidden":
@@ -61,7 +61,7 @@ def error_message(error: dict[str, Any]) -> str:
 
 def spec_error(path: str | Path, exc: ValidationError, prefix: str = "") -> SpecError:
     """The first error of ``exc`` as a :class:`SpecError` naming ``path`` and ``prefix.field``."""
-    first = exc.errors()[0]
+    first: Mapping[str, Any] = exc.errors()[0]
     where = ".".join(p for p in (prefix, field_path(first["loc"])) if p)
     return SpecError(path, where, error_message(first))
 

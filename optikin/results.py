@@ -145,7 +145,7 @@ def write_result(result: Result, out_dir: Path, figures: bool = True, arrays: li
         summary["arrays"] = {k: list(np.shape(v)) for k, v in kept.items()}
         summary["figures"] = []
         if kept:
-            np.savez_compressed(staging / "arrays.npz", **kept)
+            np.savez_compressed(staging / "arrays.npz", **kept)  # type: ignore[arg-type]
         if figures:
             drawers = dict(result.figures)
             if figure_builder is not None:
