@@ -72,3 +72,11 @@ def test_solver_statistics_are_those_of_the_last_buffered_call():
         assert buffered == solver.stats()["iter_count"]
         counts.append(buffered)
     assert counts[1] == 1 and counts[0] > 3
+
+
+def test_a_single_sparse_output_is_densified():
+    x = ca.SX.sym("x", 3)
+    f = ca.Function("diag_only", [x], [ca.diag(x) * 3.0])
+    fast = BufferedFunction(f)
+    (d,) = fast(np.array([1.0, 2.0, 4.0]))
+    np.testing.assert_array_equal(d.reshape(3, 3, order="F"), np.diag([3.0, 6.0, 12.0]))
