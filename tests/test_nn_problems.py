@@ -6,6 +6,8 @@ eqs. (7)-(9), Table I typed in again, and the database rebuilt from the problem'
 
 from __future__ import annotations
 
+import typing
+
 import numpy as np
 import pytest
 import yaml
@@ -13,9 +15,12 @@ import yaml
 from optikin.arms.cbha import CBHAArm, CBHAGeometry, printed_leg_lengths
 from optikin.baselines.nn_database import DatabaseSpec, build_database
 from optikin.errors import InputDataError, SpecError
+from optikin.baselines.nn_models import SETTINGS
 from optikin.problems import ProblemContext
-from optikin.problems.nn_baseline import database_spec, options
+from optikin.problems.nn_shared import SettingName, database_spec, options
 from optikin.progress import SILENT
+from optikin.registry import PROBLEM_KINDS
+from optikin.results import read_result, redraw
 from optikin.runner import solve
 from optikin.spec import load_problem, project_root
 
@@ -60,15 +65,26 @@ def database():
 
 
 @pytest.fixture(scope="module")
-def fkm(tmp_path_factory):
-    path = small_problem(tmp_path_factory.mktemp("fkm"), "fkm", options__variants=["seed", "adam"])
-    return solve(path)[0]
+def fkm_solved(tmp_path_factory):
+    """The small nn_fkm problem's Result and the folder it was written to (figures drawn)."""
+    folder = tmp_path_factory.mktemp("fkm")
+    return solve(small_problem(folder, "fkm", options__variants=["seed", "adam"]), out=folder / "out")
 
 
 @pytest.fixture(scope="module")
-def ikm(tmp_path_factory):
-    path = small_problem(tmp_path_factory.mktemp("ikm"), "ikm", options__variants=["adam"])
-    return solve(path)[0]
+def ikm_solved(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("ikm")
+    return solve(small_problem(folder, "ikm", options__variants=["adam"]), out=folder / "out")
+
+
+@pytest.fixture(scope="module")
+def fkm(fkm_solved):
+    return fkm_solved[0]
+
+
+@pytest.fixture(scope="module")
+def ikm(ikm_solved):
+    return ikm_solved[0]
 
 
 def test_fkm_tip_errors_go_through_the_exact_chain(fkm, database):
@@ -164,3 +180,36 @@ def test_shipped_problem_files_are_valid(name):
     assert o.setting == "full" and db_spec.split == (0.70, 0.15, 0.15)
     assert db_spec.coupling == ("section" if name.endswith("coupled") else "platform")
     assert db_spec.z_range == (0.0, 0.025) and db_spec.angle_range == pytest.approx((-np.pi / 4, np.pi / 4))
+
+
+@pytest.mark.parametrize("kind", ["fkm", "ikm"])
+@pytest.mark.parametrize("changes, field", [
+    ({"options__exact_sampels": 3}, "options.exact_sampels"),
+    ({"data__params": {"z_range_mm": [0, 25], "coupilng": "section"}}, "data.params.coupilng"),
+])
+def test_a_typo_in_options_or_data_params_is_an_unknown_field(tmp_path, kind, changes, field):
+    with pytest.raises(SpecError) as err:
+        solve(small_problem(tmp_path, kind, **changes))
+    assert err.value.field == field and "unknown field" in str(err.value)
+
+
+def test_the_setting_names_are_the_trained_settings():
+    assert typing.get_args(SettingName) == tuple(SETTINGS)
+
+
+@pytest.mark.parametrize("kind", ["fkm", "ikm"])
+def test_figures_are_redrawn_from_the_written_result(request, tmp_path, kind):
+    result, folder = request.getfixturevalue(f"{kind}_solved")
+    summary, arrays = read_result(folder)
+    assert summary["figures"] == ["search.png", "tip_errors.png"]
+    builder = PROBLEM_KINDS.get(f"nn_{kind}").figures
+    assert sorted(builder(arrays, summary)) == ["search", "tip_errors"]
+    assert [p.name for p in redraw(folder, builder, summary, arrays)] == ["search.png", "tip_errors.png"]
+    methods = [row.method for row in result.comparison]
+    for method in methods:  # the figures' arrays are the rows' tip errors, the searches the models'
+        np.testing.assert_array_equal(arrays[f"tip_errors_{method}"], result.arrays[f"tip_errors_{method}"])
+    key = f"{methods[0]} {kind}_{'section1' if kind == 'fkm' else 'nn1'} validation criterion per width"
+    search = arrays[f"search_{methods[0].removeprefix('mlp-')}_{kind}_{'section1' if kind == 'fkm' else 'nn1'}"]
+    assert {str(int(n)): v for n, v in search} == pytest.approx(summary["metrics"][key])
+    without = {k: v for k, v in arrays.items() if not k.startswith("tip_errors_")}
+    assert sorted(builder(without, summary)) == ["search"]

@@ -42,7 +42,7 @@ from optikin.baselines.nn_models import (
     train_model)
 from optikin.ik.formulation import Formulation, build_problem, rest_configuration
 from optikin.ik.platform import linearised_start, platform_problems, solve_platforms
-from optikin.problems.nn_baseline import PLATFORM_TOLERANCE, TIP_TOLERANCE
+from optikin.problems.nn_shared import PLATFORM_TOLERANCE, TIP_TOLERANCE
 from optikin.solvers import build_preset
 
 N_FKM, N_SCIPY, N_TIP = 500, 20, 20

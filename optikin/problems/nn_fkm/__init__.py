@@ -1,0 +1,60 @@
+"""Problem kind ``nn_fkm``: the hybrid forward kinematics of seed 004 against exact platform solvers.
+
+Lakhal et al. 2016, section IV, Fig. 9, Table II: a forward network per section
+predicts the platform variables ``(Z_k, theta_k, psi_k)`` from the leg lengths; the
+tip follows by the exact chain of eq. (5). The baselines are solver presets of the
+``nonlinear`` family (``newton``, ``gauss-newton``, ``lm``, ``trf``, ``ipopt``,
+``sqpmethod``, or a user's own) solving eqs. (7)-(9) of every platform
+(:mod:`optikin.ik.platform`) from their linearisation
+(:func:`~optikin.ik.platform.linearised_start`), on the first ``exact_samples``
+held-out arms. What both nn kinds share (statuses, MSEs, tip errors) is described
+in :mod:`optikin.problems.nn_shared`.
+
+``data`` (source ``fig7``, :class:`~optikin.baselines.nn_database.Fig7Params`)::
+
+    data:
+      source: fig7
+      seed: 2016                # every draw and the split
+      samples: 1500000          # candidate draws per platform
+      params:
+        z_range_mm: [0, 25]     # the wide box of Fig. 7
+        angle_range_deg: [-45, 45]
+        require_upright: true
+        coupling: platform      # or section
+        split: [0.7, 0.15, 0.15]
+
+``options`` (all optional, :class:`~optikin.problems.nn_shared.NNOptions`)::
+
+    variants: [seed, adam]      # training settings (optikin.baselines.nn_models.SETTINGS)
+    setting: full               # or small: two widths, 15 epochs (tests, notebooks)
+    store: null                 # folder of trained models (relative to the working directory):
+                                # loaded when it matches the problem, otherwise trained and written
+    exact_samples: 200          # test samples given to the exact solvers (the first ones)
+    latency_repeats: 50         # one-sample calls timed for the latency
+"""
+
+from __future__ import annotations
+
+from optikin.problems import ProblemContext, ProblemKind, register_kind
+from optikin.problems.nn_fkm import figures
+from optikin.problems.nn_fkm.report import report
+from optikin.problems.nn_fkm.run import run
+from optikin.problems.nn_shared import NNOptions
+from optikin.results import Result
+
+
+def solve(ctx: ProblemContext) -> Result:
+    """Train (or load) the networks, run the baselines, and report them."""
+    return report(run(ctx))
+
+
+register_kind(ProblemKind(
+    name="nn_fkm",
+    summary="seed 004 hybrid forward kinematics (MLP per section) against exact platform solvers",
+    run=solve,
+    backend_families=("nonlinear",),
+    default_solver=None,
+    options=NNOptions,
+    data_family="nn_database",
+    figures=figures.figures,
+))

@@ -1,0 +1,373 @@
+"""What the ``nn_fkm`` and ``nn_ikm`` kinds share: options, database, trained variants, rows, figures.
+
+Seed 004 (Lakhal et al. 2016) replaces the numerical solution of the kinematic
+equations of the CBHA by networks because "least square, Newton-Raphson methods
+[...] are usually computationally intensive" (section IV-A). Both kinds draw the
+learning database of Fig. 7 (data source ``fig7``,
+:mod:`optikin.baselines.nn_database`), train one variant of their networks per
+training setting in ``options.variants`` (or load it from ``options.store``), and
+compare it on the test split with exact solver presets of the ``nonlinear``
+family named under ``baselines``.
+
+Every MSE is on the test split of the database; every tip error is the distance
+between the exact forward kinematics of a method's configuration and the
+held-out arm's tip. Per-sample status: ``ok`` when the first variant's tip is
+finite, ``failed`` otherwise; the residual is its tip error [m]. A solver's row
+gives its share of ``ok`` samples; a sample without a finite tip is counted,
+never dropped.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable, Literal, Mapping, Sequence
+
+import numpy as np
+from pydantic import Field
+
+from optikin.arms.cbha import CBHAArm
+from optikin.baselines.nn_database import DatabaseSpec, Fig7Params, LearningDatabase
+from optikin.baselines.nn_models import (
+    SETTINGS, Task, TrainedModel, TrainingSetting, split_mse, split_rmse_by_variable, train_model)
+from optikin.baselines.nn_store import load_models, save_models
+from optikin.options import Options, validate_options
+from optikin.problems import ProblemContext
+from optikin.progress import Progress
+from optikin.results import Drawer, MethodRow, Result
+from optikin.solvers.base import SolutionBatch
+from optikin.spec import ProblemSpec
+
+MM = 1e3
+BATCH_REPEATS = 5
+"""Calls of a batched method whose median time is reported."""
+PLATFORM_TOLERANCE = 1e-12
+"""Largest leg-length residual [m] of a solved platform (eqs. 7-9)."""
+TIP_TOLERANCE = 1e-10
+"""Largest tip error [m] of a solved tip-position IK."""
+REALISER = "newton"
+"""The solver preset that finds the pose commanded leg lengths produce
+(:func:`optikin.ik.platform.realise`)."""
+
+SettingName = Literal["seed", "adam", "adam-wide"]
+"""A training setting of :data:`optikin.baselines.nn_models.SETTINGS`."""
+
+
+class NNOptions(Options):
+    """``options`` of the ``nn_fkm`` and ``nn_ikm`` kinds."""
+
+    variants: tuple[SettingName, ...] = Field(
+        ("seed", "adam"), min_length=1, description="training settings, one trained variant each "
+                                                    "(optikin.baselines.nn_models.SETTINGS)")
+    setting: Literal["full", "small"] = Field(
+        "full", description="full: the settings as named; small: two widths, at most 15 epochs (tests, notebooks)")
+    penalty: float = Field(1e-3, ge=0, description="lambda of eq. (11) (nn_ikm only)")
+    store: str | None = Field(None, description="folder of trained models (relative to the working directory): "
+                                                "loaded when it matches the problem, otherwise trained and written")
+    exact_samples: int = Field(200, ge=1, description="test samples given to the exact solvers (the first ones)")
+    latency_repeats: int = Field(50, ge=1, description="one-sample calls timed for the latency")
+
+    def settings(self) -> list[TrainingSetting]:
+        """The training setting of every variant (their quick versions with ``setting: small``)."""
+        return [SETTINGS[n].small() if self.setting == "small" else SETTINGS[n] for n in self.variants]
+
+
+# ---------------------------------------------------------------------------------------- reading the file
+def database_spec(ctx: ProblemContext) -> DatabaseSpec:
+    """The :class:`DatabaseSpec` of the problem's ``data`` section.
+
+    ``data.params`` is validated against :class:`Fig7Params` here when ``ctx`` was built by
+    hand rather than by the runner.
+    """
+    params = ctx.data_params
+    if not isinstance(params, Fig7Params):
+        params = validate_options(Fig7Params, ctx.spec.data.params, ctx.path, "data.params")
+    return params.database_spec(ctx.spec.data)
+
+
+def options(ctx: ProblemContext) -> NNOptions:
+    """The validated options of ``ctx`` (validated here when ``ctx`` was built by hand)."""
+    if isinstance(ctx.options, NNOptions):
+        return ctx.options
+    return validate_options(NNOptions, ctx.spec.options, ctx.path, "options")
+
+
+@dataclass
+class Prepared:
+    """Either kind's checked inputs.
+
+    Attributes
+    ----------
+    spec, arm, options:
+        The problem file, its CBHA and its validated options.
+    db, seconds:
+        The learning database of ``data`` and the seconds it took to build.
+    """
+
+    spec: ProblemSpec
+    arm: CBHAArm
+    options: NNOptions
+    db: LearningDatabase
+    seconds: float
+
+
+def prepare(ctx: ProblemContext) -> Prepared:
+    """Either kind's checked inputs (:class:`Prepared`).
+
+    The networks are the method under test, so a ``solver`` is refused: exact solvers are
+    named as baselines.
+    """
+    if not isinstance(ctx.arm, CBHAArm):
+        raise ctx.error("arm.type", f"the nn kinds model the CBHA of seed 004, not {ctx.arm.name!r}")
+    if ctx.solver is not None:
+        raise ctx.error("solver", f"{ctx.solver.name!r}: the nn kinds train networks; list the exact solver "
+                                  "presets to compare with under baselines")
+    o = options(ctx)
+    db, seconds = timed(ctx.load_data)
+    return Prepared(ctx.spec, ctx.arm, o, db, seconds)
+
+
+# ---------------------------------------------------------------------------------------- running
+def obtain_models(progress: Progress, db: LearningDatabase, tasks: list[Task], setting: TrainingSetting,
+                  penalty: float, store: str | None, label: str) -> tuple[list[TrainedModel], bool]:
+    """Models of ``tasks`` and whether they were trained: loaded from ``store/label`` when it
+    exists, else trained (and saved there when ``store`` is given)."""
+    penalties = {t.key: (penalty if t.penalised else 0.0) for t in tasks}
+    folder = Path(store) / label if store else None
+    if folder is not None and folder.exists():
+        required = {t.key: (setting, penalties[t.key]) for t in tasks}
+        return load_models(folder, db.geometry, db.spec, required), False
+    models = []
+    with progress.task(f"training {label}: {len(tasks)} models x {len(setting.neurons)} widths",
+                       total=len(tasks) * len(setting.neurons)) as advance:
+        for task in tasks:
+            models.append(train_model(task, db, setting, penalties[task.key], on_width=lambda n, v: advance()))
+    if folder is not None:
+        save_models(folder, models, db)
+    return models, True
+
+
+def timed(fn: Callable[[], Any], repeats: int = 1) -> tuple[Any, float]:
+    """The value of ``fn()`` and the median wall time of ``repeats`` calls [s]."""
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        value = fn()
+        times.append(time.perf_counter() - start)
+    return value, float(np.median(times))
+
+
+def latency(fn: Callable[[np.ndarray], Any], inputs: np.ndarray, repeats: int) -> float:
+    """Median seconds of ``fn`` on one sample, over ``repeats`` samples (after one warm-up call)."""
+    fn(inputs[:1])
+    times = []
+    for i in range(repeats):
+        row = inputs[i % len(inputs): i % len(inputs) + 1]
+        start = time.perf_counter()
+        fn(row)
+        times.append(time.perf_counter() - start)
+    return float(np.median(times))
+
+
+@dataclass
+class NetworkRun:
+    """One trained variant on the test split.
+
+    Attributes
+    ----------
+    setting, models, trained:
+        Its training setting, its models (one per task), and whether they were trained
+        (rather than loaded from the store).
+    errors:
+        ``(n,)`` tip errors through the exact kinematics [m].
+    batch_seconds, latency:
+        Median seconds of one call on the whole test split, and of a one-sample call.
+    arrays:
+        The variant's arrays of the result.
+    """
+
+    setting: TrainingSetting
+    models: list[TrainedModel]
+    trained: bool
+    errors: np.ndarray
+    batch_seconds: float
+    latency: float
+    arrays: dict[str, np.ndarray]
+
+    @property
+    def label(self) -> str:
+        return f"mlp-{self.setting.name}"
+
+
+def time_network(hybrid: Callable[[np.ndarray], Any], inputs: np.ndarray, repeats: int) -> tuple[float, float]:
+    """Median seconds of ``hybrid`` on all of ``inputs`` (of :data:`BATCH_REPEATS` calls) and on one
+    sample (of ``repeats`` calls), after a warm-up call."""
+    hybrid(inputs[:1])
+    _, seconds = timed(lambda: hybrid(inputs), BATCH_REPEATS)
+    return seconds, latency(hybrid, inputs, repeats)
+
+
+@dataclass
+class SolverRun:
+    """One exact solver preset on the first test samples: its batch, tip errors [m], wall time [s]
+    and arrays."""
+
+    name: str
+    report: SolutionBatch
+    errors: np.ndarray
+    seconds: float
+    arrays: dict[str, np.ndarray]
+
+
+# ---------------------------------------------------------------------------------------- reporting
+def error_stats(errors: np.ndarray) -> dict[str, float]:
+    """Mean, median, 95th percentile and max of the finite tip errors given in metres, in millimetres,
+    and how many samples have none (a failed solve)."""
+    e = np.asarray(errors) * MM
+    finite = e[np.isfinite(e)]
+    stats: dict[str, float] = {"samples without a tip": int(e.size - finite.size)}
+    if finite.size:
+        stats |= {"tip error mean [mm]": float(finite.mean()), "tip error median [mm]": float(np.median(finite)),
+                  "tip error p95 [mm]": float(np.percentile(finite, 95)), "tip error max [mm]": float(finite.max())}
+    return stats
+
+
+def model_metrics(label: str, models: list[TrainedModel], db: LearningDatabase) -> dict[str, Any]:
+    """One entry per model (``"<label> <task>"``) and one for its width search, test split only."""
+    out: dict[str, Any] = {}
+    for m in models:
+        seed = m.task.seed_reference
+        _, Y = m.task.arrays(db, db.test)
+        out[f"{label} {m.task.key}"] = {
+            "neurons": m.neurons,
+            "test MSE": split_mse(m, db, "test"),
+            "test output variance": float(Y.var(axis=0).mean()),
+            "seed 004 (neurons, test MSE)": list(seed) if seed else None,
+            "test RMSE": split_rmse_by_variable(m, db, "test"),
+            "training time [s]": m.training_time,
+        }
+        out[f"{label} {m.task.key} validation criterion per width"] = {str(n): v for n, v in m.search.items()}
+    return out
+
+
+def network_row(run: NetworkRun, db: LearningDatabase, metrics: dict[str, Any],
+                extra: dict[str, Any] | None = None) -> MethodRow:
+    """The comparison row of one trained variant (its model metrics are added to ``metrics``)."""
+    label, models = run.label, run.models
+    mm = model_metrics(label, models, db)
+    metrics |= {f"{label} setting": run.setting.description, f"{label} loaded from store": not run.trained, **mm}
+    row = {f"test MSE {m.task.key}": mm[f"{label} {m.task.key}"]["test MSE"] for m in models}
+    row |= {f"neurons {m.task.key}": m.neurons for m in models}
+    row |= error_stats(run.errors) | (extra or {})
+    row |= {"time per sample, batch [us]": run.batch_seconds / len(run.errors) * 1e6,
+            "latency, one sample [us]": run.latency * 1e6,
+            "training time [s]": sum(m.training_time for m in models)}
+    return MethodRow(label, "solver", row)
+
+
+def solver_row(run: SolverRun, extra: dict[str, Any]) -> MethodRow:
+    """The comparison row of an exact solver preset on ``len(run.report)`` samples."""
+    report = run.report
+    return MethodRow(run.name, "baseline", {
+        "samples": len(report), "ok [%]": float(100 * np.mean(np.array(report.status) == "ok")),
+        **error_stats(run.errors), **extra, "batched": report.batched,
+        "time per sample [us]": run.seconds / len(report) * 1e6})
+
+
+def search_arrays(run: NetworkRun) -> dict[str, np.ndarray]:
+    """``search_<setting>_<task>``: ``(widths, 2)`` rows of (width, validation criterion), widths sorted."""
+    return {f"search_{run.setting.name}_{m.task.key}": np.array([[n, m.search[n]] for n in sorted(m.search)])
+            for m in run.models}
+
+
+def comparison_result(prep: Prepared, networks: Sequence[NetworkRun], comparison: list[MethodRow],
+                      errors: dict[str, np.ndarray], metrics: dict[str, Any], arrays: dict[str, np.ndarray],
+                      note: str) -> Result:
+    """The result of either kind: the first network variant is the method, every row a comparison.
+
+    Parameters
+    ----------
+    errors:
+        Tip errors [m] of every row's method, added to the arrays as ``tip_errors_<method>``
+        beside the width searches (:func:`search_arrays`), for the figures.
+    """
+    spec, main = prep.spec, comparison[0].method
+    for run in networks:
+        arrays |= search_arrays(run)
+    arrays |= {f"tip_errors_{name}": e for name, e in errors.items()}
+    return Result(
+        problem=spec.name, kind=spec.kind, solver=main, title=spec.title, arm=prep.arm.describe(),
+        status=["ok" if np.isfinite(e) else "failed" for e in errors[main]], residuals=errors[main],
+        timings={"database [s]": prep.seconds}, metrics=metrics, comparison=comparison, arrays=arrays,
+        notes=[note],
+    )
+
+
+# ---------------------------------------------------------------------------------------- figures
+def figures(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any], what: str) -> dict[str, Drawer]:
+    """The width searches (``search``) and the tip errors of every method (``tip_errors``).
+
+    Parameters
+    ----------
+    arrays, summary:
+        A result's arrays (``search_<setting>_<task>``, ``tip_errors_<method>``) and summary
+        (its comparison rows give the methods, in order).
+    what:
+        ``FKM`` or ``IKM``, for the title.
+    """
+    name = summary["problem"]
+    rows = summary.get("comparison", [])
+    searches = searches_of(arrays, [row["method"] for row in rows if row["role"] == "solver"])
+    out: dict[str, Drawer] = {}
+    if searches:
+        out["search"] = lambda path: draw_search(path, searches, f"{name}: width search")
+    methods = [row["method"] for row in rows]
+    if methods and all(f"tip_errors_{m}" in arrays for m in methods):
+        errors = {m: np.asarray(arrays[f"tip_errors_{m}"]) for m in methods}
+        out["tip_errors"] = lambda path: draw_tip_errors(path, errors, f"{name}: hybrid {what} vs exact")
+    return out
+
+
+def searches_of(arrays: Mapping[str, np.ndarray], networks: list[str]) -> dict[str, np.ndarray]:
+    """``"<network> <task>"`` -> ``(widths, 2)`` width search, for every network ``mlp-<setting>``."""
+    out: dict[str, np.ndarray] = {}
+    for network in networks:
+        prefix = f"search_{network.removeprefix('mlp-')}_"
+        out |= {f"{network} {key.removeprefix(prefix)}": arrays[key] for key in arrays if key.startswith(prefix)}
+    return out
+
+
+def draw_search(path: Path, searches: Mapping[str, np.ndarray], title: str) -> None:
+    """Validation criterion against width, one line per model (``(widths, 2)`` arrays)."""
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    for label, search in searches.items():
+        ax.semilogy(search[:, 0], search[:, 1], "o-", label=label)
+    ax.set_xlabel("neurons per hidden layer")
+    ax.set_ylabel("validation criterion (MSE, + eq. 11 penalty), SI units")
+    ax.set_title(title)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def draw_tip_errors(path: Path, errors: Mapping[str, np.ndarray], title: str) -> None:
+    """Box plot of every method's finite tip errors [mm] (failures are counted in the table)."""
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    labels = list(errors)
+    data = [np.maximum(errors[k][np.isfinite(errors[k])] * MM, 1e-12) for k in labels]
+    ax.boxplot(data, showfliers=True)
+    ax.set_xticks(range(1, len(labels) + 1), labels, rotation=20, fontsize=8)
+    ax.set_yscale("log")
+    ax.set_ylabel("tip error through exact FK [mm]")
+    ax.set_title(title)
+    ax.grid(True, which="both", axis="y", alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
