@@ -146,7 +146,8 @@ def admissible(draws: np.ndarray, geometry: CBHAGeometry, platform: int,
     r = geometry.radii
     within = np.ones(len(draws), dtype=bool)
     upright = np.ones(len(draws), dtype=bool)
-    for Q in platform_leg_vectors(*draws.T, r[platform], r[platform + 1]):  # one (n, 3) per leg
+    Z, theta, psi = draws.T
+    for Q in platform_leg_vectors(Z, theta, psi, r[platform], r[platform + 1]):  # one (n, 3) per leg
         length = np.sqrt(np.einsum("ij,ij->i", Q, Q))
         within &= (length >= geometry.leg_min[platform]) & (length <= geometry.leg_max[platform])
         if require_upright:
@@ -329,9 +330,9 @@ class Fig7Params(Options):
         DatabaseSpec
             Ranges in SI units (``Z`` [m], angles [rad]).
         """
-        return DatabaseSpec(candidates=data.samples, seed=data.seed,
-                            z_range=tuple(v / 1e3 for v in self.z_range_mm),
-                            angle_range=tuple(np.radians(v) for v in self.angle_range_deg),
+        (z0, z1), (a0, a1) = self.z_range_mm, self.angle_range_deg
+        return DatabaseSpec(candidates=data.samples, seed=data.seed, z_range=(z0 / 1e3, z1 / 1e3),
+                            angle_range=(float(np.radians(a0)), float(np.radians(a1))),
                             require_upright=self.require_upright, split=self.split, coupling=self.coupling)
 
 

@@ -122,8 +122,9 @@ def save_models(path: str | Path, models: list[TrainedModel], db: LearningDataba
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", dir=path.parent))
     try:
+        arrays: dict[str, Any] = {k: a for m in models for k, a in model_arrays(m).items()}
         with open(tmp / WEIGHTS, "wb") as fh:
-            np.savez_compressed(fh, **{k: a for m in models for k, a in model_arrays(m).items()})
+            np.savez_compressed(fh, **arrays)
         metadata = store_metadata(models, db) | {"sha256": _sha256(tmp / WEIGHTS)}
         (tmp / METADATA).write_text(json.dumps(metadata, indent=2))
         if path.exists():
