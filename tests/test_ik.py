@@ -8,6 +8,7 @@ package's quaternion chain.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -59,7 +60,7 @@ def quaternion_matrix(q: np.ndarray) -> np.ndarray:
 
 
 def write_problem(tmp_path: Path, name: str, **fields) -> Path:
-    spec = {
+    spec: dict[str, Any] = {
         "name": name, "title": "test", "kind": "ik",
         "arm": {"type": "constant_curvature", "params": {"section_lengths": [0.18, 0.18]}},
         "data": {"source": "random", "seed": 1, "samples": 100},
@@ -86,7 +87,7 @@ def position_errors(result) -> np.ndarray:
 
 
 def test_position_ik_best_backend_solves_999_of_1000_targets(tmp_path):
-    """Issue 4: on 1,000 forward-kinematics targets the best backend reaches >= 99.9 % with tip error < 1e-9 m."""
+    """On 1,000 forward-kinematics targets the best backend reaches >= 99.9 % with tip error < 1e-9 m."""
     result = run(write_problem(tmp_path, "p1000", data={"samples": 1000, "seed": 4}))
     status = np.array(result.status)
     ok = status == "ok"
@@ -100,7 +101,8 @@ def test_position_ik_best_backend_solves_999_of_1000_targets(tmp_path):
 
 def test_every_backend_reports_its_success_on_the_same_targets(tmp_path):
     baselines = ["gauss-newton-compiled", "newton", "ipopt", "sqpmethod", "lm", "trf"]
-    result = run(write_problem(tmp_path, "all", data={"samples": 25, "seed": 8}, baselines=baselines, options={"restarts": 1}))
+    result = run(write_problem(tmp_path, "all", data={"samples": 25, "seed": 8}, baselines=baselines,
+                               options={"restarts": 1}))
     assert [row.method for row in result.comparison] == ["gauss-newton", *baselines]
     for row in result.comparison:
         m = row.metrics

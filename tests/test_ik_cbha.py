@@ -63,7 +63,7 @@ def write_problem(tmp_path: Path, name: str, options: dict, samples: int, **fiel
 
 
 def test_platform_leg_lengths_are_reproduced_to_1e_12_m_within_table_i(tmp_path):
-    """Issue 4: platform solutions reproduce the given leg lengths to 1e-12 m and stay inside Table I."""
+    """Platform solutions reproduce the given leg lengths to 1e-12 m and stay inside Table I."""
     result = solve(str(write_problem(tmp_path, "legs", {"target": "legs", "tolerance": 1e-12}, 40)),
                    figures=False)[0]
     assert result.succeeded, result.status_counts()

@@ -26,15 +26,15 @@ def circle_line() -> LeastSquaresProblem:
     """``x0^2 + x1^2 = p0^2`` and ``x1 = p1 x0``, ``x0 >= 0``: ``x0 = p0 / sqrt(1 + p1^2)``."""
     x, p = ca.SX.sym("x", 2), ca.SX.sym("p", 2)
     r = ca.vertcat(x[0] ** 2 + x[1] ** 2 - p[0] ** 2, x[1] - p[1] * x[0])
-    return LeastSquaresProblem(ca.Function("circle_line", [x, p], [r]), [0.0, -10.0], [10.0, 10.0],
-                               [False, False], tolerance=1e-11, name="circle_line")
+    return LeastSquaresProblem(ca.Function("circle_line", [x, p], [r]), np.array([0.0, -10.0]), np.array([10.0, 10.0]),
+                               np.array([False, False]), tolerance=1e-11, name="circle_line")
 
 
 def plane(weights) -> LeastSquaresProblem:
     """One residual ``x0 + x1 + x2 - p`` for three variables: a redundant problem."""
     x, p = ca.SX.sym("x", 3), ca.SX.sym("p", 1)
-    return LeastSquaresProblem(ca.Function("plane", [x, p], [ca.sum1(x) - p]), [-10.0] * 3, [10.0] * 3,
-                               [False] * 3, tolerance=1e-11, weights=weights, name="plane")
+    return LeastSquaresProblem(ca.Function("plane", [x, p], [ca.sum1(x) - p]), np.full(3, -10.0), np.full(3, 10.0),
+                               np.zeros(3, dtype=bool), tolerance=1e-11, weights=weights, name="plane")
 
 
 @pytest.mark.parametrize("backend", BACKEND_NAMES)

@@ -147,7 +147,7 @@ def random_targets(arm: ArmModel, data: DataSpec, params: RandomParams, path: Pa
     values = forward_targets(arm, Q, kind)
     reachable = np.ones(len(Q), dtype=bool)
     if extra and kind == "legs":
-        raise SpecError(path, "data.params.unreachable", "leg-length targets have no unreachable variant")
+        raise SpecError(str(path), "data.params.unreachable", "leg-length targets have no unreachable variant")
     if extra:
         values = np.concatenate([values, unreachable_targets(arm, extra, kind, rng, params.margin)])
         Q = np.concatenate([Q, np.full((extra, arm.n_config), np.nan)])

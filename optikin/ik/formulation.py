@@ -45,6 +45,7 @@ elongation distribution (``elongation: distributed`` or ``affine``, CBHA only): 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -132,18 +133,22 @@ def build_problem(arm: ArmModel, formulation: Formulation) -> LeastSquaresProble
 
     A CBHA's leg lengths must stay within Table I (seed 004): they are the problem's constraints.
     """
-    if formulation.target == "legs":
+    needs_cbha = formulation.target == "legs" or formulation.elongation != "free"
+    if needs_cbha and not isinstance(arm, CBHAArm):
+        raise ValueError(f"{formulation.target} targets with elongation {formulation.elongation!r} need a "
+                         f"CBHA arm, not {arm.name}")
+    if formulation.target == "legs" and isinstance(arm, CBHAArm):
         return platform_problems(arm, formulation.tolerance)
     tip = tip_residual(arm, formulation.target, formulation.orientation_length)
     q, p = ca.SX.sym("q", arm.n_config), ca.SX.sym("p", tip.size1_in(1))
     rows = [tip(q, p)]
-    if formulation.elongation != "free":
+    if formulation.elongation != "free" and isinstance(arm, CBHAArm):
         rows.append(distribution_rows(arm, q, formulation.elongation))
     if formulation.redundancy == "penalty":
         rows.append(penalty_rows(arm, q, formulation))
     name = f"{arm.name}_ik_{formulation.target}"
     residual = tip if len(rows) == 1 else ca.Function(name, [q, p], [ca.vertcat(*rows)], ["q", "p"], ["r"])
-    limits = {}
+    limits: dict[str, Any] = {}
     if isinstance(arm, CBHAArm):
         lower, upper = arm.leg_limits()
         limits = {"constraints": arm.leg_lengths, "constraint_lower": lower, "constraint_upper": upper,

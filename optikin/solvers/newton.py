@@ -12,7 +12,7 @@ a square system in ``(x, y)`` whose Jacobian CasADi differentiates exactly
 ``grad`` of its square is ``sin(x - x_ref)``). A problem that is not exact (a
 penalised one, e.g. seed 004 eq. 11) is solved through ``J^T r = 0``, the
 stationarity of ``1/2 ||r||^2``, whose Jacobian is the full Hessian. Newton's method knows no bounds:
-a root outside them is reported ``failed``. ANCHORS.md: the rootfinder may
+a root outside them is reported ``failed``. CasADi's rootfinder may
 return a non-converged iterate silently, so every result is classified from
 its own residual (:mod:`optikin.solvers.nonlinear`).
 

@@ -1,7 +1,7 @@
 """Backends ``ipopt`` and ``sqpmethod``: the problem as an NLP through CasADi ``nlpsol``.
 
 With at most as many residuals as variables the residuals become equality
-constraints (ANCHORS.md: ``nlpsol`` leaves ``g`` unbounded unless ``lbg``/``ubg``
+constraints (``nlpsol`` leaves ``g`` unbounded unless ``lbg``/``ubg``
 are given, so both are set to zero) and the objective states the redundancy
 preference,
 

@@ -134,6 +134,13 @@ class LeastSquaresProblem:
     def m(self) -> int:
         return self.residual.size1_out(0)
 
+    @property
+    def constraint_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(constraint_lower, constraint_upper)``, each ``(k,)``; only for a problem with ``constraints``."""
+        if self.constraint_lower is None or self.constraint_upper is None:
+            raise ValueError(f"{self.name}: no constraints")
+        return self.constraint_lower, self.constraint_upper
+
     @cached_property
     def symbols(self) -> tuple[ca.SX, ca.SX, ca.SX, ca.SX]:
         """``x, p, r(x, p), J(x, p)`` as SX."""
@@ -164,8 +171,9 @@ class LeastSquaresProblem:
         outside = ca.mmax(ca.if_else(ca.DM(self.periodic), 0, outside))
         if self.constraints is not None:
             c = self.constraints(x)
-            span = ca.DM(np.maximum(self.constraint_upper - self.constraint_lower, 1e-300))
-            violation = ca.fmax(ca.DM(self.constraint_lower) - c, c - ca.DM(self.constraint_upper)) / span
+            lower, upper = self.constraint_bounds
+            span = ca.DM(np.maximum(upper - lower, 1e-300))
+            violation = ca.fmax(ca.DM(lower) - c, c - ca.DM(upper)) / span
             outside = ca.fmax(outside, ca.mmax(violation))
         return ca.Function(f"{self.name}_check", [x, p], [ca.vertcat(rn, stationarity, outside)])
 
@@ -230,12 +238,11 @@ class LeastSquaresProblem:
         message = f"{self.variable_names[worst]} = {x[worst]:.6g} outside its bounds"
         if self.constraints is not None:
             c = np.asarray(self.constraints(x)).ravel()
-            violation = np.maximum(self.constraint_lower - c, c - self.constraint_upper) / np.maximum(
-                self.constraint_upper - self.constraint_lower, 1e-300)
+            lower, upper = self.constraint_bounds
+            violation = np.maximum(lower - c, c - upper) / np.maximum(upper - lower, 1e-300)
             j = int(np.argmax(violation))
             if violation[j] > bounds[worst]:
-                message = (f"{self.constraint_names[j]} = {c[j]:.6g} outside "
-                           f"[{self.constraint_lower[j]:.6g}, {self.constraint_upper[j]:.6g}]")
+                message = f"{self.constraint_names[j]} = {c[j]:.6g} outside [{lower[j]:.6g}, {upper[j]:.6g}]"
         return message
 
     def status_of(self, rn: float, stationarity: float, elapsed: float, time_limit: float) -> tuple[str, float, str]:
@@ -259,23 +266,25 @@ class LeastSquaresProblem:
         packed = np.concatenate([np.where(finite[:, None], X, self.lower), np.asarray(P, dtype=float)], axis=1)
         rn, stationarity, outside = batched(self.packed_check).raw(packed).T
         rn = np.where(finite, rn, np.nan)
-        status, messages = [], []
-        for i in range(N):
-            if not np.isfinite(rn[i]):
-                status.append("failed"), messages.append("non-finite solution")
-            elif outside[i] > BOUND_TOLERANCE:
-                status.append("failed"), messages.append(self.violation_message(X[i]))
-            elif rn[i] <= self.tolerance:
-                status.append("ok"), messages.append("")
-            elif limited is not None and limited[i]:
-                status.append("timeout"), messages.append("")
-            elif stationarity[i] <= self.stationarity_tolerance and not self.exact:
-                status.append("ok"), messages.append("")
-            elif stationarity[i] <= self.stationarity_tolerance:
-                status.append("unreachable"), messages.append("closest reachable configuration")
-            else:
-                status.append("not_converged"), messages.append("")
-        return status, rn, messages
+        limited = np.zeros(N, dtype=bool) if limited is None else limited
+        verdicts = [self.verdict(float(rn[i]), float(stationarity[i]), float(outside[i]), X[i], bool(limited[i]))
+                    for i in range(N)]
+        return [v[0] for v in verdicts], rn, [v[1] for v in verdicts]
+
+    def verdict(self, rn: float, stationarity: float, outside: float, x: np.ndarray,
+                limited: bool) -> tuple[str, str]:
+        """``(status, message)`` of one sample of :meth:`classify_many` from its checks."""
+        if not np.isfinite(rn):
+            return "failed", "non-finite solution"
+        if outside > BOUND_TOLERANCE:
+            return "failed", self.violation_message(x)
+        if rn <= self.tolerance:
+            return "ok", ""
+        if limited:
+            return "timeout", ""
+        if stationarity <= self.stationarity_tolerance:
+            return ("ok", "") if not self.exact else ("unreachable", "closest reachable configuration")
+        return "not_converged", ""
 
 
 class NonlinearAdapter:

@@ -86,15 +86,17 @@ class _Residual:
         self.transformed = ~problem.periodic if transform else np.zeros(problem.n, dtype=bool)
         self.problem, self.p, self.x_ref, self.deadline = problem, np.ravel(p), x_ref, deadline
         n, m = problem.n, problem.m
+        self.rows: np.ndarray | None
         if problem.weights is not None and m < n:
             self.rows = np.sqrt(regularisation) * problem.weights
         elif m < n:
             self.rows = np.zeros(n)
         else:
             self.rows = None
-        self.z = None
+        self.z: np.ndarray | None = None
         self.evaluations = 0
-        self.best_x, self.best_cost = None, np.inf
+        self.best_x: np.ndarray | None = None
+        self.best_cost = np.inf
 
     def to_x(self, z: np.ndarray) -> np.ndarray:
         """Solver variables -> configuration (the sine map on bounded variables)."""
@@ -169,8 +171,9 @@ class ScipyLeastSquares(NonlinearAdapter):
                                    gtol=self.options.gtol, x_scale=self.x_scale(residual),
                                    max_nfev=self.limits.max_iterations, **self.extra(problem))
             x, iterations = residual.to_x(result.x), result.nfev
-        except _TimeLimit:
-            x, iterations = residual.best_x, residual.evaluations
+        except _TimeLimit:  # the best point seen (the start if no residual was finite)
+            x = x0 if residual.best_x is None else residual.best_x
+            iterations = residual.evaluations
         except (ValueError, np.linalg.LinAlgError) as exc:
             return self.finish(problem, x0, p, 0, started, error=f"least_squares ({self.method}): {exc}")
         return self.finish(problem, problem.project(x), p, iterations, started)

@@ -1,0 +1,137 @@
+"""An ``ik`` outcome as a :class:`~optikin.results.Result`: one comparison row per method, the arrays, the notes.
+
+Each row reports the success rate on reachable targets, how unreachable targets
+were flagged, residuals, the tip error recomputed with ``fk_dq`` (and how many
+samples reach the target within ``tolerance``), the weighted distance from rest,
+on a CBHA the margin of the legs to Table I and their deviation from the
+elongation distribution, iterations and time per solve. Arrays per row (suffix
+:func:`array_key` of the method): ``solutions``, ``status``, ``residual``,
+``time``, ``iterations`` and every check of :func:`~optikin.problems.ik.run.answer_checks`.
+"""
+
+from __future__ import annotations
+
+import re
+from typing import Any, Callable
+
+import numpy as np
+
+from optikin.data.targets import Targets
+from optikin.ik.formulation import Formulation
+from optikin.problems import ProblemContext
+from optikin.problems.ik.run import IkOutcome, MethodRun
+from optikin.results import MethodRow, Result
+from optikin.solvers.base import SolutionBatch
+
+
+def array_key(method: str) -> str:
+    """A method's name as part of an array name: ``gauss-newton [penalty 1e-6]`` -> ``gauss-newton_penalty_1e-6``."""
+    return re.sub(r"[^A-Za-z0-9.+-]+", "_", method).strip("_")
+
+
+def _stat(f: Callable[[np.ndarray], Any], values: np.ndarray) -> float:
+    """``f`` over the finite values, NaN when there are none."""
+    values = values[np.isfinite(values)]
+    return float(f(values)) if values.size else float("nan")
+
+
+def tip_metrics(targets: Targets, formulation: Formulation, checks: dict[str, np.ndarray],
+                ok: np.ndarray) -> dict[str, Any]:
+    """Metrics of tip targets from the checks: tip and angle errors [m, rad], distance from rest, CBHA legs [mm]."""
+    reachable = targets.reachable
+    tip_error = checks["tip_error"]
+    metrics: dict[str, Any] = {"max tip error ok [m]": _stat(np.max, tip_error[ok]),
+                               "median tip error [m]": _stat(np.median, tip_error)}
+    within = reachable & (tip_error <= formulation.tolerance)
+    metrics["tip within tolerance [%]"] = 100.0 * within.sum() / max(int(reachable.sum()), 1)
+    if "angle_error" in checks:
+        metrics["max angle error ok [rad]"] = _stat(np.max, checks["angle_error"][ok])
+    metrics["median distance from rest"] = _stat(np.median, checks["rest_distance"])
+    if "leg_margin" in checks:
+        metrics["min leg margin [mm]"] = _stat(np.min, checks["leg_margin"]) * 1e3
+        metrics["median leg margin [mm]"] = _stat(np.median, checks["leg_margin"]) * 1e3
+        metrics["median deviation from distribution [mm]"] = _stat(np.median, checks["distribution_deviation"]) * 1e3
+    return metrics
+
+
+def method_metrics(run: MethodRun, targets: Targets) -> dict[str, Any]:
+    """The comparison row of one method (module docstring)."""
+    report, formulation, checks = run.report, run.method.formulation, run.checks
+    status = np.array(report.status)
+    ok = status == "ok"
+    reachable = targets.reachable
+    metrics: dict[str, Any] = {
+        "formulation": formulation.label(),
+        "success [%]": 100.0 * ok[reachable].mean() if reachable.any() else float("nan"),
+        "median residual": _stat(np.median, report.residual[ok]),
+        "max residual": _stat(np.max, report.residual[ok]),
+    }
+    if targets.kind == "legs":
+        metrics["max leg error ok, eqs. (7)-(9) [m]"] = _stat(np.max, checks["leg_error"][ok])
+        metrics["ok within Table I"] = f"{int(checks['within_table_i'][ok].sum())}/{int(ok.sum())}"
+    else:
+        metrics.update(tip_metrics(targets, formulation, checks, ok))
+    if (~reachable).any():
+        metrics["unreachable flagged"] = f"{int((status[~reachable] == 'unreachable').sum())}/{int((~reachable).sum())}"
+        metrics["unreachable reported ok"] = int(ok[~reachable].sum())
+    metrics.update({
+        "median iterations": float(np.median(report.iterations)) if np.all(report.iterations >= 0) else None,
+        "median time per solve [us]": float(np.median(report.seconds) * 1e6),
+        "mean time per solve [us]": float(run.wall / len(report) * 1e6),
+        "batched": report.batched,
+        "statuses": ", ".join(f"{s}: {int((status == s).sum())}" for s in dict.fromkeys(report.status)),
+    })
+    return metrics
+
+
+def arrays_of(outcome: IkOutcome) -> dict[str, np.ndarray]:
+    """The result's arrays (module docstring), plus what the figures draw: ``t`` along a trajectory and
+    ``solution_tips`` for leg targets."""
+    targets, main = outcome.targets, outcome.main
+    error = main.checks["leg_error" if targets.kind == "legs" else "tip_error"]
+    arrays = {"targets": targets.values, "reachable": targets.reachable,
+              "true_configurations": targets.configurations, "solutions": main.report.x, "error": error}
+    for run in outcome.runs:
+        key, r = array_key(run.method.name), run.report
+        arrays |= {f"residual_{key}": r.residual, f"status_{key}": np.array(r.status), f"solutions_{key}": r.x,
+                   f"time_{key}": r.seconds, f"iterations_{key}": r.iterations}
+        arrays |= {f"{check}_{key}": values for check, values in run.checks.items()}
+    if targets.t is not None:
+        arrays["t"] = targets.t
+    if outcome.solution_tips is not None:
+        arrays["solution_tips"] = outcome.solution_tips
+    return arrays
+
+
+def notes_of(outcome: IkOutcome) -> list[str]:
+    """One note per method and status ``failed`` or ``timeout``: how many, and the first sample's message."""
+    notes = []
+    for run in outcome.runs:
+        r: SolutionBatch = run.report
+        for status in ("failed", "timeout"):
+            where = [i for i, s in enumerate(r.status) if s == status]
+            if where:
+                notes.append(f"{run.method.name}: {len(where)} samples {status}, "
+                             f"e.g. sample {where[0]}: {r.messages[where[0]]}")
+    return notes
+
+
+def result_of(ctx: ProblemContext, outcome: IkOutcome) -> Result:
+    """The :class:`~optikin.results.Result` of an ``ik`` run."""
+    spec, targets, main = ctx.spec, outcome.targets, outcome.main.report
+    formulation = outcome.setup.formulation
+    metrics = {
+        "targets": len(targets),
+        "reachable targets": int(targets.reachable.sum()),
+        "target": outcome.setup.target,
+        "redundancy": formulation.redundancy,
+        "trajectory (warm-started)": targets.trajectory,
+        "tolerance [m]": formulation.tolerance,
+    }
+    comparison = [MethodRow(run.method.name, run.method.role, method_metrics(run, targets)) for run in outcome.runs]
+    return Result(
+        problem=spec.name, kind=spec.kind, solver=outcome.main.method.name, title=spec.title, arm=ctx.arm.describe(),
+        status=list(main.status), iterations=main.iterations, residuals=main.residual,
+        timings={"median per solve [us]": float(np.median(main.seconds) * 1e6)},
+        metrics=metrics, comparison=comparison, arrays=arrays_of(outcome), notes=notes_of(outcome),
+    )
