@@ -197,6 +197,7 @@ class NetworkRun:
 
     @property
     def label(self) -> str:
+        """The variant's method name, ``mlp-<setting>``."""
         return f"mlp-{self.setting.name}"
 
 
