@@ -186,7 +186,7 @@ def test_basin_check_leaves_the_worse_branch_a_warm_start_follows(free_model):
     worse minimum (measured over the 100 postures: 19 samples up to 4.1 above a cold three-start
     IPOPT); with the basin check every sample's energy is at most the warm one's, and here matches
     IPOPT's to 1e-3 (over 100 postures: 3 samples off, by at most 1e-3)."""
-    from optikin.problems.ph_common import backbone_lengths, end_data, recording_of
+    from optikin.problems.ph_shared import backbone_lengths, end_data, recording_of
 
     recording = recording_of("cbha-ph-shape").with_fixed_base().take(slice(0, 12))
     samples = end_data(recording, backbone_lengths(recording, "model", "test"), "test")

@@ -18,11 +18,9 @@ from optikin.baselines.nn_database import DatabaseSpec
 from optikin.baselines.nn_models import SETTINGS, hybrid_inverse_configurations
 from optikin.baselines.nn_store import read_metadata
 from optikin.errors import InputDataError
-from optikin.problems import ProblemContext
-from optikin.problems.nn_baseline import database_spec, options
+from optikin.problems.nn_shared import database_spec
 from optikin.baselines.hybrid_tubes import SHIPPED_STORE, SHIPPED_STORES, hybrid_tube_lengths, load_hybrid_models
-from optikin.progress import SILENT
-from optikin.spec import load_problem
+from optikin.runner import prepare
 
 
 @pytest.fixture(scope="module")
@@ -47,12 +45,10 @@ def test_shipped_stores_hold_the_models_of_their_problem(arm, problem):
     assert [m.task.key for m in models] == ["ikm_nn1", "ikm_nn2", "ikm_nn3", "ikm_nn4"]
     meta = read_metadata(SHIPPED_STORES[problem])
     assert CBHAGeometry(**meta["geometry"]) == CBHAGeometry()
-    spec, path = load_problem(problem)
-    ctx = ProblemContext(spec=spec, path=path, arm=CBHAArm(**spec.arm.params),
-                         progress=SILENT)
+    _, ctx = prepare(problem)
     assert DatabaseSpec(**meta["database"]) == database_spec(ctx)
     for model in models:
-        assert model.setting == SETTINGS["adam"] and model.penalty == options(ctx)["penalty"]
+        assert model.setting == SETTINGS["adam"] and model.penalty == ctx.options.penalty
 
 
 def test_shipped_networks_reach_the_tips_they_are_given(arm, models, tips):

@@ -16,7 +16,7 @@ from optikin.curves import EnergySettings, PHQuintic, ShapeData, arc_length_esti
 from optikin.curves.tubes import TubeLayout, tube_lengths
 from optikin.data.markers import write_marker_csv
 from optikin.errors import InputDataError, SpecError
-from optikin.problems.ph_common import distances_to_curves, problem_variant, recording_of
+from optikin.problems.ph_shared import distances_to_curves, problem_variant, recording_of
 from optikin.problems.ph_ik import tube_length_function
 from optikin.runner import solve
 from optikin.solvers import load_preset, preset_of
@@ -252,7 +252,7 @@ def test_bad_options_and_data_are_named(tmp_path):
         run_variant(tmp_path, "cbha-ph-shape", samples=2, baselines=[], options={"length": "guess"})
     with pytest.raises(SpecError, match=r"options.frame"):
         run_variant(tmp_path, "cbha-ph-ik", samples=2, baselines=[], options={"frame": "frenet"})
-    with pytest.raises(SpecError, match=r"options.twist: unknown option"):
+    with pytest.raises(SpecError, match=r"options.twist: unknown field"):
         run_variant(tmp_path, "cbha-ph-shape", samples=2, baselines=[], options={"twist": 1.0})
     with pytest.raises(SpecError, match=r"data.params.speed: unknown field"):
         run_variant(tmp_path, "cbha-ph-shape", samples=2, baselines=[], data_params={"speed": 1.0})

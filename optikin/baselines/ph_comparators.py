@@ -69,7 +69,6 @@ from optikin.arms.cbha import CBHAArm
 from optikin.data.markers import MarkerRecording
 from optikin.data.targets import reach_bound
 from optikin.errors import InputDataError
-from optikin.problems import ProblemContext
 from optikin.ik.formulation import Formulation, build_problem, rest_configuration
 from optikin.baselines.hybrid_tubes import SHIPPED_STORES, hybrid_tube_lengths, load_hybrid_models
 from optikin.solvers import build_preset
@@ -120,7 +119,8 @@ def section_end_markers(arm: CBHAArm, recording: MarkerRecording, source: str) -
 
 
 def relative_section_ends(recording: MarkerRecording, markers: list[int]) -> np.ndarray:
-    """``(N, 3 (len(markers) + 1))``: the ``markers`` then the tip rigid body, positions in the base rigid body's frame."""
+    """``(N, 3 (len(markers) + 1))``: the ``markers`` then the tip rigid body, positions in the base rigid
+    body's frame."""
     to_base = quat_conjugate(recording.base_orientation)
     points = np.concatenate([recording.markers[:, markers], recording.tip_position[:, None]], axis=1)
     relative = quat_rotate(to_base[:, None], points - recording.base_position[:, None])
@@ -143,11 +143,12 @@ def newton_raphson_problem(arm: CBHAArm, target: str = "sections") -> LeastSquar
     return build_problem(arm, formulation)
 
 
-def newton_raphson_targets(ctx: ProblemContext, arm: CBHAArm, recording: MarkerRecording, target: str) -> np.ndarray:
-    """The measurements a comparator solves for, one row per posture (module docstring)."""
+def newton_raphson_targets(arm: CBHAArm, recording: MarkerRecording, target: str, source: str) -> np.ndarray:
+    """The measurements a comparator solves for, one row per posture (module docstring); ``source`` names the
+    data in errors."""
     if target == "pose":
         return relative_tip_poses(recording)
-    return relative_section_ends(recording, section_end_markers(arm, recording, f"{ctx.path.name}: data"))
+    return relative_section_ends(recording, section_end_markers(arm, recording, source))
 
 
 def newton_raphson_step(arm: CBHAArm, newton: NonlinearAdapter, problem: LeastSquaresProblem, start: np.ndarray,
@@ -162,10 +163,10 @@ def newton_raphson_step(arm: CBHAArm, newton: NonlinearAdapter, problem: LeastSq
     return report, lengths, report.seconds + time.perf_counter() - tic
 
 
-def newton_raphson_tube_lengths(ctx: ProblemContext, arm: CBHAArm, recording: MarkerRecording,
-                                target: str) -> ComparatorRun:
+def newton_raphson_tube_lengths(arm: CBHAArm, recording: MarkerRecording, target: str,
+                                source: str = "") -> ComparatorRun:
     """A Newton-Raphson comparator along the recording (module docstring)."""
-    targets = newton_raphson_targets(ctx, arm, recording, target)
+    targets = newton_raphson_targets(arm, recording, target, source)
     problem, newton = newton_raphson_problem(arm, target), build_preset(NR_PRESET)
     first = build_preset(NR_FIRST_START) if target == "pose" else None
     rest = rest_configuration(arm)
@@ -193,13 +194,24 @@ def hybrid_run(arm: CBHAArm, recording: MarkerRecording, store: Path) -> Compara
     lengths, seconds = hybrid_tube_lengths(arm, relative_section_ends(recording, []), load_hybrid_models(arm, store))
     finite = np.all(np.isfinite(lengths), axis=1)
     return ComparatorRun(np.where(finite[:, None], lengths, np.nan), seconds,
-                         ["ok" if f else "failed" for f in finite], ["" if f else "non-finite prediction" for f in finite])
+                         ["ok" if f else "failed" for f in finite],
+                         ["" if f else "non-finite prediction" for f in finite])
 
 
-def run_comparator(ctx: ProblemContext, name: str, recording: MarkerRecording) -> ComparatorRun:
-    """The comparator ``name`` (one of :data:`COMPARATORS`) on the recording of a CBHA."""
-    if not isinstance(ctx.arm, CBHAArm):
-        raise ctx.error("baselines", f"{name}: needs a cbha arm (CBHA inverse kinematics), not {ctx.spec.arm.type!r}")
+def run_comparator(arm: CBHAArm, name: str, recording: MarkerRecording, source: str = "") -> ComparatorRun:
+    """The comparator ``name`` (one of :data:`COMPARATORS`) on the recording of a CBHA.
+
+    Parameters
+    ----------
+    arm:
+        The CBHA the recording is of.
+    name:
+        One of :data:`COMPARATORS`.
+    recording:
+        The postures, in order (the Newton-Raphson rows warm-start along them).
+    source:
+        Names the data in errors (e.g. ``"problem.yaml: data"``).
+    """
     if name in HYBRID_STORES:
-        return hybrid_run(ctx.arm, recording, HYBRID_STORES[name])
-    return newton_raphson_tube_lengths(ctx, ctx.arm, recording, NR_TARGETS[name])
+        return hybrid_run(arm, recording, HYBRID_STORES[name])
+    return newton_raphson_tube_lengths(arm, recording, NR_TARGETS[name], source)

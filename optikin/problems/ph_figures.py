@@ -1,7 +1,9 @@
 """Figures of the PH problem kinds: reconstructed shapes against markers, errors and times per sample.
 
-Every function draws into a new figure and saves it to ``path`` (PNG, Agg backend),
-like :mod:`optikin.plots`; lengths are given in metres and drawn in millimetres.
+Every function draws into a new figure and saves it to ``path`` (PNG), like
+:mod:`optikin.plots`; lengths are given in metres and drawn in millimetres. The kinds'
+figure builders (``optikin/problems/ph_*/figures.py``) call these from a result's
+arrays alone.
 """
 
 from __future__ import annotations
@@ -89,7 +91,10 @@ def times_per_sample(path: Path, seconds: dict[str, np.ndarray], title: str) -> 
 
 def chains_3d(path: Path, links: list[np.ndarray], markers: list[np.ndarray], truths: list[np.ndarray], title: str,
               count: int = 3) -> None:
-    """Chains of PH links: per link curves ``(N, T, 3)``, markers ``(N, K, 3)``, truth ``(N, M, 3)``; ``count`` samples."""
+    """Chains of PH links: per link curves ``(N, T, 3)``, markers ``(N, K, 3)``, truth ``(N, M, 3)``.
+
+    ``count`` samples are drawn.
+    """
     pick = pick_samples(len(links[0]), count)
     fig = plt.figure(figsize=(6.4, 6.0))
     ax = fig.add_subplot(projection="3d")

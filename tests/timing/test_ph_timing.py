@@ -46,7 +46,7 @@ from optikin.arms.cbha import CBHAArm
 from optikin.curves import EnergySettings, ShapeEnergyModel
 from optikin.curves.tubes import TubeLayout
 from optikin.fastcall import BufferedFunction
-from optikin.problems.ph_common import backbone_lengths, end_data, recording_of
+from optikin.problems.ph_shared import backbone_lengths, end_data, recording_of
 from optikin.ik.formulation import rest_configuration
 from optikin.baselines.ph_comparators import (
     NR_PRESET,

@@ -1,29 +1,28 @@
 """What the PH problem kinds share: options, end data from markers, the methods and their energy gaps.
 
-The kinds ``ph_shape`` (seed 002 section V.A), ``ph_ik`` (V.B, Tables II-III) and
-``ph_chain`` (V.C) all rebuild backbones as minimum-energy PH quintics from end
-poses (:mod:`optikin.curves.min_energy`) with the ``ph`` backends
+The kinds ``ph_shape`` (Singh et al. 2018, section V.A), ``ph_ik`` (V.B, Tables
+II-III) and ``ph_chain`` (V.C) all rebuild backbones as minimum-energy PH quintics
+from end poses (:mod:`optikin.curves.min_energy`) with the ``ph`` backends
 (:mod:`optikin.solvers.ph_backends`): the problem's solver and every ``ph`` preset
 listed in ``baselines`` solve the same samples in the same run, and each method's
 energy gap (to the lowest energy any method found for the sample) and time per
 sample are reported.
 
-Options shared by the three kinds (all optional)::
+Options shared by the three kinds (:class:`PHOptions`, all optional)::
 
     twist_weight: 0.0     # E = int kappa^2 ds + twist_weight int tau^2 ds
     nodes: 16             # Gauss-Legendre nodes of the energy
     free_speeds: false    # false: end speeds = backbone length (the seed's setting);
                           # true: speeds free, arc length held to the backbone length
     length: arc           # backbone length: arc | markers | model | a number (metres)
-    fixed_base: true      # average the base pose over the recording (seed 002: the base is fixed)
+    fixed_base: true      # average the base pose over the recording (the seed's base is fixed)
 
-``length``: seed 002 builds the PH curve from the end poses alone, so the default
+``length``: the seed builds the PH curve from the end poses alone, so the default
 estimates the length from them: ``arc`` is the circular arc leaving ``p0`` along
-``t0`` and reaching ``p1`` along ``t1`` in the plane of the chord (``c (D/2) /
-sin(D/2)``, ``c`` the chord, ``D`` the sum of the angles of the two tangents with
-it); ``markers`` the polyline through all markers (a lower bound; uses the
-intermediate markers); ``model`` the vertebra model's true backbone length (an
-oracle, synthetic recordings only).
+``t0`` and reaching ``p1`` along ``t1`` in the plane of the chord
+(:func:`optikin.curves.arc_length_estimate`); ``markers`` the polyline through all
+markers (a lower bound; uses the intermediate markers); ``model`` the vertebra
+model's true backbone length (an oracle, synthetic recordings only).
 """
 
 from __future__ import annotations
@@ -36,15 +35,16 @@ from typing import Any
 
 import numpy as np
 import yaml
+from pydantic import Field, field_validator
 
+from optikin.arms import build_arm
+from optikin.curves import EnergySettings, PHQuintic, ShapeData, ShapeEnergyModel, ShapeSolution, arc_length_estimate
 from optikin.curves.bernstein import bernstein_basis
 from optikin.curves.energy import DEFAULT_NODES
-from optikin.curves import EnergySettings, PHQuintic, ShapeData, ShapeEnergyModel, ShapeSolution, arc_length_estimate
 from optikin.data.markers import MarkerRecording
-from optikin.errors import InputDataError
-from optikin.arms import build_arm
 from optikin.data.sources import source_of
-from optikin.options import validate_options
+from optikin.errors import InputDataError
+from optikin.options import Options, validate_options
 from optikin.problems import ProblemContext, load_kinds
 from optikin.registry import PROBLEM_KINDS
 from optikin.results import MethodRow
@@ -52,54 +52,41 @@ from optikin.solvers import build_preset
 from optikin.solvers.ph_backends import PHAdapter
 from optikin.spec import load_problem
 
-
 LENGTH_MODES = ("arc", "markers", "model")
-COMMON_DEFAULTS: dict[str, Any] = {"twist_weight": 0.0, "nodes": DEFAULT_NODES, "free_speeds": False,
-                                   "length": "arc", "fixed_base": True}
 MM = 1e3
 
 
 # ------------------------------------------------------------------------------ options
-@dataclass(frozen=True)
-class PHSettings:
-    energy: EnergySettings
-    free_speeds: bool
-    length: str | float
-    fixed_base: bool
+class PHOptions(Options):
+    """The options every PH kind takes (module docstring)."""
+
+    twist_weight: float = Field(0.0, ge=0, description="weight of the twist energy int tau^2 ds")
+    nodes: int = Field(DEFAULT_NODES, ge=2, le=200, strict=True, description="Gauss-Legendre nodes of the energy")
+    free_speeds: bool = Field(False, strict=True,
+                              description="false: end speeds = backbone length; true: free, arc length held")
+    length: str | float = Field("arc", description="backbone length: arc | markers | model | a length [m]")
+    fixed_base: bool = Field(True, strict=True, description="average the base pose over the recording")
+
+    @field_validator("length", mode="before")
+    @classmethod
+    def _length_mode(cls, value: Any) -> Any:
+        if isinstance(value, str) and value in LENGTH_MODES:
+            return value
+        if isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value) and value > 0:
+            return float(value)
+        raise ValueError(f"must be one of {', '.join(LENGTH_MODES)} or a positive length in metres, got {value!r}")
+
+    @property
+    def energy(self) -> EnergySettings:
+        """What is minimised."""
+        return EnergySettings(float(self.twist_weight), self.nodes)
+
+    def speeds_note(self) -> str:
+        """How the end speeds are chosen, for the notes of a result."""
+        return "free, length held" if self.free_speeds else "set to the length"
 
 
-def check_options(ctx: ProblemContext, defaults: dict[str, Any]) -> dict[str, Any]:
-    """The problem's options over ``defaults``; unknown keys are errors naming the field."""
-    for key in ctx.spec.options:
-        if key not in defaults:
-            raise ctx.error(f"options.{key}", f"unknown option of kind {ctx.spec.kind!r}; known: {', '.join(defaults)}")
-    return {**defaults, **ctx.spec.options}
-
-
-def ph_settings(ctx: ProblemContext, options: dict[str, Any]) -> PHSettings:
-    """Checked shared options (module docstring)."""
-    for key in ("free_speeds", "fixed_base"):
-        if not isinstance(options[key], bool):
-            raise ctx.error(f"options.{key}", f"must be true or false, got {options[key]!r}")
-    twist = options["twist_weight"]
-    if not (isinstance(twist, (int, float)) and not isinstance(twist, bool) and twist >= 0 and math.isfinite(twist)):
-        raise ctx.error("options.twist_weight", f"must be a non-negative number, got {twist!r}")
-    nodes = options["nodes"]
-    if not (isinstance(nodes, int) and not isinstance(nodes, bool) and 2 <= nodes <= 200):
-        raise ctx.error("options.nodes", f"must be an integer in [2, 200], got {nodes!r}")
-    length = options["length"]
-    if isinstance(length, bool) or not (length in LENGTH_MODES or (isinstance(length, (int, float)) and length > 0)):
-        raise ctx.error("options.length", f"must be one of {', '.join(LENGTH_MODES)} or a positive length in metres, "
-                                          f"got {length!r}")
-    return PHSettings(EnergySettings(float(twist), nodes), options["free_speeds"],
-                      float(length) if not isinstance(length, str) else length, options["fixed_base"])
-
-
-def load_recording(ctx: ProblemContext) -> MarkerRecording:
-    """The recording of ``data.source`` (family ``markers``, :mod:`optikin.data.markers`)."""
-    return ctx.load_data()
-
-
+# ------------------------------------------------------------------------------ data
 def recording_of(problem: str, samples: int | None = None) -> Any:
     """The recording a problem file's ``data`` describes (its source, params and arm), ``samples`` postures.
 
@@ -115,6 +102,16 @@ def recording_of(problem: str, samples: int | None = None) -> Any:
 
 
 # ------------------------------------------------------------------------------ end data
+def shape_samples(recording: MarkerRecording, options: PHOptions,
+                  source: str) -> tuple[MarkerRecording, np.ndarray, list[ShapeData]]:
+    """The recording (base pose averaged with ``fixed_base``), its backbone lengths and end data."""
+    if options.fixed_base:
+        recording = recording.with_fixed_base()
+    lengths = backbone_lengths(recording, options.length, source)
+    return recording, lengths, end_data(recording, lengths, source)
+
+
+
 def backbone_lengths(recording: MarkerRecording, mode: str | float, source: str) -> np.ndarray:
     """One backbone length per posture by ``mode`` (module docstring)."""
     n = len(recording)
@@ -124,7 +121,8 @@ def backbone_lengths(recording: MarkerRecording, mode: str | float, source: str)
         return arc_length_estimate(recording.base_position, recording.base_direction, recording.tip_position,
                                    recording.tip_direction)
     if mode == "markers":
-        points = np.concatenate([recording.base_position[:, None], recording.markers, recording.tip_position[:, None]], 1)
+        points = np.concatenate([recording.base_position[:, None], recording.markers,
+                                 recording.tip_position[:, None]], 1)
         return np.linalg.norm(np.diff(points, axis=1), axis=2).sum(axis=1)
     if recording.truth is None:
         raise InputDataError("length 'model' needs a synthetic recording (the vertebra model's backbone length)",
@@ -196,8 +194,8 @@ def ph_methods(ctx: ProblemContext, others: tuple[str, ...] = ()) -> list[tuple[
     return methods
 
 
-def solve_methods(ctx: ProblemContext, settings: PHSettings, samples: list[ShapeData], label: str = "",
-                  others: tuple[str, ...] = ()) -> dict[str, MethodRun]:
+def solve_methods(ctx: ProblemContext, energy: EnergySettings, free_speeds: bool, samples: list[ShapeData],
+                  label: str = "", others: tuple[str, ...] = ()) -> dict[str, MethodRun]:
     """Every ``ph`` method on ``samples`` (in order); models are built (and compiled) before the clock starts."""
     runs: dict[str, MethodRun] = {}
     methods = ph_methods(ctx, others)
@@ -205,7 +203,7 @@ def solve_methods(ctx: ProblemContext, settings: PHSettings, samples: list[Shape
                            total=len(methods)) as advance:
         for name, role, adapter in methods:
             tic = time.perf_counter()
-            model = adapter.model(settings.energy, settings.free_speeds)
+            model = adapter.model(energy, free_speeds)
             adapter.solve(model, samples[:1])  # build nlpsol / compile Newton outside the timing
             build = time.perf_counter() - tic
             runs[name] = MethodRun(name, role, adapter.solve(model, samples), build, adapter, model, samples)

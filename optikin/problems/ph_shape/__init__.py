@@ -1,0 +1,62 @@
+"""Problem kind ``ph_shape``: CBHA backbones rebuilt from end poses, checked against markers (Singh et al. 2018, V.A).
+
+The seed (section V.A) builds one PH quintic per posture from the tracked start and
+end poses and measures how far the three intermediate markers lie from it: 1.6,
+4.2 and 3.8 mm for one posture, 1.2, 3.7 and 3.1 mm on average over a
+100-posture trajectory. Here each posture's backbone is the minimum-energy PH
+quintic of its end poses (:mod:`optikin.problems.ph_shared` for the options and
+the methods), and the distance of every intermediate marker to it is computed
+(closest point, Newton-refined). On a synthetic recording the model's own
+backbone (the vertebra centres) is also compared with the PH curve, noise-free:
+the honest measure of how well a PH quintic can represent the vertebra model.
+
+Problem file::
+
+    kind: ph_shape
+    arm: {type: cbha}
+    data:
+      source: synthetic     # synthetic | csv (family markers, optikin.data.markers)
+      seed: 2018
+      samples: 100
+      params: {noise: 0.0003, rate: 240.0, stride: 24}
+    solver: ph-newton       # any ph preset
+    baselines: [ph-ipopt, ph-ipopt-cold, ph-grid]
+
+Options: :class:`~optikin.problems.ph_shared.PHOptions` (``twist_weight``, ``nodes``,
+``free_speeds``, ``length``, ``fixed_base``).
+
+Per-sample status: the solver's (``ok``, ``not_converged``, ``failed``). The
+comparison has one row per method (solver and ``ph`` baselines): energy gap to
+the best energy found for the sample, time per sample, mean marker distance.
+Figures: shapes against markers in 3-D, distances per sample, time per sample.
+"""
+
+from __future__ import annotations
+
+import optikin.data.markers  # noqa: F401 - registers the sources of data family "markers"
+from optikin.problems import ProblemContext, ProblemKind, register_kind
+from optikin.problems.ph_shape import figures
+from optikin.problems.ph_shape.options import PHShapeOptions
+from optikin.problems.ph_shape.report import report
+from optikin.problems.ph_shape.run import ShapeOutcome, run
+from optikin.results import Result
+
+__all__ = ["PHShapeOptions", "ShapeOutcome", "solve"]
+
+
+def solve(ctx: ProblemContext) -> Result:
+    """Run a ``ph_shape`` problem and report it."""
+    return report(ctx, run(ctx))
+
+
+register_kind(ProblemKind(
+    name="ph_shape",
+    summary="CBHA backbones from end poses as minimum-energy PH quintics, against markers (seed 002 V.A)",
+    run=solve,
+    backend_families=("ph",),
+    default_solver="ph-newton",
+    baselines=(),
+    options=PHShapeOptions,
+    data_family="markers",
+    figures=figures.figures,
+))

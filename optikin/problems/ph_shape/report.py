@@ -1,0 +1,76 @@
+"""A ``ph_shape`` outcome as a Result: marker distances, the model-backbone check, the methods' table."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from optikin.problems import ProblemContext
+from optikin.problems.ph_shape.run import ShapeOutcome
+from optikin.problems.ph_shared import MM, distances_to_curves, method_rows
+from optikin.results import Result
+
+SEED_MEAN_DISTANCES_MM = (1.2, 3.7, 3.1)
+"""Singh et al. 2018, section V.A: mean distance of the three intermediate markers over its 100 postures."""
+
+CURVE_POINTS = 101
+
+
+def truth_metrics(outcome: ShapeOutcome) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    """Metrics and arrays of the synthetic recording's ground truth (empty for a recorded file)."""
+    truth, lengths = outcome.recording.truth, outcome.lengths
+    if truth is None:
+        return {}, {}
+    curves = outcome.main.curves
+    vertebra_distance = distances_to_curves(curves, truth.vertebrae) * MM  # (N, 17)
+    clean = distances_to_curves(curves, truth.marker_truth) * MM
+    metrics = {
+        "noise-free markers: mean distance per marker [mm]": np.nanmean(clean, axis=0),
+        "model backbone: mean of the largest vertebra distance [mm]": float(np.nanmean(vertebra_distance.max(1))),
+        "model backbone: largest vertebra distance [mm]": float(np.nanmax(vertebra_distance)),
+        "backbone length estimate error mean / max [mm]": [
+            float(np.mean(np.abs(lengths - truth.backbone_length)) * MM),
+            float(np.max(np.abs(lengths - truth.backbone_length)) * MM)],
+    }
+    return metrics, {"vertebrae": truth.vertebrae, "vertebra_distance": vertebra_distance / MM}
+
+
+def shape_arrays(outcome: ShapeOutcome) -> dict[str, np.ndarray]:
+    """The arrays of the result (the figures draw from these)."""
+    recording, curves = outcome.recording, outcome.main.curves
+    arrays: dict[str, np.ndarray] = {
+        "t": recording.t, "markers": recording.markers, "marker_distance": outcome.distances[outcome.solver],
+        "backbone_length": outcome.lengths, "ph_points": curves.point(np.linspace(0, 1, CURVE_POINTS)),
+        "ph_p0": curves.p0, "ph_coefficients": np.stack([curves.A0, curves.A1, curves.A2], axis=1),
+        "base_position": recording.base_position, "tip_position": recording.tip_position,
+    }
+    for name, method in outcome.runs.items():
+        arrays[f"energy_{name}"] = method.energies
+        arrays[f"seconds_{name}"] = method.seconds
+    return arrays
+
+
+def report(ctx: ProblemContext, outcome: ShapeOutcome) -> Result:
+    """The Result of a ``ph_shape`` run."""
+    spec, main, options = ctx.spec, outcome.main, outcome.options
+    distance = outcome.distances[outcome.solver] * MM  # (N, K)
+    metrics: dict[str, Any] = {
+        "mean distance per marker [mm]": np.nanmean(distance, axis=0),
+        "max distance per marker [mm]": np.nanmax(distance, axis=0),
+        "seed 002 V.A mean distance per marker [mm]": list(SEED_MEAN_DISTANCES_MM),
+        "median time per sample [us]": float(np.median(main.seconds) * 1e6),
+    }
+    truth, truth_arrays = truth_metrics(outcome)
+    metrics.update(truth)
+    extra = {name: {"mean marker distance [mm]": float(np.nanmean(d) * MM)} for name, d in outcome.distances.items()}
+    return Result(
+        problem=spec.name, kind=spec.kind, solver=outcome.solver, title=spec.title, arm=ctx.arm.describe(),
+        status=main.status, iterations=main.iterations, residuals=np.nanmax(distance, axis=1) / MM,
+        timings={"median per sample [us]": float(np.median(main.seconds) * 1e6),
+                 "mean per sample [us]": float(np.mean(main.seconds) * 1e6), "build [s]": main.build_seconds},
+        metrics=metrics, comparison=method_rows(outcome.runs, extra), arrays={**shape_arrays(outcome), **truth_arrays},
+        notes=[f"{len(outcome.recording)} postures from {outcome.recording.source or spec.data.source}; residual = "
+               f"largest marker distance of the sample [m]; backbone length: {options.length}; end speeds "
+               f"{options.speeds_note()}"],
+    )

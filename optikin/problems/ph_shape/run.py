@@ -1,0 +1,59 @@
+"""Solve a ``ph_shape`` problem: every method's backbones and their distances to the markers."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from optikin.curves import ShapeData
+from optikin.data.markers import MarkerRecording
+from optikin.problems import ProblemContext
+from optikin.problems.ph_shape.options import PHShapeOptions
+from optikin.problems.ph_shared import MethodRun, distances_to_curves, shape_samples, solve_methods
+
+
+@dataclass
+class ShapeOutcome:
+    """What a ``ph_shape`` run found.
+
+    Attributes
+    ----------
+    recording:
+        The recording solved (base pose averaged with ``fixed_base``).
+    lengths:
+        Backbone length of each posture ``(N,)`` [m].
+    samples:
+        End data of each posture.
+    runs:
+        Every method (the solver first), by preset name.
+    distances:
+        Per method, distance of each intermediate marker to its curve ``(N, K)`` [m].
+    solver:
+        The solver's preset name.
+    options:
+        The kind's options.
+    """
+
+    recording: MarkerRecording
+    lengths: np.ndarray
+    samples: list[ShapeData]
+    runs: dict[str, MethodRun]
+    distances: dict[str, np.ndarray]
+    solver: str
+    options: PHShapeOptions
+
+    @property
+    def main(self) -> MethodRun:
+        """The solver's run."""
+        return self.runs[self.solver]
+
+
+def run(ctx: ProblemContext) -> ShapeOutcome:
+    """Rebuild every posture's backbone with each method; marker distances per method."""
+    options: PHShapeOptions = ctx.options
+    source = f"{ctx.path.name}: data"
+    recording, lengths, samples = shape_samples(ctx.load_data(), options, source)
+    runs = solve_methods(ctx, options.energy, options.free_speeds, samples)
+    distances = {name: distances_to_curves(method.curves, recording.markers) for name, method in runs.items()}
+    return ShapeOutcome(recording, lengths, samples, runs, distances, ctx.solver.name, options)
