@@ -148,10 +148,12 @@ GOOD = ["0", "0", "0", "0", "1", "0", "0", "0", "0", "0", "0.2", "1", "0", "0", 
 
 @pytest.mark.parametrize("header, rows, match", [
     (HEADER[:-1], [GOOD[:-1]], r"rec.csv: m1_z: missing column"),
-    (HEADER, [GOOD, GOOD[:4] + ["abc"] + GOOD[5:]], r"rec.csv: sample 1: base_qw: 'abc' is not a finite number \(line 3\)"),
+    (HEADER, [GOOD, GOOD[:4] + ["abc"] + GOOD[5:]],
+     r"rec.csv: sample 1: base_qw: 'abc' is not a finite number \(line 3\)"),
     (HEADER, [GOOD[:-1] + [""]], r"rec.csv: sample 0: m1_z: an empty cell"),
     (HEADER, [GOOD[:-1] + ["nan"]], r"sample 0: m1_z: 'nan' is not a finite number"),
-    (HEADER, [GOOD, GOOD[:11] + ["0.9"] + GOOD[12:]], r"sample 1: tip_qw, tip_qx, tip_qy, tip_qz: .* not a unit quaternion"),
+    (HEADER, [GOOD, GOOD[:11] + ["0.9"] + GOOD[12:]],
+     r"sample 1: tip_qw, tip_qx, tip_qy, tip_qz: .* not a unit quaternion"),
     (HEADER, [], r"rec.csv: no data rows"),
 ])
 def test_csv_errors_name_file_row_and_column(tmp_path, header, rows, match):

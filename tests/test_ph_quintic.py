@@ -64,7 +64,8 @@ def test_preimage_random_batch_and_same_family_as_textbook_root():
     # Farouki's root (phi = 0): sqrt(|v|(1+l)/2) (i + j mu/(1+l) + k nu/(1+l)), defined for l > -1.
     n = np.linalg.norm(v, axis=1)
     lam, mu, nu = (v / n[:, None]).T
-    textbook = np.sqrt(n * (1 + lam) / 2)[:, None] * np.stack([0 * lam, 1 + 0 * lam, mu / (1 + lam), nu / (1 + lam)], -1)
+    components = np.stack([0 * lam, 1 + 0 * lam, mu / (1 + lam), nu / (1 + lam)], -1)
+    textbook = np.sqrt(n * (1 + lam) / 2)[:, None] * components
     # Same family: textbook = A exp(i phi) for some phi, i.e. A* textbook has no j, k part.
     rel = (Rotation.from_quat(A[:, [1, 2, 3, 0]]).inv() * Rotation.from_quat(textbook[:, [1, 2, 3, 0]])).as_quat()
     np.testing.assert_allclose(rel[:, 1:3], 0.0, atol=1e-10)  # scipy (x, y, z, w): y, z are the j, k parts

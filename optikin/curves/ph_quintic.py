@@ -148,7 +148,8 @@ def preimage_from_reference(v: Array, reference: Array, reference_root: Array, s
 
 
 def _side_direction(t0: Array, chord: Array) -> Array:
-    """A unit vector orthogonal to ``t0``: along ``t0 x chord``, or ``t0 x`` a coordinate axis if the chord is along ``t0``."""
+    """A unit vector orthogonal to ``t0``: along ``t0 x chord``, or ``t0 x`` a coordinate axis if the chord is
+    along ``t0``."""
     across = cross(t0, chord)
     ux = B.components(t0, 3)[0]
     axis = _select(B.fabs(ux) < 0.9, QUAT_I[1:] + 0.0 * t0, QUAT_J[1:] + 0.0 * t0)

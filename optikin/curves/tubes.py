@@ -111,7 +111,8 @@ class TubeLayout:
     def __post_init__(self):
         object.__setattr__(self, "angles", tuple(float(a) for a in self.angles))
         if not (self.radius_start >= 0 and self.radius_end >= 0 and math.isfinite(self.radius_start + self.radius_end)):
-            raise ValueError(f"offset radii must be finite and non-negative, got {self.radius_start}, {self.radius_end}")
+            raise ValueError(f"offset radii must be finite and non-negative, got {self.radius_start}, "
+                             f"{self.radius_end}")
         if self.frame not in FRAMES:
             raise ValueError(f"frame must be one of {', '.join(FRAMES)}, got {self.frame!r}")
         if not self.angles or not all(math.isfinite(a) for a in self.angles):
@@ -210,7 +211,9 @@ def reference_angle(curve: PHQuintic, reference_normal: Array, *, source: str = 
 # ------------------------------------------------------------------------------ tube lengths
 def tube_lengths(curve: PHQuintic, reference_normal: Array, layout: TubeLayout = TubeLayout(),
                  nodes: int = DEFAULT_TUBE_NODES, *, source: str = "") -> Array:
-    """Lengths ``L_m`` of the tubes of ``layout`` along ``curve`` (module docstring); numpy ``(..., M)``, CasADi ``M x 1``.
+    """Lengths ``L_m`` of the tubes of ``layout`` along ``curve`` (module docstring).
+
+    numpy ``(..., M)``, CasADi ``M x 1``.
 
     ``reference_normal`` ``n0`` fixes where angle 0 lies at the base (only its part
     across the start tangent matters).

@@ -257,7 +257,8 @@ def synthetic_recording(arm: CBHAArm, samples: int = 100, rng: np.random.Generat
     n_vertebrae = arm.geometry.n_vertebrae
     bad = [v for v in intermediate if not (isinstance(v, (int, np.integer)) and 1 < v < n_vertebrae)]
     if bad or not intermediate:
-        raise ValueError(f"intermediate markers need vertebrae strictly between 1 and {n_vertebrae}, got {intermediate}")
+        raise ValueError(f"intermediate markers need vertebrae strictly between 1 and {n_vertebrae}, "
+                         f"got {intermediate}")
     if not (noise >= 0 and rate > 0 and stride >= 1 and 0 <= amplitude <= 1):
         raise ValueError("need noise >= 0, rate > 0, stride >= 1 and amplitude in [0, 1]")
     t = np.arange(samples) * stride / rate
@@ -470,7 +471,8 @@ class RopeChainRecording:
 
 
 def placed(recording: MarkerRecording, rotation: np.ndarray, translation: np.ndarray) -> MarkerRecording:
-    """``recording`` seen from a world frame in which its base frame is rotated by ``rotation`` and moved by ``translation``."""
+    """``recording`` seen from a world frame in which its base frame is rotated by ``rotation`` and moved by
+    ``translation``."""
     move = lambda p: quat_rotate(rotation, p) + translation  # noqa: E731
     truth = recording.truth
     if truth is not None:

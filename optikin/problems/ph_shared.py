@@ -95,6 +95,8 @@ def recording_of(problem: str, samples: int | None = None) -> Any:
     spec, path = load_problem(problem)
     load_kinds()
     family = PROBLEM_KINDS.get(spec.kind).data_family
+    if family is None:
+        raise ValueError(f"kind {spec.kind!r} of {problem!r} has no data family")
     source = source_of(family, spec.data.source, path)
     params = validate_options(source.params, spec.data.params, path, "data.params")
     data = spec.data if samples is None else spec.data.model_copy(update={"samples": int(samples)})
@@ -181,12 +183,19 @@ class MethodRun:
         return [s.status for s in self.solutions]
 
 
+def solver_name(ctx: ProblemContext) -> str:
+    """The solver preset's name (every PH kind has a default solver, so there is one)."""
+    if ctx.solver is None:
+        raise ctx.error("solver", f"kind {ctx.spec.kind!r} needs a ph solver preset")
+    return ctx.solver.name
+
+
 def ph_methods(ctx: ProblemContext, others: tuple[str, ...] = ()) -> list[tuple[str, str, PHAdapter]]:
     """``(preset name, role, adapter)``: the problem's solver, then every baseline not already listed.
 
     ``others`` are baseline names the kind runs itself (not ``ph`` presets).
     """
-    methods = [(ctx.solver.name, "solver", ctx.adapter)]
+    methods = [(solver_name(ctx), "solver", ctx.adapter)]
     for name in ctx.spec.baselines:
         if name in [m[0] for m in methods] or name in others:
             continue

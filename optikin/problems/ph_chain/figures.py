@@ -23,7 +23,7 @@ TRUTHS = {"arm1": "arm1_vertebrae", "rope": "rope_truth", "arm2": "arm2_vertebra
 
 def time_series(arrays: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
     """``{"<method> (<link>)": seconds}`` of the ``seconds_<link>_<method>`` arrays."""
-    out = {}
+    out: dict[str, np.ndarray] = {}
     for key, link in LINKS.items():
         prefix = f"seconds_{key}_"
         out |= {f"{name[len(prefix):]} ({link})": value for name, value in arrays.items() if name.startswith(prefix)}

@@ -79,7 +79,7 @@ def report(ctx: ProblemContext, outcome: ChainOutcome) -> Result:
     rope = "free, length held" if options.rope_free_speeds else "set to its length"
     return Result(
         problem=spec.name, kind=spec.kind, solver=outcome.solver, title=spec.title, arm=ctx.arm.describe(),
-        status=sample_status(outcome), iterations=sum(main[k].iterations for k in LINKS),
+        status=sample_status(outcome), iterations=np.sum([main[k].iterations for k in LINKS], axis=0),
         residuals=np.nanmax(np.column_stack([marker_distance[k].max(axis=1) for k in LINKS]), axis=1) / MM,
         timings={"median per sample, all links [us]": metrics["median time per sample, all links [us]"]},
         metrics=metrics, comparison=chain_rows(outcome), arrays=chain_arrays(outcome, marker_distance),

@@ -11,7 +11,7 @@ from optikin.curves.chain import check_joints
 from optikin.data.markers import MarkerRecording, RopeChainRecording
 from optikin.problems import ProblemContext
 from optikin.problems.ph_chain.options import PHChainOptions
-from optikin.problems.ph_shared import MethodRun, backbone_lengths, end_data, solve_methods
+from optikin.problems.ph_shared import MethodRun, backbone_lengths, end_data, solve_methods, solver_name
 
 LINKS = ("CBHA 1", "rope", "CBHA 2")
 """The links of the chain, from the base of CBHA 1 to the base of CBHA 2."""
@@ -56,6 +56,7 @@ class ChainOutcome:
     @property
     def truths(self) -> dict[str, np.ndarray]:
         """Per link, the ground truth ``(N, M, 3)`` [m]: vertebra centres, dense catenary points."""
+        assert self.arm1.truth is not None and self.arm2.truth is not None, "a synthetic chain has its ground truth"
         return {"CBHA 1": self.arm1.truth.vertebrae, "rope": self.chain.rope_truth,
                 "CBHA 2": self.arm2.truth.vertebrae}
 
@@ -92,4 +93,4 @@ def run(ctx: ProblemContext) -> ChainOutcome:
     links = chain_links(chain, arm1, arm2, options.length, f"{ctx.path.name}: data")
     free = {name: options.rope_free_speeds if name == "rope" else options.free_speeds for name in LINKS}
     runs = {name: solve_methods(ctx, options.energy, free[name], links[name], f" ({name})") for name in LINKS}
-    return ChainOutcome(chain, arm1, arm2, links, runs, ctx.solver.name, options)
+    return ChainOutcome(chain, arm1, arm2, links, runs, solver_name(ctx), options)

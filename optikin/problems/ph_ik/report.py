@@ -39,24 +39,27 @@ def ph_rows(outcome: IkOutcome) -> list[MethodRow]:
                        "median IK time per sample [us]": float(np.median(outcome.ik_seconds[name]) * 1e6)}
     rows = method_rows(outcome.runs, extra)
     other_errors = np.abs(outcome.other_tubes - outcome.reference) * MM
-    rows.append(MethodRow(f"{outcome.solver}, {outcome.other_frame} frame", "baseline",
-                          {**error_metrics(other_errors), "mean |L error| [mm]": float(np.nanmean(other_errors))}))
+    other: dict[str, Any] = {**error_metrics(other_errors), "mean |L error| [mm]": float(np.nanmean(other_errors))}
+    rows.append(MethodRow(f"{outcome.solver}, {outcome.other_frame} frame", "baseline", other))
     return rows
 
 
 def comparator_rows(outcome: IkOutcome) -> tuple[list[MethodRow], dict[str, np.ndarray], list[str]]:
     """The comparators' rows, arrays and notes (postures not ``ok`` are counted)."""
-    rows, arrays, notes = [], {}, []
+    rows: list[MethodRow] = []
+    arrays: dict[str, np.ndarray] = {}
+    notes: list[str] = []
     for name, found in outcome.comparators.items():
         errors = np.abs(found.lengths - outcome.reference) * MM
         status = np.array(found.status)
         failed = np.flatnonzero(status != "ok")
         seed_time = SEED_TABLE_III_S.get(name)
-        rows.append(MethodRow(name, "baseline", {
+        metrics: dict[str, Any] = {
             "ok": f"{len(status) - failed.size}/{len(status)}", "failures": int(failed.size),
             **error_metrics(errors), "mean |L error| [mm]": summary_of(errors.ravel())["avg"],
             "median IK time per sample [us]": float(np.median(found.seconds) * 1e6),
-            **({f"seed 002 Table III, {name}: time per sample [us]": seed_time * 1e6} if seed_time else {})}))
+            **({f"seed 002 Table III, {name}: time per sample [us]": seed_time * 1e6} if seed_time else {})}
+        rows.append(MethodRow(name, "baseline", metrics))
         key = name.replace("-", "_")
         arrays |= {f"tube_lengths_{key}": found.lengths, f"status_{key}": status, f"ik_seconds_{name}": found.seconds}
         if failed.size:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from typing import cast
 
 import casadi as ca
 import numpy as np
@@ -17,7 +18,7 @@ from optikin.errors import InputDataError
 from optikin.fastcall import BufferedFunction
 from optikin.problems import ProblemContext
 from optikin.problems.ph_ik.options import PHIkOptions
-from optikin.problems.ph_shared import MethodRun, shape_samples, solve_methods
+from optikin.problems.ph_shared import MethodRun, shape_samples, solve_methods, solver_name
 
 
 @dataclass
@@ -126,6 +127,7 @@ def method_tubes(runs: dict[str, MethodRun], samples: list[ShapeData], layout: T
 def run(ctx: ProblemContext) -> IkOutcome:
     """Backbones of every ``ph`` method, their tube lengths, and the comparators of Tables II-III."""
     options: PHIkOptions = ctx.options
+    solver = solver_name(ctx)
     layout = layout_of(ctx, options)
     comparators = comparators_of(ctx)
     recording = ctx.load_data()
@@ -139,8 +141,8 @@ def run(ctx: ProblemContext) -> IkOutcome:
     normals = recording.base_normal
     tubes, ik_seconds = method_tubes(runs, samples, layout, normals)
     other = "euler_rodrigues" if layout.frame == "rmf" else "rmf"
-    other_tubes = tube_lengths(runs[ctx.solver.name].curves, normals, layout.with_frame(other))
-    found = {name: run_comparator(ctx.arm, name, recording, source) for name in comparators}
+    other_tubes = tube_lengths(runs[solver].curves, normals, layout.with_frame(other))
+    found = {name: run_comparator(cast(CBHAArm, ctx.arm), name, recording, source) for name in comparators}
     ik_seconds |= {name: c.seconds for name, c in found.items()}
     return IkOutcome(recording, reference, lengths, samples, runs, layout, tubes, ik_seconds, other, other_tubes,
-                     found, ctx.solver.name, options)
+                     found, solver, options)

@@ -10,7 +10,7 @@ from optikin.curves import ShapeData
 from optikin.data.markers import MarkerRecording
 from optikin.problems import ProblemContext
 from optikin.problems.ph_shape.options import PHShapeOptions
-from optikin.problems.ph_shared import MethodRun, distances_to_curves, shape_samples, solve_methods
+from optikin.problems.ph_shared import MethodRun, distances_to_curves, shape_samples, solve_methods, solver_name
 
 
 @dataclass
@@ -56,4 +56,4 @@ def run(ctx: ProblemContext) -> ShapeOutcome:
     recording, lengths, samples = shape_samples(ctx.load_data(), options, source)
     runs = solve_methods(ctx, options.energy, options.free_speeds, samples)
     distances = {name: distances_to_curves(method.curves, recording.markers) for name, method in runs.items()}
-    return ShapeOutcome(recording, lengths, samples, runs, distances, ctx.solver.name, options)
+    return ShapeOutcome(recording, lengths, samples, runs, distances, solver_name(ctx), options)
