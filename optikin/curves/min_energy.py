@@ -347,8 +347,8 @@ class ShapeEnergyModel:
         problem = {"x": self._x, "p": self._P, "f": self._energy}
         if self.free_speeds:
             problem["g"] = self._length - self._parameters.length
-        options = {"print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes", "ipopt.tol": 1e-12,
-                   "ipopt.max_iter": 200}
+        options: dict[str, Any] = {"print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes", "ipopt.tol": 1e-12,
+                                   "ipopt.max_iter": 200}
         return ca.nlpsol("ph_min_energy", "ipopt", problem, options)
 
     def solve_nlp(self, data: ShapeData, x0: np.ndarray | None = None, starts: int = 3) -> ShapeSolution:
@@ -359,7 +359,7 @@ class ShapeEnergyModel:
         lbx, ubx = self._bounds(P)
         best, iterations, statuses = None, 0, []
         for j in range(X0.shape[1]):
-            args = dict(x0=X0[:, j], p=P, lbx=lbx, ubx=ubx)
+            args: dict[str, Any] = dict(x0=X0[:, j], p=P, lbx=lbx, ubx=ubx)
             if self.free_speeds:
                 args.update(lbg=0.0, ubg=0.0)
             sol = self._nlp(**args)

@@ -500,16 +500,14 @@ def synthetic_rope_chain(arm: CBHAArm, samples: int, rng: np.random.Generator, *
     arm1 = synthetic_recording(arm, samples, rng, noise=noise, source=f"{source}: CBHA 1", **arm_options)
     arm2 = placed(synthetic_recording(arm, samples, rng, noise=noise, source=f"{source}: CBHA 2", **arm_options),
                   quat_from_axis_angle(np.array([0.0, 0.0, 1.0]), np.pi), np.array([base_distance, 0.0, 0.0]))
+    assert arm1.truth is not None and arm2.truth is not None  # synthetic recordings
     B, C = arm1.truth.vertebrae[:, -1], arm2.truth.vertebrae[:, -1]
     s_markers = rope_length * np.asarray(rope_marker_fractions)
     s_truth = np.linspace(0.0, rope_length, truth_points)
-    truth, marker_truth, near = [], [], []
-    for i in range(samples):
-        rope = catenary(B[i], C[i], rope_length, source=source)
-        truth.append(rope.points(s_truth))
-        marker_truth.append(rope.points(s_markers))
-        near.append(rope.points(np.array([end_offset, rope_length - end_offset])))
-    truth, marker_truth, near = np.array(truth), np.array(marker_truth), np.array(near)
+    ropes = [catenary(B[i], C[i], rope_length, source=source) for i in range(samples)]
+    truth = np.array([rope.points(s_truth) for rope in ropes])
+    marker_truth = np.array([rope.points(s_markers) for rope in ropes])
+    near = np.array([rope.points(np.array([end_offset, rope_length - end_offset])) for rope in ropes])
     near = near + noise * rng.standard_normal(near.shape)
     start = near[:, 0] - arm1.tip_position
     end = arm2.tip_position - near[:, 1]
