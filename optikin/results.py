@@ -44,7 +44,7 @@ class MethodRow:
 
     method: str
     role: str  # "solver", "baseline" or "variant" (another formulation solved by the same solver)
-    metrics: dict[str, float | int | str]
+    metrics: dict[str, Any]
 
 
 @dataclass
