@@ -60,8 +60,13 @@ def error_message(error: Mapping[str, Any]) -> str:
 
 
 def spec_error(path: str | Path, exc: ValidationError, prefix: str = "") -> SpecError:
-    """The first error of ``exc`` as a :class:`SpecError` naming ``path`` and ``prefix.field``."""
-    first: Mapping[str, Any] = exc.errors()[0]
+    """The first error of ``exc`` as a :class:`SpecError` naming ``path`` and ``prefix.field``.
+
+    An unknown field is reported before anything else: a misspelt required field then reads
+    ``params.fiel: unknown field`` rather than ``params.file: required field is missing``.
+    """
+    errors = exc.errors()
+    first: Mapping[str, Any] = next((e for e in errors if e["type"] == "extra_forbidden"), errors[0])
     where = ".".join(p for p in (prefix, field_path(first["loc"])) if p)
     return SpecError(path, where, error_message(first))
 
