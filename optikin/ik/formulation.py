@@ -94,8 +94,24 @@ class Formulation:
 
 
 def tip_residual(arm: ArmModel, target: str, orientation_length: float) -> ca.Function:
-    """``r(q, target)``: the tip position error; for poses also ``2 L vec(q_target^-1 q_tip)``; for
-    ``sections`` the end position error of every section, ``(3 n_sections,)`` targets base to tip."""
+    """The tip residual ``r(q, target)`` of an arm, in metres.
+
+    Parameters
+    ----------
+    arm:
+        The arm; its :meth:`~optikin.arms.base.ArmModel.section_frames` give the section ends.
+    target:
+        ``position`` (target ``p*``, 3), ``pose`` (a unit dual quaternion, 8) or ``sections``
+        (the end position of every section, base to tip, ``3 n_sections``).
+    orientation_length:
+        ``L`` [m] scaling the orientation rows ``2 L vec(q_target^-1 q_tip)`` of a pose.
+
+    Returns
+    -------
+    casadi.Function
+        ``(q, target) -> r``: ``p(q) - p*`` (3), ``(p(q) - p*, 2 L vec(q*^-1 q(q)))`` (6) or the
+        stacked section-end errors ``(3 n_sections)``.
+    """
     q = ca.SX.sym("q", arm.n_config)
     frames = arm.section_frames(q)
     quat, position = frames[-1]
@@ -129,9 +145,26 @@ def penalty_rows(arm: ArmModel, q: ca.SX, formulation: Formulation) -> ca.SX:
 
 
 def build_problem(arm: ArmModel, formulation: Formulation) -> LeastSquaresProblem | list[LeastSquaresProblem]:
-    """The least-squares problem of a formulation; for CBHA leg lengths, one per platform.
+    """The least-squares problem of a formulation (module docstring); for CBHA leg lengths, one per platform.
 
-    A CBHA's leg lengths must stay within Table I (seed 004): they are the problem's constraints.
+    Parameters
+    ----------
+    arm:
+        The arm; leg targets and elongation distributions need a :class:`~optikin.arms.cbha.CBHAArm`.
+    formulation:
+        What is matched and how the redundancy is resolved.
+
+    Returns
+    -------
+    LeastSquaresProblem or list of LeastSquaresProblem
+        ``r(q, target)``: the tip rows, then the distribution rows and the penalty rows when asked
+        for; on a CBHA the leg lengths must stay within Table I of seed 004 (the problem's
+        constraints). For leg targets, the 16 platform problems of :func:`platform_problems`.
+
+    Raises
+    ------
+    ValueError
+        Leg targets or an elongation distribution on an arm that is not a CBHA.
     """
     needs_cbha = formulation.target == "legs" or formulation.elongation != "free"
     if needs_cbha and not isinstance(arm, CBHAArm):

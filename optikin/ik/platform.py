@@ -37,7 +37,21 @@ STATUS_PRIORITY = ("failed", "timeout", "not_converged", "unreachable", "ok")
 
 
 def platform_problems(arm: CBHAArm, tolerance: float) -> list[LeastSquaresProblem]:
-    """One problem per platform: ``x = (Z_k, theta_k, psi_k)``, data ``q = (q_1k, q_2k, q_3k)``."""
+    """One least-squares problem per platform (module docstring).
+
+    Parameters
+    ----------
+    arm:
+        The CBHA.
+    tolerance:
+        Leg-length error ``||r||`` [m] counted as solved.
+
+    Returns
+    -------
+    list of LeastSquaresProblem
+        Problem ``k``: variables ``x = (Z_k, theta_k, psi_k)`` within the arm's bounds, data the
+        leg lengths ``(q_1k, q_2k, q_3k)`` [m], residual ``legs_k(x) - q`` [m].
+    """
     radii = arm.geometry.radii
     problems = []
     for k in range(arm.geometry.n_platforms):
@@ -53,9 +67,26 @@ def platform_problems(arm: CBHAArm, tolerance: float) -> list[LeastSquaresProble
 
 def solve_platforms(adapter: NonlinearAdapter, problems: list[LeastSquaresProblem], legs: np.ndarray,
                     start: np.ndarray, warm_start: bool = False) -> SolutionBatch:
-    """Every platform of every sample; ``legs`` is ``(N, 3 * platforms)``, ``start`` one configuration or N.
+    """Every platform of every sample with one ``nonlinear`` adapter.
 
-    A sample's iterations and time add up over its platforms, its residual is the largest.
+    Parameters
+    ----------
+    adapter:
+        A ``nonlinear`` backend's adapter; each platform is one :meth:`solve_many` call over the samples.
+    problems:
+        The platform problems of :func:`platform_problems`.
+    legs:
+        Leg lengths ``(N, 3 n_platforms)`` [m].
+    start:
+        Start configuration ``(3 n_platforms,)`` or one per sample ``(N, 3 n_platforms)``.
+    warm_start:
+        Start each sample from the previous sample's solution (a trajectory).
+
+    Returns
+    -------
+    SolutionBatch
+        Configurations ``(N, 3 n_platforms)``; a sample's status is the worst of its platforms'
+        (:data:`STATUS_PRIORITY`), its iterations and time add up over them, its residual is the largest.
     """
     reports = [adapter.solve_many(problem, start[..., 3 * k: 3 * k + 3], legs[:, 3 * k: 3 * k + 3], warm_start)
                for k, problem in enumerate(problems)]
