@@ -88,12 +88,11 @@ def _print_kinds(console) -> None:
     load_kinds()
     for name in PROBLEM_KINDS.names():
         kind = PROBLEM_KINDS.get(name)
-        sources = DATA_SOURCES.get(kind.data_family) if kind.data_family else None
+        sources = DATA_SOURCES[kind.data_family].names() if kind.data_family in DATA_SOURCES else []
         console.print(f"[bold]{name}[/bold]: {kind.summary}; solved by {', '.join(kind.backend_families) or 'itself'}"
-                      f"; data sources: {', '.join(sources.names()) if sources else 'its own'}")
-        if kind.options is not None:
-            print_listing(f"options of kind {name}", describe_options(kind.options),
-                          ("field", "type", "default", "description"), console)
+                      f"; data sources ({kind.data_family}): {', '.join(sources)}")
+        print_listing(f"options of kind {name}", describe_options(kind.options),
+                      ("field", "type", "default", "description"), console)
 
 
 def _cmd_show(args: argparse.Namespace) -> int:
@@ -107,8 +106,7 @@ def _cmd_show(args: argparse.Namespace) -> int:
         path = preset.path
         model, title = preset.backend.options, f"options of backend {preset.spec.backend}"
         data = preset.spec.model_dump(mode="json")
-        if model is not None:
-            data["options"] = preset.options.model_dump(mode="json")
+        data["options"] = preset.options.model_dump(mode="json")
     else:
         from optikin.runner import prepare
 
@@ -116,13 +114,11 @@ def _cmd_show(args: argparse.Namespace) -> int:
         path = ctx.path
         model, title = kind.options, f"options of kind {kind.name}"
         data = ctx.spec.model_dump(mode="json")
-        if model is not None:
-            data["options"] = ctx.options.model_dump(mode="json")
-        if ctx.data_params is not None:
-            data["data"]["params"] = ctx.data_params.model_dump(mode="json")
+        data["options"] = ctx.options.model_dump(mode="json")
+        data["data"]["params"] = ctx.data_params.model_dump(mode="json")
     print(f"# {path}")
     print(json.dumps(data, indent=2) if args.json else yaml.safe_dump(data, sort_keys=False), end="")
-    if model is not None and not args.json:
+    if not args.json:
         print_listing(title, describe_options(model), ("field", "type", "default", "description"), wide_console())
     return EXIT_OK
 

@@ -20,7 +20,8 @@ Example
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, Mapping, TypeVar
+from types import UnionType
+from typing import Annotated, Any, Literal, Mapping, TypeVar, Union, get_args, get_origin
 
 from pydantic import BaseModel, ConfigDict, ValidationError
 
@@ -111,10 +112,27 @@ def describe_options(model: type[BaseModel], prefix: str = "") -> list[tuple[str
             rows.append((dotted, nested.__name__, "", info.description or (nested.__doc__ or "").splitlines()[0]))
             rows += describe_options(nested, f"{dotted}.")
             continue
-        type_name = getattr(annotation, "__name__", None) or str(annotation).replace("typing.", "")
+        type_name = type_name_of(annotation)
         default = "required" if info.is_required() else repr(info.get_default(call_default_factory=True))
         rows.append((dotted, type_name, default, info.description or ""))
     return rows
+
+
+def type_name_of(annotation: Any) -> str:
+    """A short readable name of a field's type: ``float``, ``list[float]``, ``'hold' | 'damped_least_squares'``."""
+    origin, args = get_origin(annotation), get_args(annotation)
+    if origin is Literal:
+        return " | ".join(repr(a) for a in args)
+    if origin in (Union, UnionType):
+        return " | ".join(type_name_of(a) for a in args)
+    if origin is Annotated:
+        return type_name_of(args[0])
+    if origin is not None:
+        inner = ", ".join("..." if a is Ellipsis else type_name_of(a) for a in args)
+        return f"{getattr(origin, '__name__', str(origin))}[{inner}]"
+    if annotation is type(None):
+        return "None"
+    return getattr(annotation, "__name__", None) or str(annotation).replace("typing.", "")
 
 
 def options_schema(model: type[BaseModel]) -> dict[str, Any]:

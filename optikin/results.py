@@ -61,7 +61,6 @@ class Result:
     metrics: dict[str, Any] = field(default_factory=dict)
     comparison: list[MethodRow] = field(default_factory=list)
     arrays: dict[str, np.ndarray] = field(default_factory=dict)
-    figures: dict[str, Callable[[Path], None]] = field(default_factory=dict, repr=False)
     notes: list[str] = field(default_factory=list)
 
     def __post_init__(self) -> None:
@@ -147,9 +146,7 @@ def write_result(result: Result, out_dir: Path, figures: bool = True, arrays: li
         if kept:
             np.savez_compressed(staging / "arrays.npz", **kept)  # type: ignore[arg-type]
         if figures:
-            drawers = dict(result.figures)
-            if figure_builder is not None:
-                drawers.update(figure_builder(result.arrays, summary))
+            drawers = figure_builder(result.arrays, summary) if figure_builder is not None else {}
             for name, draw in drawers.items():
                 draw(staging / f"{name}.png")
                 summary["figures"].append(f"{name}.png")

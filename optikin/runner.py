@@ -83,11 +83,9 @@ def prepare(problem: str, solver: str | None = None, progress: Progress = SILENT
     _tell(notify, provenance(problem, path, "problems"))
     kind = kind_of(spec, path)
     _check_baselines(spec, path, kind)
-    options = spec.options if kind.options is None else validate_options(kind.options, spec.options, path, "options")
-    data_source, data_params = None, None
-    if kind.data_family is not None:
-        data_source = source_of(kind.data_family, spec.data.source, path)
-        data_params = validate_options(data_source.params, spec.data.params, path, "data.params")
+    options = validate_options(kind.options, spec.options, path, "options")
+    data_source = source_of(kind.data_family, spec.data.source, path)
+    data_params = validate_options(data_source.params, spec.data.params, path, "data.params")
     preset_name = solver or spec.solver or kind.default_solver
     preset = _preset(preset_name, kind)
     if preset is not None and preset_name is not None:

@@ -31,7 +31,7 @@ from pydantic import Field, StrictBool, StrictFloat, StrictInt, field_validator
 from optikin.algebra import dq_from_rotation_translation, dq_translation, quat_normalize
 from optikin.arms.base import ArmModel
 from optikin.arms.constant_curvature import ConstantCurvatureArm
-from optikin.data.configurations import read_configuration_csv
+from optikin.data.configurations import TrajectoryParams, read_configuration_csv, smooth_motion
 from optikin.data.sources import register_source
 from optikin.errors import InputDataError, SpecError
 from optikin.options import Options
@@ -117,16 +117,6 @@ class RandomParams(Options):
         return margin
 
 
-class TrajectoryParams(Options):
-    """``data.params`` of source ``trajectory``."""
-
-    rate: StrictFloat = Field(100.0, gt=0, description="sample rate [Hz]")
-    amplitude: StrictFloat = Field(0.8, ge=0, le=1, description="amplitude of every variable, as a fraction of "
-                                                                 "its half range")
-    frequency: tuple[StrictFloat, StrictFloat] = Field(
-        (0.1, 0.4), description="[low, high]: the range each variable's frequency is drawn from [Hz]")
-
-
 class CsvParams(Options):
     """``data.params`` of source ``csv``."""
 
@@ -153,18 +143,6 @@ def random_targets(arm: ArmModel, data: DataSpec, params: RandomParams, path: Pa
         Q = np.concatenate([Q, np.full((extra, arm.n_config), np.nan)])
         reachable = np.concatenate([reachable, np.zeros(extra, dtype=bool)])
     return Targets(kind, values, Q, reachable)
-
-
-def smooth_motion(arm: ArmModel, samples: int, seed: int, params: TrajectoryParams) -> tuple[np.ndarray, np.ndarray]:
-    """``(Q (samples, n_config), t (samples,) [s])``: every variable a sinusoid about its mid-range,
-    ``amplitude`` times its half range, with a frequency drawn from ``frequency`` and a phase from
-    ``[-pi, pi)`` (the motion of the ``configurations`` source ``trajectory``)."""
-    rng = np.random.default_rng(seed)
-    t = np.arange(samples) / params.rate
-    freq = rng.uniform(*params.frequency, arm.n_config)
-    phase = rng.uniform(-np.pi, np.pi, arm.n_config)
-    mid, half = 0.5 * (arm.lower + arm.upper), 0.5 * (arm.upper - arm.lower)
-    return mid + params.amplitude * half * np.sin(2 * np.pi * freq * t[:, None] + phase), t
 
 
 @register_source(FAMILY, "trajectory", "forward kinematics of a smooth configuration motion, solved in order",

@@ -13,7 +13,7 @@ The 16 platforms of a sample are independent: every platform is solved for all
 samples at once by the backend's :meth:`solve_many`, and a sample is ``ok`` when
 all 16 of its platforms are.
 
-Two helpers serve the hybrid networks of seed 004 (:mod:`optikin.problems.nn_baseline`):
+Two helpers serve the hybrid networks of seed 004 (kinds ``nn_fkm`` and ``nn_ikm``):
 :func:`linearised_start`, a starting point from the leg lengths themselves, and
 :func:`realise`, what the arm does with commanded leg lengths.
 """

@@ -110,11 +110,10 @@ class ProblemKind:
     baselines:
         Baselines the kind implements itself (presets of an accepted family are
         accepted as baselines too).
-    options:
-        The model of ``options:``; ``None`` marks a kind that still checks its options itself.
     data_family:
-        The family of :data:`optikin.data.sources.DATA_SOURCES` that ``data.source`` names,
-        or ``None`` for a kind that resolves its data itself.
+        The family of :data:`optikin.data.sources.DATA_SOURCES` that ``data.source`` names.
+    options:
+        The model of ``options:``.
     figures:
         Draws the result's figures from its arrays and summary.
     """
@@ -124,9 +123,9 @@ class ProblemKind:
     run: Callable[[ProblemContext], Result]
     backend_families: tuple[str, ...]
     default_solver: str | None
+    data_family: str
     baselines: tuple[str, ...] = ()
-    options: type[Options] | None = NoOptions
-    data_family: str | None = None
+    options: type[Options] = NoOptions
     figures: FigureBuilder | None = None
 
 

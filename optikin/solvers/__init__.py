@@ -32,18 +32,17 @@ class Backend:
     name: str
     family: str
     summary: str
-    build: Callable[..., Any]
-    options: type[Options] | None = NoOptions
+    build: Callable[[SolverSpec, Any], Any]
+    options: type[Options] = NoOptions
     module: str = ""
 
 
 def register_backend(name: str, family: str, summary: str,
-                     options: type[Options] | None = NoOptions) -> Callable:
+                     options: type[Options] = NoOptions) -> Callable:
     """Decorator registering ``build(preset, options) -> adapter`` as backend ``name``.
 
     ``options`` is the model the preset's ``options:`` are validated against; the
-    adapter receives the validated instance. ``None`` marks a backend that still
-    checks ``preset.options`` itself and is built as ``build(preset)``.
+    adapter receives the validated instance.
     """
     if family not in FAMILIES:
         raise ValueError(f"backend {name!r}: unknown family {family!r}; known: {', '.join(FAMILIES)}")
@@ -66,8 +65,6 @@ class LoadedPreset:
 
     def build(self) -> Any:
         """The adapter this preset describes."""
-        if self.backend.options is None:
-            return self.backend.build(self.spec)
         return self.backend.build(self.spec, self.options)
 
 
@@ -88,8 +85,7 @@ def preset_of(spec: SolverSpec, path: str | Path | None = None) -> LoadedPreset:
         backend = BACKENDS.get(spec.backend)
     except UnknownNameError as exc:
         raise SpecError(where, "backend", str(exc)) from None
-    options = (spec.options if backend.options is None
-               else validate_options(backend.options, spec.options, where, "options"))
+    options = validate_options(backend.options, spec.options, where, "options")
     return LoadedPreset(spec, where, backend, options)
 
 

@@ -48,10 +48,10 @@ import time
 
 import casadi as ca
 import numpy as np
-from pydantic import Field, StrictBool, StrictFloat, StrictStr
+from pydantic import Field, StrictBool, StrictFloat
 
 from optikin.batch import batched
-from optikin.codegen import CompiledFunction
+from optikin.codegen import CompiledFunction, CompilerFlag
 from optikin.fastcall import BufferedFunction
 from optikin.options import Options
 from optikin.solvers import register_backend
@@ -135,7 +135,8 @@ class GaussNewtonOptions(Options):
     second_order: StrictBool = Field(True, description="switch a stalled sample (large residual) to the Newton "
                                                        "model J^T J + sum r_i Hess r_i")
     compile: StrictBool = Field(False, description="code-generate the step Function and compile it to C")
-    flags: tuple[StrictStr, ...] = Field(("-O3",), description="C compiler flags of compile: true")
+    flags: tuple[CompilerFlag, ...] = Field(("-O3",), description="C compiler flags of compile: true, from "
+                                                                    "optikin.codegen.ALLOWED_FLAGS")
     batch: StrictBool = Field(True, description="independent samples: one batched step evaluation per "
                                                 "iteration for all of them")
 

@@ -4,7 +4,7 @@ Skipped in the normal run (``--benchmark-skip`` in pyproject's addopts); run wit
 
     OPENBLAS_NUM_THREADS=1 pytest tests/timing/test_ik_timing.py --benchmark-only
 
-Issue 4 targets: two-section CC tip-position IK under 100 us per warm-started
+Targets: two-section CC tip-position IK under 100 us per warm-started
 solve from Python, and a batched path of at least 20,000 solves per second, both
 against scipy ``least_squares`` measured in the same session.
 
@@ -29,12 +29,12 @@ import pytest
 
 from optikin.arms import ConstantCurvatureArm
 from optikin.arms.cbha import CBHAArm
-from optikin.data.configurations import smooth_trajectory
+from optikin.data.configurations import TrajectoryParams, smooth_motion
 from optikin.ik.formulation import Formulation, build_problem, rest_configuration, tip_residual
 from optikin.ik.platform import platform_problems, solve_platforms
 from optikin.solvers import load_backends, preset_of
 from optikin.solvers.nonlinear import LeastSquaresProblem
-from optikin.spec import DataSpec, load_solver
+from optikin.spec import load_solver
 
 load_backends()
 HOME = np.array([0.18, 0.6, 0.0, 0.18, 0.6, np.pi / 2])
@@ -62,7 +62,7 @@ def problem_of(arm, target: str) -> LeastSquaresProblem:
 
 @pytest.fixture(scope="module", params=["position", "pose"])
 def trajectory(request, arm):
-    Q, _ = smooth_trajectory(arm, DataSpec(source="trajectory", seed=2020, samples=TRAJECTORY_SAMPLES), "timing")
+    Q, _ = smooth_motion(arm, TRAJECTORY_SAMPLES, 2020, TrajectoryParams())
     name = "fk_position" if request.param == "position" else "fk_dq"
     return request.param, problem_of(arm, request.param), Q, arm.evaluate(name, Q)
 
