@@ -140,7 +140,9 @@ def newton_raphson_problem(arm: CBHAArm, target: str = "sections") -> LeastSquar
     formulation = Formulation(target=target, redundancy="previous", rest=rest_configuration(arm),
                               weights=1.0 / (arm.upper - arm.lower), tolerance=NR_TOLERANCE,
                               orientation_length=reach_bound(arm), elongation=NR_ELONGATION)
-    return build_problem(arm, formulation)
+    problem = build_problem(arm, formulation)
+    assert isinstance(problem, LeastSquaresProblem), "a sections or pose target builds one problem"
+    return problem
 
 
 def newton_raphson_targets(arm: CBHAArm, recording: MarkerRecording, target: str, source: str) -> np.ndarray:

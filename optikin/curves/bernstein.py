@@ -31,18 +31,18 @@ def bernstein_combine(coefficients: Sequence[Array], t: Array) -> Array:
     if B.any_casadi(*coefficients) or B.is_casadi(t):
         t_row = t if B.is_casadi(t) else ca.DM(np.atleast_1d(np.asarray(t, dtype=float))).T
         basis = bernstein_basis(degree, t_row)
-        total = ca.mtimes(coefficients[0], basis[0])
+        symbolic = ca.mtimes(coefficients[0], basis[0])
         for c, b in zip(coefficients[1:], basis[1:]):
-            total = total + ca.mtimes(c, b)
-        return total
+            symbolic = symbolic + ca.mtimes(c, b)
+        return symbolic
     t = np.asarray(t, dtype=float)
     basis = bernstein_basis(degree, t)
-    coefficients = [np.asarray(c, dtype=float) for c in coefficients]
-    batch = np.broadcast_shapes(*(c.shape[:-1] for c in coefficients))
-    m = coefficients[0].shape[-1]
+    arrays = [np.asarray(c, dtype=float) for c in coefficients]
+    batch = np.broadcast_shapes(*(c.shape[:-1] for c in arrays))
+    m = arrays[0].shape[-1]
     shape_c = batch + (1,) * t.ndim + (m,)
     total = np.zeros(batch + t.shape + (m,))
-    for c, b in zip(coefficients, basis):
+    for c, b in zip(arrays, basis):
         total = total + np.broadcast_to(c, batch + (m,)).reshape(shape_c) * b[..., None]
     return total
 

@@ -17,7 +17,7 @@ link; links are independent given their end data, so they are solved one by one.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 
@@ -65,7 +65,7 @@ def check_joints(links: Sequence[ShapeData], continuity: str, *, source: str = "
         raise ValueError(f"continuity must be 'C0' or 'C1', got {continuity!r}")
     if not links:
         raise InputDataError("a chain needs at least one link", source=source)
-    size = max(max(np.linalg.norm(d.p1 - d.p0), d.length or 0.0) for d in links)
+    size = max(max(float(np.linalg.norm(d.p1 - d.p0)), d.length or 0.0) for d in links)
     for k in range(1, len(links)):
         before, after = links[k - 1], links[k]
         gap = np.linalg.norm(after.p0 - before.p1)
@@ -78,7 +78,7 @@ def check_joints(links: Sequence[ShapeData], continuity: str, *, source: str = "
                                      field="speeds")
             d_end = before.speeds[1] * before.t1
             d_start = after.speeds[0] * after.t0
-            if np.linalg.norm(d_start - d_end) > JOINT_TOLERANCE * max(np.linalg.norm(d_end), size):
+            if np.linalg.norm(d_start - d_end) > JOINT_TOLERANCE * max(float(np.linalg.norm(d_end)), size):
                 raise InputDataError(f"start derivative differs from the end derivative of link {k - 1} "
                                      f"(C1 needs r_k'(1) = r_k+1'(0), seed 002 eqs. 16, 18)", source=source,
                                      sample=k, field="t0")
@@ -90,7 +90,8 @@ def solve_chain(links: Sequence[ShapeData], model: ShapeEnergyModel, continuity:
     check_joints(links, continuity, source=source)
     if continuity == "C1" and model.free_speeds:
         raise ValueError("a C1 chain fixes the speeds at its joints: use a model with given speeds")
-    solvers = {"newton": model.solve_newton, "nlp": model.solve_nlp, "grid": model.solve_grid}
+    solvers: dict[str, Callable[[ShapeData], ShapeSolution]] = {
+        "newton": model.solve_newton, "nlp": model.solve_nlp, "grid": model.solve_grid}
     if method not in solvers:
         raise ValueError(f"unknown method {method!r}; known: {', '.join(solvers)}")
     links_out = []

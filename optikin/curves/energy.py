@@ -88,7 +88,8 @@ def rotation_rate_coefficients(curve: PHQuintic) -> tuple[list[Array], list[Arra
         [(2.0 / 3.0, ijk(A[1], E[1])), (1.0 / 3.0, ijk(A[2], E[0]))],
         [(1.0, ijk(A[2], E[1]))],
     ]
-    return tuple([sum(c * v[axis] for c, v in m) for m in terms] for axis in range(3))
+    x, y, z = ([sum(c * v[axis] for c, v in m) for m in terms] for axis in range(3))
+    return x, y, z
 
 
 @lru_cache(maxsize=None)
