@@ -20,7 +20,6 @@ import numpy as np
 from optikin.errors import SolverError
 
 
-
 def _dense_indices(f: ca.Function) -> np.ndarray | None:
     """Column-major positions of output 0's nonzeros in its dense ``rows x cols`` block (None when dense)."""
     sp = f.sparsity_out(0)
@@ -97,9 +96,9 @@ class BatchFunction:
         with self._lock:
             full = n - n % c if n > c else 0
             for start in range(0, full, c):
-                self._run(c, x[start * a:(start + c) * a], y[start * b:(start + c) * b])
+                self._run(c, x[start * a : (start + c) * a], y[start * b : (start + c) * b])
             if full < n:
-                self._run(n - full, x[full * a:], y[full * b:])
+                self._run(n - full, x[full * a :], y[full * b :])
         return out
 
     def __call__(self, Q: np.ndarray) -> np.ndarray:

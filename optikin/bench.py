@@ -105,8 +105,9 @@ def _configurations(arm, n: int, rng: np.random.Generator) -> np.ndarray:
 # --------------------------------------------------------------------------- paths
 
 
-def _paths(arm, Q: np.ndarray, Q_call: np.ndarray, with_compiled: bool, flags: tuple[str, ...],
-           compiler: str) -> tuple[dict[str, tuple[Callable[[], np.ndarray], int]], dict[str, str]]:
+def _paths(
+    arm, Q: np.ndarray, Q_call: np.ndarray, with_compiled: bool, flags: tuple[str, ...], compiler: str
+) -> tuple[dict[str, tuple[Callable[[], np.ndarray], int]], dict[str, str]]:
     """Path name -> (run() returning tip dual quaternions (n, 8), n); and skipped path -> reason."""
     import casadi as ca
 
@@ -140,19 +141,29 @@ def _paths(arm, Q: np.ndarray, Q_call: np.ndarray, with_compiled: bool, flags: t
     return paths, skipped
 
 
-def bench_arm(arm, samples: int, call_samples: int, repeats: int, seed: int, tolerance: float,
-              with_compiled: bool = True, flags: tuple[str, ...] = ("-O3",), compiler: str = "gcc",
-              advance: Callable[[int], None] | None = None) -> list[PathResult]:
+def bench_arm(
+    arm,
+    samples: int,
+    call_samples: int,
+    repeats: int,
+    seed: int,
+    tolerance: float,
+    with_compiled: bool = True,
+    flags: tuple[str, ...] = ("-O3",),
+    compiler: str = "gcc",
+    advance: Callable[[int], None] | None = None,
+) -> list[PathResult]:
     """Time every path on ``arm``; the first result is numpy's."""
     from optikin.errors import OptikinError
 
     if advance is None:
+
         def advance(k: int = 1) -> None:
             return None
 
     rng = np.random.default_rng(seed)
     Q = _configurations(arm, samples, rng)
-    Q_call = Q[:min(call_samples, samples)]
+    Q_call = Q[: min(call_samples, samples)]
     paths, skipped = _paths(arm, Q, Q_call, with_compiled, flags, compiler)
 
     results: dict[str, PathResult] = {}
@@ -189,8 +200,11 @@ def bench_arm(arm, samples: int, call_samples: int, repeats: int, seed: int, tol
     for r in results.values():
         if base and r.per_sample_ns:
             r.speedup_vs_numpy = base / r.per_sample_ns
-    ordered = [results[p] if p in results else PathResult(p, 0, skipped=skipped.get(p, "not run"))
-               for p in PATH_NAMES if p in results or p in skipped]
+    ordered = [
+        results[p] if p in results else PathResult(p, 0, skipped=skipped.get(p, "not run"))
+        for p in PATH_NAMES
+        if p in results or p in skipped
+    ]
     return ordered
 
 
@@ -210,16 +224,21 @@ def machine_info() -> dict:
         "system": f"{platform.system()} {platform.release()}",
     }
     try:
-        info["gcc"] = subprocess.run(["gcc", "--version"], capture_output=True, text=True,
-                                     timeout=10).stdout.splitlines()[0]
+        info["gcc"] = subprocess.run(
+            ["gcc", "--version"], capture_output=True, text=True, timeout=10
+        ).stdout.splitlines()[0]
     except (OSError, IndexError, subprocess.SubprocessError):
         info["gcc"] = None
     return info
 
 
 def _command(args: argparse.Namespace) -> str:
-    parts = ["optikin bench", f"--samples {args.samples}", f"--call-samples {args.call_samples}",
-             f"--repeats {args.repeats}"]
+    parts = [
+        "optikin bench",
+        f"--samples {args.samples}",
+        f"--call-samples {args.call_samples}",
+        f"--repeats {args.repeats}",
+    ]
     parts += [f"--arm {a}" for a in args.arm or []]
     if args.no_compiled:
         parts.append("--no-compiled")
@@ -243,12 +262,16 @@ def print_tables(report: dict, console=None) -> None:
             console = Console(width=120)
     m = report["machine"]
     console.print(f"[bold]{escape(report['command'])}[/bold]")
-    console.print(f"{m['nproc']} cores ({m['usable_cpus']} usable), Python {m['python']}, casadi {m['casadi']}, "
-                  f"numpy {m['numpy']}, {m['gcc'] or 'no gcc'}; load average {report['load_average_before']} "
-                  f"-> {report['load_average_after']}")
+    console.print(
+        f"{m['nproc']} cores ({m['usable_cpus']} usable), Python {m['python']}, casadi {m['casadi']}, "
+        f"numpy {m['numpy']}, {m['gcc'] or 'no gcc'}; load average {report['load_average_before']} "
+        f"-> {report['load_average_after']}"
+    )
     for arm_name, entry in report["arms"].items():
-        table = Table(title=f"{arm_name}: tip pose fk_dq, {entry['n_config']} configuration variables, "
-                            f"medians of {report['repeats']} interleaved repeats")
+        table = Table(
+            title=f"{arm_name}: tip pose fk_dq, {entry['n_config']} configuration variables, "
+            f"medians of {report['repeats']} interleaved repeats"
+        )
         for col in ("path", "samples", "median ms", "ns/sample", "vs numpy", "max |diff|", "first call s"):
             table.add_column(col, justify="left" if col == "path" else "right")
         for r in entry["paths"]:
@@ -259,14 +282,23 @@ def print_tables(report: dict, console=None) -> None:
             if r["agrees"] is False:
                 diff = f"[red]{diff} > {report['tolerance']:g}[/red]"
             speed = _fmt(r["speedup_vs_numpy"], ".2f") + "x" if r["speedup_vs_numpy"] else "-"
-            table.add_row(r["path"], str(r["samples"]), _fmt(r["median_ms"], ".2f"), _fmt(r["per_sample_ns"], ".0f"),
-                          speed, diff, _fmt(r["first_call_s"], ".3f"))
+            table.add_row(
+                r["path"],
+                str(r["samples"]),
+                _fmt(r["median_ms"], ".2f"),
+                _fmt(r["per_sample_ns"], ".0f"),
+                speed,
+                diff,
+                _fmt(r["first_call_s"], ".3f"),
+            )
         console.print(table)
     for s in report["skipped"]:
         console.print(f"[yellow]skipped {s['arm']}:[/yellow] {escape(s['reason'])}")
-    console.print("vs numpy = numpy's time per sample / the path's (above 1: faster than numpy); "
-                  "max |diff| = largest difference from numpy's tip dual quaternions. "
-                  "Medians on a shared machine: compare ratios, not absolute times.")
+    console.print(
+        "vs numpy = numpy's time per sample / the path's (above 1: faster than numpy); "
+        "max |diff| = largest difference from numpy's tip dual quaternions. "
+        "Medians on a shared machine: compare ratios, not absolute times."
+    )
 
 
 # --------------------------------------------------------------------------- command
@@ -275,14 +307,15 @@ def print_tables(report: dict, console=None) -> None:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.description = "Forward-kinematics throughput of the evaluation paths against vectorised numpy."
     parser.add_argument("--samples", type=int, default=100_000, help="configurations per batch (default 100000)")
-    parser.add_argument("--call-samples", type=int, default=2_000,
-                        help="configurations for the one-call-per-sample path (default 2000)")
+    parser.add_argument(
+        "--call-samples", type=int, default=2_000, help="configurations for the one-call-per-sample path (default 2000)"
+    )
     parser.add_argument("--repeats", type=int, default=7, help="timed repeats of every path (default 7)")
-    parser.add_argument("--arm", action="append", choices=ARM_NAMES,
-                        help="arm to measure (repeatable; default: all)")
+    parser.add_argument("--arm", action="append", choices=ARM_NAMES, help="arm to measure (repeatable; default: all)")
     parser.add_argument("--seed", type=int, default=0, help="random seed of the configurations")
-    parser.add_argument("--tolerance", type=float, default=1e-12,
-                        help="largest accepted difference from numpy's result (default 1e-12)")
+    parser.add_argument(
+        "--tolerance", type=float, default=1e-12, help="largest accepted difference from numpy's result (default 1e-12)"
+    )
     parser.add_argument("--no-compiled", action="store_true", help="skip the code-generated path")
     parser.add_argument("--json", action="store_true", help="print the figures as JSON instead of tables")
 
@@ -295,9 +328,18 @@ def run_bench(args: argparse.Namespace, progress=None) -> dict:
         raise ValueError("--samples, --call-samples and --repeats must be positive")
     progress = progress or SILENT
     arm_names = list(dict.fromkeys(args.arm or ARM_NAMES))
-    report = {"command": _command(args), "machine": machine_info(), "samples": args.samples,
-              "call_samples": min(args.call_samples, args.samples), "repeats": args.repeats, "seed": args.seed,
-              "tolerance": args.tolerance, "load_average_before": _load(), "arms": {}, "skipped": []}
+    report = {
+        "command": _command(args),
+        "machine": machine_info(),
+        "samples": args.samples,
+        "call_samples": min(args.call_samples, args.samples),
+        "repeats": args.repeats,
+        "seed": args.seed,
+        "tolerance": args.tolerance,
+        "load_average_before": _load(),
+        "arms": {},
+        "skipped": [],
+    }
     arms = []
     for name in arm_names:
         arm, reason = _load_arm(name)
@@ -308,8 +350,16 @@ def run_bench(args: argparse.Namespace, progress=None) -> dict:
     steps = len(PATH_NAMES) * (args.repeats + 1)
     with progress.task(f"bench: {len(arms)} arm(s), {args.samples} samples", total=steps * len(arms)) as advance:
         for name, arm in arms:
-            results = bench_arm(arm, args.samples, args.call_samples, args.repeats, args.seed, args.tolerance,
-                                with_compiled=not args.no_compiled, advance=advance)
+            results = bench_arm(
+                arm,
+                args.samples,
+                args.call_samples,
+                args.repeats,
+                args.seed,
+                args.tolerance,
+                with_compiled=not args.no_compiled,
+                advance=advance,
+            )
             report["arms"][name] = {"n_config": arm.n_config, "paths": [asdict(r) for r in results]}
     report["load_average_after"] = _load()
     report["ok"] = all(r["agrees"] is not False for entry in report["arms"].values() for r in entry["paths"])

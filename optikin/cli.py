@@ -33,8 +33,11 @@ from optikin.errors import OptikinError
 EXIT_OK, EXIT_FAILED_SAMPLES, EXIT_BAD_INPUT, EXIT_INTERNAL, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 
 
-def _listing(kind: Literal["problems", "solvers"], load: Callable[[str], tuple[Any, Path]],
-             describe: Callable[[Any], tuple[str, ...]]) -> tuple[list[tuple[str, ...]], list[str]]:
+def _listing(
+    kind: Literal["problems", "solvers"],
+    load: Callable[[str], tuple[Any, Path]],
+    describe: Callable[[Any], tuple[str, ...]],
+) -> tuple[list[tuple[str, ...]], list[str]]:
     """Rows ``(name, *describe(spec))`` of every named file of ``kind``, and the errors of those that fail."""
     from optikin.spec import available
 
@@ -89,10 +92,16 @@ def _print_kinds(console) -> None:
     for name in PROBLEM_KINDS.names():
         kind = PROBLEM_KINDS.get(name)
         sources = DATA_SOURCES[kind.data_family].names() if kind.data_family in DATA_SOURCES else []
-        console.print(f"[bold]{name}[/bold]: {kind.summary}; solved by {', '.join(kind.backend_families) or 'itself'}"
-                      f"; data sources ({kind.data_family}): {', '.join(sources)}")
-        print_listing(f"options of kind {name}", describe_options(kind.options),
-                      ("field", "type", "default", "description"), console)
+        console.print(
+            f"[bold]{name}[/bold]: {kind.summary}; solved by {', '.join(kind.backend_families) or 'itself'}"
+            f"; data sources ({kind.data_family}): {', '.join(sources)}"
+        )
+        print_listing(
+            f"options of kind {name}",
+            describe_options(kind.options),
+            ("field", "type", "default", "description"),
+            console,
+        )
 
 
 def _cmd_show(args: argparse.Namespace) -> int:
@@ -133,9 +142,14 @@ def _cmd_solve(args: argparse.Namespace) -> int:
     if not args.out.strip():
         raise SpecError("--out", "", "an empty output folder is not accepted (give a folder, e.g. results)")
     _headless_figures()
-    result, written = solve(args.problem, solver=args.solver, out=Path(args.out), figures=not args.no_figures,
-                            progress=Progress(enabled=not args.json),
-                            notify=lambda line: print(f"optikin: {line}", file=sys.stderr))
+    result, written = solve(
+        args.problem,
+        solver=args.solver,
+        out=Path(args.out),
+        figures=not args.no_figures,
+        progress=Progress(enabled=not args.json),
+        notify=lambda line: print(f"optikin: {line}", file=sys.stderr),
+    )
     if args.json:
         print(json.dumps(result.summary(), indent=2))
     else:
@@ -173,9 +187,12 @@ def _headless_figures() -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="optikin", description=__doc__.splitlines()[0],
-                                     epilog="exit status: 0 all samples ok, 1 some samples failed, 2 bad input "
-                                            "(file, field or sample named), 3 internal error, 130 interrupted")
+    parser = argparse.ArgumentParser(
+        prog="optikin",
+        description=__doc__.splitlines()[0],
+        epilog="exit status: 0 all samples ok, 1 some samples failed, 2 bad input "
+        "(file, field or sample named), 3 internal error, 130 interrupted",
+    )
     parser.add_argument("--version", action="version", version=f"optikin {__version__}")
     parser.add_argument("--debug", action="store_true", help="show the traceback of an internal error")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -231,8 +248,10 @@ def main(argv: list[str] | None = None) -> int:
         if args.debug:
             traceback.print_exc()
         else:
-            print(f"optikin: internal error: {type(exc).__name__}: {exc}; run with --debug for the traceback",
-                  file=sys.stderr)
+            print(
+                f"optikin: internal error: {type(exc).__name__}: {exc}; run with --debug for the traceback",
+                file=sys.stderr,
+            )
         return EXIT_INTERNAL
     finally:
         signal.signal(signal.SIGTERM, previous)

@@ -48,13 +48,29 @@ CompilerName = Literal["cc", "gcc", "clang"]
 
 COMPILERS: tuple[str, ...] = get_args(CompilerName)
 
-ALLOWED_FLAGS: frozenset[str] = frozenset({
-    "-O0", "-O1", "-O2", "-O3", "-Os", "-Og", "-Ofast",
-    "-march=native", "-mtune=native",
-    "-ffast-math", "-fno-fast-math", "-funroll-loops", "-fno-unroll-loops",
-    "-fno-math-errno", "-fno-trapping-math", "-ffp-contract=off", "-ffp-contract=fast",
-    "-fomit-frame-pointer", "-fno-strict-aliasing",
-})
+ALLOWED_FLAGS: frozenset[str] = frozenset(
+    {
+        "-O0",
+        "-O1",
+        "-O2",
+        "-O3",
+        "-Os",
+        "-Og",
+        "-Ofast",
+        "-march=native",
+        "-mtune=native",
+        "-ffast-math",
+        "-fno-fast-math",
+        "-funroll-loops",
+        "-fno-unroll-loops",
+        "-fno-math-errno",
+        "-fno-trapping-math",
+        "-ffp-contract=off",
+        "-ffp-contract=fast",
+        "-fomit-frame-pointer",
+        "-fno-strict-aliasing",
+    }
+)
 """Compiler flags a preset may pass: optimisation flags only, nothing that names a file or a program."""
 
 _DRIVER = r"""
@@ -200,8 +216,7 @@ def _owned_and_private(path: Path) -> bool:
         st = os.lstat(path)
     except OSError:
         return False
-    return (stat.S_ISREG(st.st_mode) and st.st_uid == os.getuid()
-            and not st.st_mode & (stat.S_IWGRP | stat.S_IWOTH))
+    return stat.S_ISREG(st.st_mode) and st.st_uid == os.getuid() and not st.st_mode & (stat.S_IWGRP | stat.S_IWOTH)
 
 
 def _sha256_file(path: Path) -> str:
@@ -221,8 +236,13 @@ def _source(f: ca.Function) -> str:
 def _record(source: str, compiler: str, flags: tuple[str, ...]) -> dict[str, object]:
     """What a library is built from, and its hash."""
     version = _compiler_version(compiler)
-    record: dict[str, object] = {"driver": _DRIVER_VERSION, "casadi": ca.CasadiMeta.version(), "compiler": compiler,
-                                 "compiler_version": version, "flags": list(flags)}
+    record: dict[str, object] = {
+        "driver": _DRIVER_VERSION,
+        "casadi": ca.CasadiMeta.version(),
+        "compiler": compiler,
+        "compiler_version": version,
+        "flags": list(flags),
+    }
     material = json.dumps({**record, "source": source}, sort_keys=True)
     record["hash"] = hashlib.sha256(material.encode()).hexdigest()
     return record
@@ -234,21 +254,34 @@ def _is_valid(library: Path, sidecar: Path, key: str) -> bool:
         return False
     try:
         record = json.loads(sidecar.read_text())
-        return (isinstance(record, dict) and record.get("hash") == key
-                and record.get("library_sha256") == _sha256_file(library))
+        return (
+            isinstance(record, dict)
+            and record.get("hash") == key
+            and record.get("library_sha256") == _sha256_file(library)
+        )
     except (OSError, ValueError):
         return False
 
 
-def _build(name: str, source: str, compiler: str, flags: tuple[str, ...], record: dict[str, object],
-           library: Path, sidecar: Path) -> None:
+def _build(
+    name: str,
+    source: str,
+    compiler: str,
+    flags: tuple[str, ...],
+    record: dict[str, object],
+    library: Path,
+    sidecar: Path,
+) -> None:
     """Compile ``source`` into a temporary name in the cache folder, then rename it and its record into place."""
     with tempfile.TemporaryDirectory(dir=library.parent, prefix=f".{name}-") as work:
         c_file = Path(work) / f"{name}.c"
         c_file.write_text(source)
         partial = Path(work) / library.name
-        run = subprocess.run([compiler, "-shared", "-fPIC", *flags, str(c_file), "-o", str(partial), "-lm"],
-                             capture_output=True, text=True)
+        run = subprocess.run(
+            [compiler, "-shared", "-fPIC", *flags, str(c_file), "-o", str(partial), "-lm"],
+            capture_output=True,
+            text=True,
+        )
         if run.returncode != 0:
             raise SolverError(f"compiling {name} with {compiler} failed: {run.stderr.strip()[:500]}")
         os.chmod(partial, 0o700)

@@ -27,8 +27,14 @@ def _equal_3d_axes(ax, points: np.ndarray) -> None:
     ax.set_zlabel("z [mm]")
 
 
-def backbones_3d(path: Path, backbones: np.ndarray, title: str, section_ends: np.ndarray | None = None,
-                 max_shapes: int = 12, extra: dict[str, np.ndarray] | None = None) -> None:
+def backbones_3d(
+    path: Path,
+    backbones: np.ndarray,
+    title: str,
+    section_ends: np.ndarray | None = None,
+    max_shapes: int = 12,
+    extra: dict[str, np.ndarray] | None = None,
+) -> None:
     """Draw up to ``max_shapes`` backbones ``(N, K, 3)`` (metres), evenly picked; marks section ends ``(N, m, 3)``."""
     n = backbones.shape[0]
     pick = np.unique(np.linspace(0, n - 1, min(n, max_shapes)).astype(int))
@@ -53,8 +59,14 @@ def backbones_3d(path: Path, backbones: np.ndarray, title: str, section_ends: np
     plt.close(fig)
 
 
-def time_series(path: Path, t: np.ndarray, series: dict[str, np.ndarray], ylabel: str, title: str,
-                labels: Sequence[str] = ("x", "y", "z")) -> None:
+def time_series(
+    path: Path,
+    t: np.ndarray,
+    series: dict[str, np.ndarray],
+    ylabel: str,
+    title: str,
+    labels: Sequence[str] = ("x", "y", "z"),
+) -> None:
     """One panel per named array ``(N, d)`` against time ``t``; ``labels`` name the d columns."""
     fig, axes = plt.subplots(len(series), 1, figsize=(7.0, 2.4 * len(series)), sharex=True, squeeze=False)
     for ax, (name, y) in zip(axes[:, 0], series.items()):
@@ -72,8 +84,9 @@ def time_series(path: Path, t: np.ndarray, series: dict[str, np.ndarray], ylabel
     plt.close(fig)
 
 
-def scatter_3d(path: Path, points: np.ndarray, title: str, colour: np.ndarray | None = None,
-               colour_label: str = "") -> None:
+def scatter_3d(
+    path: Path, points: np.ndarray, title: str, colour: np.ndarray | None = None, colour_label: str = ""
+) -> None:
     """Points ``(N, 3)`` in metres, optionally coloured by a value per point."""
     fig = plt.figure(figsize=(6.4, 5.6))
     ax = fig.add_subplot(projection="3d")

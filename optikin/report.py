@@ -29,8 +29,9 @@ def print_result(result: Result, console: Console | None = None) -> None:
     """Status counts, metrics, and the comparison of methods as tables."""
     console = console or wide_console()
     counts = ", ".join(f"{k}: {v}" for k, v in result.status_counts().items())
-    console.print(f"[bold]{result.problem}[/bold] ({result.kind}, solver {result.solver}): "
-                  f"{result.samples} samples, {counts}")
+    console.print(
+        f"[bold]{result.problem}[/bold] ({result.kind}, solver {result.solver}): {result.samples} samples, {counts}"
+    )
     if result.metrics:
         table = Table(title="metrics", show_header=False)
         for k, v in result.metrics.items():
@@ -50,8 +51,9 @@ def print_result(result: Result, console: Console | None = None) -> None:
         console.print(f"note: {escape(note)}")
 
 
-def print_listing(title: str, rows: Sequence[tuple[str, ...]], columns: tuple[str, ...],
-                  console: Console | None = None) -> None:
+def print_listing(
+    title: str, rows: Sequence[tuple[str, ...]], columns: tuple[str, ...], console: Console | None = None
+) -> None:
     """A table titled ``title`` with ``columns`` and one row per entry of ``rows`` (e.g. ``optikin list``)."""
     console = console or wide_console()
     table = Table(title=title)

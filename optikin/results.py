@@ -127,8 +127,13 @@ def _json_ready(x: Any) -> Any:
     return x
 
 
-def write_result(result: Result, out_dir: Path, figures: bool = True, arrays: list[str] | None = None,
-                 figure_builder: FigureBuilder | None = None) -> Path:
+def write_result(
+    result: Result,
+    out_dir: Path,
+    figures: bool = True,
+    arrays: list[str] | None = None,
+    figure_builder: FigureBuilder | None = None,
+) -> Path:
     """Write ``result`` under ``out_dir/<problem>/`` atomically; returns that folder.
 
     ``arrays`` restricts which arrays go into ``arrays.npz`` (all when None);
@@ -189,8 +194,9 @@ def read_result(folder: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
     return summary, arrays
 
 
-def redraw(folder: Path, figure_builder: FigureBuilder, summary: Mapping[str, Any],
-           arrays: Mapping[str, np.ndarray]) -> list[Path]:
+def redraw(
+    folder: Path, figure_builder: FigureBuilder, summary: Mapping[str, Any], arrays: Mapping[str, np.ndarray]
+) -> list[Path]:
     """Draw a written result's figures again into ``folder``; each PNG replaces the old one atomically."""
     written = []
     for name, draw in figure_builder(arrays, summary).items():

@@ -43,13 +43,20 @@ def _check_baselines(spec: ProblemSpec, path: Path, kind: ProblemKind) -> None:
         if baseline in kind.baselines:
             continue
         if baseline not in presets:
-            raise SpecError(path, f"baselines.{i}",
-                            f"{baseline!r} is neither a baseline of kind {kind.name!r} "
-                            f"(known: {', '.join(kind.baselines) or 'none'}) nor a solver preset")
+            raise SpecError(
+                path,
+                f"baselines.{i}",
+                f"{baseline!r} is neither a baseline of kind {kind.name!r} "
+                f"(known: {', '.join(kind.baselines) or 'none'}) nor a solver preset",
+            )
         family = load_preset(baseline).backend.family
         if family not in kind.backend_families:
-            raise SpecError(path, f"baselines.{i}", f"solver preset {baseline!r} ({family}) cannot solve kind "
-                                                    f"{kind.name!r}, which takes {' or '.join(kind.backend_families)}")
+            raise SpecError(
+                path,
+                f"baselines.{i}",
+                f"solver preset {baseline!r} ({family}) cannot solve kind "
+                f"{kind.name!r}, which takes {' or '.join(kind.backend_families)}",
+            )
 
 
 def _preset(name: str | None, kind: ProblemKind) -> LoadedPreset | None:
@@ -57,9 +64,12 @@ def _preset(name: str | None, kind: ProblemKind) -> LoadedPreset | None:
         return None
     preset = load_preset(name)
     if preset.backend.family not in kind.backend_families:
-        raise SpecError(preset.path, "backend",
-                        f"{preset.spec.backend!r} ({preset.backend.family}) cannot solve kind {kind.name!r}, "
-                        f"which takes {' or '.join(kind.backend_families) or 'no'} backends")
+        raise SpecError(
+            preset.path,
+            "backend",
+            f"{preset.spec.backend!r} ({preset.backend.family}) cannot solve kind {kind.name!r}, "
+            f"which takes {' or '.join(kind.backend_families) or 'no'} backends",
+        )
     return preset
 
 
@@ -67,12 +77,16 @@ def _check_arrays(spec: ProblemSpec, path: Path, result: Result) -> None:
     """``outputs.arrays`` names arrays this result has."""
     for i, name in enumerate(spec.outputs.arrays or []):
         if name not in result.arrays:
-            raise SpecError(path, f"outputs.arrays.{i}",
-                            f"no array {name!r} in this result; known: {', '.join(sorted(result.arrays)) or 'none'}")
+            raise SpecError(
+                path,
+                f"outputs.arrays.{i}",
+                f"no array {name!r} in this result; known: {', '.join(sorted(result.arrays)) or 'none'}",
+            )
 
 
-def prepare(problem: str, solver: str | None = None, progress: Progress = SILENT,
-            notify: Callable[[str], None] | None = None) -> tuple[ProblemKind, ProblemContext]:
+def prepare(
+    problem: str, solver: str | None = None, progress: Progress = SILENT, notify: Callable[[str], None] | None = None
+) -> tuple[ProblemKind, ProblemContext]:
     """Everything :func:`solve` checks and builds before the run: the kind and its context.
 
     ``notify`` receives one line for each file used that is not one of optikin's own
@@ -92,8 +106,17 @@ def prepare(problem: str, solver: str | None = None, progress: Progress = SILENT
         _tell(notify, provenance(preset_name, preset.path, "solvers"))
     adapter = None if preset is None else preset.build()
     arm = build_arm(spec.arm.type, spec.arm.params, path)
-    ctx = ProblemContext(spec=spec, path=path, arm=arm, progress=progress, options=options,
-                         data_source=data_source, data_params=data_params, preset=preset, adapter=adapter)
+    ctx = ProblemContext(
+        spec=spec,
+        path=path,
+        arm=arm,
+        progress=progress,
+        options=options,
+        data_source=data_source,
+        data_params=data_params,
+        preset=preset,
+        adapter=adapter,
+    )
     return kind, ctx
 
 
@@ -102,8 +125,14 @@ def _tell(notify: Callable[[str], None] | None, line: str | None) -> None:
         notify(line)
 
 
-def solve(problem: str, solver: str | None = None, out: Path | None = None, figures: bool = True,
-          progress: Progress = SILENT, notify: Callable[[str], None] | None = None) -> tuple[Result, Path | None]:
+def solve(
+    problem: str,
+    solver: str | None = None,
+    out: Path | None = None,
+    figures: bool = True,
+    progress: Progress = SILENT,
+    notify: Callable[[str], None] | None = None,
+) -> tuple[Result, Path | None]:
     """Solve a named problem (or a path to one); returns the Result and where it was written.
 
     Parameters
@@ -126,6 +155,11 @@ def solve(problem: str, solver: str | None = None, out: Path | None = None, figu
     _check_arrays(ctx.spec, ctx.path, result)
     written = None
     if out is not None:
-        written = write_result(result, Path(out), figures=figures and ctx.spec.outputs.figures,
-                               arrays=ctx.spec.outputs.arrays, figure_builder=kind.figures)
+        written = write_result(
+            result,
+            Path(out),
+            figures=figures and ctx.spec.outputs.figures,
+            arrays=ctx.spec.outputs.arrays,
+            figure_builder=kind.figures,
+        )
     return result, written

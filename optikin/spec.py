@@ -93,6 +93,7 @@ class SolverSpec(_Strict):
     options: dict[str, Any] = Field(default_factory=dict)
     limits: LimitsSpec = Field(default_factory=LimitsSpec)
 
+
 # --------------------------------------------------------------------------- locating files
 
 MAX_FILE_BYTES = 1_000_000
@@ -176,7 +177,8 @@ class _StrictLoader(yaml.SafeLoader):
         if self.check_event(yaml.AliasEvent):
             event = self.peek_event()
             raise yaml.constructor.ConstructorError(
-                None, None, f"aliases (*{event.anchor}) are not accepted in optikin files", event.start_mark)
+                None, None, f"aliases (*{event.anchor}) are not accepted in optikin files", event.start_mark
+            )
         return super().compose_node(parent, index)
 
     def construct_mapping(self, node: Any, deep: bool = False) -> Any:
@@ -185,7 +187,8 @@ class _StrictLoader(yaml.SafeLoader):
             key = self.construct_object(key_node, deep=True)
             if isinstance(key, (str, int, float, bool)) and key in seen:
                 raise yaml.constructor.ConstructorError(
-                    None, None, f"duplicate key {key!r} (first on line {seen[key] + 1})", key_node.start_mark)
+                    None, None, f"duplicate key {key!r} (first on line {seen[key] + 1})", key_node.start_mark
+                )
             if isinstance(key, (str, int, float, bool)):
                 seen[key] = key_node.start_mark.line
         return super().construct_mapping(node, deep=deep)

@@ -738,8 +738,9 @@ def test_dq_log_is_half_the_exponential_coordinates_of_pytransform3d(pose):
     T = _transform(q, p)
     xi = dq_log(dq_from_transform(T))
     np.testing.assert_allclose(2 * xi, pt.exponential_coordinates_from_transform(T), atol=1e-11)
-    np.testing.assert_allclose(transform_from_dq(dq_exp(xi)), pt.transform_from_exponential_coordinates(2 * xi),
-                               atol=1e-12)
+    np.testing.assert_allclose(
+        transform_from_dq(dq_exp(xi)), pt.transform_from_exponential_coordinates(2 * xi), atol=1e-12
+    )
 
 
 @pytest.mark.parametrize("a", HALF_ANGLES_NEAR_IDENTITY)
@@ -759,8 +760,9 @@ def test_dq_log_exp_pure_translation_and_identity():
         dq = dq_from_rotation_translation(np.array([1.0, 0, 0, 0]), p)
         np.testing.assert_array_equal(dq_log(dq), np.r_[0, 0, 0, p / 2])
         np.testing.assert_array_equal(dq_exp(np.r_[0, 0, 0, p / 2]), dq)
-        np.testing.assert_allclose(dq_power(dq, 0.3), dq_from_rotation_translation(np.array([1.0, 0, 0, 0]), 0.3 * p),
-                                   atol=1e-16)
+        np.testing.assert_allclose(
+            dq_power(dq, 0.3), dq_from_rotation_translation(np.array([1.0, 0, 0, 0]), 0.3 * p), atol=1e-16
+        )
 
 
 @HYP
@@ -835,9 +837,17 @@ def test_no_floating_point_warnings_near_identity(a):
     dq = dq_from_rotation_translation(q, np.array([0.1, 0.2, 0.3]))
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        outs = [quat_log(q), quat_exp(a * n), quat_power(q, 0.3), quat_slerp(np.r_[1.0, 0, 0, 0], q, 0.5),
-                dq_log(dq), dq_exp(dq_log(dq)), dq_power(dq, 0.3), dq_pose_error(dq, dq),
-                quat_from_matrix(matrix_from_quat(q))]
+        outs = [
+            quat_log(q),
+            quat_exp(a * n),
+            quat_power(q, 0.3),
+            quat_slerp(np.r_[1.0, 0, 0, 0], q, 0.5),
+            dq_log(dq),
+            dq_exp(dq_log(dq)),
+            dq_power(dq, 0.3),
+            dq_pose_error(dq, dq),
+            quat_from_matrix(matrix_from_quat(q)),
+        ]
     assert all(np.all(np.isfinite(o)) for o in outs)
 
 
@@ -951,8 +961,18 @@ def test_casadi_matrix_from_quat_rejects_several_columns():
 # ---------------------------------------------------------------------------
 
 _N = unit([0.3, -0.5, 0.8])
-JAC_HALF_ANGLES = [0.0, 1e-8, 1e-4, A_BAND * (1 - 1e-6), A_BAND, A_BAND * (1 + 1e-6),
-                   A_SIN_BAND * (1 - 1e-6), A_SIN_BAND, A_SIN_BAND * (1 + 1e-6), 0.7]
+JAC_HALF_ANGLES = [
+    0.0,
+    1e-8,
+    1e-4,
+    A_BAND * (1 - 1e-6),
+    A_BAND,
+    A_BAND * (1 + 1e-6),
+    A_SIN_BAND * (1 - 1e-6),
+    A_SIN_BAND,
+    A_SIN_BAND * (1 + 1e-6),
+    0.7,
+]
 _JAC_POINTS = [(a, ax) for a in JAC_HALF_ANGLES for ax in (np.array([1.0, 0, 0]), _N)]
 _JAC_IDS = [f"a={a:.9g}-{'x' if ax[0] == 1 else 'oblique'}" for a, ax in _JAC_POINTS]
 
@@ -1045,20 +1065,26 @@ def test_second_derivatives_finite_and_consistent_at_identity(name, fn, x0):
     assert np.linalg.norm(H - H_fd) <= 1e-6 * max(1.0, np.linalg.norm(H_fd)), name
 
 
-
-@pytest.mark.parametrize("name, fn, n_in", [("quat_log", quat_log, 4), ("quat_exp", quat_exp, 3),
-                                           ("dq_log", dq_log, 8), ("dq_exp", dq_exp, 6)])
+@pytest.mark.parametrize(
+    "name, fn, n_in",
+    [("quat_log", quat_log, 4), ("quat_exp", quat_exp, 3), ("dq_log", dq_log, 8), ("dq_exp", dq_exp, 6)],
+)
 def test_mx_jacobians_equal_sx_jacobians(name, fn, n_in):
     sx = {"quat_log": J_QUAT_LOG, "quat_exp": J_QUAT_EXP, "dq_log": J_DQ_LOG, "dq_exp": J_DQ_EXP}[name]
     x = ca.MX.sym("x", n_in, 1)
     mx = ca.Function("J", [x], [ca.jacobian(fn(x), x)])
     for a in [0.0, A_BAND, A_SIN_BAND, 0.7]:
         q = np.r_[np.cos(a), np.sin(a) * _N]
-        point = {"quat_log": q, "quat_exp": a * _N, "dq_log": np.r_[q, 0.5 * ref_qmul(np.r_[0, 0.1, 0.2, 0.3], q)],
-                 "dq_exp": np.r_[a * _N, 0.1, 0.2, 0.3]}[name].astype(float)
+        point = {
+            "quat_log": q,
+            "quat_exp": a * _N,
+            "dq_log": np.r_[q, 0.5 * ref_qmul(np.r_[0, 0.1, 0.2, 0.3], q)],
+            "dq_exp": np.r_[a * _N, 0.1, 0.2, 0.3],
+        }[name].astype(float)
         J = np.asarray(mx(point), float)
         assert np.all(np.isfinite(J)), (name, a)
         np.testing.assert_allclose(J, np.asarray(sx(point), float), rtol=1e-12, atol=1e-12, err_msg=f"{name} a={a}")
+
 
 # ---------------------------------------------------------------------------
 # Mixed numpy constants and CasADi symbols

@@ -70,8 +70,14 @@ def test_bench_cbha_is_measured_or_skipped_with_a_reason(capsys):
 def test_bench_tables_print(capsys):
     parser = argparse.ArgumentParser()
     bench.add_arguments(parser)
-    assert bench.main(parser.parse_args(["--samples", "16", "--call-samples", "4", "--repeats", "1",
-                                         "--arm", "cc", "--no-compiled"])) == bench.EXIT_OK
+    assert (
+        bench.main(
+            parser.parse_args(
+                ["--samples", "16", "--call-samples", "4", "--repeats", "1", "--arm", "cc", "--no-compiled"]
+            )
+        )
+        == bench.EXIT_OK
+    )
     out = capsys.readouterr().out
     assert "casadi map" in out and "vs numpy" in out
 

@@ -71,8 +71,14 @@ def discrete_chain(start, end, length, n=60):
         "jac": lambda a: np.vstack([-link * np.sin(a), link * np.cos(a)]),
     }
     guess = np.linspace(-1.0, 1.0, n)
-    res = minimize(lambda a: weights @ np.sin(a), guess, jac=lambda a: weights * np.cos(a),
-                   constraints=[constraints], method="SLSQP", options={"maxiter": 1000, "ftol": 1e-15})
+    res = minimize(
+        lambda a: weights @ np.sin(a),
+        guess,
+        jac=lambda a: weights * np.cos(a),
+        constraints=[constraints],
+        method="SLSQP",
+        options={"maxiter": 1000, "ftol": 1e-15},
+    )
     assert res.success, res.message
     x = np.concatenate([[0.0], np.cumsum(link * np.cos(res.x))])
     z = np.concatenate([[0.0], heights(res.x)])
@@ -108,8 +114,12 @@ def test_gravity_direction_is_respected():
 
 @pytest.mark.parametrize(
     "args,field",
-    [(([0, 0, 0], [1, 0, 0], 0.9), "length"), (([0, 0, np.nan], [1, 0, 0], 2.0), "start"),
-     (([0, 0, 0], [1, 0, 0], -1.0), "length"), (([0, 0, 0], [1, 0, 0], 2.0, [0, 0, 0]), "gravity")],
+    [
+        (([0, 0, 0], [1, 0, 0], 0.9), "length"),
+        (([0, 0, np.nan], [1, 0, 0], 2.0), "start"),
+        (([0, 0, 0], [1, 0, 0], -1.0), "length"),
+        (([0, 0, 0], [1, 0, 0], 2.0, [0, 0, 0]), "gravity"),
+    ],
 )
 def test_bad_ropes_are_rejected(args, field):
     with pytest.raises(InputDataError, match=field):

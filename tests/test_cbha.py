@@ -136,8 +136,12 @@ def test_leg_lengths_match_numpy(arm: CBHAArm):
     r = radii(arm.geometry)
     Q = arm.sample_configurations(20, np.random.default_rng(5))
     Q[:10] = np.random.default_rng(6).uniform(arm.lower, arm.upper, (10, 48))  # also outside Table I
-    expected = np.array([np.concatenate([reference_legs(Z, t, p, r[k], r[k + 1])
-                                         for k, (Z, t, p) in enumerate(q.reshape(-1, 3))]) for q in Q])
+    expected = np.array(
+        [
+            np.concatenate([reference_legs(Z, t, p, r[k], r[k + 1]) for k, (Z, t, p) in enumerate(q.reshape(-1, 3))])
+            for q in Q
+        ]
+    )
     np.testing.assert_allclose(arm.evaluate("leg_lengths", Q), expected, rtol=1e-12)
 
 
@@ -145,8 +149,9 @@ def test_leg_lengths_match_numpy(arm: CBHAArm):
 def test_straight_configuration(arm: CBHAArm, fraction: float):
     q = arm.straight_configuration(fraction)
     legs_mm = np.array(Q_MIN_MM) + fraction * (np.array(Q_MAX_MM) - np.array(Q_MIN_MM))
-    np.testing.assert_allclose(arm.leg_lengths(q).full().reshape(16, 3), np.repeat(legs_mm[:, None], 3, 1) / 1000,
-                               rtol=1e-12)
+    np.testing.assert_allclose(
+        arm.leg_lengths(q).full().reshape(16, 3), np.repeat(legs_mm[:, None], 3, 1) / 1000, rtol=1e-12
+    )
     P = arm.backbone(q).full()
     np.testing.assert_allclose(P[:2], 0.0, atol=1e-15)
     assert np.all(np.diff(P[2]) > 0)
@@ -223,9 +228,10 @@ def _leg_vectors(X: np.ndarray, r_k: float, r_k1: float) -> np.ndarray:
     Z, theta, psi = (c[:, None] for c in np.asarray(X).T)
     ct, st, cp, sp = np.cos(theta), np.sin(theta), np.cos(psi), np.sin(psi)
     ux, uy = U[:, 0], U[:, 1]
-    return np.stack([r_k1 * (ux * ct + uy * sp * st) - r_k * ux,
-                     r_k1 * uy * cp - r_k * uy,
-                     Z + r_k1 * (-ux * st + uy * sp * ct)], axis=-1)
+    return np.stack(
+        [r_k1 * (ux * ct + uy * sp * st) - r_k * ux, r_k1 * uy * cp - r_k * uy, Z + r_k1 * (-ux * st + uy * sp * ct)],
+        axis=-1,
+    )
 
 
 def test_legs_alone_do_not_bound_z_from_below():
@@ -259,8 +265,13 @@ def test_bounds_contain_every_pose_within_table_i(arm: CBHAArm):
         feasible = X[np.all(constraints(X) >= 0, axis=1)]
         assert len(feasible) > 20
         assert np.all(feasible >= lower[k]) and np.all(feasible <= upper[k]), k + 1
-        res = minimize(lambda x: x[0], feasible[np.argmin(feasible[:, 0])], method="SLSQP",
-                       constraints={"type": "ineq", "fun": constraints}, options={"ftol": 1e-12})
+        res = minimize(
+            lambda x: x[0],
+            feasible[np.argmin(feasible[:, 0])],
+            method="SLSQP",
+            constraints={"type": "ineq", "fun": constraints},
+            options={"ftol": 1e-12},
+        )
         assert res.success and np.all(constraints(res.x) >= -1e-12)
         assert res.x[0] == pytest.approx(lower[k, 0], abs=1e-9), k + 1
 

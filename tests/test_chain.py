@@ -64,8 +64,9 @@ def arc_backbone(base, direction, bend_axis, theta, length, n=200):
     normal /= np.linalg.norm(normal)
     s = np.linspace(0, length, n)
     radius = length / theta
-    points = (base + radius * np.sin(s / radius)[:, None] * direction
-              + radius * (1 - np.cos(s / radius))[:, None] * normal)
+    points = (
+        base + radius * np.sin(s / radius)[:, None] * direction + radius * (1 - np.cos(s / radius))[:, None] * normal
+    )
     tip_direction = np.cos(theta) * direction + np.sin(theta) * normal
     return points, tip_direction
 

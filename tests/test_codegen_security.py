@@ -97,18 +97,21 @@ def test_wrapper_flag_in_a_shadowing_preset_is_refused_before_anything_runs(tmp_
     assert compiles == [] and not (tmp_path / "PWNED").exists() and not cache.exists()
 
 
-@pytest.mark.parametrize("options, field", [
-    ('flags: ["-B/tmp/evil"]', "options.flags.0"),
-    ('flags: ["-O2", "@/tmp/flags.txt"]', "options.flags.1"),
-    ('flags: ["-specs=/tmp/evil.specs"]', "options.flags.0"),
-    ('flags: ["-fplugin=/tmp/evil.so"]', "options.flags.0"),
-    ('flags: ["-O3", "-o", "/tmp/x"]', "options.flags.1"),
-    ('flags: ["-DEVIL=1"]', "options.flags.0"),
-    ('flags: "-O3"', "options.flags"),
-    ("compiler: /tmp/evil/gcc", "options.compiler"),
-    ("compiler: tcc", "options.compiler"),
-    ("linker: ld", "options.linker"),
-])
+@pytest.mark.parametrize(
+    "options, field",
+    [
+        ('flags: ["-B/tmp/evil"]', "options.flags.0"),
+        ('flags: ["-O2", "@/tmp/flags.txt"]', "options.flags.1"),
+        ('flags: ["-specs=/tmp/evil.specs"]', "options.flags.0"),
+        ('flags: ["-fplugin=/tmp/evil.so"]', "options.flags.0"),
+        ('flags: ["-O3", "-o", "/tmp/x"]', "options.flags.1"),
+        ('flags: ["-DEVIL=1"]', "options.flags.0"),
+        ('flags: "-O3"', "options.flags"),
+        ("compiler: /tmp/evil/gcc", "options.compiler"),
+        ("compiler: tcc", "options.compiler"),
+        ("linker: ld", "options.linker"),
+    ],
+)
 def test_preset_options_outside_the_allow_lists_are_named(tmp_path, options, field):
     preset = shadowing_preset(tmp_path, options)
     with pytest.raises(SpecError) as err:
@@ -118,13 +121,25 @@ def test_preset_options_outside_the_allow_lists_are_named(tmp_path, options, fie
 
 def test_the_shipped_preset_and_allowed_flags_load():
     assert load_preset("casadi-compiled").options.flags == ["-O3"]
-    for flag in ("-O0", "-O1", "-O2", "-O3", "-Os", "-march=native", "-mtune=native", "-ffast-math",
-                 "-funroll-loops", "-fno-math-errno"):
+    for flag in (
+        "-O0",
+        "-O1",
+        "-O2",
+        "-O3",
+        "-Os",
+        "-march=native",
+        "-mtune=native",
+        "-ffast-math",
+        "-funroll-loops",
+        "-fno-math-errno",
+    ):
         assert check_flag(flag) == flag and flag in ALLOWED_FLAGS
 
 
-@pytest.mark.parametrize("flag", ["-wrapper", "-B", "-specs=x", "@file", "-fplugin=x.so", "-o", "-Dx", "-I.",
-                                  "-L.", "-lfoo", "-O3 -wrapper", ""])
+@pytest.mark.parametrize(
+    "flag",
+    ["-wrapper", "-B", "-specs=x", "@file", "-fplugin=x.so", "-o", "-Dx", "-I.", "-L.", "-lfoo", "-O3 -wrapper", ""],
+)
 def test_check_flag_refuses_what_is_not_an_optimisation_flag(flag):
     with pytest.raises(ValueError, match="not allowed"):
         check_flag(flag)

@@ -87,9 +87,13 @@ def test_seed_eq2_taylor_form_is_this_convention_with_phi_plus_pi():
     """Seed 000 eq. (2) bends towards -x for phi = 0: it equals p(S, theta, phi + pi) to O(theta^5)."""
     arm = ConstantCurvatureArm(section_lengths=(0.18,))
     for S, theta, phi in [(0.18, 0.05, 0.3), (0.17, -0.02, 2.0), (0.19, 0.08, -1.2)]:
-        seed = np.array([S * theta * np.cos(phi) * (theta**2 - 12) / 24,
-                         S * theta * np.sin(phi) * (theta**2 - 12) / 24,
-                         -S * (theta**2 - 6) / 6])
+        seed = np.array(
+            [
+                S * theta * np.cos(phi) * (theta**2 - 12) / 24,
+                S * theta * np.sin(phi) * (theta**2 - 12) / 24,
+                -S * (theta**2 - 6) / 6,
+            ]
+        )
         ours = np.asarray(arm.fk_position([S, theta, phi + np.pi])).ravel()
         assert np.abs(ours - seed).max() < S * theta**4 / 100
 
@@ -201,8 +205,10 @@ def test_validate_names_sample_and_variable(arm):
         arm.validate(np.zeros((3, 5)), source="test")
 
 
-@pytest.mark.parametrize("bad", [dict(section_lengths=()), dict(section_lengths=(0.1, -0.2)),
-                                 dict(theta_max=4.0), dict(length_range=(1.2, 1.1))])
+@pytest.mark.parametrize(
+    "bad",
+    [dict(section_lengths=()), dict(section_lengths=(0.1, -0.2)), dict(theta_max=4.0), dict(length_range=(1.2, 1.1))],
+)
 def test_invalid_geometry_rejected(bad):
     with pytest.raises(ValueError):
         ConstantCurvatureArm(**bad)

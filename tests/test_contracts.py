@@ -135,17 +135,22 @@ def test_plot_redraws_a_written_result(tmp_path, capsys):
 
 
 def test_importing_the_package_keeps_the_callers_matplotlib_backend():
-    code = ("import matplotlib; matplotlib.use('svg'); import optikin.problems; "
-            "from optikin.problems import load_kinds; load_kinds(); print(matplotlib.get_backend())")
+    code = (
+        "import matplotlib; matplotlib.use('svg'); import optikin.problems; "
+        "from optikin.problems import load_kinds; load_kinds(); print(matplotlib.get_backend())"
+    )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "svg"
 
 
-@pytest.mark.parametrize("text,message", [
-    ("a: 1\na: 2\n", "duplicate key 'a' (first on line 1)"),
-    ("a: &x [1, 2]\nb: *x\n", "aliases (*x) are not accepted"),
-    ("a: " + "[" * 2000 + "]" * 2000 + "\n", "nested too deeply"),
-])
+@pytest.mark.parametrize(
+    "text,message",
+    [
+        ("a: 1\na: 2\n", "duplicate key 'a' (first on line 1)"),
+        ("a: &x [1, 2]\nb: *x\n", "aliases (*x) are not accepted"),
+        ("a: " + "[" * 2000 + "]" * 2000 + "\n", "nested too deeply"),
+    ],
+)
 def test_yaml_that_cannot_be_trusted_is_refused(tmp_path, text, message, capsys):
     path = tmp_path / "bad.yaml"
     path.write_text(text)
@@ -182,15 +187,31 @@ def test_a_shadowing_preset_is_announced(tmp_path, monkeypatch, capsys):
     err = capsys.readouterr().err
     assert f"using solver file {tmp_path / 'solvers' / 'casadi-map.yaml'} (shadows the shipped solver" in err
     assert f"using problem file {problem} (shadows the shipped problem 'cc-two-section-fk')" in err
-    assert main(["solve", str(problem), "--out", str(tmp_path / "out"), "--no-figures", "--json",
-                 "--solver", str(shipped.parent.parent / "solvers" / "casadi-map.yaml")]) == 0
+    assert (
+        main(
+            [
+                "solve",
+                str(problem),
+                "--out",
+                str(tmp_path / "out"),
+                "--no-figures",
+                "--json",
+                "--solver",
+                str(shipped.parent.parent / "solvers" / "casadi-map.yaml"),
+            ]
+        )
+        == 0
+    )
     assert "using" not in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("raised,code,words", [
-    (RuntimeError("boom"), EXIT_INTERNAL, "internal error: RuntimeError: boom; run with --debug"),
-    (KeyboardInterrupt(), EXIT_INTERRUPTED, "interrupted"),
-])
+@pytest.mark.parametrize(
+    "raised,code,words",
+    [
+        (RuntimeError("boom"), EXIT_INTERNAL, "internal error: RuntimeError: boom; run with --debug"),
+        (KeyboardInterrupt(), EXIT_INTERRUPTED, "interrupted"),
+    ],
+)
 def test_exit_codes_have_one_meaning(monkeypatch, capsys, raised, code, words):
     import optikin.runner
 

@@ -37,8 +37,14 @@ from optikin.dmp import DMP, Euclidean, Gains, UnitQuaternion
 from optikin.dmp import basis
 from optikin.dmp.canonical import stopped_log_phase
 from optikin.dmp.imitation import demonstration_log_phase, prepare
-from optikin.dmp.pose import (cartesian_dmp, dual_quaternion_dmp, from_variant, pose_dmp, seed_dual_quaternion_dmp,
-                              to_variant)
+from optikin.dmp.pose import (
+    cartesian_dmp,
+    dual_quaternion_dmp,
+    from_variant,
+    pose_dmp,
+    seed_dual_quaternion_dmp,
+    to_variant,
+)
 from optikin.dmp.smoothing import smooth_demonstration, smoothing_weight, whittaker
 from optikin.errors import InputDataError
 
@@ -80,17 +86,20 @@ def test_basis_matches_movement_primitives_forcing_term(demo):
     np.testing.assert_allclose(h, reference.widths, rtol=1e-9)
     reference.weights_ = np.random.default_rng(0).normal(size=(3, 20))
     s = np.exp(log_s)
-    np.testing.assert_allclose(basis.features(s, c, h) @ reference.weights_.T, reference.forcing_term(s).T,
-                               rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(
+        basis.features(s, c, h) @ reference.weights_.T, reference.forcing_term(s).T, rtol=1e-10, atol=1e-12
+    )
 
 
 def test_phase_is_the_solution_of_the_canonical_system():
     """alpha = 0: exp(-zeta t / tau) (eq. 15); a constant error e slows the rate to zeta / (1 + alpha e) (eq. 25)."""
     dt, tau, k = 0.01, 2.0, np.arange(301)
-    np.testing.assert_allclose(np.exp(stopped_log_phase(dt, tau, 3.0, 0.0, np.zeros(300))),
-                               np.exp(-3.0 * k * dt / tau), rtol=1e-13)
-    np.testing.assert_allclose(np.exp(stopped_log_phase(dt, tau, 3.0, 4.0, np.full(300, 0.5))),
-                               np.exp(-3.0 / 3.0 * k * dt / tau), rtol=1e-13)
+    np.testing.assert_allclose(
+        np.exp(stopped_log_phase(dt, tau, 3.0, 0.0, np.zeros(300))), np.exp(-3.0 * k * dt / tau), rtol=1e-13
+    )
+    np.testing.assert_allclose(
+        np.exp(stopped_log_phase(dt, tau, 3.0, 4.0, np.full(300, 0.5))), np.exp(-3.0 / 3.0 * k * dt / tau), rtol=1e-13
+    )
 
 
 # ----------------------------------------------------------------------------- dynamics against closed forms
@@ -98,8 +107,9 @@ def test_phase_is_the_solution_of_the_canonical_system():
 
 def _spring_rollout(space_dmp: DMP, dt: float, start, goal) -> tuple[np.ndarray, np.ndarray]:
     """Roll out with zero weights: the transformation system alone, a critically damped spring."""
-    out = space_dmp.rollout(duration=space_dmp.tau, dt=dt, start=start, goal=goal,
-                            weights=np.zeros_like(space_dmp.weights))
+    out = space_dmp.rollout(
+        duration=space_dmp.tau, dt=dt, start=start, goal=goal, weights=np.zeros_like(space_dmp.weights)
+    )
     return out.t, out.y
 
 
@@ -131,8 +141,12 @@ def test_single_axis_quaternion_dmp_follows_the_scalar_spring(quaternion_dmp):
     dmp = quaternion_dmp
     axis = np.array([2.0, -1.0, 2.0]) / 3.0
     angle = 2.5
-    out = dmp.rollout(start=np.array([1.0, 0, 0, 0]), goal=quat_from_axis_angle(axis, angle), dt=0.001,
-                      weights=np.zeros_like(dmp.weights))
+    out = dmp.rollout(
+        start=np.array([1.0, 0, 0, 0]),
+        goal=quat_from_axis_angle(axis, angle),
+        dt=0.001,
+        weights=np.zeros_like(dmp.weights),
+    )
     w = dmp.gains.beta / (2 * dmp.tau)
     expected_angle = angle * (1 - (1 + w * out.t) * np.exp(-w * out.t))
     rotation_vector = 2 * quat_log(out.y)
@@ -150,15 +164,20 @@ def test_quaternion_rollouts_stay_unit_and_reach_random_goals(quaternion_dmp, be
     gains = quaternion_dmp.gains.with_values(beta_g0=beta_g0)
     goals = random_quaternions(rng, 6)
     for first, second in zip(goals[:3], goals[3:]):
-        out = quaternion_dmp.rollout(duration=6 * quaternion_dmp.tau, goal=first, gains=gains,
-                                     goal_switches=[(0.4 * quaternion_dmp.tau, second)])
+        out = quaternion_dmp.rollout(
+            duration=6 * quaternion_dmp.tau, goal=first, gains=gains, goal_switches=[(0.4 * quaternion_dmp.tau, second)]
+        )
         assert np.abs(np.linalg.norm(out.y, axis=1) - 1).max() < 1e-12
         assert np.abs(np.linalg.norm(out.goal, axis=1) - 1).max() < 1e-12
         assert rotation_error(out.y[-1], second) < 1e-6
 
 
-unit_quaternions = st.lists(st.floats(-1, 1), min_size=4, max_size=4).map(np.array).filter(
-    lambda q: np.linalg.norm(q) > 0.1).map(lambda q: q / np.linalg.norm(q))
+unit_quaternions = (
+    st.lists(st.floats(-1, 1), min_size=4, max_size=4)
+    .map(np.array)
+    .filter(lambda q: np.linalg.norm(q) > 0.1)
+    .map(lambda q: q / np.linalg.norm(q))
+)
 
 
 @settings(max_examples=25, deadline=None)
@@ -166,8 +185,12 @@ unit_quaternions = st.lists(st.floats(-1, 1), min_size=4, max_size=4).map(np.arr
 def test_any_goal_and_any_switch_keep_unit_norm_and_converge(quaternion_dmp, first, second, switch, beta_g0):
     """beta_g0 >= 5: the filter's own gap, pi exp(-beta_g0 (6 - 1.5)), is below 1e-9 rad by the end."""
     dmp = quaternion_dmp
-    out = dmp.rollout(duration=6 * dmp.tau, goal=first, goal_switches=[(switch * dmp.tau, second)],
-                      gains=dmp.gains.with_values(beta_g0=beta_g0))
+    out = dmp.rollout(
+        duration=6 * dmp.tau,
+        goal=first,
+        goal_switches=[(switch * dmp.tau, second)],
+        gains=dmp.gains.with_values(beta_g0=beta_g0),
+    )
     assert np.abs(np.linalg.norm(out.y, axis=1) - 1).max() < 1e-12
     assert rotation_error(out.y[-1], second) < 1e-6
 
@@ -237,10 +260,10 @@ def test_goal_filter_moves_the_goal_along_the_geodesic(quaternion_dmp):
     switch, beta_g0 = 1.0 + 0.5 * dmp.dt, 6.0  # mid-step: the step from t_k = 1 + dt is the first to see it
     out = dmp.rollout(goal=old, goal_switches=[(switch, new)], gains=dmp.gains.with_values(beta_g0=beta_g0))
     k = int(np.flatnonzero(out.t >= switch)[0])
-    elapsed = out.t[k + 1:] - out.t[k]
+    elapsed = out.t[k + 1 :] - out.t[k]
     expected = np.array([pr.quaternion_slerp(new, old, math.exp(-beta_g0 * e / dmp.tau)) for e in elapsed])
-    np.testing.assert_allclose(out.goal[k + 1:], expected, atol=1e-12)
-    np.testing.assert_allclose(out.goal[:k + 1], np.broadcast_to(old, (k + 1, 4)), atol=1e-15)
+    np.testing.assert_allclose(out.goal[k + 1 :], expected, atol=1e-12)
+    np.testing.assert_allclose(out.goal[: k + 1], np.broadcast_to(old, (k + 1, 4)), atol=1e-15)
     # The spring term gamma gap(g, y) of eq. (17) changes smoothly across the switch (no kink in eta);
     # without the filter it jumps.
     jump = dmp.rollout(goal=old, goal_switches=[(switch, new)])
@@ -268,8 +291,7 @@ def test_perturbation_recovery_by_coupling_to_the_reference(demo):
         dmp = DMP(Euclidean(3), n_basis=30, gains=Gains(alpha_s=alpha_s))
         dmp.imitate(demo.t, demo.position)
         reference = demo.position if alpha_s else None
-        deviation = (dmp.rollout(disturbance=step, reference=reference).y
-                     - dmp.rollout(reference=reference).y)[:, 0]
+        deviation = (dmp.rollout(disturbance=step, reference=reference).y - dmp.rollout(reference=reference).y)[:, 0]
         # (u = dt/tau delta eta, d = delta y): u' = (1 - k1) u - k2 d + dt^2/tau^2 force, d' = d + u' - ks d
         k1, k2, ks = 25.0 * dt / tau, 25.0 * 6.25 * (dt / tau) ** 2, 2 * alpha_s * dt / tau
         A = np.array([[1 - k1, -k2], [1 - k1, 1 - k2 - ks]])
@@ -392,7 +414,7 @@ def test_imu_pose_dmps_settle_on_the_goal_after_tau(imu_recordings, variant):
         assert rotation_error(q[after], q_goal).max() < 25e-3
         assert np.linalg.norm(p[-1] - p_goal) < 1e-9 and rotation_error(q[-1], q_goal) < 1e-9
         assert np.linalg.norm(p_goal - p_true[-1]) < 1.5e-3 and rotation_error(q_goal, q_true[-1]) < 10e-3
-        assert np.linalg.norm(p[:k + 1] - p_true, axis=1).max() < 1.5e-3
+        assert np.linalg.norm(p[: k + 1] - p_true, axis=1).max() < 1.5e-3
 
 
 # ----------------------------------------------------------------------------- smoothing
@@ -475,8 +497,9 @@ def test_quaternion_dmp_agrees_with_movement_primitives_cartesian_dmp(demo):
     assert rotation_error(base_ours[:, 3:], demo.quaternion).max() < 2e-4
     assert rotation_error(base_theirs[:, 3:], demo.quaternion).max() < 2e-3
 
-    goal = np.concatenate([demo.position[-1] + 0.05,
-                           quat_multiply(quat_exp(np.array([0.2, -0.1, 0.25])), demo.quaternion[-1])])
+    goal = np.concatenate(
+        [demo.position[-1] + 0.05, quat_multiply(quat_exp(np.array([0.2, -0.1, 0.25])), demo.quaternion[-1])]
+    )
     theirs.configure(goal_y=goal)
     moved_ours, moved_theirs = ours.rollout(goal=goal).y, theirs.open_loop()[1][:n]
     turn_ours = 2 * quat_log(quat_multiply(moved_ours[:, 3:], quat_conjugate(base_ours[:, 3:])))

@@ -65,8 +65,7 @@ def test_kinect_recording_fills_the_cube_at_30_fps_with_eq30_angles():
     assert np.allclose(np.diff(rec.t), 1 / 30)
     span = np.ptp(rec.position, axis=0)
     assert span.max() == pytest.approx(0.36) and np.all(span <= 0.36 + 1e-12)
-    np.testing.assert_allclose(0.5 * (rec.position.min(axis=0) + rec.position.max(axis=0)), [0, 0, 0.27],
-                               atol=1e-12)
+    np.testing.assert_allclose(0.5 * (rec.position.min(axis=0) + rec.position.max(axis=0)), [0, 0, 0.27], atol=1e-12)
     yaw_pitch_roll = scipy_rotation(rec.orientation).as_euler("ZYX")
     wrapped = np.angle(np.exp(1j * (rec.rpy - yaw_pitch_roll[:, ::-1])))
     np.testing.assert_allclose(wrapped, 0.0, atol=1e-9)
@@ -80,7 +79,7 @@ def test_moving_average_is_eq31():
     M = 4
     out = moving_average(x, M)
     for i in range(M, 50):
-        np.testing.assert_allclose(out[i], x[i - M:i].mean(axis=0), rtol=1e-12)
+        np.testing.assert_allclose(out[i], x[i - M : i].mean(axis=0), rtol=1e-12)
     np.testing.assert_allclose(out[2], x[:2].mean(axis=0))
     np.testing.assert_allclose(out[0], x[0])
     window_means = np.convolve(x[:, 0], np.ones(M) / M, mode="valid")  # mean of x[j .. j+M-1]
@@ -96,8 +95,10 @@ def test_gimbal_demonstration_crosses_pitch_90_and_its_angles_jump():
     jumps = np.abs(np.diff(rpy, axis=0)).max(axis=0)
     assert jumps[0] > 3.0 and jumps[2] > 3.0  # roll and yaw flip by ~pi at the lock
     # while the quaternion path itself is smooth
-    steps = Rotation.from_quat(demo.quaternion[1:, [1, 2, 3, 0]]) * Rotation.from_quat(
-        demo.quaternion[:-1, [1, 2, 3, 0]]).inv()
+    steps = (
+        Rotation.from_quat(demo.quaternion[1:, [1, 2, 3, 0]])
+        * Rotation.from_quat(demo.quaternion[:-1, [1, 2, 3, 0]]).inv()
+    )
     assert np.linalg.norm(steps.as_rotvec(), axis=1).max() < 0.02
 
 
@@ -123,13 +124,19 @@ def test_csv_round_trip_and_resampling(tmp_path):
     assert abs(abs(expected @ uniform.quaternion[k]) - 1) < 1e-12
 
 
-@pytest.mark.parametrize("text, message", [
-    ("t,x,y,z,qw,qx,qy\n0,0,0,0,1,0,0\n", "missing column.*qz"),
-    ("t,x,y,z,qw,qx,qy,qz\n0,0,0,0,1,0,0,0\n0.1,0,zero,0,1,0,0,0\n0.2,0,0,0,1,0,0,0\n", "sample 1.*y.*not a number"),
-    ("t,x,y,z,qw,qx,qy,qz\n0,0,0,0,1,0,0,0\n0.1,0,0,0,1,0,0,0\n0.1,0,0,0,1,0,0,0\n", "sample 2.*t.*increase"),
-    ("t,x,y,z,qw,qx,qy,qz\n0,0,0,0,1,0,0,0\n0.1,0,0,0,1.1,0,0,0\n0.2,0,0,0,1,0,0,0\n", "sample 1.*qw.*not 1"),
-    ("t,x,y,z,qw,qx,qy,qz\n0,0,0,0,1,0,0,0\n", "at least 3 rows"),
-])
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("t,x,y,z,qw,qx,qy\n0,0,0,0,1,0,0\n", "missing column.*qz"),
+        (
+            "t,x,y,z,qw,qx,qy,qz\n0,0,0,0,1,0,0,0\n0.1,0,zero,0,1,0,0,0\n0.2,0,0,0,1,0,0,0\n",
+            "sample 1.*y.*not a number",
+        ),
+        ("t,x,y,z,qw,qx,qy,qz\n0,0,0,0,1,0,0,0\n0.1,0,0,0,1,0,0,0\n0.1,0,0,0,1,0,0,0\n", "sample 2.*t.*increase"),
+        ("t,x,y,z,qw,qx,qy,qz\n0,0,0,0,1,0,0,0\n0.1,0,0,0,1.1,0,0,0\n0.2,0,0,0,1,0,0,0\n", "sample 1.*qw.*not 1"),
+        ("t,x,y,z,qw,qx,qy,qz\n0,0,0,0,1,0,0,0\n", "at least 3 rows"),
+    ],
+)
 def test_bad_csv_files_name_row_and_column(tmp_path, text, message):
     path = tmp_path / "bad.csv"
     path.write_text(text)

@@ -54,8 +54,13 @@ def rows(summary: dict) -> dict[str, dict]:
 
 
 def test_all_five_problem_files_ship():
-    assert SHIPPED == ["dmp-goal-switch", "dmp-imu-dualquat", "dmp-kinect-position", "dmp-perturbation",
-                       "dmp-rpy-gimbal"]
+    assert SHIPPED == [
+        "dmp-goal-switch",
+        "dmp-imu-dualquat",
+        "dmp-kinect-position",
+        "dmp-perturbation",
+        "dmp-rpy-gimbal",
+    ]
 
 
 def test_imu_dual_quaternion_problem(tmp_path):
@@ -81,8 +86,10 @@ def test_goal_switch_problem(tmp_path):
     summary = solved("dmp-goal-switch", tmp_path)
     assert summary["status_counts"] == {"ok": summary["samples"]}  # every roll-out reached its last goal
     table = rows(summary)
-    assert table["tuning quaternion (ipopt)"]["eq. 29 error"] <= table["tuning quaternion (ipopt)"][
-        "eq. 29 error at start"]
+    assert (
+        table["tuning quaternion (ipopt)"]["eq. 29 error"]
+        <= table["tuning quaternion (ipopt)"]["eq. 29 error at start"]
+    )
 
 
 def test_perturbation_problem(tmp_path):
@@ -114,24 +121,27 @@ def test_kinect_problem_through_the_command_line(tmp_path):
     assert (tmp_path / "out" / path.stem / "reproduction_error.png").stat().st_size > 0
 
 
-@pytest.mark.parametrize("options, field", [
-    ({"variants": ["euler"]}, "options.variants.0"),
-    ({"variants": []}, "options.variants"),
-    ({"n_basis": 1}, "options.n_basis"),
-    ({"regression": {"method": "lstsq", "bound": 10.0}}, "options.regression.bound"),
-    ({"regression": {"method": "qr"}}, "options.regression.method"),
-    ({"goal_switches": [{"time": 1.0, "rotate": [0, 1]}]}, "options.goal_switches.0.rotate"),
-    ({"goal_switches": [{"rotate": [0, 0, 1]}]}, "options.goal_switches.0.time"),
-    ({"goal_switches": [{"time": 100.0}]}, "options.goal_switches.0.time"),  # beyond 3 tau
-    ({"disturbance": {"component": 3}}, "options.disturbance.component"),  # the position DMP has 3
-    ({"couplings": {"c": {"phase_stopping": "sometimes"}}}, "options.couplings.c.phase_stopping"),
-    ({"tuning": {"gains": ["stiffness"]}}, "options.tuning.gains.0"),
-    ({"tuning": {"screen": -1}}, "options.tuning.screen"),
-    ({"tuning": {"scenario": "goal"}}, "options.tuning.scenario"),  # without goal switches
-    ({"gains": {"beta": 0.0}}, "options.gains.beta"),
-    ({"smoothing": -2.5}, "options.smoothing"),
-    ({"colour": "blue"}, "options.colour"),
-])
+@pytest.mark.parametrize(
+    "options, field",
+    [
+        ({"variants": ["euler"]}, "options.variants.0"),
+        ({"variants": []}, "options.variants"),
+        ({"n_basis": 1}, "options.n_basis"),
+        ({"regression": {"method": "lstsq", "bound": 10.0}}, "options.regression.bound"),
+        ({"regression": {"method": "qr"}}, "options.regression.method"),
+        ({"goal_switches": [{"time": 1.0, "rotate": [0, 1]}]}, "options.goal_switches.0.rotate"),
+        ({"goal_switches": [{"rotate": [0, 0, 1]}]}, "options.goal_switches.0.time"),
+        ({"goal_switches": [{"time": 100.0}]}, "options.goal_switches.0.time"),  # beyond 3 tau
+        ({"disturbance": {"component": 3}}, "options.disturbance.component"),  # the position DMP has 3
+        ({"couplings": {"c": {"phase_stopping": "sometimes"}}}, "options.couplings.c.phase_stopping"),
+        ({"tuning": {"gains": ["stiffness"]}}, "options.tuning.gains.0"),
+        ({"tuning": {"screen": -1}}, "options.tuning.screen"),
+        ({"tuning": {"scenario": "goal"}}, "options.tuning.scenario"),  # without goal switches
+        ({"gains": {"beta": 0.0}}, "options.gains.beta"),
+        ({"smoothing": -2.5}, "options.smoothing"),
+        ({"colour": "blue"}, "options.colour"),
+    ],
+)
 def test_bad_options_name_the_field(tmp_path, options, field):
     path = reduced("dmp-kinect-position", tmp_path, **options)
     with pytest.raises(SpecError, match=field.replace(".", r"\.")) as info:
@@ -141,8 +151,13 @@ def test_bad_options_name_the_field(tmp_path, options, field):
 
 
 SECTIONS: dict[str, Any] = {  # a section of options -> a valid value of it, to put a typo in
-    "gains": {}, "regression": {}, "goal_switches": [{"time": 1.0}], "disturbance": {},
-    "couplings": {"coupled": {}}, "tuning": {}, "tolerance": {},
+    "gains": {},
+    "regression": {},
+    "goal_switches": [{"time": 1.0}],
+    "disturbance": {},
+    "couplings": {"coupled": {}},
+    "tuning": {},
+    "tolerance": {},
 }
 
 
@@ -166,10 +181,14 @@ def test_a_typo_in_each_option_section_is_an_unknown_field(tmp_path, section):
 
 
 def small_problem(tmp_path: Path, source: str, params: dict, samples: int = 60) -> Path:
-    spec = {"name": f"small-{source}", "title": "a small dmp problem", "kind": "dmp",
-            "arm": {"type": "constant_curvature", "params": {"section_lengths": [0.18, 0.18]}},
-            "data": {"source": source, "seed": 3, "samples": samples, "params": params},
-            "options": {"variants": ["quaternion"], "n_basis": 8}}
+    spec = {
+        "name": f"small-{source}",
+        "title": "a small dmp problem",
+        "kind": "dmp",
+        "arm": {"type": "constant_curvature", "params": {"section_lengths": [0.18, 0.18]}},
+        "data": {"source": source, "seed": 3, "samples": samples, "params": params},
+        "options": {"variants": ["quaternion"], "n_basis": 8},
+    }
     path = tmp_path / f"small-{source}.yaml"
     path.write_text(yaml.safe_dump(spec))
     return path
@@ -215,15 +234,17 @@ def test_csv_source_resamples_and_needs_its_file(tmp_path):
     assert info.value.field == "data.params.path"
 
 
-@pytest.mark.parametrize("model, function", [
-    (demonstrations.ImuParams, demonstrations.imu_interface_recording),
-    (demonstrations.KinectParams, demonstrations.kinect_recording),
-    (demonstrations.SmoothParams, demonstrations.smooth_pose_demonstration),
-    (demonstrations.GimbalParams, demonstrations.gimbal_demonstration),
-])
+@pytest.mark.parametrize(
+    "model, function",
+    [
+        (demonstrations.ImuParams, demonstrations.imu_interface_recording),
+        (demonstrations.KinectParams, demonstrations.kinect_recording),
+        (demonstrations.SmoothParams, demonstrations.smooth_pose_demonstration),
+        (demonstrations.GimbalParams, demonstrations.gimbal_demonstration),
+    ],
+)
 def test_source_params_default_to_the_functions_defaults(model, function):
-    defaults = {k: p.default for k, p in inspect.signature(function).parameters.items()
-                if k not in ("samples", "seed")}
+    defaults = {k: p.default for k, p in inspect.signature(function).parameters.items() if k not in ("samples", "seed")}
     given = model().model_dump()
     if model is demonstrations.ImuParams:
         assert given.pop("section_lengths") is None  # the arm's sections
@@ -239,8 +260,13 @@ def test_figures_redraw_from_the_written_result(tmp_path):
     summary, arrays = read_result(written)
     drawn = set(figures.figures(arrays, summary))
     assert drawn == {Path(f).stem for f in summary["figures"]}
-    assert {"reproduction_error", "quaternion_reproduction", "quaternion_goal_switch",
-            "quaternion_perturbation_coupled", "dual-quaternion_perturbation_coupled"} <= drawn
+    assert {
+        "reproduction_error",
+        "quaternion_reproduction",
+        "quaternion_goal_switch",
+        "quaternion_perturbation_coupled",
+        "dual-quaternion_perturbation_coupled",
+    } <= drawn
     redrawn = redraw(written, figures.figures, summary, arrays)
     assert {p.stem for p in redrawn} == drawn and all(p.stat().st_size > 0 for p in redrawn)
     without = {k: v for k, v in arrays.items() if not k.endswith("__goal_switch")}

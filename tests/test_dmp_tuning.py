@@ -51,8 +51,10 @@ def test_exact_gradient_matches_finite_differences_of_the_numpy_path(demo, probl
     point = np.log([20.0, 8.0, 4.0])
     exact = np.asarray(gradient(point)).ravel()
     h = 1e-5
-    numeric = [(numpy_error(demo, np.exp(point + h * e)) - numpy_error(demo, np.exp(point - h * e))) / (2 * h)
-               for e in np.eye(3)]
+    numeric = [
+        (numpy_error(demo, np.exp(point + h * e)) - numpy_error(demo, np.exp(point - h * e))) / (2 * h)
+        for e in np.eye(3)
+    ]
     np.testing.assert_allclose(exact, numeric, rtol=1e-4, atol=1e-6 * np.abs(exact).max())
 
 
@@ -82,8 +84,9 @@ def test_genetic_tuning_improves_and_is_reproducible(problem):
 def test_goal_scenario_tunes_the_generalisation_gains(demo):
     new_goal = quat_multiply(quat_exp(np.array([0.3, -0.2, 0.1])), demo.quaternion[-1])
     dmp = DMP(UnitQuaternion(), n_basis=8, gains=Gains(beta_g0=5.0, alpha_s=0.5))
-    problem = tuning_problem(dmp, demo.t, demo.quaternion, ("beta_g0", "alpha_s"), scenario="goal",
-                             new_goal=new_goal, switch_time=1.0)
+    problem = tuning_problem(
+        dmp, demo.t, demo.quaternion, ("beta_g0", "alpha_s"), scenario="goal", new_goal=new_goal, switch_time=1.0
+    )
     result = tune_gradient(problem)
     assert result.error < 0.8 * result.initial_error
     # checked through the numpy path: learn under each set of gains, switch the goal, measure
@@ -96,11 +99,18 @@ def test_goal_scenario_tunes_the_generalisation_gains(demo):
 
 
 def test_genetic_algorithm_finds_known_minima():
-    sphere = minimise(lambda X: np.sum((X - 0.3) ** 2, axis=1), -np.ones(4), np.ones(4), population=20,
-                      generations=40, seed=0)
+    sphere = minimise(
+        lambda X: np.sum((X - 0.3) ** 2, axis=1), -np.ones(4), np.ones(4), population=20, generations=40, seed=0
+    )
     np.testing.assert_allclose(sphere.x, 0.3, atol=5e-3)
-    rosenbrock = minimise(lambda X: (1 - X[:, 0]) ** 2 + 100 * (X[:, 1] - X[:, 0] ** 2) ** 2, [-2, -1], [2, 3],
-                          population=40, generations=150, seed=1)
+    rosenbrock = minimise(
+        lambda X: (1 - X[:, 0]) ** 2 + 100 * (X[:, 1] - X[:, 0] ** 2) ** 2,
+        [-2, -1],
+        [2, 3],
+        population=40,
+        generations=150,
+        seed=1,
+    )
     np.testing.assert_allclose(rosenbrock.x, [1.0, 1.0], atol=2e-2)
     assert rosenbrock.value < 1e-3
     with pytest.raises(ValueError):
@@ -115,8 +125,9 @@ def imu_goal_problem():
     demo = imu_interface_recording(samples=150, rate=15.0, seed=2020).demonstration
     new_goal = quat_multiply(quat_exp(np.array([0.15, -0.15, 0.1])), demo.quaternion[-1])
     dmp = DMP(UnitQuaternion(), n_basis=10, gains=Gains(beta_g0=10.0, alpha_s=1.0))
-    return tuning_problem(dmp, demo.t, demo.quaternion, ("beta_g0", "alpha_s"), scenario="goal",
-                          new_goal=new_goal, switch_time=4.0)
+    return tuning_problem(
+        dmp, demo.t, demo.quaternion, ("beta_g0", "alpha_s"), scenario="goal", new_goal=new_goal, switch_time=4.0
+    )
 
 
 def test_multi_start_gradient_tuning_reaches_the_genetic_algorithm_and_the_grid(imu_goal_problem, problem):

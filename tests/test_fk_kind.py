@@ -24,7 +24,9 @@ TYPO = "colour"
 def problem_file(tmp_path: Path, data: dict | None = None, **fields) -> Path:
     """A small fk problem (two-section CC arm, 6 random samples) with ``fields`` replaced."""
     spec = {
-        "name": "small-fk", "title": "a small fk problem", "kind": "fk",
+        "name": "small-fk",
+        "title": "a small fk problem",
+        "kind": "fk",
         "arm": {"type": "constant_curvature", "params": {"section_lengths": [0.18, 0.18]}},
         "data": {"source": "random", "seed": 3, "samples": 6, **(data or {})},
         "baselines": ["numpy"],
@@ -57,42 +59,51 @@ def test_fk_options_typo_is_named(tmp_path):
     assert err.field == "options.x" and "unknown field" in str(err)
 
 
-@pytest.mark.parametrize("source, params", [
-    ("random", {}),
-    ("trajectory", {"rate": 50.0}),
-    ("sweep", {"variable": "theta1"}),
-    ("csv", {"file": "q.csv"}),
-])
+@pytest.mark.parametrize(
+    "source, params",
+    [
+        ("random", {}),
+        ("trajectory", {"rate": 50.0}),
+        ("sweep", {"variable": "theta1"}),
+        ("csv", {"file": "q.csv"}),
+    ],
+)
 def test_data_params_typo_of_each_source_is_named(tmp_path, source, params):
     err = error_of(problem_file(tmp_path, data={"source": source, "params": {**params, TYPO: 1}}))
     assert err.field == f"data.params.{TYPO}" and "unknown field" in str(err)
 
 
-@pytest.mark.parametrize("backend, options", [
-    ("casadi_map", {}),
-    ("casadi_call", {}),
-    ("casadi_compiled", {"flags": ["-O2"]}),
-])
+@pytest.mark.parametrize(
+    "backend, options",
+    [
+        ("casadi_map", {}),
+        ("casadi_call", {}),
+        ("casadi_compiled", {"flags": ["-O2"]}),
+    ],
+)
 def test_preset_options_typo_of_each_backend_is_named(tmp_path, backend, options):
     preset = preset_file(tmp_path, "typo", backend, {**options, TYPO: 1})
     err = error_of(problem_file(tmp_path), solver=str(preset))
     assert err.field == f"options.{TYPO}" and "unknown field" in str(err) and err.path == str(preset)
 
 
-@pytest.mark.parametrize("data, field", [
-    ({"source": "trajectory", "params": {"rate": 0.0}}, "data.params.rate"),
-    ({"source": "trajectory", "params": {"rate": "fast"}}, "data.params.rate"),
-    ({"source": "trajectory", "params": {"amplitude": 1.5}}, "data.params.amplitude"),
-    ({"source": "trajectory", "params": {"amplitude": -0.1}}, "data.params.amplitude"),
-    ({"source": "trajectory", "params": {"frequency": [0.4, 0.1]}}, "data.params.frequency"),
-    ({"source": "trajectory", "params": {"frequency": [-0.1, 0.1]}}, "data.params.frequency"),
-    ({"source": "trajectory", "params": {"frequency": [0.1]}}, "data.params.frequency.1"),
-    ({"source": "sweep", "params": {"variable": "elbow"}}, "data.params.variable"),
-    ({"source": "sweep", "params": {"fixed": {"elbow": 0.1}}}, "data.params.fixed.elbow"),
-    ({"source": "sweep", "params": {"fixed": {"theta1": "up"}}}, "data.params.fixed.theta1"),
-    ({"source": "csv"}, "data.params.file"),
-    ({"source": "csv", "params": {"file": ""}}, "data.params.file"),
-])
+@pytest.mark.parametrize(
+    "data, field",
+    [
+        ({"source": "trajectory", "params": {"rate": 0.0}}, "data.params.rate"),
+        ({"source": "trajectory", "params": {"rate": "fast"}}, "data.params.rate"),
+        ({"source": "trajectory", "params": {"amplitude": 1.5}}, "data.params.amplitude"),
+        ({"source": "trajectory", "params": {"amplitude": -0.1}}, "data.params.amplitude"),
+        ({"source": "trajectory", "params": {"frequency": [0.4, 0.1]}}, "data.params.frequency"),
+        ({"source": "trajectory", "params": {"frequency": [-0.1, 0.1]}}, "data.params.frequency"),
+        ({"source": "trajectory", "params": {"frequency": [0.1]}}, "data.params.frequency.1"),
+        ({"source": "sweep", "params": {"variable": "elbow"}}, "data.params.variable"),
+        ({"source": "sweep", "params": {"fixed": {"elbow": 0.1}}}, "data.params.fixed.elbow"),
+        ({"source": "sweep", "params": {"fixed": {"theta1": "up"}}}, "data.params.fixed.theta1"),
+        ({"source": "csv"}, "data.params.file"),
+        ({"source": "csv", "params": {"file": ""}}, "data.params.file"),
+    ],
+)
 def test_bad_data_params_are_named(tmp_path, data, field):
     assert error_of(problem_file(tmp_path, data=data)).field == field
 
@@ -107,8 +118,9 @@ def test_kind_declares_its_models():
 
 
 def test_sweep_moves_one_variable_and_holds_the_others(tmp_path):
-    problem = problem_file(tmp_path, data={"source": "sweep", "samples": 5,
-                                           "params": {"variable": "theta2", "fixed": {"phi1": 0.5}}})
+    problem = problem_file(
+        tmp_path, data={"source": "sweep", "samples": 5, "params": {"variable": "theta2", "fixed": {"phi1": 0.5}}}
+    )
     _, ctx = prepare(str(problem))
     Q, t = ctx.load_data()
     arm, j = ctx.arm, ctx.arm.config_names.index("theta2")
@@ -128,12 +140,14 @@ def test_trajectory_is_sampled_at_the_rate(tmp_path):
 
 def test_csv_rows_are_read_relative_to_the_problem_file(tmp_path):
     problem = problem_file(tmp_path, data={"source": "csv", "samples": 2, "params": {"file": "q.csv"}})
-    (problem.parent / "q.csv").write_text(textwrap.dedent("""\
+    (problem.parent / "q.csv").write_text(
+        textwrap.dedent("""\
         t,S1,theta1,phi1,S2,theta2,phi2
         0.0,0.18,0.1,0.2,0.18,0.3,0.4
         0.5,0.18,0.2,0.2,0.18,0.3,0.4
         1.0,0.18,0.3,0.2,0.18,0.3,0.4
-        """))
+        """)
+    )
     result, _ = solve(str(problem))
     np.testing.assert_array_equal(result.arrays["t"], [0.0, 0.5])
     assert result.arrays["configurations"].shape == (2, 6) and result.succeeded
@@ -145,10 +159,16 @@ def test_results_agree_with_numpy_and_an_evaluation_preset_baseline(tmp_path):
     assert list(rows) == ["casadi-map", "numpy", "casadi-call"]
     assert rows["casadi-call"].role == "baseline"
     assert all(row.metrics["max |tip - numpy| [mm]"] < 1e-9 for row in rows.values())
-    np.testing.assert_allclose(result.arrays["tip_dq"], numpy_tip_dq(
-        _arm(), result.arrays["configurations"]), atol=1e-12)
-    assert result.succeeded and set(result.arrays) == {"configurations", "tip_dq", "tip_position", "section_dq",
-                                                       "backbone"}
+    np.testing.assert_allclose(
+        result.arrays["tip_dq"], numpy_tip_dq(_arm(), result.arrays["configurations"]), atol=1e-12
+    )
+    assert result.succeeded and set(result.arrays) == {
+        "configurations",
+        "tip_dq",
+        "tip_position",
+        "section_dq",
+        "backbone",
+    }
 
 
 def _arm():

@@ -37,8 +37,13 @@ def cc_tip_transform(q: np.ndarray) -> np.ndarray:
     """Tip transform of a CC arm from rotation matrices, section by section."""
     T = np.eye(4)
     for S, theta, phi in np.reshape(q, (-1, 3)):
-        chord = np.array([0.0, 0.0, S]) if abs(theta) < 1e-12 else S / theta * np.array(
-            [np.cos(phi) * (1 - np.cos(theta)), np.sin(phi) * (1 - np.cos(theta)), np.sin(theta)])
+        chord = (
+            np.array([0.0, 0.0, S])
+            if abs(theta) < 1e-12
+            else S
+            / theta
+            * np.array([np.cos(phi) * (1 - np.cos(theta)), np.sin(phi) * (1 - np.cos(theta)), np.sin(theta)])
+        )
         section = np.eye(4)
         section[:3, :3] = rz(phi) @ ry(theta) @ rz(-phi)
         section[:3, 3] = chord
@@ -48,20 +53,33 @@ def cc_tip_transform(q: np.ndarray) -> np.ndarray:
 
 def within_bounds(q: np.ndarray) -> bool:
     S, theta, phi = np.reshape(q, (-1, 3)).T
-    return bool(np.all((S >= S_RANGE[0] - 1e-12) & (S <= S_RANGE[1] + 1e-12) & (np.abs(theta) <= THETA_MAX + 1e-12)
-                       & (phi >= -np.pi) & (phi <= np.pi)))
+    return bool(
+        np.all(
+            (S >= S_RANGE[0] - 1e-12)
+            & (S <= S_RANGE[1] + 1e-12)
+            & (np.abs(theta) <= THETA_MAX + 1e-12)
+            & (phi >= -np.pi)
+            & (phi <= np.pi)
+        )
+    )
 
 
 def quaternion_matrix(q: np.ndarray) -> np.ndarray:
     w, x, y, z = q
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
 
 
 def write_problem(tmp_path: Path, name: str, **fields) -> Path:
     spec: dict[str, Any] = {
-        "name": name, "title": "test", "kind": "ik",
+        "name": name,
+        "title": "test",
+        "kind": "ik",
         "arm": {"type": "constant_curvature", "params": {"section_lengths": [0.18, 0.18]}},
         "data": {"source": "random", "seed": 1, "samples": 100},
         "solver": "gauss-newton",
@@ -101,8 +119,9 @@ def test_position_ik_best_backend_solves_999_of_1000_targets(tmp_path):
 
 def test_every_backend_reports_its_success_on_the_same_targets(tmp_path):
     baselines = ["gauss-newton-compiled", "newton", "ipopt", "sqpmethod", "lm", "trf"]
-    result = run(write_problem(tmp_path, "all", data={"samples": 25, "seed": 8}, baselines=baselines,
-                               options={"restarts": 1}))
+    result = run(
+        write_problem(tmp_path, "all", data={"samples": 25, "seed": 8}, baselines=baselines, options={"restarts": 1})
+    )
     assert [row.method for row in result.comparison] == ["gauss-newton", *baselines]
     for row in result.comparison:
         m = row.metrics
@@ -120,8 +139,15 @@ def test_every_backend_reports_its_success_on_the_same_targets(tmp_path):
 def test_unreachable_targets_are_flagged_never_solved(tmp_path):
     """Targets beyond the reach bound: never ok; flagged unreachable at a configuration inside the bounds,
     whose residual is the independently recomputed tip distance and at least the gap to the reach sphere."""
-    result = run(write_problem(tmp_path, "far", data={"samples": 20, "params": {"unreachable": 20}},
-                               baselines=["lm"], options={"restarts": 1}))
+    result = run(
+        write_problem(
+            tmp_path,
+            "far",
+            data={"samples": 20, "params": {"unreachable": 20}},
+            baselines=["lm"],
+            options={"restarts": 1},
+        )
+    )
     reachable = result.arrays["reachable"]
     for method in ("gauss-newton", "lm"):
         status = result.arrays[f"status_{method}"]
@@ -142,8 +168,9 @@ def test_closest_reachable_configuration_beats_random_sampling(tmp_path):
     """The unreachable verdict comes with the closest configuration: no better than 20,000 random ones."""
     from optikin.arms import ConstantCurvatureArm
 
-    result = run(write_problem(tmp_path, "far2", data={"samples": 1, "params": {"unreachable": 6}},
-                               options={"restarts": 3}))
+    result = run(
+        write_problem(tmp_path, "far2", data={"samples": 1, "params": {"unreachable": 6}}, options={"restarts": 3})
+    )
     arm = ConstantCurvatureArm()
     tips = arm.evaluate("fk_position", arm.sample_configurations(20_000, np.random.default_rng(2)))
     targets, residual = result.arrays["targets"][1:], result.arrays["residual_gauss-newton"][1:]
@@ -152,8 +179,14 @@ def test_closest_reachable_configuration_beats_random_sampling(tmp_path):
 
 
 def test_trajectory_is_solved_warm_started_and_stays_close_to_the_previous_solution(tmp_path):
-    result = run(write_problem(tmp_path, "traj", data={"source": "trajectory", "samples": 300, "seed": 3},
-                               options={"redundancy": "previous", "restarts": 0}))
+    result = run(
+        write_problem(
+            tmp_path,
+            "traj",
+            data={"source": "trajectory", "samples": 300, "seed": 3},
+            options={"redundancy": "previous", "restarts": 0},
+        )
+    )
     assert result.succeeded
     assert position_errors(result).max() < 1e-9
     assert np.median(result.iterations) <= 5  # warm starts: a few Gauss-Newton steps
@@ -179,9 +212,15 @@ def test_pose_ik_matches_position_and_orientation(tmp_path):
 def test_rest_redundancy_gives_a_solution_no_farther_from_rest_than_the_generating_configuration(tmp_path):
     """ipopt minimises ||W (q - q_rest)|| on the solution set, which contains the configuration that made
     the target: the answer can be no farther from rest (a local minimiser from the rest start)."""
-    result = run(write_problem(tmp_path, "rest", data={"samples": 15, "seed": 6}, solver="ipopt",
-                               options={"redundancy": "rest", "start": "rest", "restarts": 0,
-                                        "rest": [0.18, 0.3, 0.0, 0.18, 0.3, 0.0]}))
+    result = run(
+        write_problem(
+            tmp_path,
+            "rest",
+            data={"samples": 15, "seed": 6},
+            solver="ipopt",
+            options={"redundancy": "rest", "start": "rest", "restarts": 0, "rest": [0.18, 0.3, 0.0, 0.18, 0.3, 0.0]},
+        )
+    )
     rest = np.array([0.18, 0.3, 0.0, 0.18, 0.3, 0.0])
     weights = 1.0 / np.array([0.036, 2 * THETA_MAX, 2 * np.pi] * 2)
 
@@ -196,15 +235,18 @@ def test_rest_redundancy_gives_a_solution_no_farther_from_rest_than_the_generati
         assert distance(q) <= distance(true) + 1e-9
 
 
-@pytest.mark.parametrize("fields, field", [
-    ({"options": {"targett": "position"}}, "options.targett"),
-    ({"options": {"redundancy": "closest"}}, "options.redundancy"),
-    ({"options": {"start": [0.18, 0.0, 0.0]}}, "options.start"),
-    ({"options": {"rest": [0.5, 0.0, 0.0, 0.18, 0.0, 0.0]}}, "options.rest"),
-    ({"options": {"tolerance": -1.0}}, "options.tolerance"),
-    ({"data": {"params": {"unreachable": -2}}}, "data.params.unreachable"),
-    ({"baselines": ["casadi-map"]}, "baselines.0"),
-])
+@pytest.mark.parametrize(
+    "fields, field",
+    [
+        ({"options": {"targett": "position"}}, "options.targett"),
+        ({"options": {"redundancy": "closest"}}, "options.redundancy"),
+        ({"options": {"start": [0.18, 0.0, 0.0]}}, "options.start"),
+        ({"options": {"rest": [0.5, 0.0, 0.0, 0.18, 0.0, 0.0]}}, "options.rest"),
+        ({"options": {"tolerance": -1.0}}, "options.tolerance"),
+        ({"data": {"params": {"unreachable": -2}}}, "data.params.unreachable"),
+        ({"baselines": ["casadi-map"]}, "baselines.0"),
+    ],
+)
 def test_bad_problem_fields_are_named(tmp_path, fields, field):
     with pytest.raises(SpecError) as info:
         run(write_problem(tmp_path, "bad", **({"data": {"samples": 2}} | fields)))

@@ -26,10 +26,16 @@ def legs_eqs_7_to_9(Z, t, p, rk, rk1):
     """Seed 004 eqs. (7)-(9): the three leg lengths of a platform."""
     s3, common = np.sqrt(3.0), Z**2 + rk1**2 + rk**2
     q1 = common + 2 * Z * rk1 * np.sin(t) - 2 * rk1 * rk * np.cos(t)
-    q2 = (common + Z * rk1 * (s3 * np.cos(t) * np.sin(p) - np.sin(t))
-          - rk1 * rk * (s3 / 2 * np.sin(t) * np.sin(p) + 1.5 * np.cos(p) + 0.5 * np.cos(t)))
-    q3 = (common - Z * rk1 * (s3 * np.cos(t) * np.sin(p) + np.sin(t))
-          + rk1 * rk * (s3 / 2 * np.sin(t) * np.sin(p) - 1.5 * np.cos(p) - 0.5 * np.cos(t)))
+    q2 = (
+        common
+        + Z * rk1 * (s3 * np.cos(t) * np.sin(p) - np.sin(t))
+        - rk1 * rk * (s3 / 2 * np.sin(t) * np.sin(p) + 1.5 * np.cos(p) + 0.5 * np.cos(t))
+    )
+    q3 = (
+        common
+        - Z * rk1 * (s3 * np.cos(t) * np.sin(p) + np.sin(t))
+        + rk1 * rk * (s3 / 2 * np.sin(t) * np.sin(p) - 1.5 * np.cos(p) - 0.5 * np.cos(t))
+    )
     return np.sqrt(np.stack([q1, q2, q3], axis=-1))
 
 
@@ -54,9 +60,15 @@ def tip_eq_5(x: np.ndarray) -> np.ndarray:
 
 
 def write_problem(tmp_path: Path, name: str, options: dict, samples: int, **fields) -> Path:
-    spec = {"name": name, "title": "test", "kind": "ik", "arm": {"type": "cbha"},
-            "data": {"source": "random", "seed": 3, "samples": samples}, "solver": "gauss-newton",
-            "options": options} | fields
+    spec = {
+        "name": name,
+        "title": "test",
+        "kind": "ik",
+        "arm": {"type": "cbha"},
+        "data": {"source": "random", "seed": 3, "samples": samples},
+        "solver": "gauss-newton",
+        "options": options,
+    } | fields
     path = tmp_path / f"{name}.yaml"
     path.write_text(yaml.safe_dump(spec))
     return path
@@ -64,8 +76,7 @@ def write_problem(tmp_path: Path, name: str, options: dict, samples: int, **fiel
 
 def test_platform_leg_lengths_are_reproduced_to_1e_12_m_within_table_i(tmp_path):
     """Platform solutions reproduce the given leg lengths to 1e-12 m and stay inside Table I."""
-    result = solve(str(write_problem(tmp_path, "legs", {"target": "legs", "tolerance": 1e-12}, 40)),
-                   figures=False)[0]
+    result = solve(str(write_problem(tmp_path, "legs", {"target": "legs", "tolerance": 1e-12}, 40)), figures=False)[0]
     assert result.succeeded, result.status_counts()
     given = result.arrays["targets"]
     np.testing.assert_allclose(given, all_legs(result.arrays["true_configurations"]), atol=1e-15)
@@ -114,12 +125,18 @@ def tip_jacobian(x: np.ndarray, h: float = 1e-6) -> np.ndarray:
 def formulations(tmp_path_factory):
     """One run: exact tip closest to rest, and as variants eq. (11) on the configuration and as printed,
     and the elongation distribution of section IV in both readings."""
-    options = {"target": "position", "redundancy": "rest", "restarts": 1, "weights": WEIGHTS.tolist(),
-               "variants": {"penalty": {"redundancy": "penalty", "penalty": PENALTY},
-                            "printed": {"redundancy": "penalty", "penalty_on": "position",
-                                        "penalty": PRINTED_PENALTY},
-                            "distributed": {"elongation": "distributed"},
-                            "affine": {"elongation": "affine"}}}
+    options = {
+        "target": "position",
+        "redundancy": "rest",
+        "restarts": 1,
+        "weights": WEIGHTS.tolist(),
+        "variants": {
+            "penalty": {"redundancy": "penalty", "penalty": PENALTY},
+            "printed": {"redundancy": "penalty", "penalty_on": "position", "penalty": PRINTED_PENALTY},
+            "distributed": {"elongation": "distributed"},
+            "affine": {"elongation": "affine"},
+        },
+    }
     path = write_problem(tmp_path_factory.mktemp("cbha"), "forms", options, 8)
     return solve(str(path), figures=False)[0]
 
@@ -133,8 +150,9 @@ def test_eq_11_penalty_minimiser_satisfies_its_optimality_condition(formulations
     ok = result.arrays["status_gauss-newton_penalty"] == "ok"
     assert ok.sum() >= 7
     checked = 0
-    for x, target, true in zip(result.arrays["solutions_gauss-newton_penalty"][ok], targets[ok],
-                               result.arrays["true_configurations"][ok]):
+    for x, target, true in zip(
+        result.arrays["solutions_gauss-newton_penalty"][ok], targets[ok], result.arrays["true_configurations"][ok]
+    ):
         e, d = tip_eq_5(x) - target, x - rest
         gradient_terms = (tip_jacobian(x).T @ e, PENALTY * WEIGHTS**2 * d)
         assert 1e-8 < np.linalg.norm(e) < 1e-3
@@ -207,8 +225,13 @@ def test_formulations_are_compared_in_one_result(formulations):
     """Tip error, leg margins and tube lengths of every row, recomputed here from its solutions."""
     result = formulations
     rows = {row.method: row for row in result.comparison}
-    assert set(rows) == {"gauss-newton", "gauss-newton [penalty]", "gauss-newton [printed]",
-                         "gauss-newton [distributed]", "gauss-newton [affine]"}
+    assert set(rows) == {
+        "gauss-newton",
+        "gauss-newton [penalty]",
+        "gauss-newton [printed]",
+        "gauss-newton [distributed]",
+        "gauss-newton [affine]",
+    }
     assert [row.role for row in rows.values()] == ["solver", "variant", "variant", "variant", "variant"]
     lo, hi = np.repeat(TABLE_I_MIN_MM, 3), np.repeat(TABLE_I_MAX_MM, 3)
     for name, row in rows.items():
@@ -230,12 +253,15 @@ def test_formulations_are_compared_in_one_result(formulations):
     assert rows["gauss-newton"].metrics["median deviation from distribution [mm]"] > 1e-3
 
 
-@pytest.mark.parametrize("options, field", [
-    ({"target": "legs", "redundancy": "penalty"}, "options.redundancy"),
-    ({"variants": {"v": {"elongation": "spread"}}}, "options.variants.v.elongation"),
-    ({"variants": {"v": {"target": "pose"}}}, "options.variants.v.target"),
-    ({"variants": {"v": {"redundancy": "penalty", "penalty": -1.0}}}, "options.variants.v.penalty"),
-])
+@pytest.mark.parametrize(
+    "options, field",
+    [
+        ({"target": "legs", "redundancy": "penalty"}, "options.redundancy"),
+        ({"variants": {"v": {"elongation": "spread"}}}, "options.variants.v.elongation"),
+        ({"variants": {"v": {"target": "pose"}}}, "options.variants.v.target"),
+        ({"variants": {"v": {"redundancy": "penalty", "penalty": -1.0}}}, "options.variants.v.penalty"),
+    ],
+)
 def test_bad_formulation_options_are_named(tmp_path, options, field):
     with pytest.raises(SpecError) as info:
         solve(str(write_problem(tmp_path, "bad", {"target": "position"} | options, 2)), figures=False)
@@ -243,8 +269,14 @@ def test_bad_formulation_options_are_named(tmp_path, options, field):
 
 
 def test_leg_targets_need_a_cbha(tmp_path):
-    spec = {"name": "bad", "title": "t", "kind": "ik", "arm": {"type": "constant_curvature"},
-            "data": {"source": "random", "samples": 2}, "options": {"target": "legs"}}
+    spec = {
+        "name": "bad",
+        "title": "t",
+        "kind": "ik",
+        "arm": {"type": "constant_curvature"},
+        "data": {"source": "random", "samples": 2},
+        "options": {"target": "legs"},
+    }
     path = tmp_path / "bad.yaml"
     path.write_text(yaml.safe_dump(spec))
     with pytest.raises(SpecError, match="options.target"):

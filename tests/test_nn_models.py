@@ -20,8 +20,16 @@ from optikin.arms.cbha import CBHAGeometry
 from optikin.baselines import nn_models
 from optikin.baselines.nn_database import DatabaseSpec, build_database
 from optikin.baselines.nn_models import (
-    SETTINGS, Network, forward_pass, forward_tasks, hybrid_forward_configurations, hybrid_inverse_configurations,
-    inverse_tasks, split_mse, train_model)
+    SETTINGS,
+    Network,
+    forward_pass,
+    forward_tasks,
+    hybrid_forward_configurations,
+    hybrid_inverse_configurations,
+    inverse_tasks,
+    split_mse,
+    train_model,
+)
 
 SMALL = SETTINGS["adam"].small()
 
@@ -159,7 +167,8 @@ def test_hybrid_inverse_routes_nn1_into_nn2_to_nn4(db):
     end1 = db.section_ends[db.test, 0]  # the true end of section 1 replaces NN1, which is then not needed
     given = hybrid_inverse_configurations(models[1:], tip, end1)
     for i in range(3):
-        np.testing.assert_allclose(given[:, i::3], models[i + 1].predict(np.concatenate([tip, end1], axis=1)),
-                                   rtol=1e-12, atol=1e-15)
+        np.testing.assert_allclose(
+            given[:, i::3], models[i + 1].predict(np.concatenate([tip, end1], axis=1)), rtol=1e-12, atol=1e-15
+        )
     with pytest.raises(ValueError, match="ikm_nn1"):
         hybrid_inverse_configurations(models[1:], tip)

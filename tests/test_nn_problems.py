@@ -36,8 +36,11 @@ def chain_tips(Q: np.ndarray) -> np.ndarray:
     for Z, theta, psi in np.moveaxis(Q.reshape(len(Q), -1, 3), 1, 0).transpose(0, 2, 1):
         ct, st, cp, sp = np.cos(theta), np.sin(theta), np.cos(psi), np.sin(psi)
         A = np.zeros((len(Q), 4, 4))
-        A[:, 0, :3], A[:, 1, :3], A[:, 2] = np.stack([ct, st * sp, st * cp], -1), np.stack([0 * ct, cp, -sp], -1), \
-            np.stack([-st, sp * ct, ct * cp, Z], -1)
+        A[:, 0, :3], A[:, 1, :3], A[:, 2] = (
+            np.stack([ct, st * sp, st * cp], -1),
+            np.stack([0 * ct, cp, -sp], -1),
+            np.stack([-st, sp * ct, ct * cp, Z], -1),
+        )
         A[:, 3, 3] = 1.0
         T = T @ A
     return T[:, :3, 3]
@@ -137,34 +140,42 @@ def test_ikm_realises_lengths_within_table_i_and_measures_through_exact_fk(ikm, 
 
 def test_store_is_reused_and_refused_for_another_database(tmp_path):
     store = tmp_path / "models"
-    path = small_problem(tmp_path, "fkm", options__variants=["adam"], options__store=str(store),
-                         baselines=["newton"])
+    path = small_problem(tmp_path, "fkm", options__variants=["adam"], options__store=str(store), baselines=["newton"])
     first, _ = solve(path)
     again, _ = solve(path)
     assert first.metrics["mlp-adam loaded from store"] is False
     assert again.metrics["mlp-adam loaded from store"] is True
     np.testing.assert_array_equal(again.arrays["tip_adam"], first.arrays["tip_adam"])
-    other = small_problem(tmp_path, "fkm", options__variants=["adam"], options__store=str(store),
-                          baselines=["newton"], data__seed=SEED + 1)
+    other = small_problem(
+        tmp_path,
+        "fkm",
+        options__variants=["adam"],
+        options__store=str(store),
+        baselines=["newton"],
+        data__seed=SEED + 1,
+    )
     with pytest.raises(InputDataError) as err:
         solve(other)
     assert err.value.field == "database.seed"
 
 
-@pytest.mark.parametrize("changes, field", [
-    ({"data__source": "random"}, "data.source"),
-    ({"options__variants": ["sgd-fast"]}, "options.variants.0"),
-    ({"options__penalty": -1.0}, "options.penalty"),
-    ({"data__params": {"z_range_mm": [8, 25]}}, "data"),
-    ({"data__params": {"grid": True}}, "data.params.grid"),
-    ({"data__params": {"split": [0.7, 0.2, 0.2]}}, "data.params.split"),
-    ({"data__params": {"coupling": "vertebra"}}, "data.params.coupling"),
-    ({"options__setting": "medium"}, "options.setting"),
-    ({"options__exact_samples": 0}, "options.exact_samples"),
-    ({"baselines": ["qp-osqp"]}, "baselines.0"),
-    ({"baselines": ["least_squares"]}, "baselines.0"),
-    ({"solver": "newton"}, "solver"),
-])
+@pytest.mark.parametrize(
+    "changes, field",
+    [
+        ({"data__source": "random"}, "data.source"),
+        ({"options__variants": ["sgd-fast"]}, "options.variants.0"),
+        ({"options__penalty": -1.0}, "options.penalty"),
+        ({"data__params": {"z_range_mm": [8, 25]}}, "data"),
+        ({"data__params": {"grid": True}}, "data.params.grid"),
+        ({"data__params": {"split": [0.7, 0.2, 0.2]}}, "data.params.split"),
+        ({"data__params": {"coupling": "vertebra"}}, "data.params.coupling"),
+        ({"options__setting": "medium"}, "options.setting"),
+        ({"options__exact_samples": 0}, "options.exact_samples"),
+        ({"baselines": ["qp-osqp"]}, "baselines.0"),
+        ({"baselines": ["least_squares"]}, "baselines.0"),
+        ({"solver": "newton"}, "solver"),
+    ],
+)
 def test_bad_problem_files_name_the_field(tmp_path, changes, field):
     with pytest.raises(SpecError) as err:
         solve(small_problem(tmp_path, "fkm", **changes))
@@ -174,8 +185,7 @@ def test_bad_problem_files_name_the_field(tmp_path, changes, field):
 @pytest.mark.parametrize("name", ["cbha-nn-fkm", "cbha-nn-ikm", "cbha-nn-fkm-coupled", "cbha-nn-ikm-coupled"])
 def test_shipped_problem_files_are_valid(name):
     spec, path = load_problem(name)
-    ctx = ProblemContext(spec=spec, path=path, arm=CBHAArm(**spec.arm.params),
-                         progress=SILENT)
+    ctx = ProblemContext(spec=spec, path=path, arm=CBHAArm(**spec.arm.params), progress=SILENT)
     o, db_spec = options(ctx), database_spec(ctx)
     assert o.setting == "full" and db_spec.split == (0.70, 0.15, 0.15)
     assert db_spec.coupling == ("section" if name.endswith("coupled") else "platform")
@@ -183,10 +193,13 @@ def test_shipped_problem_files_are_valid(name):
 
 
 @pytest.mark.parametrize("kind", ["fkm", "ikm"])
-@pytest.mark.parametrize("changes, field", [
-    ({"options__exact_sampels": 3}, "options.exact_sampels"),
-    ({"data__params": {"z_range_mm": [0, 25], "coupilng": "section"}}, "data.params.coupilng"),
-])
+@pytest.mark.parametrize(
+    "changes, field",
+    [
+        ({"options__exact_sampels": 3}, "options.exact_sampels"),
+        ({"data__params": {"z_range_mm": [0, 25], "coupilng": "section"}}, "data.params.coupilng"),
+    ],
+)
 def test_a_typo_in_options_or_data_params_is_an_unknown_field(tmp_path, kind, changes, field):
     with pytest.raises(SpecError) as err:
         solve(small_problem(tmp_path, kind, **changes))

@@ -44,29 +44,40 @@ def test_round_trip_gives_the_same_models_and_metadata(store, trained):
     for original, again in zip(models, loaded):
         cols = list(original.task.inputs[1])
         np.testing.assert_array_equal(again.predict(X[:, cols]), original.predict(X[:, cols]))
-        assert (again.task, again.setting, again.penalty, again.neurons) == \
-            (original.task, original.setting, original.penalty, original.neurons)
-        assert (again.search, again.epochs, again.training_time) == \
-            (original.search, original.epochs, original.training_time)
-        for a, b in zip(again.network.coefs + again.network.intercepts,
-                        original.network.coefs + original.network.intercepts):
+        assert (again.task, again.setting, again.penalty, again.neurons) == (
+            original.task,
+            original.setting,
+            original.penalty,
+            original.neurons,
+        )
+        assert (again.search, again.epochs, again.training_time) == (
+            original.search,
+            original.epochs,
+            original.training_time,
+        )
+        for a, b in zip(
+            again.network.coefs + again.network.intercepts, original.network.coefs + original.network.intercepts
+        ):
             np.testing.assert_array_equal(a, b)
     meta = read_metadata(store)
     assert meta["versions"]["scikit-learn"] == sklearn.__version__
-    assert meta["geometry"]["leg_max"] == pytest.approx([v / 1000 for v in
-                                                         (19.5, 19.5, 19.5, 16.5, 16.5, 16.5, 20, 22, 16, 20.5,
-                                                          20.5, 19, 19, 18, 18, 16)])
+    assert meta["geometry"]["leg_max"] == pytest.approx(
+        [v / 1000 for v in (19.5, 19.5, 19.5, 16.5, 16.5, 16.5, 20, 22, 16, 20.5, 20.5, 19, 19, 18, 18, 16)]
+    )
     assert meta["database"]["seed"] == 21 and meta["database"]["candidates"] == 40_000
     assert [m["test MSE"] for m in meta["models"]] == [split_mse(m, db, "test") for m in models]
     assert meta["database rows"]["test"] == len(db.test)
 
 
-@pytest.mark.parametrize("geometry, spec, field", [
-    (CBHAGeometry(r_max=0.041), SPEC, "geometry.r_max"),
-    (CBHAGeometry(leg_max=tuple(v / 1000 for v in (19.5,) * 8 + (16,) * 8)), SPEC, "geometry.leg_max"),
-    (CBHAGeometry(), dataclasses.replace(SPEC, seed=22), "database.seed"),
-    (CBHAGeometry(), dataclasses.replace(SPEC, coupling="section"), "database.coupling"),
-])
+@pytest.mark.parametrize(
+    "geometry, spec, field",
+    [
+        (CBHAGeometry(r_max=0.041), SPEC, "geometry.r_max"),
+        (CBHAGeometry(leg_max=tuple(v / 1000 for v in (19.5,) * 8 + (16,) * 8)), SPEC, "geometry.leg_max"),
+        (CBHAGeometry(), dataclasses.replace(SPEC, seed=22), "database.seed"),
+        (CBHAGeometry(), dataclasses.replace(SPEC, coupling="section"), "database.coupling"),
+    ],
+)
 def test_other_geometry_or_database_is_refused(store, geometry, spec, field):
     with pytest.raises(InputDataError) as err:
         load_models(store, geometry, spec, required())
@@ -139,15 +150,24 @@ def test_damaged_weights_old_format_or_no_store_is_refused(store, tmp_path):
         load_models(tmp_path / "nothing", CBHAGeometry(), SPEC, required())
 
 
-@pytest.mark.parametrize("change, field, message", [
-    (lambda a: a.pop("fkm_section1.coef1"), "models.fkm_section1.coef1", "no array"),
-    (lambda a: a.update({"fkm_section1.x_scale": np.ones(3)}), "models.fkm_section1.x_scale", r"shape \(3,\)"),
-    (lambda a: a.update({"fkm_section1.coef1": np.ones((5, 4))}), "models.fkm_section1.network", "do not chain"),
-    (lambda a: a.update({"fkm_section1.activation": np.array("softsign")}), "models.fkm_section1.network",
-     "activation"),
-    (lambda a: a.update({"fkm_section1.intercept0": np.array([print], dtype=object)}),
-     "models.fkm_section1.intercept0", "allow_pickle"),
-])
+@pytest.mark.parametrize(
+    "change, field, message",
+    [
+        (lambda a: a.pop("fkm_section1.coef1"), "models.fkm_section1.coef1", "no array"),
+        (lambda a: a.update({"fkm_section1.x_scale": np.ones(3)}), "models.fkm_section1.x_scale", r"shape \(3,\)"),
+        (lambda a: a.update({"fkm_section1.coef1": np.ones((5, 4))}), "models.fkm_section1.network", "do not chain"),
+        (
+            lambda a: a.update({"fkm_section1.activation": np.array("softsign")}),
+            "models.fkm_section1.network",
+            "activation",
+        ),
+        (
+            lambda a: a.update({"fkm_section1.intercept0": np.array([print], dtype=object)}),
+            "models.fkm_section1.intercept0",
+            "allow_pickle",
+        ),
+    ],
+)
 def test_inconsistent_arrays_are_refused_naming_the_field(store, change, field, message):
     rewrite_weights(store, change)
     with pytest.raises(InputDataError, match=message) as err:

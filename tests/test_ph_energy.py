@@ -58,15 +58,22 @@ def cc_two_section_data(q: np.ndarray, section: float = 0.18) -> ShapeData:
 
 def random_backbones(n: int, seed: int = 5) -> list[ShapeData]:
     rng = np.random.default_rng(seed)
-    q = np.column_stack([rng.uniform(0.2, 2.0, n), rng.uniform(-np.pi, np.pi, n),
-                         rng.uniform(0.2, 2.0, n), rng.uniform(-np.pi, np.pi, n)])
+    q = np.column_stack(
+        [
+            rng.uniform(0.2, 2.0, n),
+            rng.uniform(-np.pi, np.pi, n),
+            rng.uniform(0.2, 2.0, n),
+            rng.uniform(-np.pi, np.pi, n),
+        ]
+    )
     return [cc_two_section_data(qi) for qi in q]
 
 
 def newton_adapter(**options):
     """The ``ph_newton`` backend (warm-started along the samples) with Newton's own defaults."""
-    spec = SolverSpec(name="newton-test", backend="ph_newton", options=options,
-                      limits={"tolerance": 1e-10, "max_iterations": 50})
+    spec = SolverSpec(
+        name="newton-test", backend="ph_newton", options=options, limits={"tolerance": 1e-10, "max_iterations": 50}
+    )
     return preset_of(spec).build()
 
 
@@ -89,8 +96,9 @@ def test_bending_energy_equals_adaptive_quadrature_of_generic_curvature():
         p0, p1 = rng.normal(size=3), rng.normal(size=3)
         d0, d1 = rng.normal(size=3), rng.normal(size=3)
         curve = ph_quintic_hermite(p0, d0, p1, d1, *rng.uniform(-0.5, 0.5, 2))
-        reference = quad(lambda t: curve.curvature(t) ** 2 * curve.parametric_speed(t), 0, 1,
-                         epsabs=0, epsrel=1e-12, limit=500)[0]
+        reference = quad(
+            lambda t: curve.curvature(t) ** 2 * curve.parametric_speed(t), 0, 1, epsabs=0, epsrel=1e-12, limit=500
+        )[0]
         assert abs(bending_energy(curve, 48) - reference) <= 1e-9 * reference
 
 
@@ -99,8 +107,9 @@ def test_default_quadrature_is_converged_on_minimum_energy_shapes(model, theta):
     """DEFAULT_NODES reproduces adaptive quadrature to 1e-10 on the optimum, for bends up to 240 degrees."""
     data = arc_data(theta)
     curve = model.curve(model.solve_nlp(data), data)
-    reference = quad(lambda t: curve.curvature(t) ** 2 * curve.parametric_speed(t), 0, 1,
-                     epsabs=0, epsrel=1e-13, limit=500)[0]
+    reference = quad(
+        lambda t: curve.curvature(t) ** 2 * curve.parametric_speed(t), 0, 1, epsabs=0, epsrel=1e-13, limit=500
+    )[0]
     errors = {n: abs(bending_energy(curve, n) - reference) / reference for n in (4, 8, DEFAULT_NODES)}
     assert errors[DEFAULT_NODES] < 1e-10
     assert errors[DEFAULT_NODES] <= max(errors[8], 1e-15) and errors[8] <= max(errors[4], 1e-15)
@@ -119,8 +128,9 @@ def test_planar_optimum_of_planar_data_has_no_twist_energy(model):
 
 def test_straight_segment_has_zero_energy_and_stays_straight(model):
     direction = np.array([0.2, -0.3, 0.9]) / np.linalg.norm([0.2, -0.3, 0.9])
-    data = ShapeData.checked([0.1, 0.0, 0.0], direction, np.array([0.1, 0.0, 0.0]) + 0.3 * direction, direction,
-                             speeds=(0.36, 0.3))
+    data = ShapeData.checked(
+        [0.1, 0.0, 0.0], direction, np.array([0.1, 0.0, 0.0]) + 0.3 * direction, direction, speeds=(0.36, 0.3)
+    )
     sol = model.solve_nlp(data)
     assert sol.energy < 1e-12
     points = model.curve(sol, data).point(np.linspace(0, 1, 21)) - data.p0

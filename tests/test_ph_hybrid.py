@@ -95,12 +95,15 @@ def test_store_for_another_geometry_or_no_store_is_refused(tmp_path):
     assert err.value.field == "models.ikm_nn1.penalty" and err.value.source == str(copy)
 
 
-@pytest.mark.parametrize("tips, ends, source, field", [
-    (np.zeros((2, 2)), None, "tip positions", ""),
-    (np.array([[0.0, np.nan, 0.3]]), None, "tip positions", "y"),
-    (np.zeros((2, 3)), np.zeros((1, 3)), "section 1 ends", ""),
-    (np.zeros((1, 3)), np.array([[np.inf, 0.0, 0.1]]), "section 1 ends", "x"),
-])
+@pytest.mark.parametrize(
+    "tips, ends, source, field",
+    [
+        (np.zeros((2, 2)), None, "tip positions", ""),
+        (np.array([[0.0, np.nan, 0.3]]), None, "tip positions", "y"),
+        (np.zeros((2, 3)), np.zeros((1, 3)), "section 1 ends", ""),
+        (np.zeros((1, 3)), np.array([[np.inf, 0.0, 0.1]]), "section 1 ends", "x"),
+    ],
+)
 def test_bad_positions_are_refused(arm, models, tips, ends, source, field):
     with pytest.raises(InputDataError) as err:
         hybrid_tube_lengths(arm, tips, models, ends)

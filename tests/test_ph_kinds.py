@@ -43,22 +43,28 @@ def test_options_typo_is_named(tmp_path, problem):
     assert err.field == f"options.{TYPO}" and "unknown field" in str(err)
 
 
-@pytest.mark.parametrize("problem, source, params", [
-    ("cbha-ph-shape", "synthetic", {"noise": 0.0}),
-    ("cbha-ph-shape", "csv", {"file": "recorded.csv"}),
-    ("cbha-ph-ik", "csv", {"file": "recorded.csv", "intermediate": [5, 9, 13]}),
-    ("cbha-rope-chain", "synthetic", {"rope_length": 0.6}),
-])
+@pytest.mark.parametrize(
+    "problem, source, params",
+    [
+        ("cbha-ph-shape", "synthetic", {"noise": 0.0}),
+        ("cbha-ph-shape", "csv", {"file": "recorded.csv"}),
+        ("cbha-ph-ik", "csv", {"file": "recorded.csv", "intermediate": [5, 9, 13]}),
+        ("cbha-rope-chain", "synthetic", {"rope_length": 0.6}),
+    ],
+)
 def test_data_params_typo_of_each_source_is_named(tmp_path, problem, source, params):
     err = error_of(with_data(small(tmp_path, problem), source, {**params, TYPO: 1}))
     assert err.field == f"data.params.{TYPO}" and "unknown field" in str(err)
 
 
-@pytest.mark.parametrize("backend, options", [
-    ("ph_newton", {"compile": False}),
-    ("ph_ipopt", {"warm_start": False}),
-    ("ph_grid", {"n": 16}),
-])
+@pytest.mark.parametrize(
+    "backend, options",
+    [
+        ("ph_newton", {"compile": False}),
+        ("ph_ipopt", {"warm_start": False}),
+        ("ph_grid", {"n": 16}),
+    ],
+)
 def test_preset_options_typo_of_each_backend_is_named(tmp_path, backend, options):
     preset = tmp_path / "solvers" / "typo.yaml"
     preset.parent.mkdir(parents=True)
@@ -67,23 +73,26 @@ def test_preset_options_typo_of_each_backend_is_named(tmp_path, backend, options
     assert err.field == f"options.{TYPO}" and "unknown field" in str(err) and err.path == str(preset)
 
 
-@pytest.mark.parametrize("problem, options, data, field", [
-    ("cbha-ph-shape", {"length": "guess"}, None, "options.length"),
-    ("cbha-ph-shape", {"length": -0.3}, None, "options.length"),
-    ("cbha-ph-shape", {"nodes": 1}, None, "options.nodes"),
-    ("cbha-ph-shape", {"free_speeds": "yes"}, None, "options.free_speeds"),
-    ("cbha-ph-shape", {"twist_weight": -1.0}, None, "options.twist_weight"),
-    ("cbha-ph-ik", {"frame": "frenet"}, None, "options.frame"),
-    ("cbha-ph-ik", {"tube_radius": [0.04]}, None, "options.tube_radius.1"),
-    ("cbha-ph-ik", {"tube_radius": 0.04}, None, "options.tube_radius"),
-    ("cbha-ph-ik", {"tube_radius": [0.04, -0.03]}, None, "options.tube_radius.1"),
-    ("cbha-rope-chain", {"rope_free_speeds": 1}, None, "options.rope_free_speeds"),
-    ("cbha-ph-shape", {}, ("synthetic", {"amplitude": 1.5}), "data.params.amplitude"),
-    ("cbha-ph-shape", {}, ("synthetic", {"frequency": [0.4, 0.1]}), "data.params.frequency"),
-    ("cbha-ph-shape", {}, ("csv", {}), "data.params.file"),
-    ("cbha-rope-chain", {}, ("synthetic", {"rope_length": 0.0}), "data.params.rope_length"),
-    ("cbha-rope-chain", {}, ("csv", {"file": "x.csv"}), "data.source"),
-])
+@pytest.mark.parametrize(
+    "problem, options, data, field",
+    [
+        ("cbha-ph-shape", {"length": "guess"}, None, "options.length"),
+        ("cbha-ph-shape", {"length": -0.3}, None, "options.length"),
+        ("cbha-ph-shape", {"nodes": 1}, None, "options.nodes"),
+        ("cbha-ph-shape", {"free_speeds": "yes"}, None, "options.free_speeds"),
+        ("cbha-ph-shape", {"twist_weight": -1.0}, None, "options.twist_weight"),
+        ("cbha-ph-ik", {"frame": "frenet"}, None, "options.frame"),
+        ("cbha-ph-ik", {"tube_radius": [0.04]}, None, "options.tube_radius.1"),
+        ("cbha-ph-ik", {"tube_radius": 0.04}, None, "options.tube_radius"),
+        ("cbha-ph-ik", {"tube_radius": [0.04, -0.03]}, None, "options.tube_radius.1"),
+        ("cbha-rope-chain", {"rope_free_speeds": 1}, None, "options.rope_free_speeds"),
+        ("cbha-ph-shape", {}, ("synthetic", {"amplitude": 1.5}), "data.params.amplitude"),
+        ("cbha-ph-shape", {}, ("synthetic", {"frequency": [0.4, 0.1]}), "data.params.frequency"),
+        ("cbha-ph-shape", {}, ("csv", {}), "data.params.file"),
+        ("cbha-rope-chain", {}, ("synthetic", {"rope_length": 0.0}), "data.params.rope_length"),
+        ("cbha-rope-chain", {}, ("csv", {"file": "x.csv"}), "data.source"),
+    ],
+)
 def test_bad_values_are_named(tmp_path, problem, options, data, field):
     path = small(tmp_path, problem, options=options)
     if data is not None:

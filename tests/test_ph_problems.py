@@ -39,10 +39,12 @@ def test_presets_load_and_bad_options_name_the_field():
         preset = load_preset(name)
         assert preset.backend.family == "ph"
         preset.build()
-    for backend, options, field, message in (("ph_newton", {"tolerance": 1e-8}, "options.tolerance", "unknown field"),
-                                             ("ph_grid", {"n": 1.5}, "options.n", "integer"),
-                                             ("ph_grid", {"n": 1}, "options.n", "greater than or equal to 2"),
-                                             ("ph_newton", {"compile": "yes"}, "options.compile", "boolean")):
+    for backend, options, field, message in (
+        ("ph_newton", {"tolerance": 1e-8}, "options.tolerance", "unknown field"),
+        ("ph_grid", {"n": 1.5}, "options.n", "integer"),
+        ("ph_grid", {"n": 1}, "options.n", "greater than or equal to 2"),
+        ("ph_newton", {"compile": "yes"}, "options.compile", "boolean"),
+    ):
         with pytest.raises(SpecError, match=message) as err:
             preset_of(SolverSpec(name="x", backend=backend, options=options))
         assert err.value.field == field
@@ -64,8 +66,12 @@ def test_arc_length_estimate_is_exact_on_circular_arcs(theta, azimuth):
 
 def test_distances_to_curves_match_brute_force():
     rng = np.random.default_rng(2)
-    curves = [ph_quintic_hermite(rng.normal(size=3), rng.normal(size=3), rng.normal(size=3), rng.normal(size=3),
-                                 *rng.uniform(-1, 1, 2)) for _ in range(3)]
+    curves = [
+        ph_quintic_hermite(
+            rng.normal(size=3), rng.normal(size=3), rng.normal(size=3), rng.normal(size=3), *rng.uniform(-1, 1, 2)
+        )
+        for _ in range(3)
+    ]
     batch = PHQuintic(*(np.stack([getattr(c, k) for c in curves]) for k in ("p0", "A0", "A1", "A2")))
     points = batch.point(rng.uniform(0, 1, 4))  # (curve, 4, 3)
     points = points[:, :, None, :] + 0.05 * rng.normal(size=(3, 4, 5, 3))  # near the curves and off them
@@ -83,12 +89,18 @@ def test_tube_length_function_equals_the_numpy_tubes():
         model = shared_model(EnergySettings(), free)
         f = tube_length_function(model, layout)
         for i in range(3):
-            data = ShapeData.checked(rec.base_position[i], rec.base_direction[i], rec.tip_position[i],
-                                     rec.tip_direction[i], length=rec.truth.backbone_length[i])
+            data = ShapeData.checked(
+                rec.base_position[i],
+                rec.base_direction[i],
+                rec.tip_position[i],
+                rec.tip_direction[i],
+                length=rec.truth.backbone_length[i],
+            )
             sol = model.solve_nlp(data)
             expected = tube_lengths(model.curve(sol, data), rec.base_normal[i], layout)
-            np.testing.assert_allclose(np.asarray(f(sol.x, data.parameters(), rec.base_normal[i])).ravel(), expected,
-                                       rtol=1e-13)
+            np.testing.assert_allclose(
+                np.asarray(f(sol.x, data.parameters(), rec.base_normal[i])).ravel(), expected, rtol=1e-13
+            )
 
 
 # -- the problem files on small settings -------------------------------------------------
@@ -117,8 +129,9 @@ def test_recorded_csv_runs_through_the_same_problem_file(tmp_path):
     recording = recording_of("cbha-ph-shape", 5)
     write_marker_csv(recording, tmp_path / "recorded.csv")
     synthetic = run_variant(tmp_path / "a", "cbha-ph-shape", samples=5, baselines=[])
-    recorded_file = problem_variant("cbha-ph-shape", tmp_path, samples=5, baselines=[],
-                                    data_params={"file": "recorded.csv"})
+    recorded_file = problem_variant(
+        "cbha-ph-shape", tmp_path, samples=5, baselines=[], data_params={"file": "recorded.csv"}
+    )
     text = recorded_file.read_text().replace("source: synthetic", "source: csv")
     text = text.replace("    noise: 0.0003\n    rate: 240.0\n    stride: 24\n", "")
     recorded_file.write_text(text)
@@ -144,8 +157,12 @@ def test_newton_raphson_on_a_csv_recording_needs_its_marker_layout(tmp_path):
         recorded({"file": "recorded.csv"})
     assert err.value.field == "data.params.intermediate"
     result = recorded({"file": "recorded.csv", "intermediate": [5, 9, 13]})
-    np.testing.assert_allclose(result.arrays["tube_lengths_newton_raphson"],
-                               synthetic.arrays["tube_lengths_newton_raphson"], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(
+        result.arrays["tube_lengths_newton_raphson"],
+        synthetic.arrays["tube_lengths_newton_raphson"],
+        rtol=0,
+        atol=1e-12,
+    )
 
 
 def test_ph_ik_errors_and_frames(tmp_path):
@@ -189,8 +206,9 @@ def test_newton_raphson_row_on_noisy_markers_and_its_marker_layout(tmp_path):
     errors = np.abs(result.arrays["tube_lengths_newton_raphson"] - result.arrays["reference_tube_lengths"])
     assert 0 < np.max(errors) < 3.5e-3
     with pytest.raises(InputDataError, match=r"marker on vertebrae \[9\]"):
-        run_variant(tmp_path, "cbha-ph-ik", samples=2, baselines=["newton-raphson"],
-                    data_params={"intermediate": [5, 13]})
+        run_variant(
+            tmp_path, "cbha-ph-ik", samples=2, baselines=["newton-raphson"], data_params={"intermediate": [5, 13]}
+        )
 
 
 def test_pose_and_hybrid_comparators_report_every_posture(tmp_path):
@@ -202,8 +220,13 @@ def test_pose_and_hybrid_comparators_report_every_posture(tmp_path):
     networks of the Fig. 7 database (they extrapolate: the recording bends far more), 7-12 mm
     with those of the database whose sections bend as one.
     """
-    result = run_variant(tmp_path, "cbha-ph-ik", samples=6,
-                         baselines=["newton-raphson-pose", "hybrid", "hybrid-coupled"], data_params={"noise": 0.0})
+    result = run_variant(
+        tmp_path,
+        "cbha-ph-ik",
+        samples=6,
+        baselines=["newton-raphson-pose", "hybrid", "hybrid-coupled"],
+        data_params={"noise": 0.0},
+    )
     rows = {row.method: row.metrics for row in result.comparison}
     reference = result.arrays["reference_tube_lengths"]
     status = result.arrays["status_newton_raphson_pose"]
@@ -223,8 +246,9 @@ def test_pose_and_hybrid_comparators_report_every_posture(tmp_path):
 
 def test_ph_ik_with_the_true_backbone_length_held(tmp_path):
     """Free end speeds with the model's backbone length (an oracle): tube errors drop below a millimetre."""
-    result = run_variant(tmp_path, "cbha-ph-ik", samples=6, baselines=[], options={"length": "model",
-                                                                                    "free_speeds": True})
+    result = run_variant(
+        tmp_path, "cbha-ph-ik", samples=6, baselines=[], options={"length": "model", "free_speeds": True}
+    )
     errors = np.abs(result.arrays["tube_lengths"] - result.arrays["reference_tube_lengths"])
     assert result.status == ["ok"] * 6
     assert np.mean(errors) < 1e-3
@@ -261,7 +285,10 @@ def test_bad_options_and_data_are_named(tmp_path):
     rec.tube_lengths = None
     write_marker_csv(rec, tmp_path / "no_lengths.csv")
     file = problem_variant("cbha-ph-ik", tmp_path, samples=2, baselines=[], data_params={"file": "no_lengths.csv"})
-    file.write_text(file.read_text().replace("source: synthetic", "source: csv")
-                    .replace("    noise: 0.0003\n    rate: 240.0\n    stride: 24\n", ""))
+    file.write_text(
+        file.read_text()
+        .replace("source: synthetic", "source: csv")
+        .replace("    noise: 0.0003\n    rate: 240.0\n    stride: 24\n", "")
+    )
     with pytest.raises(InputDataError, match=r"L1: no reference tube lengths"):
         solve(str(file))

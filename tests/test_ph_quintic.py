@@ -226,8 +226,9 @@ def test_euler_rodrigues_frame_is_orthonormal_with_tangent_first():
     tangent = curve.hodograph(t)
     np.testing.assert_allclose(e1, tangent / np.linalg.norm(tangent, axis=-1, keepdims=True), atol=1e-12)
     q = curve.frame(t)
-    np.testing.assert_allclose(Rotation.from_quat(q.reshape(-1, 4)[:, [1, 2, 3, 0]]).as_matrix(), R.reshape(-1, 3, 3),
-                               atol=1e-12)
+    np.testing.assert_allclose(
+        Rotation.from_quat(q.reshape(-1, 4)[:, [1, 2, 3, 0]]).as_matrix(), R.reshape(-1, 3, 3), atol=1e-12
+    )
 
 
 def test_adding_one_angle_to_all_three_leaves_the_curve_unchanged():
@@ -247,7 +248,8 @@ def test_casadi_symbols_give_the_numpy_values():
     curve = ph_quintic_hermite(*data, phi[0], phi[2], phi[1])
     t = ca.DM([[0.0, 0.3, 0.8, 1.0]])
     f = ca.Function(
-        "ph", [*data, phi],
+        "ph",
+        [*data, phi],
         [curve.point(t), curve.hodograph(t), curve.curvature(t), curve.torsion(t), curve.arc_length(), curve.frame(t)],
     )
     for n in range(3):

@@ -51,8 +51,9 @@ def spatial_curves() -> list[PHQuintic]:
         t0 = np.array([0.0, 0.0, 1.0])
         t1 = rng.normal(size=3) * 0.6 + t0
         p1 = np.array([rng.uniform(-0.08, 0.08), rng.uniform(-0.08, 0.08), rng.uniform(0.15, 0.2)])
-        curves.append(ph_quintic_hermite(np.zeros(3), 0.22 * t0, p1, 0.22 * t1 / np.linalg.norm(t1),
-                                         *rng.uniform(-1.0, 1.0, 2)))
+        curves.append(
+            ph_quintic_hermite(np.zeros(3), 0.22 * t0, p1, 0.22 * t1 / np.linalg.norm(t1), *rng.uniform(-1.0, 1.0, 2))
+        )
     return curves
 
 
@@ -150,8 +151,10 @@ def test_tube_lengths_equal_polylines_of_offset_points(frame):
 def test_the_two_frames_give_different_lengths_on_twisted_curves():
     """Out of plane the ER frame turns about the tangent and the tubes wind: millimetres apart."""
     n0 = np.array([1.0, 0.0, 0.0])
-    difference = max(np.abs(tube_lengths(c, n0, TubeLayout()) -
-                            tube_lengths(c, n0, TubeLayout(frame="euler_rodrigues"))).max() for c in spatial_curves())
+    difference = max(
+        np.abs(tube_lengths(c, n0, TubeLayout()) - tube_lengths(c, n0, TubeLayout(frame="euler_rodrigues"))).max()
+        for c in spatial_curves()
+    )
     assert difference > 1e-4
 
 
@@ -169,10 +172,8 @@ def test_carried_frame_is_the_double_reflection_frame_and_tube_points_sit_on_it(
     points = tube_points(curve, n0, t[[0, -1]], layout)
     for m, a in enumerate(layout.angles):
         offset = points[m] - curve.point(t[[0, -1]])
-        np.testing.assert_allclose(np.linalg.norm(offset, axis=1), [layout.radius_start, layout.radius_end],
-                                   atol=1e-14)
-        np.testing.assert_allclose(offset[0], layout.radius_start * (np.cos(a) * f2[0] + np.sin(a) * f3[0]),
-                                   atol=1e-15)
+        np.testing.assert_allclose(np.linalg.norm(offset, axis=1), [layout.radius_start, layout.radius_end], atol=1e-14)
+        np.testing.assert_allclose(offset[0], layout.radius_start * (np.cos(a) * f2[0] + np.sin(a) * f3[0]), atol=1e-15)
 
 
 def test_default_quadrature_is_converged():
@@ -180,8 +181,10 @@ def test_default_quadrature_is_converged():
     for layout in (TubeLayout(), TubeLayout(frame="euler_rodrigues")):
         for curve in spatial_curves():
             reference = tube_lengths(curve, [1.0, 0, 0], layout, 96)
-            errors = [np.max(np.abs(tube_lengths(curve, [1.0, 0, 0], layout, n) / reference - 1))
-                      for n in (6, 12, DEFAULT_TUBE_NODES)]
+            errors = [
+                np.max(np.abs(tube_lengths(curve, [1.0, 0, 0], layout, n) / reference - 1))
+                for n in (6, 12, DEFAULT_TUBE_NODES)
+            ]
             assert errors[-1] < 1e-12
             assert errors[0] >= errors[1] >= errors[2]
 
@@ -208,15 +211,22 @@ def test_cbha_tube_lengths_converge_to_the_ph_tubes_as_vertebrae_multiply(free_m
     """
     differences = []
     for N in (16, 64):
-        geometry = CBHAGeometry(n_vertebrae=N + 1, r_max=0.035, r_min=0.035, leg_min=(0.001,) * N,
-                                leg_max=(0.1,) * N, platforms_per_section=(N // 2, N // 2))
+        geometry = CBHAGeometry(
+            n_vertebrae=N + 1,
+            r_max=0.035,
+            r_min=0.035,
+            leg_min=(0.001,) * N,
+            leg_max=(0.1,) * N,
+            platforms_per_section=(N // 2, N // 2),
+        )
         arm = CBHAArm(geometry)
         q = np.column_stack([np.full(N, 0.2 / N), np.full(N, 1.2 / N), np.zeros(N)]).ravel()
         model_lengths = arm.evaluate("tube_lengths", q[None])[0].sum(axis=0)  # section 1 + section 2
         data, n0 = cbha_end_data(arm, q)
         ph = tube_lengths(free_model.curve(free_model.solve_nlp(data), data), n0, TubeLayout.cbha(geometry))
-        np.testing.assert_allclose(model_lengths, [0.2 + 0.035 * 1.2, 0.2 - 0.0175 * 1.2, 0.2 - 0.0175 * 1.2],
-                                   atol=0.2 / N**2)
+        np.testing.assert_allclose(
+            model_lengths, [0.2 + 0.035 * 1.2, 0.2 - 0.0175 * 1.2, 0.2 - 0.0175 * 1.2], atol=0.2 / N**2
+        )
         differences.append(np.max(np.abs(ph - model_lengths)))
     assert differences[1] < 5e-6
     assert 10 < differences[0] / differences[1] < 22  # second order: 16 expected

@@ -17,8 +17,7 @@ BACKEND_NAMES = ("gauss_newton", "newton", "ipopt", "sqpmethod", "lm", "trf")
 
 def adapter(backend: str, options: dict | None = None, **limits):
     limits = {"max_iterations": 100, "time_limit": 5.0, "tolerance": 1e-13} | limits
-    preset = SolverSpec(name=f"test-{backend.replace('_', '-')}", backend=backend, options=options or {},
-                        limits=limits)
+    preset = SolverSpec(name=f"test-{backend.replace('_', '-')}", backend=backend, options=options or {}, limits=limits)
     return preset_of(preset).build()
 
 
@@ -26,15 +25,28 @@ def circle_line() -> LeastSquaresProblem:
     """``x0^2 + x1^2 = p0^2`` and ``x1 = p1 x0``, ``x0 >= 0``: ``x0 = p0 / sqrt(1 + p1^2)``."""
     x, p = ca.SX.sym("x", 2), ca.SX.sym("p", 2)
     r = ca.vertcat(x[0] ** 2 + x[1] ** 2 - p[0] ** 2, x[1] - p[1] * x[0])
-    return LeastSquaresProblem(ca.Function("circle_line", [x, p], [r]), np.array([0.0, -10.0]), np.array([10.0, 10.0]),
-                               np.array([False, False]), tolerance=1e-11, name="circle_line")
+    return LeastSquaresProblem(
+        ca.Function("circle_line", [x, p], [r]),
+        np.array([0.0, -10.0]),
+        np.array([10.0, 10.0]),
+        np.array([False, False]),
+        tolerance=1e-11,
+        name="circle_line",
+    )
 
 
 def plane(weights) -> LeastSquaresProblem:
     """One residual ``x0 + x1 + x2 - p`` for three variables: a redundant problem."""
     x, p = ca.SX.sym("x", 3), ca.SX.sym("p", 1)
-    return LeastSquaresProblem(ca.Function("plane", [x, p], [ca.sum1(x) - p]), np.full(3, -10.0), np.full(3, 10.0),
-                               np.zeros(3, dtype=bool), tolerance=1e-11, weights=weights, name="plane")
+    return LeastSquaresProblem(
+        ca.Function("plane", [x, p], [ca.sum1(x) - p]),
+        np.full(3, -10.0),
+        np.full(3, 10.0),
+        np.zeros(3, dtype=bool),
+        tolerance=1e-11,
+        weights=weights,
+        name="plane",
+    )
 
 
 @pytest.mark.parametrize("backend", BACKEND_NAMES)
@@ -72,9 +84,17 @@ def test_penalised_problem_reaches_the_closed_form_minimiser(backend):
     weights, x_ref, lam, p = np.array([1.0, 2.0, 4.0]), np.array([0.5, -1.0, 2.0]), 0.3, 3.0
     x = ca.SX.sym("x", 3)
     rows = ca.vertcat(ca.sum1(x) - p, np.sqrt(lam) * weights * (x - x_ref))
-    problem = LeastSquaresProblem(ca.Function("penalised_plane", [x, ca.SX.sym("p", 0)], [rows]), [-10.0] * 3,
-                                  [10.0] * 3, [False] * 3, tolerance=1e-11, weights=weights,
-                                  stationarity_tolerance=1e-10, exact=False, name="penalised_plane")
+    problem = LeastSquaresProblem(
+        ca.Function("penalised_plane", [x, ca.SX.sym("p", 0)], [rows]),
+        [-10.0] * 3,
+        [10.0] * 3,
+        [False] * 3,
+        tolerance=1e-11,
+        weights=weights,
+        stationarity_tolerance=1e-10,
+        exact=False,
+        name="penalised_plane",
+    )
     m_inv = 1.0 / weights**2
     expected = x_ref + m_inv * (p - x_ref.sum()) / (lam + m_inv.sum())
     report = adapter(backend).solve(problem, np.array([1.0, 1.0, 1.0]), np.zeros(0))
@@ -172,23 +192,26 @@ def test_failed_samples_are_reported_not_dropped():
     assert report.status[0] == "ok" and report.status[1] == "failed"
 
 
-@pytest.mark.parametrize("backend, options, field", [
-    ("gauss_newton", {"dampin": 1.0}, "options.dampin"),
-    ("gauss_newton", {"damping": "big"}, "options.damping"),
-    ("gauss_newton", {"damping": -1.0}, "options.damping"),
-    ("gauss_newton", {"compile": "yes"}, "options.compile"),
-    ("gauss_newton", {"flags": "-O3"}, "options.flags"),
-    ("newton", {"plugin": "kinsol-ish"}, "options.plugin"),
-    ("newton", {"line_search": 1}, "options.line_search"),
-    ("lm", {"x_scale": "auto"}, "options.x_scale"),
-    ("lm", {"x_scale": -1.0}, "options.x_scale"),
-    ("lm", {"ftol": 1e-20}, "options.ftol"),
-    ("lm", {"tr_solver": "exact"}, "options.tr_solver"),
-    ("trf", {"regularisation": -0.1}, "options.regularisation"),
-    ("trf", {"tr_solver": "cg"}, "options.tr_solver"),
-    ("ipopt", {"settings": {"not_an_ipopt_option": 1}}, "options.settings.not_an_ipopt_option"),
-    ("sqpmethod", {"settings": {"qpsoll": "qrqp"}}, "options.settings.qpsoll"),
-])
+@pytest.mark.parametrize(
+    "backend, options, field",
+    [
+        ("gauss_newton", {"dampin": 1.0}, "options.dampin"),
+        ("gauss_newton", {"damping": "big"}, "options.damping"),
+        ("gauss_newton", {"damping": -1.0}, "options.damping"),
+        ("gauss_newton", {"compile": "yes"}, "options.compile"),
+        ("gauss_newton", {"flags": "-O3"}, "options.flags"),
+        ("newton", {"plugin": "kinsol-ish"}, "options.plugin"),
+        ("newton", {"line_search": 1}, "options.line_search"),
+        ("lm", {"x_scale": "auto"}, "options.x_scale"),
+        ("lm", {"x_scale": -1.0}, "options.x_scale"),
+        ("lm", {"ftol": 1e-20}, "options.ftol"),
+        ("lm", {"tr_solver": "exact"}, "options.tr_solver"),
+        ("trf", {"regularisation": -0.1}, "options.regularisation"),
+        ("trf", {"tr_solver": "cg"}, "options.tr_solver"),
+        ("ipopt", {"settings": {"not_an_ipopt_option": 1}}, "options.settings.not_an_ipopt_option"),
+        ("sqpmethod", {"settings": {"qpsoll": "qrqp"}}, "options.settings.qpsoll"),
+    ],
+)
 def test_bad_preset_options_name_the_field(backend, options, field):
     with pytest.raises(SpecError) as info:
         adapter(backend, options)

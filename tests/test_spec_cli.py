@@ -64,15 +64,24 @@ def test_shipped_problems_and_solvers_validate():
         ({"title: a small test problem\n": ""}, "title", "required field is missing"),
         ({"samples: 16": "samples: -4"}, "data.samples", "greater than or equal to 1"),
         ({"seed: 3": "seed: three"}, "data.seed", "integer"),
-        ({"params: {section_lengths: [0.18, 0.18]}": "params: {section_length: 0.18}"},
-         "arm.params.section_length", "unknown parameter"),
+        (
+            {"params: {section_lengths: [0.18, 0.18]}": "params: {section_length: 0.18}"},
+            "arm.params.section_length",
+            "unknown parameter",
+        ),
         ({"params: {section_lengths: [0.18, 0.18]}": "params: {theta_max: 9.0}"}, "arm.params", "theta_max"),
         ({"type: constant_curvature": "type: octopus"}, "arm.type", "unknown arm 'octopus'"),
         ({"kind: fk": "kind: teleport"}, "kind", "unknown problem kind 'teleport'"),
-        ({"source: random": "source: dreams"}, "data.source",
-         "unknown configurations source 'dreams'; known: csv, random, sweep, trajectory"),
-        ({"baselines: [numpy]": "baselines: [numpy, oracle]"}, "baselines.1",
-         "'oracle' is neither a baseline of kind 'fk'"),
+        (
+            {"source: random": "source: dreams"},
+            "data.source",
+            "unknown configurations source 'dreams'; known: csv, random, sweep, trajectory",
+        ),
+        (
+            {"baselines: [numpy]": "baselines: [numpy, oracle]"},
+            "baselines.1",
+            "'oracle' is neither a baseline of kind 'fk'",
+        ),
         ({"baselines: [numpy]": "baselines: [qp-osqp]"}, "baselines.0", "solver preset 'qp-osqp' (qp) cannot solve"),
     ],
 )
@@ -110,8 +119,7 @@ def test_unknown_named_problem_lists_known():
 
 def test_solver_preset_unknown_backend_and_wrong_family(tmp_path, monkeypatch):
     write(tmp_path, "warp", "name: warp\nbackend: warp_drive\n", folder="solvers")
-    write(tmp_path, "bad-limits", "name: bad-limits\nbackend: casadi_map\nlimits: {time_limit: -1}\n",
-          folder="solvers")
+    write(tmp_path, "bad-limits", "name: bad-limits\nbackend: casadi_map\nlimits: {time_limit: -1}\n", folder="solvers")
     monkeypatch.setenv("OPTIKIN_PATH", str(tmp_path))
     problem = good(tmp_path)
     with pytest.raises(SpecError, match=r"warp.yaml: backend: unknown solver backend 'warp_drive'"):
@@ -193,8 +201,11 @@ def test_cli_list_show_solve(tmp_path, capsys):
 
 def test_cli_bad_input_exits_2_with_one_line_message(tmp_path):
     path = good(tmp_path, **{"kind: fk": "kind: teleport"})
-    run = subprocess.run([sys.executable, "-m", "optikin.cli", "solve", str(path), "--out", str(tmp_path / "o")],
-                         capture_output=True, text=True)
+    run = subprocess.run(
+        [sys.executable, "-m", "optikin.cli", "solve", str(path), "--out", str(tmp_path / "o")],
+        capture_output=True,
+        text=True,
+    )
     assert run.returncode == EXIT_BAD_INPUT
     assert run.stderr.startswith("optikin: error: ") and "kind: unknown problem kind 'teleport'" in run.stderr
     assert "Traceback" not in run.stderr

@@ -120,7 +120,7 @@ def test_qp_steers_back_from_outside_the_limits_at_the_rate_limit_and_never_fart
     steps_back = np.ceil(excess[0] / (rate * DT) - 1e-9).astype(int)
     assert steps_back[1] == 20 and steps_back[3] == 8
     for i in (1, 3):
-        assert np.all(excess[steps_back[i]:, i] == 0.0)
+        assert np.all(excess[steps_back[i] :, i] == 0.0)
         np.testing.assert_allclose(np.diff(excess[: steps_back[i], i]), -rate[i] * DT, rtol=1e-9)
     assert run.metrics()["steps the controller kept or took outside"] == 0
     assert run.metrics()["position error final [mm]"] < 0.05

@@ -42,8 +42,16 @@ def shortened(tmp_path: Path, name: str, baselines: bool = False, **changes) -> 
 
 
 def test_the_shipped_scenarios_cover_the_issue():
-    assert {"track-nominal", "track-into-limits", "track-start-outside", "track-model-mismatch",
-            "track-disturbance", "track-sensor-noise", "track-position", "track-dmp"} <= set(SCENARIOS)
+    assert {
+        "track-nominal",
+        "track-into-limits",
+        "track-start-outside",
+        "track-model-mismatch",
+        "track-disturbance",
+        "track-sensor-noise",
+        "track-position",
+        "track-dmp",
+    } <= set(SCENARIOS)
 
 
 def test_dmp_reference_starts_at_the_demonstration_and_is_tracked_within_limits(tmp_path):
@@ -93,18 +101,21 @@ def test_other_qp_presets_give_the_same_run(tmp_path, preset):
     np.testing.assert_allclose(other.arrays["q_qp"], reference.arrays["q_qp"], atol=1e-5)
 
 
-@pytest.mark.parametrize("key,value,field", [
-    ("data.params.rate", 5000, "data.params.rate"),
-    ("data.params.waypoints", [[0.18, 0.1, 0.0]], "data.params.waypoints"),
-    ("data.params.speed", 1.0, "data.params.speed"),
-    ("options.fallback", "pray", "options.fallback"),
-    ("options.plant.wind", 3.0, "options.plant.wind"),
-    ("options.plant.length_scale", [1.05, 1.05, 1.05], "options.plant.length_scale"),
-    ("options.plant.configuration_noise", [0.1, 0.2], "options.plant.configuration_noise"),
-    ("options.mrac.gamma", 3.0, "options.mrac.gamma"),
-    ("options.start", [0.18, 0.1], "options.start"),
-    ("data.samples", 10, "data.samples"),
-])
+@pytest.mark.parametrize(
+    "key,value,field",
+    [
+        ("data.params.rate", 5000, "data.params.rate"),
+        ("data.params.waypoints", [[0.18, 0.1, 0.0]], "data.params.waypoints"),
+        ("data.params.speed", 1.0, "data.params.speed"),
+        ("options.fallback", "pray", "options.fallback"),
+        ("options.plant.wind", 3.0, "options.plant.wind"),
+        ("options.plant.length_scale", [1.05, 1.05, 1.05], "options.plant.length_scale"),
+        ("options.plant.configuration_noise", [0.1, 0.2], "options.plant.configuration_noise"),
+        ("options.mrac.gamma", 3.0, "options.mrac.gamma"),
+        ("options.start", [0.18, 0.1], "options.start"),
+        ("data.samples", 10, "data.samples"),
+    ],
+)
 def test_bad_tracking_input_names_the_field(tmp_path, key, value, field):
     with pytest.raises(SpecError) as error:
         solve(str(shortened(tmp_path, "track-nominal", **{key: value})))
@@ -161,14 +172,17 @@ def preset(tmp_path: Path, backend: str, options: dict) -> Path:
     return out
 
 
-@pytest.mark.parametrize("problem,key", [
-    ("track-nominal", "options.gian"),
-    ("track-nominal", "options.plant.lenght_scale"),
-    ("track-nominal", "options.mrac.gain_limt"),
-    ("track-nominal", "options.tolerance.position"),
-    ("track-nominal", "data.params.segment_tme"),
-    ("track-dmp", "data.params.basis_functions"),
-])
+@pytest.mark.parametrize(
+    "problem,key",
+    [
+        ("track-nominal", "options.gian"),
+        ("track-nominal", "options.plant.lenght_scale"),
+        ("track-nominal", "options.mrac.gain_limt"),
+        ("track-nominal", "options.tolerance.position"),
+        ("track-nominal", "data.params.segment_tme"),
+        ("track-dmp", "data.params.basis_functions"),
+    ],
+)
 def test_a_typo_in_an_option_section_is_an_unknown_field(tmp_path, problem, key):
     with pytest.raises(SpecError) as error:
         solve(str(shortened(tmp_path, problem, **{key: 1.0})))
@@ -176,15 +190,18 @@ def test_a_typo_in_an_option_section_is_an_unknown_field(tmp_path, problem, key)
     assert "unknown field" in str(error.value)
 
 
-@pytest.mark.parametrize("backend,options,field,words", [
-    ("qp_osqp", {"eps_ab": 1e-7}, "options.eps_ab", "unknown field"),
-    ("qp_osqp", {"eps_abs": -1}, "options.eps_abs", "greater than 0"),
-    ("qp_osqp", {"max_iter": "many"}, "options.max_iter", "integer"),
-    ("qp_qpsolvers", {"solver": "daqp", "setings": {}}, "options.setings", "unknown field"),
-    ("qp_cvxpy", {"solvr": "CLARABEL"}, "options.solvr", "unknown field"),
-    ("qp_cvxpy", {"solver": "GUROBI9"}, "options.solver", "GUROBI9"),
-    ("qp_cvxpy_rebuild", {"solver": "CLARABEL", "warm": True}, "options.warm", "unknown field"),
-])
+@pytest.mark.parametrize(
+    "backend,options,field,words",
+    [
+        ("qp_osqp", {"eps_ab": 1e-7}, "options.eps_ab", "unknown field"),
+        ("qp_osqp", {"eps_abs": -1}, "options.eps_abs", "greater than 0"),
+        ("qp_osqp", {"max_iter": "many"}, "options.max_iter", "integer"),
+        ("qp_qpsolvers", {"solver": "daqp", "setings": {}}, "options.setings", "unknown field"),
+        ("qp_cvxpy", {"solvr": "CLARABEL"}, "options.solvr", "unknown field"),
+        ("qp_cvxpy", {"solver": "GUROBI9"}, "options.solver", "GUROBI9"),
+        ("qp_cvxpy_rebuild", {"solver": "CLARABEL", "warm": True}, "options.warm", "unknown field"),
+    ],
+)
 def test_a_bad_qp_preset_option_names_the_preset_and_the_field(tmp_path, backend, options, field, words):
     path = preset(tmp_path, backend, options)
     with pytest.raises(SpecError) as error:

@@ -79,8 +79,9 @@ def near_limit_problems(count, seed=3):
 
 def qp_controller(backend="qp_osqp", fallback="hold", **options):
     """The QP controller of the tests (pose task) with a step solver of ``backend`` and ``options``."""
-    return QPController(ARM, DT, "pose", gain=GAIN, damping=DAMPING, fallback=fallback,
-                        solver=step_solver(backend, 6, 8, **options))
+    return QPController(
+        ARM, DT, "pose", gain=GAIN, damping=DAMPING, fallback=fallback, solver=step_solver(backend, 6, 8, **options)
+    )
 
 
 def command(controller, q, x, x_ref):
@@ -91,8 +92,11 @@ def command(controller, q, x, x_ref):
 
 
 @settings(max_examples=200, deadline=None)
-@given(st.lists(st.floats(-1.0, 2.0), min_size=6, max_size=6), st.floats(1e-3, 1e-2),
-       st.lists(st.floats(0.0, 1.0), min_size=6, max_size=6))
+@given(
+    st.lists(st.floats(-1.0, 2.0), min_size=6, max_size=6),
+    st.floats(1e-3, 1e-2),
+    st.lists(st.floats(0.0, 1.0), min_size=6, max_size=6),
+)
 def test_rate_bounds_are_never_empty_and_never_let_a_limit_be_crossed(fractions, dt, pick):
     """Anywhere, also far outside the limits: lb <= ub, and any rate in the box keeps or brings q inside."""
     span = ARM.upper - ARM.lower
@@ -110,8 +114,11 @@ def test_rate_bounds_are_never_empty_and_never_let_a_limit_be_crossed(fractions,
 
 
 @settings(max_examples=100, deadline=None)
-@given(st.lists(st.floats(-1.0, 2.0), min_size=6, max_size=6), st.floats(0.05, 1.0),
-       st.lists(st.floats(0.0, 1.0), min_size=6, max_size=6))
+@given(
+    st.lists(st.floats(-1.0, 2.0), min_size=6, max_size=6),
+    st.floats(0.05, 1.0),
+    st.lists(st.floats(0.0, 1.0), min_size=6, max_size=6),
+)
 def test_a_limit_gain_below_one_still_never_takes_the_arm_farther_out(fractions, gain, pick):
     q = ARM.lower + np.asarray(fractions) * (ARM.upper - ARM.lower)
     bounds = RateBounds(ARM, DT, gain=gain)
@@ -133,8 +140,11 @@ def test_rate_bounds_reject_a_margin_that_closes_the_range():
 
 def backend_choices():
     choices = [("qp_osqp", {})] + [("qp_qpsolvers", {"solver": s}) for s in installed_solvers()]
-    return choices + [("qp_cvxpy", {"solver": "CLARABEL"}), ("qp_cvxpy", {"solver": "OSQP"}),
-                      ("qp_cvxpy_rebuild", {"solver": "CLARABEL"})]
+    return choices + [
+        ("qp_cvxpy", {"solver": "CLARABEL"}),
+        ("qp_cvxpy", {"solver": "OSQP"}),
+        ("qp_cvxpy_rebuild", {"solver": "CLARABEL"}),
+    ]
 
 
 @pytest.mark.parametrize("backend,options", backend_choices(), ids=lambda v: str(v))
@@ -187,8 +197,17 @@ def test_osqp_fast_path_matches_the_public_api(fast_path):
         assert set(solution.extras) == {"primal_residual", "dual_residual"}
         fast = solution.x.copy()
         public = osqp.OSQP()
-        public.setup(sp.csc_matrix(np.triu(H)), g, sp.identity(n, format="csc"), lb, ub, verbose=False,
-                     eps_abs=1e-9, eps_rel=1e-9, polishing=False)
+        public.setup(
+            sp.csc_matrix(np.triu(H)),
+            g,
+            sp.identity(n, format="csc"),
+            lb,
+            ub,
+            verbose=False,
+            eps_abs=1e-9,
+            eps_rel=1e-9,
+            polishing=False,
+        )
         np.testing.assert_allclose(fast, public.solve(raise_error=True).x, atol=1e-5)
 
 
@@ -216,8 +235,14 @@ class NaNSolver:
         return Solution(np.full(data.n, np.nan), "ok")
 
 
-@pytest.mark.parametrize("solver,reason", [(RaisingSolver(), "raised RuntimeError: solver crashed"),
-                                           (EmptySolver(), "no solution"), (NaNSolver(), "non-finite")])
+@pytest.mark.parametrize(
+    "solver,reason",
+    [
+        (RaisingSolver(), "raised RuntimeError: solver crashed"),
+        (EmptySolver(), "no solution"),
+        (NaNSolver(), "non-finite"),
+    ],
+)
 @pytest.mark.parametrize("fallback", ["hold", "damped_least_squares"])
 def test_a_failing_solver_is_reported_and_the_fallback_stays_inside_the_bounds(solver, reason, fallback):
     q, x, x_ref = near_limit_problems(1)[0]
@@ -288,6 +313,10 @@ def test_the_tip_pose_of_the_two_section_arm_has_five_independent_directions():
         J = np.array([(tip(q + h) - tip(q - h)) / 2e-6 for h in 1e-6 * np.eye(6)]).T
         s = np.linalg.svd(J, compute_uv=False)
         assert s[4] > 1e-2 and s[5] < 1e-8
-        Jp = np.array([(np.asarray(ARM.fk_position(q + h)).ravel() - np.asarray(ARM.fk_position(q - h)).ravel())
-                       / 2e-6 for h in 1e-6 * np.eye(6)]).T
+        Jp = np.array(
+            [
+                (np.asarray(ARM.fk_position(q + h)).ravel() - np.asarray(ARM.fk_position(q - h)).ravel()) / 2e-6
+                for h in 1e-6 * np.eye(6)
+            ]
+        ).T
         assert np.linalg.svd(Jp, compute_uv=False)[2] > 1e-2  # position: full rank 3, so J J^+ = I

@@ -132,9 +132,7 @@ def concat(a: Array, b: Array) -> Array:
         return ca.vertcat(a, b)
     a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
     batch = np.broadcast_shapes(a.shape[:-1], b.shape[:-1])
-    return np.concatenate(
-        [np.broadcast_to(a, batch + a.shape[-1:]), np.broadcast_to(b, batch + b.shape[-1:])], axis=-1
-    )
+    return np.concatenate([np.broadcast_to(a, batch + a.shape[-1:]), np.broadcast_to(b, batch + b.shape[-1:])], axis=-1)
 
 
 def split(x: Array, n_first: int, n_total: int) -> tuple[Array, Array]:

@@ -338,8 +338,9 @@ def dq_log(dq: Array) -> Array:
     safe = B.where(small, 1.0, a2)
     g = B.where(small, -2.0 / 3.0 + a2 / 45.0, (c - inv_s) / safe)
     xu = x * ux + y * uy + z * uz
-    v = B.stack([x * inv_s + (xu * g - w * s) * ux, y * inv_s + (xu * g - w * s) * uy,
-                 z * inv_s + (xu * g - w * s) * uz])
+    v = B.stack(
+        [x * inv_s + (xu * g - w * s) * ux, y * inv_s + (xu * g - w * s) * uy, z * inv_s + (xu * g - w * s) * uz]
+    )
     return B.concat(u, v)
 
 

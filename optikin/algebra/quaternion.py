@@ -24,7 +24,6 @@ IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
 """The identity rotation ``(1, 0, 0, 0)``."""
 
 
-
 def quat_multiply(p: Array, q: Array) -> Array:
     """Hamilton product ``p q``.
 
@@ -343,8 +342,12 @@ def quat_from_matrix(R: Array) -> Array:
             raise ValueError(f"expected rotation matrices of shape (..., 3, 3), got {R.shape}")
         m = [[R[..., i, j] for j in range(3)] for i in range(3)]
     trace = m[0][0] + m[1][1] + m[2][2]
-    pivots = [1 + trace, 1 + m[0][0] - m[1][1] - m[2][2], 1 - m[0][0] + m[1][1] - m[2][2],
-              1 - m[0][0] - m[1][1] + m[2][2]]
+    pivots = [
+        1 + trace,
+        1 + m[0][0] - m[1][1] - m[2][2],
+        1 - m[0][0] + m[1][1] - m[2][2],
+        1 - m[0][0] - m[1][1] + m[2][2],
+    ]
     candidates = []
     for k, pivot in enumerate(pivots):
         r = B.sqrt(B.fmax(pivot, 1e-300))
@@ -457,9 +460,12 @@ def check_unit_quaternions(q: np.ndarray, source: str = "quaternions", tolerance
         i = int(np.argmax(bad))
         index = np.unravel_index(i, q.shape[:-1]) if q.ndim > 1 else (0,)
         rest = ", ".join(str(int(j)) for j in index[1:])
-        raise InputDataError(f"{flat[i].tolist()} is not a unit quaternion (| |q| - 1 | = {norm_error[i]:.3g}, "
-                             f"tolerance {tolerance:g})", source=source, sample=int(index[0]),
-                             field=f"quaternion [{rest}]" if rest else "")
+        raise InputDataError(
+            f"{flat[i].tolist()} is not a unit quaternion (| |q| - 1 | = {norm_error[i]:.3g}, tolerance {tolerance:g})",
+            source=source,
+            sample=int(index[0]),
+            field=f"quaternion [{rest}]" if rest else "",
+        )
     return q
 
 

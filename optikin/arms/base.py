@@ -233,8 +233,13 @@ class ArmModel(ABC):
             out = out[..., 0]
         return out[0] if single else out
 
-    def validate(self, configurations: np.ndarray, source: str = "configurations", check_bounds: bool = True,
-                 tolerance: float = 1e-12) -> np.ndarray:
+    def validate(
+        self,
+        configurations: np.ndarray,
+        source: str = "configurations",
+        check_bounds: bool = True,
+        tolerance: float = 1e-12,
+    ) -> np.ndarray:
         """Check a batch of configurations; raise naming the bad sample and variable.
 
         Rejects a wrong shape, NaN or infinite entries and (unless ``check_bounds`` is false)
@@ -273,8 +278,9 @@ class ArmModel(ABC):
         bad = ~np.isfinite(Q)
         if bad.any():
             i, j = np.argwhere(bad)[0]
-            raise InputDataError(f"{Q[i, j]} is not a finite number", source=source, sample=int(i),
-                                 field=self.config_names[j])
+            raise InputDataError(
+                f"{Q[i, j]} is not a finite number", source=source, sample=int(i), field=self.config_names[j]
+            )
         if check_bounds:
             below = Q < self.lower - tolerance
             above = Q > self.upper + tolerance
@@ -282,7 +288,9 @@ class ArmModel(ABC):
                 i, j = np.argwhere(below | above)[0]
                 raise InputDataError(
                     f"{Q[i, j]:.6g} outside the bounds [{self.lower[j]:.6g}, {self.upper[j]:.6g}]",
-                    source=source, sample=int(i), field=self.config_names[j],
+                    source=source,
+                    sample=int(i),
+                    field=self.config_names[j],
                 )
         return Q
 
@@ -334,4 +342,3 @@ class ArmModel(ABC):
             ``(4, 4)`` homogeneous transform, translation in metres.
         """
         return np.asarray(self.fk_transform(np.asarray(q, dtype=float)))
-

@@ -117,13 +117,16 @@ class CBHAGeometry:
         if len(self.leg_min) != n_platforms or len(self.leg_max) != n_platforms:
             raise ValueError(f"leg_min and leg_max need one value per platform ({n_platforms})")
         if sum(self.platforms_per_section) != n_platforms or min(self.platforms_per_section) < 1:
-            raise ValueError(f"platforms_per_section {self.platforms_per_section} must be positive "
-                             f"and add up to {n_platforms}")
+            raise ValueError(
+                f"platforms_per_section {self.platforms_per_section} must be positive and add up to {n_platforms}"
+            )
         step = abs(self.r_max - self.r_min) / n_platforms
         for k, (lo, hi) in enumerate(zip(self.leg_min, self.leg_max), start=1):
             if not step < lo <= hi:
-                raise ValueError(f"platform {k}: leg limits must satisfy |r_k - r_k+1| = {step:.4g} < "
-                                 f"leg_min <= leg_max, got [{lo}, {hi}]")
+                raise ValueError(
+                    f"platform {k}: leg limits must satisfy |r_k - r_k+1| = {step:.4g} < "
+                    f"leg_min <= leg_max, got [{lo}, {hi}]"
+                )
         if not np.isfinite(self.tool_offset):
             raise ValueError(f"tool_offset must be finite, got {self.tool_offset}")
 
@@ -216,8 +219,9 @@ def platform_quaternion(theta: Array, psi: Array) -> Array:
     Array
         ``(w, x, y, z)``: numpy ``(..., 4)`` or CasADi ``4 x N``.
     """
-    return quat_multiply(quat_from_axis_angle(np.array([0.0, 1.0, 0.0]), theta),
-                         quat_from_axis_angle(np.array([1.0, 0.0, 0.0]), psi))
+    return quat_multiply(
+        quat_from_axis_angle(np.array([0.0, 1.0, 0.0]), theta), quat_from_axis_angle(np.array([1.0, 0.0, 0.0]), psi)
+    )
 
 
 def platform_leg_vectors(Z: Array, theta: Array, psi: Array, r_lower: Array, r_upper: Array) -> list[Array]:
@@ -242,9 +246,15 @@ def platform_leg_vectors(Z: Array, theta: Array, psi: Array, r_lower: Array, r_u
         numpy ``(..., 3)``.
     """
     T = _transform_entries(Z, theta, psi)
-    return [B.stack([T[i][0] * r_upper * ux + T[i][1] * r_upper * uy + T[i][3] - r_lower * a
-                     for i, a in enumerate((ux, uy, 0.0))])
-            for ux, uy, _ in LEG_DIRECTIONS]
+    return [
+        B.stack(
+            [
+                T[i][0] * r_upper * ux + T[i][1] * r_upper * uy + T[i][3] - r_lower * a
+                for i, a in enumerate((ux, uy, 0.0))
+            ]
+        )
+        for ux, uy, _ in LEG_DIRECTIONS
+    ]
 
 
 def _platform_leg_lengths_function() -> ca.Function:
@@ -368,8 +378,12 @@ class CBHAArm(ArmModel):
 
     extra_function_names = CBHA_FUNCTION_NAMES
 
-    def __init__(self, geometry: CBHAGeometry | Mapping[str, Any] | None = None, name: str = "cbha",
-                 backbone_points_per_section: int = 8) -> None:
+    def __init__(
+        self,
+        geometry: CBHAGeometry | Mapping[str, Any] | None = None,
+        name: str = "cbha",
+        backbone_points_per_section: int = 8,
+    ) -> None:
         if geometry is None:
             geometry = CBHAGeometry()
         elif isinstance(geometry, Mapping):
@@ -412,7 +426,7 @@ class CBHAArm(ArmModel):
         quat, pos = B.stack([zero + 1.0, zero, zero, zero]), B.stack([zero, zero, zero])
         frames = [(quat, pos)]
         for k in range(self.geometry.n_platforms):
-            Z, theta, psi = v[3 * k: 3 * k + 3]
+            Z, theta, psi = v[3 * k : 3 * k + 3]
             pos = pos + quat_rotate(quat, B.stack([zero, zero, Z]))
             quat = quat_multiply(quat, platform_quaternion(theta, psi))
             frames.append((quat, pos))
@@ -484,8 +498,12 @@ class CBHAArm(ArmModel):
             ``3(N-1) x 1`` [m], ordered ``(q_{1,1}, q_{2,1}, q_{3,1}, q_{1,2}, ...)`` as :attr:`leg_names`.
         """
         r = self.geometry.radii
-        return ca.vertcat(*[PLATFORM_LEG_LENGTHS(q[3 * k], q[3 * k + 1], q[3 * k + 2], r[k], r[k + 1])
-                            for k in range(self.geometry.n_platforms)])
+        return ca.vertcat(
+            *[
+                PLATFORM_LEG_LENGTHS(q[3 * k], q[3 * k + 1], q[3 * k + 2], r[k], r[k + 1])
+                for k in range(self.geometry.n_platforms)
+            ]
+        )
 
     # ------------------------------------------------------------------ extra Functions
     @cached_property
@@ -540,8 +558,9 @@ class CBHAArm(ArmModel):
         """
         return np.repeat(self.geometry.leg_min, 3), np.repeat(self.geometry.leg_max, 3)
 
-    def check_leg_lengths(self, lengths: np.ndarray, source: str = "leg lengths",
-                          tolerance: float = 1e-9) -> np.ndarray:
+    def check_leg_lengths(
+        self, lengths: np.ndarray, source: str = "leg lengths", tolerance: float = 1e-9
+    ) -> np.ndarray:
         """Check leg lengths against Table I of seed 004; raise naming the sample and the leg.
 
         Rejects a wrong shape, non-finite values and lengths outside Table I by more than
@@ -570,24 +589,35 @@ class CBHAArm(ArmModel):
         L = L[None, :] if L.ndim == 1 else L
         n_legs = len(self.leg_names)
         if L.ndim != 2 or L.shape[1] != n_legs:
-            raise InputDataError(f"expected shape (N, {n_legs}) of leg lengths in metres, "
-                                 f"got {np.shape(lengths)}", source=source)
+            raise InputDataError(
+                f"expected shape (N, {n_legs}) of leg lengths in metres, got {np.shape(lengths)}", source=source
+            )
         bad = ~np.isfinite(L)
         if bad.any():
             i, j = np.argwhere(bad)[0]
-            raise InputDataError(f"{L[i, j]} is not a finite number", source=source, sample=int(i),
-                                 field=self.leg_names[j])
+            raise InputDataError(
+                f"{L[i, j]} is not a finite number", source=source, sample=int(i), field=self.leg_names[j]
+            )
         lo, hi = self.leg_limits()
         outside = (L < lo - tolerance) | (L > hi + tolerance)
         if outside.any():
             i, j = np.argwhere(outside)[0]
             raise InputDataError(
                 f"{1000 * L[i, j]:.3f} mm outside the Table I limits [{1000 * lo[j]:.1f}, {1000 * hi[j]:.1f}] mm "
-                f"of platform {j // 3 + 1}, tube {j % 3 + 1}", source=source, sample=int(i), field=self.leg_names[j])
+                f"of platform {j // 3 + 1}, tube {j % 3 + 1}",
+                source=source,
+                sample=int(i),
+                field=self.leg_names[j],
+            )
         return L
 
-    def validate(self, configurations: np.ndarray, source: str = "configurations", check_bounds: bool = True,
-                 tolerance: float = 1e-12) -> np.ndarray:
+    def validate(
+        self,
+        configurations: np.ndarray,
+        source: str = "configurations",
+        check_bounds: bool = True,
+        tolerance: float = 1e-12,
+    ) -> np.ndarray:
         """As :meth:`ArmModel.validate`; with ``check_bounds`` also every leg within Table I.
 
         Parameters

@@ -240,8 +240,9 @@ class ConstantCurvatureArm(ArmModel):
         fractions = np.linspace(0.0, 1.0, points_per_section + 1)[1:]
         return cast(ca.SX, ca.horzcat(ca.DM.zeros(3), *self._chain(q, fractions)[1]))
 
-    def _chain(self, q: Array,
-               fractions: Sequence[float] | np.ndarray) -> tuple[list[tuple[Array, Array]], list[Array]]:
+    def _chain(
+        self, q: Array, fractions: Sequence[float] | np.ndarray
+    ) -> tuple[list[tuple[Array, Array]], list[Array]]:
         """Section end frames and the points at ``fractions`` of every section."""
         variables = B.components(q, self.n_config)
         quat, pos = np.array([1.0, 0.0, 0.0, 0.0]), np.zeros(3)

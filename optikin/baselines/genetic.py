@@ -47,10 +47,20 @@ class GeneticResult:
     seconds: float
 
 
-def minimise(objective: Callable[[np.ndarray], np.ndarray], lower: np.ndarray, upper: np.ndarray,
-             population: int = 30, generations: int = 40, seed: int = 0, elite: int = 2,
-             crossover: float = 0.9, mutation: float = 0.2, tournament: int = 3, blend: float = 0.5,
-             initial: np.ndarray | None = None) -> GeneticResult:
+def minimise(
+    objective: Callable[[np.ndarray], np.ndarray],
+    lower: np.ndarray,
+    upper: np.ndarray,
+    population: int = 30,
+    generations: int = 40,
+    seed: int = 0,
+    elite: int = 2,
+    crossover: float = 0.9,
+    mutation: float = 0.2,
+    tournament: int = 3,
+    blend: float = 0.5,
+    initial: np.ndarray | None = None,
+) -> GeneticResult:
     """Minimise ``objective`` over the box ``[lower, upper]``.
 
     Parameters
@@ -91,8 +101,10 @@ def minimise(objective: Callable[[np.ndarray], np.ndarray], lower: np.ndarray, u
     if lower.shape != upper.shape or lower.ndim != 1 or np.any(upper <= lower):
         raise ValueError("lower and upper must be 1-D arrays of equal length with lower < upper")
     if population < 2 or not 0 <= elite < population or generations < 0:
-        raise ValueError(f"need population >= 2, 0 <= elite < population, generations >= 0 "
-                         f"(got {population}, {elite}, {generations})")
+        raise ValueError(
+            f"need population >= 2, 0 <= elite < population, generations >= 0 "
+            f"(got {population}, {elite}, {generations})"
+        )
     start = time.perf_counter()
     rng = np.random.default_rng(seed)
     width = upper - lower
@@ -105,7 +117,7 @@ def minimise(objective: Callable[[np.ndarray], np.ndarray], lower: np.ndarray, u
     X = lower + rng.random((population, n)) * width
     if initial is not None:
         seeds = np.clip(np.atleast_2d(np.asarray(initial, dtype=float)), lower, upper)[:population]
-        X[:len(seeds)] = seeds
+        X[: len(seeds)] = seeds
     values = evaluate(X)
     evaluations = population
     history = [values.min()]
@@ -132,5 +144,10 @@ def minimise(objective: Callable[[np.ndarray], np.ndarray], lower: np.ndarray, u
         history.append(values.min())
 
     best = int(np.argmin(values))
-    return GeneticResult(x=X[best], value=float(values[best]), history=np.array(history),
-                         evaluations=evaluations, seconds=time.perf_counter() - start)
+    return GeneticResult(
+        x=X[best],
+        value=float(values[best]),
+        history=np.array(history),
+        evaluations=evaluations,
+        seconds=time.perf_counter() - start,
+    )

@@ -66,9 +66,12 @@ SHIPPED_PENALTY = 1e-3
 INVERSE_MODELS = ("ikm_nn1", "ikm_nn2", "ikm_nn3", "ikm_nn4")
 
 
-def load_hybrid_models(arm: CBHAArm, store: str | Path = SHIPPED_STORE,
-                       setting: TrainingSetting = SETTINGS[SHIPPED_SETTING],
-                       penalty: float = SHIPPED_PENALTY) -> list[TrainedModel]:
+def load_hybrid_models(
+    arm: CBHAArm,
+    store: str | Path = SHIPPED_STORE,
+    setting: TrainingSetting = SETTINGS[SHIPPED_SETTING],
+    penalty: float = SHIPPED_PENALTY,
+) -> list[TrainedModel]:
     """NN1-NN4 of ``store`` (default: the shipped models), checked against ``arm``'s geometry.
 
     The models are used on postures that are not from their database, so any database
@@ -78,8 +81,9 @@ def load_hybrid_models(arm: CBHAArm, store: str | Path = SHIPPED_STORE,
     """
     store = Path(store)
     if not isinstance(arm, CBHAArm):
-        raise InputDataError(f"the hybrid networks model a CBHA, not {getattr(arm, 'name', arm)!r}",
-                             source=str(store), field="arm")
+        raise InputDataError(
+            f"the hybrid networks model a CBHA, not {getattr(arm, 'name', arm)!r}", source=str(store), field="arm"
+        )
     metadata = read_metadata(store)
     try:
         spec = DatabaseSpec(**metadata["database"])
@@ -99,8 +103,9 @@ def _positions(points: np.ndarray, source: str) -> np.ndarray:
     return P
 
 
-def hybrid_tube_lengths(arm: CBHAArm, tip_positions: np.ndarray, models: list[TrainedModel],
-                        section1_ends: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def hybrid_tube_lengths(
+    arm: CBHAArm, tip_positions: np.ndarray, models: list[TrainedModel], section1_ends: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Whole tube lengths ``(N, 3)`` [m] of the tips ``(N, 3)`` (base frame), and seconds per posture ``(N,)``.
 
     Per posture, one call each (timed): NN1-NN4 (Fig. 10) -> the 48 platform variables ->
@@ -117,8 +122,8 @@ def hybrid_tube_lengths(arm: CBHAArm, tip_positions: np.ndarray, models: list[Tr
     n_platforms = arm.geometry.n_platforms
 
     def tubes(i: int) -> np.ndarray:
-        end = None if ends is None else ends[i: i + 1]
-        Q = hybrid_inverse_configurations(models, tips[i: i + 1], end)
+        end = None if ends is None else ends[i : i + 1]
+        Q = hybrid_inverse_configurations(models, tips[i : i + 1], end)
         return arm.evaluate("leg_lengths", Q).reshape(n_platforms, 3).sum(axis=0)
 
     if len(tips):

@@ -83,9 +83,19 @@ class MRACController(Controller):
 
     name = "mrac"
 
-    def __init__(self, arm: ArmModel, dt: float, task: Task = "pose", gain=None, adaptation=None,
-                 gain_limit=100.0, natural_frequency: float = 10.0, damping_ratio: float = 1.0,
-                 rcond: float = PINV_RCOND, compiled: bool = False):
+    def __init__(
+        self,
+        arm: ArmModel,
+        dt: float,
+        task: Task = "pose",
+        gain=None,
+        adaptation=None,
+        gain_limit=100.0,
+        natural_frequency: float = 10.0,
+        damping_ratio: float = 1.0,
+        rcond: float = PINV_RCOND,
+        compiled: bool = False,
+    ):
         super().__init__(arm, dt, task, SEED_GAIN[task] if gain is None else gain, compiled)
         m = task_dimension(task)
         self.initial_gain = self.gain.copy()

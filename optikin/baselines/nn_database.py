@@ -137,8 +137,9 @@ def draw_candidates(spec: DatabaseSpec, unit: int) -> np.ndarray:
     return rng.uniform(lower[:, None], upper[:, None], size=(3, spec.candidates)).T
 
 
-def admissible(draws: np.ndarray, geometry: CBHAGeometry, platform: int,
-               require_upright: bool) -> tuple[np.ndarray, np.ndarray]:
+def admissible(
+    draws: np.ndarray, geometry: CBHAGeometry, platform: int, require_upright: bool
+) -> tuple[np.ndarray, np.ndarray]:
     """Masks ``(within Table I, admissible)`` of draws ``(n, 3)`` of platform ``platform`` (0-based).
 
     Leg lengths by eqs. (3)-(6); "admissible" adds the upright condition when asked for.
@@ -238,7 +239,7 @@ def split_rows(n: int, fractions: tuple[float, float, float], rng: np.random.Gen
     order = rng.permutation(n)
     n_train = int(round(fractions[0] * n))
     n_val = int(round(fractions[1] * n))
-    parts = order[:n_train], order[n_train:n_train + n_val], order[n_train + n_val:]
+    parts = order[:n_train], order[n_train : n_train + n_val], order[n_train + n_val :]
     return tuple(np.sort(p) for p in parts)
 
 
@@ -258,9 +259,11 @@ def build_database(geometry: CBHAGeometry | None = None, spec: DatabaseSpec | No
     box_lo, box_hi = spec.box()
     if np.any(lower < box_lo) or np.any(upper > box_hi):
         k = int(np.argwhere(np.any((lower < box_lo) | (upper > box_hi), axis=1))[0, 0])
-        raise ValueError(f"the wide ranges must contain every platform's feasible box; platform {k + 1} needs "
-                         f"Z in [{lower[k, 0]:.4g}, {upper[k, 0]:.4g}] m, theta and psi within "
-                         f"+-{upper[k, 1]:.4g} rad")
+        raise ValueError(
+            f"the wide ranges must contain every platform's feasible box; platform {k + 1} needs "
+            f"Z in [{lower[k, 0]:.4g}, {upper[k, 0]:.4g}] m, theta and psi within "
+            f"+-{upper[k, 1]:.4g} rad"
+        )
     units = draw_units(geometry, spec)
     kept_draws, kept, kept_table_i = [], [], []
     for u, platforms in enumerate(units):
@@ -275,17 +278,24 @@ def build_database(geometry: CBHAGeometry | None = None, spec: DatabaseSpec | No
         kept_table_i.append(len(alive))
     n = min(kept)
     if n < 10:
-        raise ValueError(f"only {n} whole-arm rows from {spec.candidates} candidates per {spec.coupling}; "
-                         "draw more")
-    configurations = np.concatenate([np.tile(d[:n], len(platforms)) for d, platforms in zip(kept_draws, units)],
-                                    axis=1)
+        raise ValueError(f"only {n} whole-arm rows from {spec.candidates} candidates per {spec.coupling}; draw more")
+    configurations = np.concatenate([np.tile(d[:n], len(platforms)) for d, platforms in zip(kept_draws, units)], axis=1)
     arm = CBHAArm(geometry)
     leg_lengths = arm.evaluate("leg_lengths", configurations).reshape(n, -1)
     section_ends = dq_translation(arm.evaluate("section_dq", configurations).transpose(0, 2, 1))
     train, validation, test = split_rows(n, spec.split, np.random.default_rng([spec.seed, STREAM_SPLIT]))
-    return LearningDatabase(geometry=geometry, spec=spec, configurations=configurations, leg_lengths=leg_lengths,
-                            section_ends=section_ends, kept=np.array(kept), kept_table_i=np.array(kept_table_i),
-                            train=train, validation=validation, test=test)
+    return LearningDatabase(
+        geometry=geometry,
+        spec=spec,
+        configurations=configurations,
+        leg_lengths=leg_lengths,
+        section_ends=section_ends,
+        kept=np.array(kept),
+        kept_table_i=np.array(kept_table_i),
+        train=train,
+        validation=validation,
+        test=test,
+    )
 
 
 # ---------------------------------------------------------------------------------------- data source
@@ -294,14 +304,19 @@ class Fig7Params(Options):
 
     z_range_mm: tuple[float, float] = Field((0.0, 25.0), description="range of Z_k drawn [mm], [low, high]")
     angle_range_deg: tuple[float, float] = Field(
-        (-45.0, 45.0), description="range of theta_k and psi_k drawn [deg], [low, high]")
-    require_upright: bool = Field(True, description="keep only draws whose upper attachment points lie above "
-                                                    "the lower vertebra")
+        (-45.0, 45.0), description="range of theta_k and psi_k drawn [deg], [low, high]"
+    )
+    require_upright: bool = Field(
+        True, description="keep only draws whose upper attachment points lie above the lower vertebra"
+    )
     coupling: Literal["platform", "section"] = Field(
-        "platform", description="platform: every platform drawn on its own (Fig. 7); section: one draw per section "
-                                "shared by its platforms")
+        "platform",
+        description="platform: every platform drawn on its own (Fig. 7); section: one draw per section "
+        "shared by its platforms",
+    )
     split: tuple[float, float, float] = Field(
-        (0.70, 0.15, 0.15), description="fractions of the rows for training, validation and test")
+        (0.70, 0.15, 0.15), description="fractions of the rows for training, validation and test"
+    )
 
     @field_validator("z_range_mm", "angle_range_deg")
     @classmethod
@@ -331,13 +346,23 @@ class Fig7Params(Options):
             Ranges in SI units (``Z`` [m], angles [rad]).
         """
         (z0, z1), (a0, a1) = self.z_range_mm, self.angle_range_deg
-        return DatabaseSpec(candidates=data.samples, seed=data.seed, z_range=(z0 / 1e3, z1 / 1e3),
-                            angle_range=(float(np.radians(a0)), float(np.radians(a1))),
-                            require_upright=self.require_upright, split=self.split, coupling=self.coupling)
+        return DatabaseSpec(
+            candidates=data.samples,
+            seed=data.seed,
+            z_range=(z0 / 1e3, z1 / 1e3),
+            angle_range=(float(np.radians(a0)), float(np.radians(a1))),
+            require_upright=self.require_upright,
+            split=self.split,
+            coupling=self.coupling,
+        )
 
 
-@register_source("nn_database", "fig7", "seed 004 Fig. 7: platform variables drawn on a wide box, kept within "
-                                        "Table I", params=Fig7Params)
+@register_source(
+    "nn_database",
+    "fig7",
+    "seed 004 Fig. 7: platform variables drawn on a wide box, kept within Table I",
+    params=Fig7Params,
+)
 def load_fig7(arm: ArmModel, data: DataSpec, params: Fig7Params, path: Path) -> LearningDatabase:
     """The learning database of ``data`` for the CBHA ``arm`` (:func:`build_database`).
 

@@ -61,13 +61,21 @@ from optikin.baselines.nn_database import LearningDatabase
 
 VARIABLES = ("Z", "theta", "psi")
 ACTIVATIONS: dict[str, Callable[[np.ndarray], np.ndarray]] = {
-    "tanh": np.tanh, "logistic": expit, "relu": lambda a: np.maximum(a, 0.0), "identity": lambda a: a}
+    "tanh": np.tanh,
+    "logistic": expit,
+    "relu": lambda a: np.maximum(a, 0.0),
+    "identity": lambda a: a,
+}
 """Hidden-layer activations of scikit-learn's MLPRegressor, for :meth:`TrainedModel.predict`."""
 
 SEED_TABLE_II = {"fkm_section1": (18, 6.4612e-5), "fkm_section2": (18, 8.2425e-5)}
 """Seed 004 Table II: (neurons, test MSE) of the forward model of each section."""
-SEED_TABLE_III = {"ikm_nn1": (18, 4.9840e-4), "ikm_nn2": (12, 1.2363e-5), "ikm_nn3": (16, 4.0503e-5),
-                  "ikm_nn4": (16, 3.4651e-5)}
+SEED_TABLE_III = {
+    "ikm_nn1": (18, 4.9840e-4),
+    "ikm_nn2": (12, 1.2363e-5),
+    "ikm_nn3": (16, 4.0503e-5),
+    "ikm_nn4": (16, 3.4651e-5),
+}
 """Seed 004 Table III: (neurons, test MSE) of the inverse models NN1-NN4."""
 
 
@@ -125,8 +133,15 @@ def inverse_tasks(db: LearningDatabase) -> list[Task]:
     n = 3 * db.geometry.n_platforms
     tasks = [Task("ikm_nn1", "IKM NN1: tip -> end of section 1", ("ends", (0, 1, 2)), ("ends", (3, 4, 5)), True)]
     for i, variable in enumerate(VARIABLES):
-        tasks.append(Task(f"ikm_nn{i + 2}", f"IKM NN{i + 2}: tip, end 1 -> {variable}_k",
-                          ("ends", tuple(range(6))), ("configurations", tuple(range(i, n, 3))), True))
+        tasks.append(
+            Task(
+                f"ikm_nn{i + 2}",
+                f"IKM NN{i + 2}: tip, end 1 -> {variable}_k",
+                ("ends", tuple(range(6))),
+                ("configurations", tuple(range(i, n, 3))),
+                True,
+            )
+        )
     return tasks
 
 
@@ -173,8 +188,9 @@ class TrainingSetting:
 
     def small(self) -> "TrainingSetting":
         """A quick version for tests and notebooks: two widths, at most 15 epochs."""
-        return replace(self, neurons=self.neurons[-2:] if self.name == "adam-wide" else (4, 8),
-                       max_epochs=15, patience=4)
+        return replace(
+            self, neurons=self.neurons[-2:] if self.name == "adam-wide" else (4, 8), max_epochs=15, patience=4
+        )
 
 
 SETTINGS = {
@@ -300,8 +316,9 @@ def _affine(A: np.ndarray, scaling: bool) -> tuple[np.ndarray, np.ndarray]:
     return A.mean(axis=0), np.where(scale > 0, scale, 1.0)
 
 
-def _fit_width(network: MLPRegressor, Xs: np.ndarray, Ys: np.ndarray, criterion: Callable[[], float],
-               setting: TrainingSetting) -> tuple[float, int]:
+def _fit_width(
+    network: MLPRegressor, Xs: np.ndarray, Ys: np.ndarray, criterion: Callable[[], float], setting: TrainingSetting
+) -> tuple[float, int]:
     """Epochs of ``partial_fit`` until the validation criterion stalls; restores the best weights."""
     best, best_epoch, best_weights = np.inf, 0, None
     for epoch in range(1, setting.max_epochs + 1):
@@ -317,8 +334,13 @@ def _fit_width(network: MLPRegressor, Xs: np.ndarray, Ys: np.ndarray, criterion:
     return float(best), best_epoch
 
 
-def train_model(task: Task, db: LearningDatabase, setting: TrainingSetting, penalty: float = 0.0,
-                on_width: Callable[[int, float], None] | None = None) -> TrainedModel:
+def train_model(
+    task: Task,
+    db: LearningDatabase,
+    setting: TrainingSetting,
+    penalty: float = 0.0,
+    on_width: Callable[[int, float], None] | None = None,
+) -> TrainedModel:
     """Train ``task`` for every width of ``setting`` and keep the best on the validation split.
 
     ``penalty`` is ``lambda`` of eq. (11) (inverse models only). The validation criterion is
@@ -340,10 +362,17 @@ def train_model(task: Task, db: LearningDatabase, setting: TrainingSetting, pena
     with threadpool_limits(1):  # tiny matrices: BLAS threads only add overhead
         for n in setting.neurons:
             network = MLPRegressor(
-                hidden_layer_sizes=(n, n), activation=setting.activation, solver=setting.solver, alpha=0.0,
-                batch_size=min(setting.batch_size, len(Xs)), learning_rate_init=setting.learning_rate,
-                momentum=setting.momentum, nesterovs_momentum=False, shuffle=True,
-                random_state=_random_state(db, task, n))
+                hidden_layer_sizes=(n, n),
+                activation=setting.activation,
+                solver=setting.solver,
+                alpha=0.0,
+                batch_size=min(setting.batch_size, len(Xs)),
+                learning_rate_init=setting.learning_rate,
+                momentum=setting.momentum,
+                nesterovs_momentum=False,
+                shuffle=True,
+                random_state=_random_state(db, task, n),
+            )
 
             def criterion() -> float:
                 P = forward_pass(Network.from_sklearn(network), Xv) * y_sc + y_off
@@ -355,11 +384,20 @@ def train_model(task: Task, db: LearningDatabase, setting: TrainingSetting, pena
                 on_width(n, value)
     elapsed = time.perf_counter() - start
     best = min(results, key=lambda n: (results[n][0], n))
-    return TrainedModel(task=task, setting=setting, penalty=float(penalty), neurons=best,
-                        network=Network.from_sklearn(results[best][2]), x_offset=x_off, x_scale=x_sc,
-                        y_offset=y_off, y_scale=y_sc,
-                        search={n: r[0] for n, r in results.items()}, epochs={n: r[1] for n, r in results.items()},
-                        training_time=elapsed)
+    return TrainedModel(
+        task=task,
+        setting=setting,
+        penalty=float(penalty),
+        neurons=best,
+        network=Network.from_sklearn(results[best][2]),
+        x_offset=x_off,
+        x_scale=x_sc,
+        y_offset=y_off,
+        y_scale=y_sc,
+        search={n: r[0] for n, r in results.items()},
+        epochs={n: r[1] for n, r in results.items()},
+        training_time=elapsed,
+    )
 
 
 # ---------------------------------------------------------------------------------------- hybrid models
@@ -374,8 +412,9 @@ def hybrid_forward_configurations(models: list[TrainedModel], legs: np.ndarray) 
     return Q
 
 
-def hybrid_inverse_configurations(models: list[TrainedModel], tip: np.ndarray,
-                                  section1_end: np.ndarray | None = None) -> np.ndarray:
+def hybrid_inverse_configurations(
+    models: list[TrainedModel], tip: np.ndarray, section1_end: np.ndarray | None = None
+) -> np.ndarray:
     """Fig. 10: NN1 gives the end of section 1, NN2-NN4 every ``(Z_k, theta_k, psi_k)``; ``(n, 48)``.
 
     ``section1_end`` ``(n, 3)``, when given (e.g. measured), replaces NN1's prediction, which

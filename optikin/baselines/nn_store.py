@@ -90,8 +90,12 @@ def store_metadata(models: list[TrainedModel], db: LearningDatabase) -> dict[str
         "format": FORMAT,
         "format_version": FORMAT_VERSION,
         "created": datetime.now(timezone.utc).isoformat(timespec="seconds"),
-        "versions": {"optikin": __version__, "scikit-learn": sklearn.__version__, "numpy": np.__version__,
-                     "python": platform.python_version()},
+        "versions": {
+            "optikin": __version__,
+            "scikit-learn": sklearn.__version__,
+            "numpy": np.__version__,
+            "python": platform.python_version(),
+        },
         "geometry": asdict(db.geometry),
         "database": db.spec.as_dict(),
         "database rows": {"train": len(db.train), "validation": len(db.validation), "test": len(db.test)},
@@ -107,9 +111,11 @@ def model_arrays(model: TrainedModel) -> dict[str, np.ndarray]:
     arrays |= {f"intercept{i}": b for i, b in enumerate(net.intercepts)}
     arrays |= {"activation": np.array(net.activation)}
     arrays |= {name: np.asarray(getattr(model, name), dtype=float) for name in MAPS}
-    arrays |= {"search_widths": np.array(widths, dtype=np.int64),
-               "search_values": np.array([model.search[n] for n in widths], dtype=float),
-               "search_epochs": np.array([model.epochs[n] for n in widths], dtype=np.int64)}
+    arrays |= {
+        "search_widths": np.array(widths, dtype=np.int64),
+        "search_values": np.array([model.search[n] for n in widths], dtype=float),
+        "search_epochs": np.array([model.epochs[n] for n in widths], dtype=np.int64),
+    }
     return {f"{key}.{name}": a for name, a in arrays.items()}
 
 
@@ -154,8 +160,12 @@ def read_metadata(path: str | Path) -> dict[str, Any]:
     if not isinstance(metadata, dict) or metadata.get("format") != FORMAT:
         raise InputDataError(f"not a {FORMAT} store", source=source, field="format")
     if metadata.get("format_version") != FORMAT_VERSION:
-        raise InputDataError(f"format version {metadata.get('format_version')!r}, this optikin reads "
-                             f"{FORMAT_VERSION}; retrain (delete the store)", source=source, field="format_version")
+        raise InputDataError(
+            f"format version {metadata.get('format_version')!r}, this optikin reads "
+            f"{FORMAT_VERSION}; retrain (delete the store)",
+            source=source,
+            field="format_version",
+        )
     return metadata
 
 
@@ -176,8 +186,11 @@ def _check_section(stored: Any, expected: dict, section: str, source: str) -> No
         if key not in stored:
             raise InputDataError(f"missing; the problem has {value!r}", source=source, field=f"{section}.{key}")
         if not _same(stored[key], value):
-            raise InputDataError(f"models were trained with {stored[key]!r}, the problem has {value!r}",
-                                 source=source, field=f"{section}.{key}")
+            raise InputDataError(
+                f"models were trained with {stored[key]!r}, the problem has {value!r}",
+                source=source,
+                field=f"{section}.{key}",
+            )
 
 
 def _rebuild(described: dict[str, Any], weights: Any, source: str) -> TrainedModel:
@@ -189,49 +202,80 @@ def _rebuild(described: dict[str, Any], weights: Any, source: str) -> TrainedMod
         try:
             return weights[f"{key}.{name}"]
         except KeyError:
-            raise InputDataError(f"{WEIGHTS} has no array {key}.{name}", source=source,
-                                 field=f"{field}.{name}") from None
+            raise InputDataError(
+                f"{WEIGHTS} has no array {key}.{name}", source=source, field=f"{field}.{name}"
+            ) from None
         except ValueError as exc:  # an object array, which would need pickle
             raise InputDataError(f"{WEIGHTS}: {key}.{name}: {exc}", source=source, field=f"{field}.{name}") from None
 
     layers = sum(1 for name in weights.files if name.startswith(f"{key}.coef"))
     try:
-        network = Network(tuple(array(f"coef{i}") for i in range(layers)),
-                          tuple(array(f"intercept{i}") for i in range(layers)), str(array("activation")))
+        network = Network(
+            tuple(array(f"coef{i}") for i in range(layers)),
+            tuple(array(f"intercept{i}") for i in range(layers)),
+            str(array("activation")),
+        )
     except ValueError as exc:
         raise InputDataError(f"{WEIGHTS}: {exc}", source=source, field=f"{field}.network") from None
     maps = {name: array(name) for name in MAPS}
-    sizes = {"x_offset": network.coefs[0].shape[0], "x_scale": network.coefs[0].shape[0],
-             "y_offset": network.coefs[-1].shape[1], "y_scale": network.coefs[-1].shape[1]}
+    sizes = {
+        "x_offset": network.coefs[0].shape[0],
+        "x_scale": network.coefs[0].shape[0],
+        "y_offset": network.coefs[-1].shape[1],
+        "y_scale": network.coefs[-1].shape[1],
+    }
     for name, size in sizes.items():
         if maps[name].shape != (size,):
-            raise InputDataError(f"shape {maps[name].shape}, the network needs ({size},)", source=source,
-                                 field=f"{field}.{name}")
+            raise InputDataError(
+                f"shape {maps[name].shape}, the network needs ({size},)", source=source, field=f"{field}.{name}"
+            )
     widths, values, epochs = array("search_widths"), array("search_values"), array("search_epochs")
     if not widths.shape == values.shape == epochs.shape:
-        raise InputDataError("search_widths, search_values and search_epochs differ in length", source=source,
-                             field=f"{field}.search")
+        raise InputDataError(
+            "search_widths, search_values and search_epochs differ in length", source=source, field=f"{field}.search"
+        )
     try:
-        task = Task(key, described["title"], (described["inputs"][0], tuple(described["inputs"][1])),
-                    (described["outputs"][0], tuple(described["outputs"][1])), bool(described["penalised"]))
+        task = Task(
+            key,
+            described["title"],
+            (described["inputs"][0], tuple(described["inputs"][1])),
+            (described["outputs"][0], tuple(described["outputs"][1])),
+            bool(described["penalised"]),
+        )
         setting = TrainingSetting(**described["setting"])
         neurons, penalty = int(described["neurons"]), float(described["penalty"])
         training_time = float(described["training time [s]"])
     except (KeyError, IndexError, TypeError, ValueError) as exc:
         raise InputDataError(f"incomplete description: {exc!r}", source=source, field=field) from None
     if (len(task.inputs[1]), len(task.outputs[1])) != (sizes["x_offset"], sizes["y_offset"]):
-        raise InputDataError(f"the network maps {sizes['x_offset']} to {sizes['y_offset']} values, the task "
-                             f"{len(task.inputs[1])} to {len(task.outputs[1])}", source=source, field=f"{field}.inputs")
+        raise InputDataError(
+            f"the network maps {sizes['x_offset']} to {sizes['y_offset']} values, the task "
+            f"{len(task.inputs[1])} to {len(task.outputs[1])}",
+            source=source,
+            field=f"{field}.inputs",
+        )
     if network.hidden_layer_sizes[:1] != (neurons,):
-        raise InputDataError(f"the network has hidden layers {network.hidden_layer_sizes}, the metadata {neurons} "
-                             "neurons", source=source, field=f"{field}.neurons")
-    return TrainedModel(task=task, setting=setting, penalty=penalty, neurons=neurons, network=network, **maps,
-                        search={int(n): float(v) for n, v in zip(widths, values)},
-                        epochs={int(n): int(e) for n, e in zip(widths, epochs)}, training_time=training_time)
+        raise InputDataError(
+            f"the network has hidden layers {network.hidden_layer_sizes}, the metadata {neurons} neurons",
+            source=source,
+            field=f"{field}.neurons",
+        )
+    return TrainedModel(
+        task=task,
+        setting=setting,
+        penalty=penalty,
+        neurons=neurons,
+        network=network,
+        **maps,
+        search={int(n): float(v) for n, v in zip(widths, values)},
+        epochs={int(n): int(e) for n, e in zip(widths, epochs)},
+        training_time=training_time,
+    )
 
 
-def load_models(path: str | Path, geometry: CBHAGeometry, spec: DatabaseSpec,
-                required: dict[str, tuple[TrainingSetting, float]]) -> list[TrainedModel]:
+def load_models(
+    path: str | Path, geometry: CBHAGeometry, spec: DatabaseSpec, required: dict[str, tuple[TrainingSetting, float]]
+) -> list[TrainedModel]:
     """The models of the store ``path`` for the tasks in ``required`` (task key -> (setting, penalty)).
 
     Raises :class:`InputDataError` naming the store and the field when anything differs from
@@ -248,21 +292,26 @@ def load_models(path: str | Path, geometry: CBHAGeometry, spec: DatabaseSpec,
     described = {m["task"]: m for m in entries}
     for key, (setting, penalty) in required.items():
         if key not in described:
-            raise InputDataError(f"no model {key!r}; the store holds {', '.join(described) or 'none'}",
-                                 source=source, field="models")
-        _check_section(described[key].get("setting"), json.loads(json.dumps(asdict(setting))),
-                       f"models.{key}.setting", source)
+            raise InputDataError(
+                f"no model {key!r}; the store holds {', '.join(described) or 'none'}", source=source, field="models"
+            )
+        _check_section(
+            described[key].get("setting"), json.loads(json.dumps(asdict(setting))), f"models.{key}.setting", source
+        )
         if not _same(described[key].get("penalty"), float(penalty)):
-            raise InputDataError(f"trained with penalty {described[key].get('penalty')}, the problem asks for "
-                                 f"{penalty}", source=source, field=f"models.{key}.penalty")
+            raise InputDataError(
+                f"trained with penalty {described[key].get('penalty')}, the problem asks for {penalty}",
+                source=source,
+                field=f"models.{key}.penalty",
+            )
     try:
         data = (path / WEIGHTS).read_bytes()
     except OSError as exc:
-        raise InputDataError(f"cannot read {WEIGHTS}: {exc.strerror or exc}", source=source,
-                             field=WEIGHTS) from None
+        raise InputDataError(f"cannot read {WEIGHTS}: {exc.strerror or exc}", source=source, field=WEIGHTS) from None
     if hashlib.sha256(data).hexdigest() != metadata.get("sha256"):
-        raise InputDataError(f"{WEIGHTS} differs from the checksum in {METADATA} (changed or damaged)",
-                             source=source, field="sha256")
+        raise InputDataError(
+            f"{WEIGHTS} differs from the checksum in {METADATA} (changed or damaged)", source=source, field="sha256"
+        )
     try:
         with np.load(io.BytesIO(data), allow_pickle=False) as weights:
             return [_rebuild(described[key], weights, source) for key in required]

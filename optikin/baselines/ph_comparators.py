@@ -108,13 +108,20 @@ def section_end_markers(arm: CBHAArm, recording: MarkerRecording, source: str) -
     wanted = [end + 1 for end in arm.section_end_vertebrae[:-1]]  # 1-based, as the layout
     layout = recording.marker_vertebrae
     if not layout:
-        raise InputDataError(f"newton-raphson needs a marker on vertebrae {wanted} (the section ends); the recording "
-                             f"does not say which vertebrae its {recording.markers.shape[1]} markers are on: give "
-                             "data.params.intermediate", source=source, field="data.params.intermediate")
+        raise InputDataError(
+            f"newton-raphson needs a marker on vertebrae {wanted} (the section ends); the recording "
+            f"does not say which vertebrae its {recording.markers.shape[1]} markers are on: give "
+            "data.params.intermediate",
+            source=source,
+            field="data.params.intermediate",
+        )
     if not set(wanted) <= set(layout):
-        raise InputDataError(f"newton-raphson needs a marker on vertebrae {wanted} (the section ends); the "
-                             f"recording's markers are on vertebrae {list(layout)}", source=source,
-                             field="data.params.intermediate")
+        raise InputDataError(
+            f"newton-raphson needs a marker on vertebrae {wanted} (the section ends); the "
+            f"recording's markers are on vertebrae {list(layout)}",
+            source=source,
+            field="data.params.intermediate",
+        )
     return [layout.index(v) for v in wanted]
 
 
@@ -137,9 +144,15 @@ def relative_tip_poses(recording: MarkerRecording) -> np.ndarray:
 
 def newton_raphson_problem(arm: CBHAArm, target: str = "sections") -> LeastSquaresProblem:
     """A comparator's square system: ``target`` (``sections`` or ``pose``) and the affine distribution."""
-    formulation = Formulation(target=target, redundancy="previous", rest=rest_configuration(arm),
-                              weights=1.0 / (arm.upper - arm.lower), tolerance=NR_TOLERANCE,
-                              orientation_length=reach_bound(arm), elongation=NR_ELONGATION)
+    formulation = Formulation(
+        target=target,
+        redundancy="previous",
+        rest=rest_configuration(arm),
+        weights=1.0 / (arm.upper - arm.lower),
+        tolerance=NR_TOLERANCE,
+        orientation_length=reach_bound(arm),
+        elongation=NR_ELONGATION,
+    )
     problem = build_problem(arm, formulation)
     assert isinstance(problem, LeastSquaresProblem), "a sections or pose target builds one problem"
     return problem
@@ -153,8 +166,9 @@ def newton_raphson_targets(arm: CBHAArm, recording: MarkerRecording, target: str
     return relative_section_ends(recording, section_end_markers(arm, recording, source))
 
 
-def newton_raphson_step(arm: CBHAArm, newton: NonlinearAdapter, problem: LeastSquaresProblem, start: np.ndarray,
-                        target: np.ndarray) -> tuple[Solution, np.ndarray, float]:
+def newton_raphson_step(
+    arm: CBHAArm, newton: NonlinearAdapter, problem: LeastSquaresProblem, start: np.ndarray, target: np.ndarray
+) -> tuple[Solution, np.ndarray, float]:
     """One posture: the Newton report, the whole tube lengths ``(3,)`` (NaN unless ``ok``) and the seconds
     of the solve plus the tube lengths."""
     report = newton.solve(problem, start, target)
@@ -165,8 +179,9 @@ def newton_raphson_step(arm: CBHAArm, newton: NonlinearAdapter, problem: LeastSq
     return report, lengths, report.seconds + time.perf_counter() - tic
 
 
-def newton_raphson_tube_lengths(arm: CBHAArm, recording: MarkerRecording, target: str,
-                                source: str = "") -> ComparatorRun:
+def newton_raphson_tube_lengths(
+    arm: CBHAArm, recording: MarkerRecording, target: str, source: str = ""
+) -> ComparatorRun:
     """A Newton-Raphson comparator along the recording (module docstring)."""
     targets = newton_raphson_targets(arm, recording, target, source)
     problem, newton = newton_raphson_problem(arm, target), build_preset(NR_PRESET)
@@ -195,9 +210,12 @@ def hybrid_run(arm: CBHAArm, recording: MarkerRecording, store: Path) -> Compara
     """The hybrid networks of ``store`` from the tip position relative to the base (module docstring)."""
     lengths, seconds = hybrid_tube_lengths(arm, relative_section_ends(recording, []), load_hybrid_models(arm, store))
     finite = np.all(np.isfinite(lengths), axis=1)
-    return ComparatorRun(np.where(finite[:, None], lengths, np.nan), seconds,
-                         ["ok" if f else "failed" for f in finite],
-                         ["" if f else "non-finite prediction" for f in finite])
+    return ComparatorRun(
+        np.where(finite[:, None], lengths, np.nan),
+        seconds,
+        ["ok" if f else "failed" for f in finite],
+        ["" if f else "non-finite prediction" for f in finite],
+    )
 
 
 def run_comparator(arm: CBHAArm, name: str, recording: MarkerRecording, source: str = "") -> ComparatorRun:

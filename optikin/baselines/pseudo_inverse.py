@@ -34,8 +34,15 @@ class PseudoInverseController(Controller):
 
     name = "pseudo-inverse"
 
-    def __init__(self, arm: ArmModel, dt: float, task: Task = "pose", gain=10.0, rcond: float = PINV_RCOND,
-                 compiled: bool = False):
+    def __init__(
+        self,
+        arm: ArmModel,
+        dt: float,
+        task: Task = "pose",
+        gain=10.0,
+        rcond: float = PINV_RCOND,
+        compiled: bool = False,
+    ):
         super().__init__(arm, dt, task, gain, compiled)
         self.rcond = float(rcond)
 
@@ -49,8 +56,9 @@ class DampedLeastSquaresController(Controller):
 
     name = "damped least squares"
 
-    def __init__(self, arm: ArmModel, dt: float, task: Task = "pose", gain=10.0, damping: float = 1e-4,
-                 compiled: bool = False):
+    def __init__(
+        self, arm: ArmModel, dt: float, task: Task = "pose", gain=10.0, damping: float = 1e-4, compiled: bool = False
+    ):
         super().__init__(arm, dt, task, gain, compiled)
         if not damping > 0:
             raise ValueError(f"damping must be positive, got {damping}")

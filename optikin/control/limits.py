@@ -80,8 +80,17 @@ class RateBounds:
     of the distance to a limit one step may cover.
     """
 
-    def __init__(self, arm: ArmModel, dt: float, rate_limits=None, margin: float | Sequence[float] = 1e-9,
-                 periodic: Sequence[str] | None = None, lower=None, upper=None, gain: float = 1.0):
+    def __init__(
+        self,
+        arm: ArmModel,
+        dt: float,
+        rate_limits=None,
+        margin: float | Sequence[float] = 1e-9,
+        periodic: Sequence[str] | None = None,
+        lower=None,
+        upper=None,
+        gain: float = 1.0,
+    ):
         if not dt > 0:
             raise ValueError(f"dt must be positive, got {dt}")
         if not 0 < gain <= 1:

@@ -71,10 +71,22 @@ class QPController(Controller):
 
     name = "qp"
 
-    def __init__(self, arm: ArmModel, dt: float, task: Task = "pose", gain: float | Sequence[float] = 10.0,
-                 damping: float = 1e-4, *, solver: QPStepSolver, rate_limits=None,
-                 margin: float | Sequence[float] = 1e-9, periodic: Sequence[str] | None = None,
-                 limit_gain: float = 1.0, fallback: Fallback = "hold", compiled: bool = False):
+    def __init__(
+        self,
+        arm: ArmModel,
+        dt: float,
+        task: Task = "pose",
+        gain: float | Sequence[float] = 10.0,
+        damping: float = 1e-4,
+        *,
+        solver: QPStepSolver,
+        rate_limits=None,
+        margin: float | Sequence[float] = 1e-9,
+        periodic: Sequence[str] | None = None,
+        limit_gain: float = 1.0,
+        fallback: Fallback = "hold",
+        compiled: bool = False,
+    ):
         super().__init__(arm, dt, task, gain, compiled)
         if not damping >= 0:
             raise ValueError(f"damping must be non-negative, got {damping}")

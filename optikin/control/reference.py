@@ -39,8 +39,10 @@ class Reference:
         m = task_dimension(self.task)
         n = len(self.t)
         if n < 2 or self.value.shape != (n, m) or self.rate.shape != (n, m):
-            raise ValueError(f"reference needs t (N >= 2,), value and rate (N, {m}); got {self.t.shape}, "
-                             f"{self.value.shape}, {self.rate.shape}")
+            raise ValueError(
+                f"reference needs t (N >= 2,), value and rate (N, {m}); got {self.t.shape}, "
+                f"{self.value.shape}, {self.rate.shape}"
+            )
         steps = np.diff(self.t)
         if np.any(steps <= 0) or np.ptp(steps) > 1e-9 * steps[0]:
             raise ValueError("reference times must be uniformly spaced and increasing")
@@ -84,8 +86,9 @@ def minimum_jerk_path(waypoints: np.ndarray, durations, rate: float, hold: float
     return t, W[segment] + s[:, None] * delta, sdot[:, None] * delta
 
 
-def reference_from_configurations(arm: ArmModel, t: np.ndarray, Q: np.ndarray, Qdot: np.ndarray,
-                                  task: Task = "pose") -> Reference:
+def reference_from_configurations(
+    arm: ArmModel, t: np.ndarray, Q: np.ndarray, Qdot: np.ndarray, task: Task = "pose"
+) -> Reference:
     """The tip reference ``x = fk(q(t))``, ``xdot = J(q(t)) qdot(t)`` of a configuration path."""
     fk_name, jac_name = TASK_FUNCTIONS[task]
     value = arm.evaluate(fk_name, Q)

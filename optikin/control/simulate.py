@@ -29,8 +29,15 @@ from typing import Any, Literal
 import casadi as ca
 import numpy as np
 
-from optikin.algebra import dq_from_rotation_translation, dq_rotation, dq_translation, quat_angle, quat_conjugate, \
-    quat_exp, quat_multiply
+from optikin.algebra import (
+    dq_from_rotation_translation,
+    dq_rotation,
+    dq_translation,
+    quat_angle,
+    quat_conjugate,
+    quat_exp,
+    quat_multiply,
+)
 from optikin.arms.base import ArmModel
 from optikin.control.base import Controller
 from optikin.fastcall import BufferedFunction
@@ -85,15 +92,15 @@ class TrackingRun:
     controller: str
     arm: ArmModel
     reference: Reference
-    q: np.ndarray                 # (N, n) plant configuration at each step
-    qdot: np.ndarray              # (N, n) commanded rates
-    x: np.ndarray                 # (N, m) true tip (position or dual quaternion)
+    q: np.ndarray  # (N, n) plant configuration at each step
+    qdot: np.ndarray  # (N, n) commanded rates
+    x: np.ndarray  # (N, m) true tip (position or dual quaternion)
     excess_after_command: np.ndarray  # (N, n) limit excess of q_k + dt qdot_k (disturbance held)
-    step_time: np.ndarray         # (N,) wall time of each command [s]
-    status: list[str]             # per step: "ok" or "fallback ...: reason"
-    slip: np.ndarray              # (N,) bound violation removed from the QP solution (0 for others)
-    gains: np.ndarray | None = None        # (N, m) MRAC gains
-    saturated: np.ndarray | None = None    # (N, m) MRAC gain saturated
+    step_time: np.ndarray  # (N,) wall time of each command [s]
+    status: list[str]  # per step: "ok" or "fallback ...: reason"
+    slip: np.ndarray  # (N,) bound violation removed from the QP solution (0 for others)
+    gains: np.ndarray | None = None  # (N, m) MRAC gains
+    saturated: np.ndarray | None = None  # (N, m) MRAC gain saturated
     notes: list[str] = field(default_factory=list)
 
     @property
@@ -146,17 +153,25 @@ class TrackingRun:
         last = max(1, int(round(tail * len(self.t))))
         out: dict[str, Any] = {}
         pos = self.position_error * MM
-        out |= {"position error rms [mm]": _rms(pos), "position error max [mm]": float(pos.max()),
-                "position error final [mm]": float(pos[-last:].mean())}
+        out |= {
+            "position error rms [mm]": _rms(pos),
+            "position error max [mm]": float(pos.max()),
+            "position error final [mm]": float(pos[-last:].mean()),
+        }
         angle = self.orientation_error
         if angle is not None:
             angle = angle * DEG
-            out |= {"orientation error rms [deg]": _rms(angle), "orientation error max [deg]": float(angle.max()),
-                    "orientation error final [deg]": float(angle[-last:].mean())}
+            out |= {
+                "orientation error rms [deg]": _rms(angle),
+                "orientation error max [deg]": float(angle.max()),
+                "orientation error final [deg]": float(angle[-last:].mean()),
+            }
         excess = self.excess
         controller_made = (self.excess_after_command > 0) & (self.excess_after_command >= excess)
-        out |= {"samples outside limits": int(np.any(excess > 0, axis=1).sum()),
-                "steps the controller kept or took outside": int(np.any(controller_made, axis=1).sum())}
+        out |= {
+            "samples outside limits": int(np.any(excess > 0, axis=1).sum()),
+            "steps the controller kept or took outside": int(np.any(controller_made, axis=1).sum()),
+        }
         for prefix, unit, scale in (("S", "mm", MM), ("theta", "deg", DEG)):
             cols = [i for i, n in enumerate(names) if n.startswith(prefix)]
             if cols:
@@ -167,11 +182,17 @@ class TrackingRun:
                 out[f"rms rate {prefix} [{unit}]"] = _rms(self.qdot[:, cols] * scale)
         out["control effort int |qdot|^2 dt"] = float(np.sum(self.qdot**2) * self.reference.dt)
         V = self.lyapunov
-        out |= {"V initial": float(V[0]), "V final": float(V[-last:].mean()),
-                "V increasing steps": int(np.sum((np.diff(V) > 0) & (V[1:] > lyapunov_floor)))}
+        out |= {
+            "V initial": float(V[0]),
+            "V final": float(V[-last:].mean()),
+            "V increasing steps": int(np.sum((np.diff(V) > 0) & (V[1:] > lyapunov_floor))),
+        }
         us = self.step_time * 1e6
-        out |= {"step time median [us]": float(np.median(us)), "step time p95 [us]": float(np.percentile(us, 95)),
-                "step time max [us]": float(us.max())}
+        out |= {
+            "step time median [us]": float(np.median(us)),
+            "step time p95 [us]": float(np.percentile(us, 95)),
+            "step time max [us]": float(us.max()),
+        }
         fallbacks = [i for i, s in enumerate(self.status) if s != "ok"]
         out["fallback steps"] = len(fallbacks)
         if fallbacks:
@@ -189,8 +210,9 @@ def _rms(x: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.square(x))))
 
 
-def simulate(controller: Controller, reference: Reference, q0: np.ndarray, plant: Plant = Plant(),
-             seed: int = 0) -> TrackingRun:
+def simulate(
+    controller: Controller, reference: Reference, q0: np.ndarray, plant: Plant = Plant(), seed: int = 0
+) -> TrackingRun:
     """Run ``controller`` along ``reference`` from configuration ``q0`` on ``plant`` (see the module docstring)."""
     arm = controller.arm
     if reference.task != controller.task:
@@ -239,8 +261,9 @@ def simulate(controller: Controller, reference: Reference, q0: np.ndarray, plant
         if gains is not None and saturated is not None:
             gains[k], saturated[k] = controller.gain, getattr(controller, "saturated")
         z = wrap_periodic(z + dt * qdot, wrapped)
-    return TrackingRun(controller.name, arm, reference, Q, Qdot, X, limit_excess(arm, after), step_time, status,
-                       slip, gains, saturated)
+    return TrackingRun(
+        controller.name, arm, reference, Q, Qdot, X, limit_excess(arm, after), step_time, status, slip, gains, saturated
+    )
 
 
 def _noisy_tip(x: np.ndarray, task: str, plant: Plant, rng: np.random.Generator) -> np.ndarray:

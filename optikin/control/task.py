@@ -62,9 +62,13 @@ def task_step_function(arm: ArmModel, task: Task) -> ca.Function:
     rows, cols = upper_triangle_csc_indices(n)
     H_upper = ca.vertcat(*[H[int(i), int(j)] for i, j in zip(rows, cols)])
     g = -J.T @ v
-    return ca.Function(f"{arm.name}_{task}_step", [q, x, x_ref, xdot_ref, k, damping],
-                       [J, e, v, H, H_upper, g],
-                       ["q", "x", "x_ref", "xdot_ref", "k", "damping"], ["J", "e", "v", "H", "H_upper", "g"])
+    return ca.Function(
+        f"{arm.name}_{task}_step",
+        [q, x, x_ref, xdot_ref, k, damping],
+        [J, e, v, H, H_upper, g],
+        ["q", "x", "x_ref", "xdot_ref", "k", "damping"],
+        ["J", "e", "v", "H", "H_upper", "g"],
+    )
 
 
 class TaskModel:

@@ -36,6 +36,17 @@ from optikin.curves.ph_quintic import (
     validate_hermite_data,
 )
 
-__all__ = ["EnergySettings", "HermiteFamily", "PHQuintic", "ShapeData", "ShapeEnergyModel", "ShapeParameters",
-           "ShapeSolution", "arc_length_estimate", "hermite_family", "ph_quintic_hermite", "preimage",
-           "validate_hermite_data"]
+__all__ = [
+    "EnergySettings",
+    "HermiteFamily",
+    "PHQuintic",
+    "ShapeData",
+    "ShapeEnergyModel",
+    "ShapeParameters",
+    "ShapeSolution",
+    "arc_length_estimate",
+    "hermite_family",
+    "ph_quintic_hermite",
+    "preimage",
+    "validate_hermite_data",
+]

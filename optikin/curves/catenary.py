@@ -147,7 +147,8 @@ def catenary(start, end, length: float, gravity=GRAVITY_DIRECTION, *, source: st
     distance = math.hypot(span, rise)
     if length < distance * (1.0 - 1e-12):
         raise InputDataError(
-            f"rope of length {length:.6g} cannot reach between points {distance:.6g} apart", source=source,
+            f"rope of length {length:.6g} cannot reach between points {distance:.6g} apart",
+            source=source,
             field="length",
         )
     if span <= 1e-12 * length:

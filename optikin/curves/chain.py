@@ -47,14 +47,26 @@ def c1_links(points: np.ndarray, directions: np.ndarray, speeds: np.ndarray, *, 
     points, directions = np.asarray(points, dtype=float), np.asarray(directions, dtype=float)
     speeds = np.asarray(speeds, dtype=float)
     if points.ndim != 2 or points.shape[1] != 3 or points.shape[0] < 2:
-        raise InputDataError(f"expected joint points of shape (m+1, 3), m >= 1, got {points.shape}", source=source,
-                             field="points")
+        raise InputDataError(
+            f"expected joint points of shape (m+1, 3), m >= 1, got {points.shape}", source=source, field="points"
+        )
     if directions.shape != points.shape or speeds.shape != points.shape[:1]:
-        raise InputDataError(f"need one direction and one speed per joint ({points.shape[0]}), got "
-                             f"{directions.shape} and {speeds.shape}", source=source, field="directions")
+        raise InputDataError(
+            f"need one direction and one speed per joint ({points.shape[0]}), got "
+            f"{directions.shape} and {speeds.shape}",
+            source=source,
+            field="directions",
+        )
     return [
-        ShapeData.checked(points[k], directions[k], points[k + 1], directions[k + 1],
-                          speeds=(speeds[k], speeds[k + 1]), source=source, sample=k)
+        ShapeData.checked(
+            points[k],
+            directions[k],
+            points[k + 1],
+            directions[k + 1],
+            speeds=(speeds[k], speeds[k + 1]),
+            source=source,
+            sample=k,
+        )
         for k in range(points.shape[0] - 1)
     ]
 
@@ -70,28 +82,47 @@ def check_joints(links: Sequence[ShapeData], continuity: str, *, source: str = "
         before, after = links[k - 1], links[k]
         gap = np.linalg.norm(after.p0 - before.p1)
         if gap > JOINT_TOLERANCE * size:
-            raise InputDataError(f"link starts {gap:.3g} away from the end of link {k - 1} (C0 needs r_k(1) = "
-                                 f"r_k+1(0), seed 002 eqs. 17, 21)", source=source, sample=k, field="p0")
+            raise InputDataError(
+                f"link starts {gap:.3g} away from the end of link {k - 1} (C0 needs r_k(1) = "
+                f"r_k+1(0), seed 002 eqs. 17, 21)",
+                source=source,
+                sample=k,
+                field="p0",
+            )
         if continuity == "C1":
             if before.speeds is None or after.speeds is None:
-                raise InputDataError("a C1 chain needs the end speeds of every link", source=source, sample=k,
-                                     field="speeds")
+                raise InputDataError(
+                    "a C1 chain needs the end speeds of every link", source=source, sample=k, field="speeds"
+                )
             d_end = before.speeds[1] * before.t1
             d_start = after.speeds[0] * after.t0
             if np.linalg.norm(d_start - d_end) > JOINT_TOLERANCE * max(float(np.linalg.norm(d_end)), size):
-                raise InputDataError(f"start derivative differs from the end derivative of link {k - 1} "
-                                     f"(C1 needs r_k'(1) = r_k+1'(0), seed 002 eqs. 16, 18)", source=source,
-                                     sample=k, field="t0")
+                raise InputDataError(
+                    f"start derivative differs from the end derivative of link {k - 1} "
+                    f"(C1 needs r_k'(1) = r_k+1'(0), seed 002 eqs. 16, 18)",
+                    source=source,
+                    sample=k,
+                    field="t0",
+                )
 
 
-def solve_chain(links: Sequence[ShapeData], model: ShapeEnergyModel, continuity: str = "C0", *,
-                method: str = "newton", source: str = "") -> list[ChainLink]:
+def solve_chain(
+    links: Sequence[ShapeData],
+    model: ShapeEnergyModel,
+    continuity: str = "C0",
+    *,
+    method: str = "newton",
+    source: str = "",
+) -> list[ChainLink]:
     """Minimum-energy PH quintic for every link, after checking the joints for ``continuity``."""
     check_joints(links, continuity, source=source)
     if continuity == "C1" and model.free_speeds:
         raise ValueError("a C1 chain fixes the speeds at its joints: use a model with given speeds")
     solvers: dict[str, Callable[[ShapeData], ShapeSolution]] = {
-        "newton": model.solve_newton, "nlp": model.solve_nlp, "grid": model.solve_grid}
+        "newton": model.solve_newton,
+        "nlp": model.solve_nlp,
+        "grid": model.solve_grid,
+    }
     if method not in solvers:
         raise ValueError(f"unknown method {method!r}; known: {', '.join(solvers)}")
     links_out = []

@@ -122,8 +122,9 @@ def bending_energy(curve: PHQuintic, nodes: int = DEFAULT_NODES) -> Array:
     return density @ w
 
 
-def twist_energy(curve: PHQuintic, nodes: int = DEFAULT_NODES,
-                 curvature_floor: float = DEFAULT_CURVATURE_FLOOR) -> Array:
+def twist_energy(
+    curve: PHQuintic, nodes: int = DEFAULT_NODES, curvature_floor: float = DEFAULT_CURVATURE_FLOOR
+) -> Array:
     """Regularised ``int tau^2 ds`` by an ``nodes``-point Gauss-Legendre rule."""
     t, w = gauss_legendre_unit(nodes)
     return _integrate(twist_energy_density(curve, t, curvature_floor), w)

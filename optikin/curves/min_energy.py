@@ -59,7 +59,6 @@ GRID_SECANT_STEPS = 12
 """Secant steps of the free-speed grid; points whose length is still off are left out."""
 
 
-
 class ShapeParameters(NamedTuple):
     """The parameter vector ``P`` of :class:`ShapeEnergyModel`, by name.
 
@@ -82,7 +81,7 @@ class ShapeParameters(NamedTuple):
         """The fields of a parameter vector ``P`` (numpy ``(N_PARAMETERS,)`` or CasADi ``N_PARAMETERS x 1``)."""
         fields, start = [], 0
         for size in PARAMETER_SIZES:
-            fields.append(P[start: start + size] if size > 1 else P[start])
+            fields.append(P[start : start + size] if size > 1 else P[start])
             start += size
         return cls(*fields)
 
@@ -137,18 +136,25 @@ class ShapeData:
         if speeds is not None:
             speeds = tuple(float(s) for s in speeds)
             if len(speeds) != 2 or not all(math.isfinite(s) and s > 0 for s in speeds):
-                raise InputDataError(f"end speeds must be two positive numbers, got {speeds}", source=source,
-                                     sample=sample, field="speeds")
+                raise InputDataError(
+                    f"end speeds must be two positive numbers, got {speeds}",
+                    source=source,
+                    sample=sample,
+                    field="speeds",
+                )
         if length is not None:
             length = float(length)
             if not (math.isfinite(length) and length > 0):
-                raise InputDataError(f"backbone length must be positive, got {length}", source=source,
-                                     sample=sample, field="length")
+                raise InputDataError(
+                    f"backbone length must be positive, got {length}", source=source, sample=sample, field="length"
+                )
             chord = float(np.linalg.norm(vectors["p1"] - vectors["p0"]))
             if chord >= length * (1 + 1e-12):
                 raise InputDataError(
                     f"end points are {chord:.6g} apart, more than the backbone length {length:.6g}",
-                    source=source, sample=sample, field="length",
+                    source=source,
+                    sample=sample,
+                    field="length",
                 )
         return cls(vectors["p0"], vectors["t0"], vectors["p1"], vectors["t1"], speeds, length)
 
@@ -185,8 +191,7 @@ def arc_length_estimate(p0: np.ndarray, t0: np.ndarray, p1: np.ndarray, t1: np.n
     chord = p1 - p0
     c = np.linalg.norm(chord, axis=-1)
     u = chord / np.maximum(c, 1e-300)[..., None]
-    D = (np.arccos(np.clip(np.sum(t0 * u, axis=-1), -1.0, 1.0))
-         + np.arccos(np.clip(np.sum(t1 * u, axis=-1), -1.0, 1.0)))
+    D = np.arccos(np.clip(np.sum(t0 * u, axis=-1), -1.0, 1.0)) + np.arccos(np.clip(np.sum(t1 * u, axis=-1), -1.0, 1.0))
     half = 0.5 * D
     return c * np.where(half > 1e-8, half / np.maximum(np.sin(half), 1e-300), 1.0 + half**2 / 6.0)
 
@@ -251,8 +256,14 @@ class ShapeEnergyModel:
     once, cached on disk); otherwise they run in CasADi's virtual machine.
     """
 
-    def __init__(self, settings: EnergySettings = EnergySettings(), *, free_speeds: bool = False,
-                 compile: bool = False, coarse_grid: int = 12):
+    def __init__(
+        self,
+        settings: EnergySettings = EnergySettings(),
+        *,
+        free_speeds: bool = False,
+        compile: bool = False,
+        coarse_grid: int = 12,
+    ):
         self.settings = settings
         self.free_speeds = free_speeds
         self.compile = compile
@@ -300,11 +311,16 @@ class ShapeEnergyModel:
     # -- data checks --------------------------------------------------------------
     def _check(self, data: ShapeData, source: str = "", sample: int | None = None) -> np.ndarray:
         if self.free_speeds and data.length is None:
-            raise InputDataError("free end speeds need the backbone length (the arc-length constraint)",
-                                 source=source, sample=sample, field="length")
+            raise InputDataError(
+                "free end speeds need the backbone length (the arc-length constraint)",
+                source=source,
+                sample=sample,
+                field="length",
+            )
         if not self.free_speeds and data.speeds is None and data.length is None:
-            raise InputDataError("give the end speeds or the backbone length", source=source, sample=sample,
-                                 field="speeds")
+            raise InputDataError(
+                "give the end speeds or the backbone length", source=source, sample=sample, field="speeds"
+            )
         return data.parameters()
 
     def _bounds(self, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -347,8 +363,13 @@ class ShapeEnergyModel:
         problem = {"x": self._x, "p": self._P, "f": self._energy}
         if self.free_speeds:
             problem["g"] = self._length - self._parameters.length
-        options: dict[str, Any] = {"print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes", "ipopt.tol": 1e-12,
-                                   "ipopt.max_iter": 200}
+        options: dict[str, Any] = {
+            "print_time": False,
+            "ipopt.print_level": 0,
+            "ipopt.sb": "yes",
+            "ipopt.tol": 1e-12,
+            "ipopt.max_iter": 200,
+        }
         return ca.nlpsol("ph_min_energy", "ipopt", problem, options)
 
     def solve_nlp(self, data: ShapeData, x0: np.ndarray | None = None, starts: int = 3) -> ShapeSolution:
@@ -377,8 +398,18 @@ class ShapeEnergyModel:
         x[:2] = wrap_angle(x[:2])
         E, S = self.energy_function(x, P)
         E_fine, _ = self._fine_energy_function(x, P)
-        return ShapeSolution(x, "ok", iterations, seconds=seconds, method="ipopt", energy=float(E), arc_length=float(S),
-                             multiplier=best[2], quadrature_error=abs(float(E_fine) - float(E)), notes=statuses)
+        return ShapeSolution(
+            x,
+            "ok",
+            iterations,
+            seconds=seconds,
+            method="ipopt",
+            energy=float(E),
+            arc_length=float(S),
+            multiplier=best[2],
+            quadrature_error=abs(float(E_fine) - float(E)),
+            notes=statuses,
+        )
 
     @cached_property
     def _fine_energy_function(self) -> ca.Function:
@@ -410,8 +441,16 @@ class ShapeEnergyModel:
         k = int(np.argmin(E))
         seconds = time.perf_counter() - tic
         status = "ok" if np.isfinite(E[k]) else "failed"
-        return ShapeSolution(X[:, k].copy(), status, 0, seconds=seconds, method="grid", energy=float(E[k]),
-                             arc_length=float(S[k]), evaluations=X.shape[1])
+        return ShapeSolution(
+            X[:, k].copy(),
+            status,
+            0,
+            seconds=seconds,
+            method="grid",
+            energy=float(E[k]),
+            arc_length=float(S[k]),
+            evaluations=X.shape[1],
+        )
 
     def _grid_on_length(self, X2: np.ndarray, r: np.ndarray, P: np.ndarray):
         L = ShapeParameters.of(P).length
@@ -440,14 +479,23 @@ class ShapeEnergyModel:
     @cached_property
     def _newton_function(self) -> BufferedFunction:
         if self.free_speeds:
-            f = kkt_newton_function(self._energy, self._length - self._parameters.length, self._length, self._x,
-                                    self._P)
+            f = kkt_newton_function(
+                self._energy, self._length - self._parameters.length, self._length, self._x, self._P
+            )
         else:
             f = modified_newton_function(self._energy, self._length, self._x, self._P)
         return BufferedFunction(f, compiled=self.compile)
 
-    def solve_newton(self, data: ShapeData, x0: np.ndarray | None = None, *, tolerance: float = 1e-10,
-                     max_iterations: int = 50, fallback: bool = True, basin_check: bool = False) -> ShapeSolution:
+    def solve_newton(
+        self,
+        data: ShapeData,
+        x0: np.ndarray | None = None,
+        *,
+        tolerance: float = 1e-10,
+        max_iterations: int = 50,
+        fallback: bool = True,
+        basin_check: bool = False,
+    ) -> ShapeSolution:
         """Fast path: Newton from ``x0`` (or the best coarse-grid point).
 
         Converged means ``|grad L| <= tolerance (1 + |E|)`` (and ``|S - L| <= tolerance L``
@@ -477,11 +525,19 @@ class ShapeEnergyModel:
         if not ok and fallback:
             notes.append("Newton failed; IPOPT fallback")
             ref = self.solve_nlp(data, starts=3)
-            return replace(ref, method="newton", seconds=time.perf_counter() - tic, notes=notes + ref.notes,
-                           message="")
+            return replace(ref, method="newton", seconds=time.perf_counter() - tic, notes=notes + ref.notes, message="")
         x[0], x[1] = _wrap(x[0]), _wrap(x[1])
-        return ShapeSolution(x, "ok" if ok else "not_converged", iterations, seconds=time.perf_counter() - tic,
-                             method="newton", energy=E, arc_length=S, multiplier=lam, notes=notes)
+        return ShapeSolution(
+            x,
+            "ok" if ok else "not_converged",
+            iterations,
+            seconds=time.perf_counter() - tic,
+            method="newton",
+            energy=E,
+            arc_length=S,
+            multiplier=lam,
+            notes=notes,
+        )
 
     def _newton(self, x: np.ndarray, P: np.ndarray, tol: float, max_iterations: int):
         """``(x, multiplier, E, S, iterations, converged)``; the multiplier is NaN without the length constraint."""

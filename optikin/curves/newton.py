@@ -123,8 +123,14 @@ def kkt_newton_function(energy: ca.SX, constraint: ca.SX, length: ca.SX, x: ca.S
     return ca.Function("ph_kkt_newton", [x, P], [out])
 
 
-def kkt_newton(fn: BufferedFunction, x0, tol: float, length_scale: float, bounded: dict[int, tuple[float, float]],
-               max_iterations: int):
+def kkt_newton(
+    fn: BufferedFunction,
+    x0,
+    tol: float,
+    length_scale: float,
+    bounded: dict[int, tuple[float, float]],
+    max_iterations: int,
+):
     """Solve ``min E s.t. c = 0`` from ``x0``; returns ``(x, multiplier, E, S, iterations, converged)``.
 
     Steps of :func:`kkt_newton_function`, cut by a fraction-to-boundary rule on the
@@ -152,7 +158,7 @@ def kkt_newton(fn: BufferedFunction, x0, tol: float, length_scale: float, bounde
             return np.array(x), lam, E, S, it, inside
         if it == max_iterations:
             break
-        dx, a_scaled = vals[7:7 + n], vals[7 + n:]
+        dx, a_scaled = vals[7 : 7 + n], vals[7 + n :]
         penalty = max(penalty, 2.0 * abs(lam) + 1e-8)
         merit = E + penalty * abs(c)
         descent = slope - penalty * abs(c)

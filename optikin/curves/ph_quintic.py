@@ -396,7 +396,9 @@ def validate_hermite_data(p0, d0, p1, d1, *, source: str = "") -> tuple[np.ndarr
         if np.any(bad):
             raise InputDataError(
                 "end derivative has zero length: a PH quintic needs a direction and a non-zero speed at each end",
-                source=source, field=name, sample=_first(bad),
+                source=source,
+                field=name,
+                sample=_first(bad),
             )
     return out["p0"], out["d0"], out["p1"], out["d1"]
 
@@ -432,8 +434,15 @@ def hermite_family(p0: Array, d0: Array, p1: Array, d1: Array, *, source: str = 
 
 
 def ph_quintic_hermite(
-    p0: Array, d0: Array, p1: Array, d1: Array, phi0: Array = 0.0, phi2: Array = 0.0, phi1: Array = 0.0,
-    *, source: str = "",
+    p0: Array,
+    d0: Array,
+    p1: Array,
+    d1: Array,
+    phi0: Array = 0.0,
+    phi2: Array = 0.0,
+    phi1: Array = 0.0,
+    *,
+    source: str = "",
 ) -> PHQuintic:
     """The PH quintic Hermite interpolant of ``(p0, d0, p1, d1)`` with free angles ``(phi0, phi1, phi2)``."""
     return hermite_family(p0, d0, p1, d1, source=source).member(phi0, phi2, phi1)

@@ -111,8 +111,9 @@ class TubeLayout:
     def __post_init__(self):
         object.__setattr__(self, "angles", tuple(float(a) for a in self.angles))
         if not (self.radius_start >= 0 and self.radius_end >= 0 and math.isfinite(self.radius_start + self.radius_end)):
-            raise ValueError(f"offset radii must be finite and non-negative, got {self.radius_start}, "
-                             f"{self.radius_end}")
+            raise ValueError(
+                f"offset radii must be finite and non-negative, got {self.radius_start}, {self.radius_end}"
+            )
         if self.frame not in FRAMES:
             raise ValueError(f"frame must be one of {', '.join(FRAMES)}, got {self.frame!r}")
         if not self.angles or not all(math.isfinite(a) for a in self.angles):
@@ -203,14 +204,24 @@ def reference_angle(curve: PHQuintic, reference_normal: Array, *, source: str = 
         bad = ~(across > 1e-6 * size)
         if np.any(bad):
             sample = int(np.flatnonzero(np.ravel(bad))[0]) if np.ndim(bad) else None
-            raise InputDataError("the reference normal is parallel to the start tangent (or zero): it must point "
-                                 "across the backbone", source=source, sample=sample, field="reference_normal")
+            raise InputDataError(
+                "the reference normal is parallel to the start tangent (or zero): it must point across the backbone",
+                source=source,
+                sample=sample,
+                field="reference_normal",
+            )
     return B.atan2(s, c)
 
 
 # ------------------------------------------------------------------------------ tube lengths
-def tube_lengths(curve: PHQuintic, reference_normal: Array, layout: TubeLayout = TubeLayout(),
-                 nodes: int = DEFAULT_TUBE_NODES, *, source: str = "") -> Array:
+def tube_lengths(
+    curve: PHQuintic,
+    reference_normal: Array,
+    layout: TubeLayout = TubeLayout(),
+    nodes: int = DEFAULT_TUBE_NODES,
+    *,
+    source: str = "",
+) -> Array:
     """Lengths ``L_m`` of the tubes of ``layout`` along ``curve`` (module docstring).
 
     numpy ``(..., M)``, CasADi ``M x 1``.
@@ -250,8 +261,9 @@ def tube_lengths(curve: PHQuintic, reference_normal: Array, layout: TubeLayout =
     return B.stack(lengths) if B.any_casadi(*lengths) else np.stack(lengths, axis=-1)
 
 
-def carried_frame(curve: PHQuintic, reference_normal: Array, t: np.ndarray, frame: str = "rmf",
-                  nodes: int = DEFAULT_TUBE_NODES) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def carried_frame(
+    curve: PHQuintic, reference_normal: Array, t: np.ndarray, frame: str = "rmf", nodes: int = DEFAULT_TUBE_NODES
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The frame ``(f1, f2, f3)`` that carries the tubes, at numpy parameters ``t`` (numpy curves only).
 
     ``f1`` is the unit tangent, ``f2(0)`` the part of ``n0`` across the start tangent;
@@ -268,8 +280,13 @@ def carried_frame(curve: PHQuintic, reference_normal: Array, t: np.ndarray, fram
     return e1, c * e2 + s * e3, c * e3 - s * e2
 
 
-def tube_points(curve: PHQuintic, reference_normal: Array, t: np.ndarray, layout: TubeLayout = TubeLayout(),
-                nodes: int = DEFAULT_TUBE_NODES) -> np.ndarray:
+def tube_points(
+    curve: PHQuintic,
+    reference_normal: Array,
+    t: np.ndarray,
+    layout: TubeLayout = TubeLayout(),
+    nodes: int = DEFAULT_TUBE_NODES,
+) -> np.ndarray:
     """Points of every tube at numpy parameters ``t``: ``(..., M, T, 3)`` (numpy curves only)."""
     t = np.asarray(t, dtype=float).ravel()
     _, f2, f3 = carried_frame(curve, reference_normal, t, layout.frame, nodes)
@@ -278,4 +295,3 @@ def tube_points(curve: PHQuintic, reference_normal: Array, t: np.ndarray, layout
     rho = (layout.radius_start + (layout.radius_end - layout.radius_start) * fraction)[..., None]
     r = curve.point(t)
     return np.stack([r + rho * (np.cos(a) * f2 + np.sin(a) * f3) for a in layout.angles], axis=-3)
-

@@ -39,11 +39,12 @@ class TrajectoryParams(Options):
     """``data.params`` of source ``trajectory``."""
 
     rate: StrictFloat = Field(100.0, gt=0, description="sample rate [Hz]")
-    amplitude: StrictFloat = Field(0.8, ge=0, le=1, description="amplitude of every variable, as a fraction of "
-                                                                 "its half range")
+    amplitude: StrictFloat = Field(
+        0.8, ge=0, le=1, description="amplitude of every variable, as a fraction of its half range"
+    )
     frequency: tuple[StrictFloat, StrictFloat] = Field(
-        (0.1, 0.4), description="[low, high]: the range each variable's frequency is drawn from [Hz], "
-                                "0 <= low <= high")
+        (0.1, 0.4), description="[low, high]: the range each variable's frequency is drawn from [Hz], 0 <= low <= high"
+    )
 
     @field_validator("frequency")
     @classmethod
@@ -56,10 +57,12 @@ class TrajectoryParams(Options):
 class SweepParams(Options):
     """``data.params`` of source ``sweep``."""
 
-    variable: str | None = Field(None, description="the configuration variable swept over its range "
-                                                   "(default: the arm's second variable)")
-    fixed: dict[str, StrictFloat] = Field(default_factory=dict, description="values of other variables "
-                                                                            "(name -> value; default mid-range)")
+    variable: str | None = Field(
+        None, description="the configuration variable swept over its range (default: the arm's second variable)"
+    )
+    fixed: dict[str, StrictFloat] = Field(
+        default_factory=dict, description="values of other variables (name -> value; default mid-range)"
+    )
 
 
 class CsvParams(Options):
@@ -105,8 +108,9 @@ def smooth_motion(arm: ArmModel, samples: int, seed: int, params: TrajectoryPara
     return Q, t
 
 
-@register_source(FAMILY, "trajectory", "a smooth sinusoidal motion about mid-range, sampled in time",
-                 params=TrajectoryParams)
+@register_source(
+    FAMILY, "trajectory", "a smooth sinusoidal motion about mid-range, sampled in time", params=TrajectoryParams
+)
 def smooth_trajectory(arm: ArmModel, data: DataSpec, params: TrajectoryParams, path: Path) -> Configurations:
     """:func:`smooth_motion` with ``data.samples`` samples from ``data.seed``."""
     return smooth_motion(arm, data.samples, data.seed, params)
@@ -123,8 +127,11 @@ def sweep(arm: ArmModel, data: DataSpec, params: SweepParams, path: Path) -> Con
     """
     name = arm.config_names[1] if params.variable is None else params.variable
     if name not in arm.config_names:
-        raise SpecError(str(path), "data.params.variable",
-                        f"{name!r} is not a variable of {arm.name}; known: {', '.join(arm.config_names)}")
+        raise SpecError(
+            str(path),
+            "data.params.variable",
+            f"{name!r} is not a variable of {arm.name}; known: {', '.join(arm.config_names)}",
+        )
     q = 0.5 * (arm.lower + arm.upper)
     for key, value in params.fixed.items():
         if key not in arm.config_names:
@@ -136,8 +143,9 @@ def sweep(arm: ArmModel, data: DataSpec, params: SweepParams, path: Path) -> Con
     return Q, None
 
 
-@register_source(FAMILY, "csv", "configurations read from a CSV file (one column per variable, optional t)",
-                 params=CsvParams)
+@register_source(
+    FAMILY, "csv", "configurations read from a CSV file (one column per variable, optional t)", params=CsvParams
+)
 def configurations_from_csv(arm: ArmModel, data: DataSpec, params: CsvParams, path: Path) -> Configurations:
     """The first ``data.samples`` rows of ``params.file`` (relative to the problem file's folder)."""
     csv_path = (Path(path).parent / params.file).resolve()
@@ -175,8 +183,9 @@ def read_configuration_csv(csv_path: Path, names: tuple[str, ...]) -> tuple[np.n
     header = [h.strip() for h in rows[0]]
     missing = [n for n in names if n not in header]
     if missing:
-        raise InputDataError(f"missing column(s) {', '.join(missing)}; header is {', '.join(header)}",
-                             source=str(csv_path))
+        raise InputDataError(
+            f"missing column(s) {', '.join(missing)}; header is {', '.join(header)}", source=str(csv_path)
+        )
     wanted = list(names) + (["t"] if "t" in header else [])
     index = [header.index(n) for n in wanted]
     values = np.empty((len(rows) - 1, len(wanted)))
@@ -186,10 +195,10 @@ def read_configuration_csv(csv_path: Path, names: tuple[str, ...]) -> tuple[np.n
                 values[i, k] = float(row[j])
             except (IndexError, ValueError):
                 cell = row[j] if j < len(row) else "<missing>"
-                raise InputDataError(f"{cell!r} is not a number", source=str(csv_path), sample=i,
-                                     field=wanted[k]) from None
+                raise InputDataError(
+                    f"{cell!r} is not a number", source=str(csv_path), sample=i, field=wanted[k]
+                ) from None
     if len(values) == 0:
         raise InputDataError("no data rows", source=str(csv_path))
     t = values[:, len(names)] if "t" in wanted else None
     return values[:, : len(names)], t
-

@@ -103,8 +103,9 @@ def _times(samples: int, rate: float) -> np.ndarray:
     return np.arange(samples) / rate
 
 
-def smooth_path(t: np.ndarray, low: ArrayLike, high: ArrayLike, via_points: int,
-                rng: np.random.Generator) -> np.ndarray:
+def smooth_path(
+    t: np.ndarray, low: ArrayLike, high: ArrayLike, via_points: int, rng: np.random.Generator
+) -> np.ndarray:
     """A human-like smooth path: a cubic spline through ``via_points + 2`` random points at equal times,
     at rest at both ends (clamped), each coordinate drawn in ``[low, high]``. Returns ``(N, d)``."""
     low, high = np.asarray(low, dtype=float), np.asarray(high, dtype=float)
@@ -113,9 +114,14 @@ def smooth_path(t: np.ndarray, low: ArrayLike, high: ArrayLike, via_points: int,
     return CubicSpline(knots, points, bc_type="clamped")(t)
 
 
-def smooth_pose_demonstration(samples: int = 1000, duration: float = 10.0, seed: int = 0,
-                              reach: float = 0.12, turn: float = 1.2,
-                              centre: tuple[float, float, float] = (0.0, 0.0, 0.30)) -> PoseDemonstration:
+def smooth_pose_demonstration(
+    samples: int = 1000,
+    duration: float = 10.0,
+    seed: int = 0,
+    reach: float = 0.12,
+    turn: float = 1.2,
+    centre: tuple[float, float, float] = (0.0, 0.0, 0.30),
+) -> PoseDemonstration:
     """A smooth rest-to-rest pose motion: minimum-jerk from start to goal plus a detour ``sin^2(pi u)``.
 
     Start and goal positions are drawn in a cube of half-width ``reach``
@@ -146,8 +152,9 @@ def smooth_pose_demonstration(samples: int = 1000, duration: float = 10.0, seed:
     return PoseDemonstration(t=t, position=position, quaternion=quaternion)
 
 
-def gimbal_demonstration(samples: int = 1000, duration: float = 10.0, seed: int = 0, peak_pitch_deg: float = 120.0,
-                         reach: float = 0.1) -> PoseDemonstration:
+def gimbal_demonstration(
+    samples: int = 1000, duration: float = 10.0, seed: int = 0, peak_pitch_deg: float = 120.0, reach: float = 0.1
+) -> PoseDemonstration:
     """A rest-to-rest motion whose pitch (eq. 30) rises from -20 degrees through +90 (gimbal lock) to the peak.
 
     Roll and yaw change smoothly too (random, up to 40 degrees); the position
@@ -191,10 +198,16 @@ class InterfaceRecording:
     demonstration: PoseDemonstration
 
 
-def imu_interface_recording(samples: int = 1000, rate: float = 100.0, seed: int = 0, via_points: int = 2,
-                            theta_range: tuple[float, float] = (0.15, 1.2), noise_deg: float = 0.1,
-                            drift_deg_per_s: float = 0.02,
-                            section_lengths: tuple[float, float] = (0.18, 0.18)) -> InterfaceRecording:
+def imu_interface_recording(
+    samples: int = 1000,
+    rate: float = 100.0,
+    seed: int = 0,
+    via_points: int = 2,
+    theta_range: tuple[float, float] = (0.15, 1.2),
+    noise_deg: float = 0.1,
+    drift_deg_per_s: float = 0.02,
+    section_lengths: tuple[float, float] = (0.18, 0.18),
+) -> InterfaceRecording:
     """Two IMUs on the flexible interface, moved along a smooth human-like path, at ``rate`` Hz.
 
     The section angles follow :func:`smooth_path` (``theta`` kept inside
@@ -214,8 +227,16 @@ def imu_interface_recording(samples: int = 1000, rate: float = 100.0, seed: int 
     angles = smooth_path(t, [lo, -np.pi, lo, -np.pi], [hi, np.pi, hi, np.pi], via_points, rng)
     angles[:, [0, 2]] = np.clip(angles[:, [0, 2]], lo, hi)
     lengths = np.asarray(section_lengths, dtype=float)
-    configuration = np.column_stack([np.full(samples, lengths[0]), angles[:, 0], angles[:, 1],
-                                     np.full(samples, lengths[1]), angles[:, 2], angles[:, 3]])
+    configuration = np.column_stack(
+        [
+            np.full(samples, lengths[0]),
+            angles[:, 0],
+            angles[:, 1],
+            np.full(samples, lengths[1]),
+            angles[:, 2],
+            angles[:, 3],
+        ]
+    )
     frames = arm.section_frames(configuration)
     true = np.stack([frames[0][0], frames[1][0]], axis=1)  # (N, 2, 4)
 
@@ -230,12 +251,21 @@ def imu_interface_recording(samples: int = 1000, rate: float = 100.0, seed: int 
     theta, phi = section_angles_from_quaternion(relative)
     measured = np.stack([theta, phi], axis=-1)  # (N, 2, 2)
     phi_unwrapped = np.unwrap(phi, axis=0)
-    q_measured = np.column_stack([np.full(samples, lengths[0]), theta[:, 0], phi_unwrapped[:, 0],
-                                  np.full(samples, lengths[1]), theta[:, 1], phi_unwrapped[:, 1]])
+    q_measured = np.column_stack(
+        [
+            np.full(samples, lengths[0]),
+            theta[:, 0],
+            phi_unwrapped[:, 0],
+            np.full(samples, lengths[1]),
+            theta[:, 1],
+            phi_unwrapped[:, 1],
+        ]
+    )
     tip_quaternion, tip_position = arm.section_frames(q_measured)[-1]
     tip = PoseDemonstration(t=t, position=tip_position, quaternion=quat_hemisphere_continuous(tip_quaternion))
-    return InterfaceRecording(t=t, configuration=configuration, imu=imu, relative=relative, angles=measured,
-                              demonstration=tip)
+    return InterfaceRecording(
+        t=t, configuration=configuration, imu=imu, relative=relative, angles=measured, demonstration=tip
+    )
 
 
 # ----------------------------------------------------------------------------- the Kinect v2 capture
@@ -294,10 +324,18 @@ CAMERA_TO_ROBOT = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
 """Kinect camera axes (x right, y up, z away from the camera) to robot base axes (z up): a proper rotation."""
 
 
-def kinect_recording(samples: int = 300, rate: float = 30.0, seed: int = 0, via_points: int = 3,
-                     position_noise: float = 0.008, orientation_noise_deg: float = 3.0, window: int = 5,
-                     cube_edge: float = 0.36, workspace_centre: tuple[float, float, float] = (0.0, 0.0, 0.27),
-                     spine_shoulder: tuple[float, float, float] = (0.0, 0.35, 2.2)) -> KinectRecording:
+def kinect_recording(
+    samples: int = 300,
+    rate: float = 30.0,
+    seed: int = 0,
+    via_points: int = 3,
+    position_noise: float = 0.008,
+    orientation_noise_deg: float = 3.0,
+    window: int = 5,
+    cube_edge: float = 0.36,
+    workspace_centre: tuple[float, float, float] = (0.0, 0.0, 0.27),
+    spine_shoulder: tuple[float, float, float] = (0.0, 0.35, 2.2),
+) -> KinectRecording:
     """A Kinect v2 recording of the wrists moving along smooth human-like paths at ``rate`` frames per second.
 
     Skeleton jitter is modelled as white noise of ``position_noise`` m per axis
@@ -329,9 +367,16 @@ def kinect_recording(samples: int = 300, rate: float = 30.0, seed: int = 0, via_
     filtered_position = moving_average(position, window)
     filtered_rpy = moving_average(rpy, window)
     quaternion = quat_hemisphere_continuous(quat_from_rpy(filtered_rpy[:, 0], filtered_rpy[:, 1], filtered_rpy[:, 2]))
-    return KinectRecording(t=t, wrist=wrist, orientation=orientation, position=position, rpy=rpy,
-                           filtered_position=filtered_position, filtered_rpy=filtered_rpy,
-                           demonstration=PoseDemonstration(t=t, position=filtered_position, quaternion=quaternion))
+    return KinectRecording(
+        t=t,
+        wrist=wrist,
+        orientation=orientation,
+        position=position,
+        rpy=rpy,
+        filtered_position=filtered_position,
+        filtered_rpy=filtered_rpy,
+        demonstration=PoseDemonstration(t=t, position=filtered_position, quaternion=quaternion),
+    )
 
 
 # ----------------------------------------------------------------------------- recorded files
@@ -353,8 +398,11 @@ def read_csv(path: str | Path, unit_tolerance: float = 1e-3) -> PoseDemonstratio
             header = [h.strip() for h in (reader.fieldnames or [])]
             missing = [c for c in CSV_COLUMNS if c not in header]
             if missing:
-                raise InputDataError(f"missing column(s) {', '.join(missing)}; expected {','.join(CSV_COLUMNS)}",
-                                     source=source, field=missing[0])
+                raise InputDataError(
+                    f"missing column(s) {', '.join(missing)}; expected {','.join(CSV_COLUMNS)}",
+                    source=source,
+                    field=missing[0],
+                )
             rows = []
             for number, row in enumerate(reader):
                 values = []
@@ -363,8 +411,9 @@ def read_csv(path: str | Path, unit_tolerance: float = 1e-3) -> PoseDemonstratio
                     try:
                         values.append(float(text))
                     except ValueError:
-                        raise InputDataError(f"not a number: {text!r}", source=source, sample=number,
-                                             field=column) from None
+                        raise InputDataError(
+                            f"not a number: {text!r}", source=source, sample=number, field=column
+                        ) from None
                 rows.append(values)
     except OSError as exc:
         raise InputDataError(f"cannot read the file: {exc.strerror}", source=source) from None
@@ -373,8 +422,7 @@ def read_csv(path: str | Path, unit_tolerance: float = 1e-3) -> PoseDemonstratio
         raise InputDataError(f"a demonstration needs at least 3 rows, got {data.shape[0]}", source=source)
     bad = np.argwhere(~np.isfinite(data))
     if bad.size:
-        raise InputDataError("value is not finite", source=source, sample=int(bad[0, 0]),
-                             field=CSV_COLUMNS[bad[0, 1]])
+        raise InputDataError("value is not finite", source=source, sample=int(bad[0, 0]), field=CSV_COLUMNS[bad[0, 1]])
     steps = np.diff(data[:, 0])
     if np.any(steps <= 0):
         k = int(np.flatnonzero(steps <= 0)[0]) + 1
@@ -382,10 +430,12 @@ def read_csv(path: str | Path, unit_tolerance: float = 1e-3) -> PoseDemonstratio
     norms = np.linalg.norm(data[:, 4:], axis=1)
     off = np.flatnonzero(np.abs(norms - 1.0) > unit_tolerance)
     if off.size:
-        raise InputDataError(f"quaternion norm {norms[off[0]]:.6f} is not 1", source=source, sample=int(off[0]),
-                             field="qw")
-    return PoseDemonstration(t=data[:, 0], position=data[:, 1:4],
-                             quaternion=quat_hemisphere_continuous(quat_normalize(data[:, 4:])))
+        raise InputDataError(
+            f"quaternion norm {norms[off[0]]:.6f} is not 1", source=source, sample=int(off[0]), field="qw"
+        )
+    return PoseDemonstration(
+        t=data[:, 0], position=data[:, 1:4], quaternion=quat_hemisphere_continuous(quat_normalize(data[:, 4:]))
+    )
 
 
 def write_csv(path: str | Path, demo: PoseDemonstration) -> None:
@@ -436,7 +486,8 @@ class ImuParams(Options):
     noise_deg: float = Field(0.1, ge=0, description="white orientation noise per axis of each IMU [deg]")
     drift_deg_per_s: float = Field(0.02, ge=0, description="largest yaw drift rate of an IMU [deg/s]")
     section_lengths: tuple[float, float] | None = Field(
-        None, description="lengths of the interface's two sections [m]; null: the arm's")
+        None, description="lengths of the interface's two sections [m]; null: the arm's"
+    )
 
 
 class KinectParams(Options):
@@ -445,8 +496,7 @@ class KinectParams(Options):
     rate: float = Field(30.0, gt=0, description="frame rate [frames/s]")
     via_points: int = Field(3, ge=0, description="random via points of the smooth wrist paths")
     position_noise: float = Field(0.008, ge=0, description="skeleton jitter of the right wrist per axis [m]")
-    orientation_noise_deg: float = Field(3.0, ge=0, description="jitter of the left wrist's orientation per axis "
-                                                                "[deg]")
+    orientation_noise_deg: float = Field(3.0, ge=0, description="jitter of the left wrist's orientation per axis [deg]")
     window: int = Field(5, ge=1, description="samples M of the moving average of eq. (31)")
     cube_edge: float = Field(0.36, gt=0, description="edge of the workspace cube the wrist is scaled into [m]")
     workspace_centre: Triple = Field((0.0, 0.0, 0.27), description="centre of that cube in the robot base frame [m]")
@@ -474,8 +524,12 @@ class CsvParams(Options):
     """``data.params`` of source ``csv`` (:func:`read_csv`)."""
 
     path: str = Field(description="the CSV file (columns t,x,y,z,qw,qx,qy,qz), relative to the problem file")
-    samples: int | None = Field(None, ge=3, description="resample to this many equally spaced samples; null: as "
-                                                        "many as the file has (resampled only if its steps vary)")
+    samples: int | None = Field(
+        None,
+        ge=3,
+        description="resample to this many equally spaced samples; null: as "
+        "many as the file has (resampled only if its steps vary)",
+    )
 
 
 def _generated(maker: Callable[..., Any], data: DataSpec, path: Path, **params: Any) -> Any:
@@ -486,8 +540,9 @@ def _generated(maker: Callable[..., Any], data: DataSpec, path: Path, **params: 
         raise SpecError(str(path), "data.params", str(exc)) from None
 
 
-@register_source("demonstrations", "imu", "IMU teleoperation interface (Seleem et al. 2020, sec. III-A)",
-                 params=ImuParams)
+@register_source(
+    "demonstrations", "imu", "IMU teleoperation interface (Seleem et al. 2020, sec. III-A)", params=ImuParams
+)
 def load_imu(arm: ArmModel, data: DataSpec, params: ImuParams, path: Path) -> InterfaceRecording:
     """The IMU recording; its sections default to the arm's (a two-section constant-curvature arm)."""
     values = params.model_dump()
@@ -497,8 +552,9 @@ def load_imu(arm: ArmModel, data: DataSpec, params: ImuParams, path: Path) -> In
     return _generated(imu_interface_recording, data, path, **values)
 
 
-@register_source("demonstrations", "kinect", "Kinect v2 wrist capture (Seleem et al. 2020, sec. IV)",
-                 params=KinectParams)
+@register_source(
+    "demonstrations", "kinect", "Kinect v2 wrist capture (Seleem et al. 2020, sec. IV)", params=KinectParams
+)
 def load_kinect(arm: ArmModel, data: DataSpec, params: KinectParams, path: Path) -> KinectRecording:
     """The Kinect recording."""
     return _generated(kinect_recording, data, path, **params.model_dump())

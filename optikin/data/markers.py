@@ -152,8 +152,11 @@ class MarkerRecording:
         q = self.base_orientation * np.where(self.base_orientation @ self.base_orientation[0] < 0, -1.0, 1.0)[:, None]
         mean_q = quat_normalize(q.mean(axis=0))
         n = len(self)
-        return replace(self, base_position=np.tile(self.base_position.mean(axis=0), (n, 1)),
-                       base_orientation=np.tile(mean_q, (n, 1)))
+        return replace(
+            self,
+            base_position=np.tile(self.base_position.mean(axis=0), (n, 1)),
+            base_orientation=np.tile(mean_q, (n, 1)),
+        )
 
     def take(self, index) -> "MarkerRecording":
         """The postures ``index`` (a slice or an index array)."""
@@ -161,13 +164,21 @@ class MarkerRecording:
         truth = None
         if self.truth is not None:
             tr = self.truth
-            truth = CBHATruth(tr.configurations[index], tr.vertebrae[index], tr.backbone_length[index],
-                              tr.marker_truth[index])
-        return replace(self, t=self.t[index], base_position=self.base_position[index],
-                       base_orientation=self.base_orientation[index], tip_position=self.tip_position[index],
-                       tip_orientation=self.tip_orientation[index], markers=self.markers[index],
-                       tube_lengths=pick(self.tube_lengths), section_tube_lengths=pick(self.section_tube_lengths),
-                       truth=truth)
+            truth = CBHATruth(
+                tr.configurations[index], tr.vertebrae[index], tr.backbone_length[index], tr.marker_truth[index]
+            )
+        return replace(
+            self,
+            t=self.t[index],
+            base_position=self.base_position[index],
+            base_orientation=self.base_orientation[index],
+            tip_position=self.tip_position[index],
+            tip_orientation=self.tip_orientation[index],
+            markers=self.markers[index],
+            tube_lengths=pick(self.tube_lengths),
+            section_tube_lengths=pick(self.section_tube_lengths),
+            truth=truth,
+        )
 
 
 # ------------------------------------------------------------------------------ the CBHA driven by its tubes
@@ -182,8 +193,9 @@ def _platform_newton_step() -> ca.Function:
     return ca.Function("cbha_platform_newton", [x, target, r_k, r_k1], [x - step, ca.mmax(ca.fabs(residual))])
 
 
-def platform_poses_from_legs(legs: np.ndarray, r_lower: np.ndarray, r_upper: np.ndarray,
-                             iterations: int = 30, tolerance: float = 1e-13) -> np.ndarray:
+def platform_poses_from_legs(
+    legs: np.ndarray, r_lower: np.ndarray, r_upper: np.ndarray, iterations: int = 30, tolerance: float = 1e-13
+) -> np.ndarray:
     """``(Z, theta, psi)`` of platforms from their three leg lengths (seed 004 eqs. 3-6), by Newton.
 
     ``legs`` ``(M, 3)``, radii ``(M,)``; starts from the straight pose at the mean leg
@@ -207,8 +219,9 @@ def platform_poses_from_legs(legs: np.ndarray, r_lower: np.ndarray, r_upper: np.
     return x
 
 
-def tube_fractions(n_sections: int, t: np.ndarray, rng: np.random.Generator, frequency: tuple[float, float],
-                   amplitude: float) -> np.ndarray:
+def tube_fractions(
+    n_sections: int, t: np.ndarray, rng: np.random.Generator, frequency: tuple[float, float], amplitude: float
+) -> np.ndarray:
     """Elongation fractions ``(N, sections, 3)`` in ``[0, 1]``: ``1/2 + amplitude/2 sin(2 pi nu t + phase)``."""
     nu = rng.uniform(frequency[0], frequency[1], (n_sections, 3))
     phase = rng.uniform(-np.pi, np.pi, (n_sections, 3))
@@ -247,18 +260,27 @@ def kabsch_rotation(local: np.ndarray, measured: np.ndarray) -> tuple[np.ndarray
     return R, p
 
 
-def synthetic_recording(arm: CBHAArm, samples: int = 100, rng: np.random.Generator | None = None, *,
-                        noise: float = MARKER_NOISE, rate: float = FRAME_RATE, stride: int = 24,
-                        frequency: tuple[float, float] = (0.05, 0.2), amplitude: float = 0.9,
-                        intermediate: tuple[int, ...] = INTERMEDIATE_VERTEBRAE,
-                        source: str = "synthetic CBHA recording") -> MarkerRecording:
+def synthetic_recording(
+    arm: CBHAArm,
+    samples: int = 100,
+    rng: np.random.Generator | None = None,
+    *,
+    noise: float = MARKER_NOISE,
+    rate: float = FRAME_RATE,
+    stride: int = 24,
+    frequency: tuple[float, float] = (0.05, 0.2),
+    amplitude: float = 0.9,
+    intermediate: tuple[int, ...] = INTERMEDIATE_VERTEBRAE,
+    source: str = "synthetic CBHA recording",
+) -> MarkerRecording:
     """Record ``samples`` postures of the CBHA moved by its tubes (module docstring)."""
     rng = rng if rng is not None else np.random.default_rng(0)
     n_vertebrae = arm.geometry.n_vertebrae
     bad = [v for v in intermediate if not (isinstance(v, (int, np.integer)) and 1 < v < n_vertebrae)]
     if bad or not intermediate:
-        raise ValueError(f"intermediate markers need vertebrae strictly between 1 and {n_vertebrae}, "
-                         f"got {intermediate}")
+        raise ValueError(
+            f"intermediate markers need vertebrae strictly between 1 and {n_vertebrae}, got {intermediate}"
+        )
     if not (noise >= 0 and rate > 0 and stride >= 1 and 0 <= amplitude <= 1):
         raise ValueError("need noise >= 0, rate > 0, stride >= 1 and amplitude in [0, 1]")
     t = np.arange(samples) * stride / rate
@@ -280,8 +302,19 @@ def synthetic_recording(arm: CBHAArm, samples: int = 100, rng: np.random.Generat
     marker_truth = vertebrae[:, index, :]
     markers = marker_truth + noise * rng.standard_normal(marker_truth.shape)
     truth = CBHATruth(Q, vertebrae, Q.reshape(samples, -1, 3)[:, :, 0].sum(axis=1), marker_truth)
-    return MarkerRecording(t, base_p, base_q, tip_p, tip_q, markers, lengths.sum(axis=1), lengths[:, 0, :],
-                           source, truth, tuple(int(v) for v in intermediate))
+    return MarkerRecording(
+        t,
+        base_p,
+        base_q,
+        tip_p,
+        tip_q,
+        markers,
+        lengths.sum(axis=1),
+        lengths[:, 0, :],
+        source,
+        truth,
+        tuple(int(v) for v in intermediate),
+    )
 
 
 # ------------------------------------------------------------------------------ CSV files
@@ -298,8 +331,14 @@ def _header(n_markers: int, lengths: bool, section: bool) -> list[str]:
 def write_marker_csv(recording: MarkerRecording, path: Path) -> Path:
     """Write ``recording`` in the documented columns (module docstring), full precision."""
     n, K = len(recording), recording.markers.shape[1]
-    columns = [recording.t[:, None], recording.base_position, recording.base_orientation, recording.tip_position,
-               recording.tip_orientation, recording.markers.reshape(n, 3 * K)]
+    columns = [
+        recording.t[:, None],
+        recording.base_position,
+        recording.base_orientation,
+        recording.tip_position,
+        recording.tip_orientation,
+        recording.markers.reshape(n, 3 * K),
+    ]
     if recording.tube_lengths is not None:
         columns.append(recording.tube_lengths)
     if recording.section_tube_lengths is not None:
@@ -331,8 +370,12 @@ def read_marker_csv(path: Path) -> MarkerRecording:
     required = _header(max(n_markers, 1), False, False)
     missing = [c for c in required if c not in header]
     if missing:
-        raise InputDataError(f"missing column(s) {', '.join(missing)} (intermediate markers m1_x, m1_y, m1_z, ... "
-                             f"are numbered from 1); header is {', '.join(header)}", source=source, field=missing[0])
+        raise InputDataError(
+            f"missing column(s) {', '.join(missing)} (intermediate markers m1_x, m1_y, m1_z, ... "
+            f"are numbered from 1); header is {', '.join(header)}",
+            source=source,
+            field=missing[0],
+        )
     has_lengths = all(c in header for c in ("L1", "L2", "L3"))
     has_section = all(c in header for c in ("S1_L1", "S1_L2", "S1_L3"))
     wanted = _header(n_markers, has_lengths, has_section)
@@ -350,8 +393,9 @@ def read_marker_csv(path: Path) -> MarkerRecording:
                 value = math.nan
             if not math.isfinite(value):
                 shown = repr(cell) if cell else "an empty cell"
-                raise InputDataError(f"{shown} is not a finite number (line {i + 2})", source=source, sample=i,
-                                     field=wanted[k])
+                raise InputDataError(
+                    f"{shown} is not a finite number (line {i + 2})", source=source, sample=i, field=wanted[k]
+                )
             values[i, k] = value
     column = {name: values[:, k] for k, name in enumerate(wanted)}
 
@@ -364,20 +408,28 @@ def read_marker_csv(path: Path) -> MarkerRecording:
         error = np.abs(np.linalg.norm(q, axis=1) - 1.0)
         if np.any(error > QUATERNION_TOLERANCE):
             i = int(np.argmax(error > QUATERNION_TOLERANCE))
-            raise InputDataError(f"{q[i].tolist()} is not a unit quaternion (| |q| - 1 | = {error[i]:.3g} > "
-                                 f"{QUATERNION_TOLERANCE:g}; line {i + 2})", source=source, sample=i,
-                                 field=", ".join(names))
+            raise InputDataError(
+                f"{q[i].tolist()} is not a unit quaternion (| |q| - 1 | = {error[i]:.3g} > "
+                f"{QUATERNION_TOLERANCE:g}; line {i + 2})",
+                source=source,
+                sample=i,
+                field=", ".join(names),
+            )
         return quat_normalize(q)
 
     n = len(data)
     markers = stacked([f"m{k}_{c}" for k in range(1, n_markers + 1) for c in "xyz"]).reshape(n, n_markers, 3)
     return MarkerRecording(
-        t=column["t"], base_position=stacked(["base_x", "base_y", "base_z"]), base_orientation=orientation("base"),
-        tip_position=stacked(["tip_x", "tip_y", "tip_z"]), tip_orientation=orientation("tip"), markers=markers,
+        t=column["t"],
+        base_position=stacked(["base_x", "base_y", "base_z"]),
+        base_orientation=orientation("base"),
+        tip_position=stacked(["tip_x", "tip_y", "tip_z"]),
+        tip_orientation=orientation("tip"),
+        markers=markers,
         tube_lengths=stacked(["L1", "L2", "L3"]) if has_lengths else None,
-        section_tube_lengths=stacked(["S1_L1", "S1_L2", "S1_L3"]) if has_section else None, source=source)
-
-
+        section_tube_lengths=stacked(["S1_L1", "S1_L2", "S1_L3"]) if has_section else None,
+        source=source,
+    )
 
 
 # ------------------------------------------------------------------------------ sources of problem files
@@ -389,8 +441,9 @@ class SyntheticMarkerParams(Options):
     stride: int = Field(24, ge=1, description="frames between kept postures")
     frequency: tuple[float, float] = Field((0.05, 0.2), description="[low, high] tube frequencies [Hz]")
     amplitude: float = Field(0.9, ge=0, le=1, description="elongation amplitude, fraction of the Table I range")
-    intermediate: tuple[int, ...] = Field(INTERMEDIATE_VERTEBRAE, min_length=1,
-                                          description="1-based vertebrae carrying the intermediate markers")
+    intermediate: tuple[int, ...] = Field(
+        INTERMEDIATE_VERTEBRAE, min_length=1, description="1-based vertebrae carrying the intermediate markers"
+    )
 
     @field_validator("frequency")
     @classmethod
@@ -401,8 +454,14 @@ class SyntheticMarkerParams(Options):
 
     def motion(self) -> dict[str, Any]:
         """The keyword arguments of :func:`synthetic_recording` these params give."""
-        return dict(noise=self.noise, rate=self.rate, stride=self.stride, frequency=self.frequency,
-                    amplitude=self.amplitude, intermediate=self.intermediate)
+        return dict(
+            noise=self.noise,
+            rate=self.rate,
+            stride=self.stride,
+            frequency=self.frequency,
+            amplitude=self.amplitude,
+            intermediate=self.intermediate,
+        )
 
 
 class CsvMarkerParams(Options):
@@ -410,8 +469,10 @@ class CsvMarkerParams(Options):
 
     file: str = Field(description="the recording (columns in the module docstring), relative to the problem file")
     intermediate: tuple[int, ...] | None = Field(
-        None, description="1-based vertebra of each intermediate marker, in column order (comparators that use "
-                          "a particular marker need it)")
+        None,
+        description="1-based vertebra of each intermediate marker, in column order (comparators that use "
+        "a particular marker need it)",
+    )
 
 
 def _cbha(arm: ArmModel, path: Path, source: str) -> CBHAArm:
@@ -420,20 +481,30 @@ def _cbha(arm: ArmModel, path: Path, source: str) -> CBHAArm:
     return arm
 
 
-@register_source("markers", "synthetic", "the CBHA vertebra model driven by its tubes, recorded by motion capture",
-                 params=SyntheticMarkerParams)
+@register_source(
+    "markers",
+    "synthetic",
+    "the CBHA vertebra model driven by its tubes, recorded by motion capture",
+    params=SyntheticMarkerParams,
+)
 def synthetic_source(arm: ArmModel, data: DataSpec, params: SyntheticMarkerParams, path: Path) -> MarkerRecording:
     """:func:`synthetic_recording` of ``data.samples`` postures seeded by ``data.seed``."""
     cbha = _cbha(arm, path, "synthetic")
     try:
-        return synthetic_recording(cbha, data.samples, np.random.default_rng([data.seed, 0]), **params.motion(),
-                                   source=f"{Path(path).name}: synthetic")
+        return synthetic_recording(
+            cbha,
+            data.samples,
+            np.random.default_rng([data.seed, 0]),
+            **params.motion(),
+            source=f"{Path(path).name}: synthetic",
+        )
     except ValueError as exc:
         raise SpecError(path, "data.params", str(exc)) from None
 
 
-@register_source("markers", "csv", "a recorded marker CSV file (columns in optikin.data.markers)",
-                 params=CsvMarkerParams)
+@register_source(
+    "markers", "csv", "a recorded marker CSV file (columns in optikin.data.markers)", params=CsvMarkerParams
+)
 def csv_source(arm: ArmModel, data: DataSpec, params: CsvMarkerParams, path: Path) -> MarkerRecording:
     """:func:`read_marker_csv` of ``params.file`` (relative to the problem file), first ``data.samples`` rows."""
     recording = read_marker_csv((Path(path).parent / params.file).resolve())
@@ -441,8 +512,9 @@ def csv_source(arm: ArmModel, data: DataSpec, params: CsvMarkerParams, path: Pat
         try:
             recording = replace(recording, marker_vertebrae=params.intermediate)
         except ValueError as exc:
-            raise SpecError(path, "data.params.intermediate", f"{exc} (the file has {recording.markers.shape[1]} "
-                                                              "marker columns)") from None
+            raise SpecError(
+                path, "data.params.intermediate", f"{exc} (the file has {recording.markers.shape[1]} marker columns)"
+            ) from None
     return recording.take(slice(0, data.samples))
 
 
@@ -477,17 +549,31 @@ def placed(recording: MarkerRecording, rotation: np.ndarray, translation: np.nda
     truth = recording.truth
     if truth is not None:
         truth = CBHATruth(truth.configurations, move(truth.vertebrae), truth.backbone_length, move(truth.marker_truth))
-    return replace(recording, base_position=move(recording.base_position),
-                   base_orientation=quat_multiply(rotation, recording.base_orientation),
-                   tip_position=move(recording.tip_position),
-                   tip_orientation=quat_multiply(rotation, recording.tip_orientation),
-                   markers=move(recording.markers), truth=truth)
+    return replace(
+        recording,
+        base_position=move(recording.base_position),
+        base_orientation=quat_multiply(rotation, recording.base_orientation),
+        tip_position=move(recording.tip_position),
+        tip_orientation=quat_multiply(rotation, recording.tip_orientation),
+        markers=move(recording.markers),
+        truth=truth,
+    )
 
 
-def synthetic_rope_chain(arm: CBHAArm, samples: int, rng: np.random.Generator, *, base_distance: float = 0.25,
-                         rope_length: float = 0.65, rope_marker_fractions: tuple[float, ...] = (0.25, 0.5, 0.75),
-                         end_offset: float = 0.02, noise: float = MARKER_NOISE, truth_points: int = 200,
-                         source: str = "synthetic rope chain", **arm_options) -> RopeChainRecording:
+def synthetic_rope_chain(
+    arm: CBHAArm,
+    samples: int,
+    rng: np.random.Generator,
+    *,
+    base_distance: float = 0.25,
+    rope_length: float = 0.65,
+    rope_marker_fractions: tuple[float, ...] = (0.25, 0.5, 0.75),
+    end_offset: float = 0.02,
+    noise: float = MARKER_NOISE,
+    truth_points: int = 200,
+    source: str = "synthetic rope chain",
+    **arm_options,
+) -> RopeChainRecording:
     """Two CBHAs on one horizontal line, ``base_distance`` apart, upright, facing each other, holding a rope.
 
     Each arm moves as in :func:`synthetic_recording` (independent seeds); the rope is
@@ -498,8 +584,11 @@ def synthetic_rope_chain(arm: CBHAArm, samples: int, rng: np.random.Generator, *
     if not 0 < end_offset < rope_length / 2 or not all(0 < f < 1 for f in rope_marker_fractions):
         raise ValueError("need 0 < end_offset < rope_length / 2 and rope marker fractions within (0, 1)")
     arm1 = synthetic_recording(arm, samples, rng, noise=noise, source=f"{source}: CBHA 1", **arm_options)
-    arm2 = placed(synthetic_recording(arm, samples, rng, noise=noise, source=f"{source}: CBHA 2", **arm_options),
-                  quat_from_axis_angle(np.array([0.0, 0.0, 1.0]), np.pi), np.array([base_distance, 0.0, 0.0]))
+    arm2 = placed(
+        synthetic_recording(arm, samples, rng, noise=noise, source=f"{source}: CBHA 2", **arm_options),
+        quat_from_axis_angle(np.array([0.0, 0.0, 1.0]), np.pi),
+        np.array([base_distance, 0.0, 0.0]),
+    )
     assert arm1.truth is not None and arm2.truth is not None  # synthetic recordings
     B, C = arm1.truth.vertebrae[:, -1], arm2.truth.vertebrae[:, -1]
     s_markers = rope_length * np.asarray(rope_marker_fractions)
@@ -511,11 +600,11 @@ def synthetic_rope_chain(arm: CBHAArm, samples: int, rng: np.random.Generator, *
     near = near + noise * rng.standard_normal(near.shape)
     start = near[:, 0] - arm1.tip_position
     end = arm2.tip_position - near[:, 1]
-    directions = np.stack([start / np.linalg.norm(start, axis=1, keepdims=True),
-                           end / np.linalg.norm(end, axis=1, keepdims=True)], axis=1)
+    directions = np.stack(
+        [start / np.linalg.norm(start, axis=1, keepdims=True), end / np.linalg.norm(end, axis=1, keepdims=True)], axis=1
+    )
     markers = marker_truth + noise * rng.standard_normal(marker_truth.shape)
     return RopeChainRecording(arm1, arm2, float(rope_length), markers, directions, truth, marker_truth)
-
 
 
 class RopeChainParams(SyntheticMarkerParams):
@@ -524,20 +613,30 @@ class RopeChainParams(SyntheticMarkerParams):
     rope_length: float = Field(0.65, gt=0, description="rope length [m]")
     base_distance: float = Field(0.25, gt=0, description="distance between the two arm bases [m]")
     end_offset: float = Field(0.02, gt=0, description="rope marker distance from each end, along the rope [m]")
-    rope_markers: tuple[float, ...] = Field((0.25, 0.5, 0.75), min_length=1,
-                                            description="rope markers, as fractions of its length")
+    rope_markers: tuple[float, ...] = Field(
+        (0.25, 0.5, 0.75), min_length=1, description="rope markers, as fractions of its length"
+    )
 
 
-@register_source("rope_chains", "synthetic", "two synthetic CBHAs holding a hanging rope (exact catenary)",
-                 params=RopeChainParams)
-def synthetic_rope_chain_source(arm: ArmModel, data: DataSpec, params: RopeChainParams,
-                                path: Path) -> RopeChainRecording:
+@register_source(
+    "rope_chains", "synthetic", "two synthetic CBHAs holding a hanging rope (exact catenary)", params=RopeChainParams
+)
+def synthetic_rope_chain_source(
+    arm: ArmModel, data: DataSpec, params: RopeChainParams, path: Path
+) -> RopeChainRecording:
     """:func:`synthetic_rope_chain` of ``data.samples`` postures seeded by ``data.seed``."""
     cbha = _cbha(arm, path, "synthetic")
     try:
         return synthetic_rope_chain(
-            cbha, data.samples, np.random.default_rng([data.seed, 0]), base_distance=params.base_distance,
-            rope_length=params.rope_length, rope_marker_fractions=params.rope_markers,
-            end_offset=params.end_offset, **params.motion(), source=f"{Path(path).name}: synthetic")
+            cbha,
+            data.samples,
+            np.random.default_rng([data.seed, 0]),
+            base_distance=params.base_distance,
+            rope_length=params.rope_length,
+            rope_marker_fractions=params.rope_markers,
+            end_offset=params.end_offset,
+            **params.motion(),
+            source=f"{Path(path).name}: synthetic",
+        )
     except ValueError as exc:
         raise SpecError(path, "data.params", str(exc)) from None

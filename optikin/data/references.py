@@ -51,7 +51,8 @@ class ReferenceParams(Options):
     """What every reference source takes: the tracked task and the control rate."""
 
     task: Literal["pose", "position"] = Field(
-        "pose", description="pose: tip dual quaternion (8 rows); position: tip position (3 rows)")
+        "pose", description="pose: tip dual quaternion (8 rows); position: tip position (3 rows)"
+    )
     rate: float = Field(500.0, ge=100.0, le=1000.0, description="control rate [Hz]")
 
 
@@ -59,9 +60,11 @@ class WaypointParams(ReferenceParams):
     """A minimum-jerk configuration path through waypoints, held at the last one."""
 
     waypoints: list[list[float]] = Field(
-        min_length=2, description="at least two configurations of the arm, in its variables' order [SI units]")
+        min_length=2, description="at least two configurations of the arm, in its variables' order [SI units]"
+    )
     segment_time: PositiveFloat | list[PositiveFloat] = Field(
-        1.5, description="seconds per segment: one value, or one per segment [s]")
+        1.5, description="seconds per segment: one value, or one per segment [s]"
+    )
     hold: float = Field(1.0, ge=0.0, description="seconds held at the last waypoint [s]")
 
 
@@ -73,11 +76,13 @@ class DmpParams(ReferenceParams):
     demonstration_samples: int = Field(1000, ge=2, description="samples of the recorded demonstration (100 Hz)")
     hold: float = Field(1.0, ge=0.0, description="seconds rolled out after the demonstration's duration [s]")
     smoothing: PositiveFloat | None = Field(
-        2.5, description="cut-off of the demonstration smoother [Hz]; null for none")
+        2.5, description="cut-off of the demonstration smoother [Hz]; null for none"
+    )
 
 
-@register_source("references", "waypoints", "forward kinematics of a minimum-jerk path through configurations",
-                 params=WaypointParams)
+@register_source(
+    "references", "waypoints", "forward kinematics of a minimum-jerk path through configurations", params=WaypointParams
+)
 def waypoint_reference(arm: ArmModel, data: DataSpec, params: WaypointParams, path: Path) -> TrackingReference:
     """The reference ``fk(q(t))``, ``J(q(t)) qdot(t)`` of the path; the run starts at the first waypoint."""
     try:
@@ -85,8 +90,11 @@ def waypoint_reference(arm: ArmModel, data: DataSpec, params: WaypointParams, pa
     except ValueError:  # rows of different lengths
         W = np.zeros((0, 0))
     if W.ndim != 2 or W.shape[1] != arm.n_config:
-        raise SpecError(str(path), "data.params.waypoints",
-                        f"expected at least two rows of {arm.n_config} numbers ({', '.join(arm.config_names)})")
+        raise SpecError(
+            str(path),
+            "data.params.waypoints",
+            f"expected at least two rows of {arm.n_config} numbers ({', '.join(arm.config_names)})",
+        )
     try:
         t, Q, Qdot = minimum_jerk_path(W, params.segment_time, params.rate, params.hold)
     except ValueError as exc:
@@ -94,24 +102,33 @@ def waypoint_reference(arm: ArmModel, data: DataSpec, params: WaypointParams, pa
     return TrackingReference(reference_from_configurations(arm, t, Q, Qdot, params.task), W[0])
 
 
-@register_source("references", "dmp", "roll-out of a pose DMP learned from the IMU interface demonstration",
-                 params=DmpParams)
+@register_source(
+    "references", "dmp", "roll-out of a pose DMP learned from the IMU interface demonstration", params=DmpParams
+)
 def dmp_reference(arm: ArmModel, data: DataSpec, params: DmpParams, path: Path) -> TrackingReference:
     """The DMP roll-out as the reference; the run starts from the interface's true first configuration.
 
     Needs a two-section constant-curvature arm (the interface's geometry is the arm's).
     """
     if not isinstance(arm, ConstantCurvatureArm) or arm.n_sections != 2:
-        raise SpecError(str(path), "arm", "the dmp reference source learns from the two-section interface: "
-                                          "use a two-section constant_curvature arm")
-    recording = imu_interface_recording(samples=params.demonstration_samples, seed=data.seed,
-                                        section_lengths=tuple(arm.section_lengths))
+        raise SpecError(
+            str(path),
+            "arm",
+            "the dmp reference source learns from the two-section interface: use a two-section constant_curvature arm",
+        )
+    recording = imu_interface_recording(
+        samples=params.demonstration_samples, seed=data.seed, section_lengths=tuple(arm.section_lengths)
+    )
     dmp = pose_dmp(params.variant, n_basis=params.basis, smoothing=params.smoothing)
-    dmp.imitate(recording.t, to_variant(params.variant, recording.demonstration.dual_quaternion),
-                source="IMU demonstration")
+    dmp.imitate(
+        recording.t, to_variant(params.variant, recording.demonstration.dual_quaternion), source="IMU demonstration"
+    )
     rollout = dmp.rollout(dmp.tau + params.hold, dt=1.0 / params.rate)
     position, quaternion = from_variant(params.variant, rollout.y)
-    value = (dq_from_rotation_translation(quat_hemisphere_continuous(quaternion), position)
-             if params.task == "pose" else position)
+    value = (
+        dq_from_rotation_translation(quat_hemisphere_continuous(quaternion), position)
+        if params.task == "pose"
+        else position
+    )
     reference = Reference(rollout.t, value, np.gradient(value, rollout.t, axis=0), params.task)
     return TrackingReference(reference, recording.configuration[0])

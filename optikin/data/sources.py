@@ -43,8 +43,9 @@ DATA_SOURCES: dict[str, Registry[DataSource]] = {}
 """Family -> registry of its sources."""
 
 
-def register_source(family: str, name: str, summary: str,
-                    params: type[Options] = NoOptions) -> Callable[[Loader], Loader]:
+def register_source(
+    family: str, name: str, summary: str, params: type[Options] = NoOptions
+) -> Callable[[Loader], Loader]:
     """Decorator registering ``load(arm, data, params, path)`` as source ``name`` of ``family``."""
 
     def add(load: Loader) -> Loader:

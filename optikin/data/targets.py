@@ -88,8 +88,9 @@ def forward_targets(arm: ArmModel, Q: np.ndarray, kind: str) -> np.ndarray:
     return arm.evaluate("fk_position" if kind == "position" else "fk_dq", Q)
 
 
-def unreachable_targets(arm: ArmModel, count: int, kind: str, rng: np.random.Generator,
-                        margin: tuple[float, float]) -> np.ndarray:
+def unreachable_targets(
+    arm: ArmModel, count: int, kind: str, rng: np.random.Generator, margin: tuple[float, float]
+) -> np.ndarray:
     """``count`` targets farther from the base than :func:`reach_bound` times a factor in ``margin``."""
     direction = rng.normal(size=(count, 3))
     direction /= np.linalg.norm(direction, axis=1, keepdims=True)
@@ -106,8 +107,10 @@ class RandomParams(Options):
 
     unreachable: StrictInt = Field(0, ge=0, description="targets added outside the workspace (count)")
     margin: tuple[StrictFloat, StrictFloat] = Field(
-        (1.1, 1.5), description="[low, high]: an unreachable target's distance from the base, as a factor of the "
-                                "reach bound (1 < low <= high)")
+        (1.1, 1.5),
+        description="[low, high]: an unreachable target's distance from the base, as a factor of the "
+        "reach bound (1 < low <= high)",
+    )
 
     @field_validator("margin")
     @classmethod
@@ -121,14 +124,18 @@ class CsvParams(Options):
     """``data.params`` of source ``csv``."""
 
     file: str = Field(min_length=1, description="CSV file with a header row, relative to the problem file")
-    trajectory: StrictBool = Field(False, description="solve the rows in order, each warm-started from the "
-                                                      "previous solution")
+    trajectory: StrictBool = Field(
+        False, description="solve the rows in order, each warm-started from the previous solution"
+    )
 
 
-@register_source(FAMILY, "random", "forward kinematics of uniform random configurations, optionally with "
-                                   "targets outside the workspace", params=RandomParams)
-def random_targets(arm: ArmModel, data: DataSpec, params: RandomParams, path: Path,
-                   kind: str = "position") -> Targets:
+@register_source(
+    FAMILY,
+    "random",
+    "forward kinematics of uniform random configurations, optionally with targets outside the workspace",
+    params=RandomParams,
+)
+def random_targets(arm: ArmModel, data: DataSpec, params: RandomParams, path: Path, kind: str = "position") -> Targets:
     """Forward kinematics of ``data.samples`` uniform random configurations, plus ``params.unreachable``
     targets outside the workspace (module docstring); every draw from ``data.seed``."""
     extra = params.unreachable
@@ -145,10 +152,15 @@ def random_targets(arm: ArmModel, data: DataSpec, params: RandomParams, path: Pa
     return Targets(kind, values, Q, reachable)
 
 
-@register_source(FAMILY, "trajectory", "forward kinematics of a smooth configuration motion, solved in order",
-                 params=TrajectoryParams)
-def trajectory_targets(arm: ArmModel, data: DataSpec, params: TrajectoryParams, path: Path,
-                       kind: str = "position") -> Targets:
+@register_source(
+    FAMILY,
+    "trajectory",
+    "forward kinematics of a smooth configuration motion, solved in order",
+    params=TrajectoryParams,
+)
+def trajectory_targets(
+    arm: ArmModel, data: DataSpec, params: TrajectoryParams, path: Path, kind: str = "position"
+) -> Targets:
     """Forward kinematics of :func:`smooth_motion`, flagged as a trajectory (warm-started solves)."""
     Q, t = smooth_motion(arm, data.samples, data.seed, params)
     values = forward_targets(arm, Q, kind)
@@ -166,9 +178,9 @@ def csv_targets(arm: ArmModel, data: DataSpec, params: CsvParams, path: Path, ki
         norms = np.linalg.norm(values[:, 3:], axis=1)
         bad = np.flatnonzero(np.abs(norms - 1.0) > 1e-6)
         if bad.size:
-            raise InputDataError(f"quaternion norm {norms[bad[0]]:.6g} is not 1", source=str(csv_path),
-                                 sample=int(bad[0]), field="qw")
+            raise InputDataError(
+                f"quaternion norm {norms[bad[0]]:.6g} is not 1", source=str(csv_path), sample=int(bad[0]), field="qw"
+            )
         values = dq_from_rotation_translation(values[:, 3:], values[:, :3])
     configurations = np.full((len(values), arm.n_config), np.nan)
-    return Targets(kind, values, configurations, np.ones(len(values), dtype=bool), t=t,
-                   trajectory=params.trajectory)
+    return Targets(kind, values, configurations, np.ones(len(values), dtype=bool), t=t, trajectory=params.trajectory)

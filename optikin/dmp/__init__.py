@@ -19,5 +19,16 @@ from optikin.dmp.model import DMP, Rollout
 from optikin.dmp.regression import Fit
 from optikin.dmp.spaces import Euclidean, Product, Space, UnitDualQuaternion, UnitQuaternion
 
-__all__ = ["DMP", "Euclidean", "Fit", "GAIN_NAMES", "Gains", "Product", "Rollout", "Space", "UnitDualQuaternion",
-           "UnitQuaternion", "stable_bounds"]
+__all__ = [
+    "DMP",
+    "Euclidean",
+    "Fit",
+    "GAIN_NAMES",
+    "Gains",
+    "Product",
+    "Rollout",
+    "Space",
+    "UnitDualQuaternion",
+    "UnitQuaternion",
+    "stable_bounds",
+]

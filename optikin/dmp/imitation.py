@@ -64,8 +64,9 @@ class Demonstration:
         return self.Y[-1]
 
 
-def prepare(space: Space, t: np.ndarray, Y: np.ndarray, source: str = "demonstration",
-            smoothing: float | None = None) -> Demonstration:
+def prepare(
+    space: Space, t: np.ndarray, Y: np.ndarray, source: str = "demonstration", smoothing: float | None = None
+) -> Demonstration:
     """Check a demonstration (finite, fixed step, at least 3 samples) and compute its gap data.
 
     Quaternion blocks are made sign-continuous along the demonstration; the
@@ -76,11 +77,11 @@ def prepare(space: Space, t: np.ndarray, Y: np.ndarray, source: str = "demonstra
     t = np.asarray(t, dtype=float)
     Y = np.asarray(Y, dtype=float)
     if Y.ndim != 2 or Y.shape[1] != space.size:
-        raise InputDataError(f"expected samples of shape (N, {space.size}) for the space {space}, got {Y.shape}",
-                             source=source)
+        raise InputDataError(
+            f"expected samples of shape (N, {space.size}) for the space {space}, got {Y.shape}", source=source
+        )
     if t.shape != (Y.shape[0],):
-        raise InputDataError(f"expected {Y.shape[0]} times, got an array of shape {t.shape}", source=source,
-                             field="t")
+        raise InputDataError(f"expected {Y.shape[0]} times, got an array of shape {t.shape}", source=source, field="t")
     if Y.shape[0] < 3:
         raise InputDataError(f"a demonstration needs at least 3 samples, got {Y.shape[0]}", source=source)
     for name, values in (("t", t[:, None]), ("y", Y)):
@@ -91,9 +92,13 @@ def prepare(space: Space, t: np.ndarray, Y: np.ndarray, source: str = "demonstra
     dt = float(steps.mean())
     worst = int(np.argmax(np.abs(steps - dt)))
     if dt <= 0 or abs(steps[worst] - dt) > UNIFORM_TOLERANCE * dt:
-        raise InputDataError(f"samples must be equally spaced in time (mean step {dt:.6g} s, this one "
-                             f"{steps[worst]:.6g} s); resample the demonstration first", source=source,
-                             sample=worst + 1, field="t")
+        raise InputDataError(
+            f"samples must be equally spaced in time (mean step {dt:.6g} s, this one "
+            f"{steps[worst]:.6g} s); resample the demonstration first",
+            source=source,
+            sample=worst + 1,
+            field="t",
+        )
     Y = space.continuous(Y)
     if smoothing is not None:
         try:
@@ -102,9 +107,15 @@ def prepare(space: Space, t: np.ndarray, Y: np.ndarray, source: str = "demonstra
             raise InputDataError(str(exc), source=source, field="smoothing") from None
     tau = float(t[-1] - t[0])
     goal = Y[-1]
-    return Demonstration(space=space, t=t - t[0], Y=Y, dt=dt, tau=tau,
-                         goal_gap=np.asarray(space.gap(goal, Y[:-1])),
-                         step_rate=np.asarray(space.gap(Y[1:], Y[:-1])) * (tau / dt))
+    return Demonstration(
+        space=space,
+        t=t - t[0],
+        Y=Y,
+        dt=dt,
+        tau=tau,
+        goal_gap=np.asarray(space.gap(goal, Y[:-1])),
+        step_rate=np.asarray(space.gap(Y[1:], Y[:-1])) * (tau / dt),
+    )
 
 
 def _lift(x: np.ndarray, *gains: Array) -> Array:
@@ -142,8 +153,9 @@ def target_forces(demo: Demonstration, beta: Array, gamma: Array, alpha_s: Array
     return (demo.tau / demo.dt) * (eta_next - eta) - beta * (gamma * E - eta)
 
 
-def demonstration_log_phase(demo: Demonstration, zeta: Array, alpha: Array = 0.0,
-                            phase_stopping: str = "tracking") -> Array:
+def demonstration_log_phase(
+    demo: Demonstration, zeta: Array, alpha: Array = 0.0, phase_stopping: str = "tracking"
+) -> Array:
     """``log s_k`` along the demonstration, ``k = 0 .. N-1``.
 
     The demonstration has no tracking error, so with ``tracking`` phase
@@ -165,16 +177,24 @@ def amplitude(space: Space, start: np.ndarray, goal: np.ndarray, scale: bool, so
     amp = np.asarray(space.gap(goal, start), dtype=float)
     small = np.flatnonzero(np.abs(amp) < 1e-9)
     if small.size:
-        raise InputDataError(f"start and goal coincide in gap component {int(small[0])}, so the forcing term "
-                             "cannot be scaled by the start-goal gap (Seleem et al.'s eq. 11); use "
-                             "scale_by_amplitude=False",
-                             source=source, field=f"gap[{int(small[0])}]")
+        raise InputDataError(
+            f"start and goal coincide in gap component {int(small[0])}, so the forcing term "
+            "cannot be scaled by the start-goal gap (Seleem et al.'s eq. 11); use "
+            "scale_by_amplitude=False",
+            source=source,
+            field=f"gap[{int(small[0])}]",
+        )
     return amp
 
 
-def design_matrix(demo: Demonstration, n_basis: int, zeta: Array, alpha: Array = 0.0,
-                  overlap: float = basis.DEFAULT_OVERLAP,
-                  phase_stopping: str = "tracking") -> tuple[Array, Array, Array, Array, Array]:
+def design_matrix(
+    demo: Demonstration,
+    n_basis: int,
+    zeta: Array,
+    alpha: Array = 0.0,
+    overlap: float = basis.DEFAULT_OVERLAP,
+    phase_stopping: str = "tracking",
+) -> tuple[Array, Array, Array, Array, Array]:
     """``(X, s, c, h, s_end)``: the ``(N - 1, n)`` design matrix of eq. (13), the phase of its rows, centres,
     widths, and the phase below which the forcing term is off (:func:`optikin.dmp.basis.forcing_end`)."""
     log_s = demonstration_log_phase(demo, zeta, alpha, phase_stopping)

@@ -132,9 +132,16 @@ class DMP:
         The demonstration as learned and the fit of the weights.
     """
 
-    def __init__(self, space: Space, n_basis: int = 50, gains: Gains = Gains(),
-                 overlap: float = basis.DEFAULT_OVERLAP, scale_by_amplitude: bool = False,
-                 smoothing: float | None = None, phase_stopping: str = "tracking"):
+    def __init__(
+        self,
+        space: Space,
+        n_basis: int = 50,
+        gains: Gains = Gains(),
+        overlap: float = basis.DEFAULT_OVERLAP,
+        scale_by_amplitude: bool = False,
+        smoothing: float | None = None,
+        phase_stopping: str = "tracking",
+    ):
         if n_basis < 2:
             raise ValueError(f"a DMP needs at least 2 basis functions, got {n_basis}")
         if smoothing is not None and not smoothing > 0:
@@ -181,9 +188,16 @@ class DMP:
         F = target_forces(demo, g.beta, g.gamma, g.alpha_s) / amp
         return RegressionProblem(demo, X, F, s, basis.activations(s, c, h), c, h, s_end)
 
-    def imitate(self, t: np.ndarray, Y: np.ndarray, method: str = "lstsq", ridge: float = 0.0,
-                lower: float | np.ndarray | None = None, upper: float | np.ndarray | None = None,
-                source: str = "demonstration") -> regression.Fit:
+    def imitate(
+        self,
+        t: np.ndarray,
+        Y: np.ndarray,
+        method: str = "lstsq",
+        ridge: float = 0.0,
+        lower: float | np.ndarray | None = None,
+        upper: float | np.ndarray | None = None,
+        source: str = "demonstration",
+    ) -> regression.Fit:
         """Learn the weights from a demonstration (eqs. 16, 21-22) and keep them, with the demonstration and basis.
 
         Parameters
@@ -254,10 +268,20 @@ class DMP:
         return self.demo
 
     # ------------------------------------------------------------------ roll-out
-    def rollout(self, duration: float | None = None, *, tau: float | None = None, dt: float | None = None,
-                start: np.ndarray | None = None, goal: np.ndarray | None = None,
-                goal_switches: Sequence[tuple[float, np.ndarray]] = (), disturbance: PerStep = None,
-                reference: PerStep = None, gains: Gains | None = None, weights: np.ndarray | None = None) -> Rollout:
+    def rollout(
+        self,
+        duration: float | None = None,
+        *,
+        tau: float | None = None,
+        dt: float | None = None,
+        start: np.ndarray | None = None,
+        goal: np.ndarray | None = None,
+        goal_switches: Sequence[tuple[float, np.ndarray]] = (),
+        disturbance: PerStep = None,
+        reference: PerStep = None,
+        gains: Gains | None = None,
+        weights: np.ndarray | None = None,
+    ) -> Rollout:
         """Integrate the DMP from ``start`` at rest towards ``goal`` (eqs. 11-12, 15, 17-18, 23-28).
 
         Parameters
@@ -290,24 +314,47 @@ class DMP:
             phase ``(K+1,)``, filtered goal ``(K+1, size)`` and the wall time [s].
         """
         gains = gains or self.gains
-        plan = self.plan(duration, tau=tau, dt=dt, start=start, goal=goal, goal_switches=goal_switches,
-                         disturbance=disturbance, reference=reference)  # checks that the DMP has learned
+        plan = self.plan(
+            duration,
+            tau=tau,
+            dt=dt,
+            start=start,
+            goal=goal,
+            goal_switches=goal_switches,
+            disturbance=disturbance,
+            reference=reference,
+        )  # checks that the DMP has learned
         W = np.asarray(self.weights if weights is None else weights, dtype=float)
         space, size, dim = self.space, self.space.size, self.space.dim
         x0 = np.concatenate([plan.start, -gains.alpha_s * plan.start_coupling, [1.0], plan.goal])
         f = rollout_function(space, self.n_basis, plan.steps)
         begin = time.perf_counter()
         c, h, s_end = self._basis()
-        X = np.asarray(f(x0, plan.inputs.T, W, c, h, plan.amplitude, gains.vector(), plan.tau, plan.dt, s_end,
-                         self.goal_stopping)).T
+        X = np.asarray(
+            f(x0, plan.inputs.T, W, c, h, plan.amplitude, gains.vector(), plan.tau, plan.dt, s_end, self.goal_stopping)
+        ).T
         seconds = time.perf_counter() - begin
-        return Rollout(t=plan.t, y=X[:, :size], eta=X[:, size:size + dim], phase=X[:, size + dim],
-                       goal=X[:, size + dim + 1:], seconds=seconds)
+        return Rollout(
+            t=plan.t,
+            y=X[:, :size],
+            eta=X[:, size : size + dim],
+            phase=X[:, size + dim],
+            goal=X[:, size + dim + 1 :],
+            seconds=seconds,
+        )
 
-    def plan(self, duration: float | None = None, *, tau: float | None = None, dt: float | None = None,
-             start: np.ndarray | None = None, goal: np.ndarray | None = None,
-             goal_switches: Sequence[tuple[float, np.ndarray]] = (), disturbance: PerStep = None,
-             reference: PerStep = None) -> "RolloutPlan":
+    def plan(
+        self,
+        duration: float | None = None,
+        *,
+        tau: float | None = None,
+        dt: float | None = None,
+        start: np.ndarray | None = None,
+        goal: np.ndarray | None = None,
+        goal_switches: Sequence[tuple[float, np.ndarray]] = (),
+        disturbance: PerStep = None,
+        reference: PerStep = None,
+    ) -> "RolloutPlan":
         """The checked inputs of a roll-out (parameters as :meth:`rollout`), before the gains and weights are chosen.
 
         Returns
@@ -331,28 +378,42 @@ class DMP:
 
         dim, size = space.dim, space.size
         U = np.zeros((steps, input_size(space)))  # per step: (d, y_ref, m, g_new)
-        U[:, dim:dim + size] = y0  # a valid pose where no reference is given (m = 0)
-        U[:, dim + size + 1:] = goal
+        U[:, dim : dim + size] = y0  # a valid pose where no reference is given (m = 0)
+        U[:, dim + size + 1 :] = goal
         current = goal
         for when, target in sorted(goal_switches, key=lambda pair: pair[0]):
             current = space.align(self._element(target, "goal switch"), current)
-            U[t[:-1] >= when, dim + size + 1:] = current
+            U[t[:-1] >= when, dim + size + 1 :] = current
         if disturbance is not None:
             U[:, :dim] = self._per_step(disturbance, t[:-1], dim, "disturbance")
         if reference is not None:
-            U[:, dim:dim + size] = self._per_step(reference, t[:-1], size, "reference")
+            U[:, dim : dim + size] = self._per_step(reference, t[:-1], size, "reference")
             U[:, dim + size] = 1.0
         # At rest: the velocity eta + alpha_s (e + r) of eqs. (26)-(27) vanishes at the start.
-        coupling = np.asarray(space.gap(goal, y0)) + U[0, dim + size] * np.asarray(space.gap(U[0, dim:dim + size], y0))
-        return RolloutPlan(t=t, steps=steps, tau=tau, dt=dt, start=y0, goal=goal, final_goal=current, inputs=U,
-                           start_coupling=coupling,
-                           amplitude=amplitude(space, y0, current, self.scale_by_amplitude, "rollout"))
+        coupling = np.asarray(space.gap(goal, y0)) + U[0, dim + size] * np.asarray(
+            space.gap(U[0, dim : dim + size], y0)
+        )
+        return RolloutPlan(
+            t=t,
+            steps=steps,
+            tau=tau,
+            dt=dt,
+            start=y0,
+            goal=goal,
+            final_goal=current,
+            inputs=U,
+            start_coupling=coupling,
+            amplitude=amplitude(space, y0, current, self.scale_by_amplitude, "rollout"),
+        )
 
     def _element(self, x: np.ndarray, what: str) -> np.ndarray:
         x = np.asarray(x, dtype=float)
         if x.shape != (self.space.size,) or not np.isfinite(x).all():
-            raise InputDataError(f"expected {self.space.size} finite components for the space {self.space}, "
-                                 f"got {x.shape} {x if x.size <= 8 else ''}", field=what)
+            raise InputDataError(
+                f"expected {self.space.size} finite components for the space {self.space}, "
+                f"got {x.shape} {x if x.size <= 8 else ''}",
+                field=what,
+            )
         return x
 
     @staticmethod
@@ -362,7 +423,7 @@ class DMP:
             values = values[:, None]
         if values.ndim != 2 or values.shape[1] != width or values.shape[0] < t.size:
             raise InputDataError(f"expected at least {t.size} rows of {width} values, got {values.shape}", field=what)
-        values = values[:t.size]
+        values = values[: t.size]
         bad = np.flatnonzero(~np.isfinite(values).all(axis=1))
         if bad.size:
             raise InputDataError("value is not finite", sample=int(bad[0]), field=what)

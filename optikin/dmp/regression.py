@@ -88,8 +88,14 @@ def fit_lstsq(X: np.ndarray, F: np.ndarray, ridge: float = 0.0) -> Fit:
     return Fit("lstsq", W, _residual(X, F, W), seconds)
 
 
-def fit_cvxpy(X: np.ndarray, F: np.ndarray, ridge: float = 0.0, lower: float | np.ndarray | None = None,
-              upper: float | np.ndarray | None = None, solver: str = "CLARABEL") -> Fit:
+def fit_cvxpy(
+    X: np.ndarray,
+    F: np.ndarray,
+    ridge: float = 0.0,
+    lower: float | np.ndarray | None = None,
+    upper: float | np.ndarray | None = None,
+    solver: str = "CLARABEL",
+) -> Fit:
     """All weights at once as a cvxpy least-squares problem with optional ridge term and bounds.
 
     Parameters

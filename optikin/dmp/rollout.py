@@ -64,8 +64,8 @@ def step_function(space: Space, n_basis: int) -> ca.Function:
     w = ca.SX.sym("goal_stopping")
     beta, gamma, zeta, beta_g0, alpha_s, alpha = (gains[i] for i in range(len(GAIN_NAMES)))
 
-    y, eta, s, g = x[:size], x[size:size + dim], x[size + dim], x[size + dim + 1:]
-    d, ref, m, g_new = u[:dim], u[dim:dim + size], u[dim + size], u[dim + size + 1:]
+    y, eta, s, g = x[:size], x[size : size + dim], x[size + dim], x[size + dim + 1 :]
+    d, ref, m, g_new = u[:dim], u[dim : dim + size], u[dim + size], u[dim + size + 1 :]
 
     e = space.gap(g, y)
     r = m * space.gap(ref, y)
@@ -75,10 +75,13 @@ def step_function(space: Space, n_basis: int) -> ca.Function:
     y_next = space.advance(y, dt / tau * (eta_next + alpha_s * (e + r)))
     s_next = s * ca.exp(-zeta * dt / (tau * (1.0 + alpha * (w * smooth_norm(e) + smooth_norm(r)))))
     g_next = space.advance(g, (1.0 - ca.exp(-beta_g0 * dt / tau)) * space.gap(g_new, g))
-    return ca.Function(f"dmp_step_{n_basis}", [x, u, W, c, h, amp, gains, tau, dt, s_end, w],
-                       [ca.vertcat(y_next, eta_next, s_next, g_next)],
-                       ["x", "u", "W", "c", "h", "amplitude", "gains", "tau", "dt", "s_end", "goal_stopping"],
-                       ["x_next"])
+    return ca.Function(
+        f"dmp_step_{n_basis}",
+        [x, u, W, c, h, amp, gains, tau, dt, s_end, w],
+        [ca.vertcat(y_next, eta_next, s_next, g_next)],
+        ["x", "u", "W", "c", "h", "amplitude", "gains", "tau", "dt", "s_end", "goal_stopping"],
+        ["x_next"],
+    )
 
 
 @lru_cache(maxsize=64)
@@ -106,6 +109,10 @@ def rollout_function(space: Space, n_basis: int, steps: int) -> ca.Function:
     s_end = ca.MX.sym("s_end")
     w = ca.MX.sym("goal_stopping")
     X = loop(x0, U, W, c, h, amp, gains, tau, dt, s_end, w)
-    return ca.Function(f"dmp_rollout_{n_basis}_{steps}", [x0, U, W, c, h, amp, gains, tau, dt, s_end, w],
-                       [ca.horzcat(x0, X)],
-                       ["x0", "U", "W", "c", "h", "amplitude", "gains", "tau", "dt", "s_end", "goal_stopping"], ["X"])
+    return ca.Function(
+        f"dmp_rollout_{n_basis}_{steps}",
+        [x0, U, W, c, h, amp, gains, tau, dt, s_end, w],
+        [ca.horzcat(x0, X)],
+        ["x0", "U", "W", "c", "h", "amplitude", "gains", "tau", "dt", "s_end", "goal_stopping"],
+        ["X"],
+    )

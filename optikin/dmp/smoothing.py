@@ -56,8 +56,9 @@ ORDER = 3
 def smoothing_weight(cutoff: float, dt: float, order: int = ORDER) -> float:
     """``lam`` with a half-power response at ``cutoff`` Hz for samples ``dt`` apart: ``(2 sin(pi cutoff dt))^-2d``."""
     if not 0.0 < cutoff * dt < 0.5:
-        raise ValueError(f"the smoothing cutoff must lie between 0 and the Nyquist frequency {0.5 / dt:.4g} Hz, "
-                         f"got {cutoff} Hz")
+        raise ValueError(
+            f"the smoothing cutoff must lie between 0 and the Nyquist frequency {0.5 / dt:.4g} Hz, got {cutoff} Hz"
+        )
     return (2.0 * math.sin(math.pi * cutoff * dt)) ** (-2 * order)
 
 
@@ -68,7 +69,7 @@ def _penalty_bands(n: int, order: int) -> np.ndarray:
     for k in range(order + 1):  # (D'D)[i, i + k] = sum_j c_j c_{j+k} over the rows r = i - j of D
         diagonal = np.zeros(n - k)
         for j in range(order + 1 - k):
-            diagonal[j:n - order + j] += c[j] * c[j + k]
+            diagonal[j : n - order + j] += c[j] * c[j + k]
         bands[order - k, k:] = diagonal
     return bands
 

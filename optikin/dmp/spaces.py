@@ -112,10 +112,10 @@ class Space:
         """A sequence ``(T, size)`` with every quaternion block made sign-continuous along it."""
         Y = np.array(Y, dtype=float)
         for start, length in self.quaternion_blocks:
-            block = Y[:, start:start + length]
+            block = Y[:, start : start + length]
             dots = np.einsum("ij,ij->i", block[1:], block[:-1])
             flips = np.concatenate([[1.0], np.cumprod(np.where(dots < 0, -1.0, 1.0))])
-            Y[:, start:start + length] = block * flips[:, None]
+            Y[:, start : start + length] = block * flips[:, None]
         return Y
 
     def __repr__(self) -> str:
@@ -149,7 +149,9 @@ class Euclidean(Space):
 
 @dataclass(frozen=True, repr=False)
 class UnitQuaternion(Space):
-    """``S^3`` (Seleem et al.'s eqs. 17-23, Ude et al. 2014): ``gap = 2 log(target conj(y))``, ``advance = exp(v/2) y``.
+    """``S^3`` (Seleem et al.'s eqs. 17-23, Ude et al. 2014).
+
+    ``gap = 2 log(target conj(y))``, ``advance = exp(v/2) y``.
     """
 
     name = "S3"

@@ -127,14 +127,27 @@ def default_bounds(dmp: DMP, names: tuple[str, ...]) -> tuple[np.ndarray, np.nda
     ``gamma >= 1``, ``zeta >= 1`` (the forcing term fades to ``1/e`` by ``tau``).
     """
     stable = stable_bounds(dmp.dt, dmp.tau)
-    table = {"beta": (5.0, stable["beta"][1]), "gamma": (1.0, stable["gamma"][1]), "zeta": (1.0, 15.0),
-             "beta_g0": (0.1, 0.5 * dmp.tau / dmp.dt), "alpha_s": (1e-3, stable["alpha_s"][1]), "alpha": (1e-3, 100.0)}
+    table = {
+        "beta": (5.0, stable["beta"][1]),
+        "gamma": (1.0, stable["gamma"][1]),
+        "zeta": (1.0, 15.0),
+        "beta_g0": (0.1, 0.5 * dmp.tau / dmp.dt),
+        "alpha_s": (1e-3, stable["alpha_s"][1]),
+        "alpha": (1e-3, 100.0),
+    }
     return np.array([table[n][0] for n in names]), np.array([table[n][1] for n in names])
 
 
-def tuning_problem(dmp: DMP, t: np.ndarray, Y: np.ndarray, names: tuple[str, ...] = ("beta", "gamma", "zeta"),
-                   scenario: str = "reproduction", new_goal: np.ndarray | None = None,
-                   switch_time: float = 0.0, bounds: tuple[np.ndarray, np.ndarray] | None = None) -> TuningProblem:
+def tuning_problem(
+    dmp: DMP,
+    t: np.ndarray,
+    Y: np.ndarray,
+    names: tuple[str, ...] = ("beta", "gamma", "zeta"),
+    scenario: str = "reproduction",
+    new_goal: np.ndarray | None = None,
+    switch_time: float = 0.0,
+    bounds: tuple[np.ndarray, np.ndarray] | None = None,
+) -> TuningProblem:
     """Build the objective of eq. (29) in the gains ``names``; the other gains stay at ``dmp.gains``.
 
     Parameters
@@ -185,16 +198,18 @@ def tuning_problem(dmp: DMP, t: np.ndarray, Y: np.ndarray, names: tuple[str, ...
     for i, n in enumerate(names):
         value[n] = ca.exp(log_gains[i])
 
-    X, _, c, h, s_end = design_matrix(demo, dmp.n_basis, value["zeta"], value["alpha"], dmp.overlap,
-                                      dmp.phase_stopping)
+    X, _, c, h, s_end = design_matrix(demo, dmp.n_basis, value["zeta"], value["alpha"], dmp.overlap, dmp.phase_stopping)
     scale = dmp.plan().amplitude  # the learned demonstration's start-goal scaling (ones when not scaling)
-    F = target_forces(demo, value["beta"], value["gamma"], value["alpha_s"]) / ca.repmat(ca.DM(scale).T,
-                                                                                         demo.Y.shape[0] - 1, 1)
+    F = target_forces(demo, value["beta"], value["gamma"], value["alpha_s"]) / ca.repmat(
+        ca.DM(scale).T, demo.Y.shape[0] - 1, 1
+    )
     # Normal equations on unit-norm columns (late basis functions have columns ~ s = 0.01 in size).
     column = ca.sqrt(ca.sum1(X * X)).T
     Xs = X / ca.repmat(column.T, X.shape[0], 1)
-    W = (ca.solve(ca.mtimes(Xs.T, Xs) + RIDGE * ca.DM.eye(dmp.n_basis), ca.mtimes(Xs.T, F))
-         / ca.repmat(column, 1, space.dim)).T
+    W = (
+        ca.solve(ca.mtimes(Xs.T, Xs) + RIDGE * ca.DM.eye(dmp.n_basis), ca.mtimes(Xs.T, F))
+        / ca.repmat(column, 1, space.dim)
+    ).T
 
     if scenario == "reproduction":
         plan = dmp.plan()
@@ -208,16 +223,18 @@ def tuning_problem(dmp: DMP, t: np.ndarray, Y: np.ndarray, names: tuple[str, ...
     x0 = ca.vertcat(plan.start, -value["alpha_s"] * ca.DM(plan.start_coupling), 1.0, plan.goal)
     gains_vector = ca.vertcat(*[value[n] for n in GAIN_NAMES])
     rollout = rollout_function(space, dmp.n_basis, plan.steps)
-    states = rollout(x0, plan.inputs.T, W, c, h, plan.amplitude, gains_vector, plan.tau, plan.dt, s_end,
-                     dmp.goal_stopping)
-    E = states[:space.size, rows] - ca.DM(reference[rows].T)
+    states = rollout(
+        x0, plan.inputs.T, W, c, h, plan.amplitude, gains_vector, plan.tau, plan.dt, s_end, dmp.goal_stopping
+    )
+    E = states[: space.size, rows] - ca.DM(reference[rows].T)
     samples = reference[rows].shape[0]
     objective = ca.Function("dmp_eq29", [log_gains], [ca.sumsqr(E) / samples], ["log_gains"], ["error"])
 
     lower, upper = bounds if bounds is not None else default_bounds(dmp, names)
     initial = np.clip([getattr(dmp.gains, n) for n in names], lower, upper)
-    return TuningProblem(tuple(names), objective, np.asarray(lower, float), np.asarray(upper, float), initial,
-                         dmp.gains)
+    return TuningProblem(
+        tuple(names), objective, np.asarray(lower, float), np.asarray(upper, float), initial, dmp.gains
+    )
 
 
 def _batch(problem: TuningProblem) -> Callable[[np.ndarray], np.ndarray]:
@@ -241,8 +258,15 @@ def screening_points(problem: TuningProblem, points: int, seed: int = 0) -> np.n
     return np.vstack([np.log(problem.initial)[None, :], lower + unit * (upper - lower)])
 
 
-def tune_gradient(problem: TuningProblem, max_iterations: int = 60, tolerance: float = 1e-6,
-                  time_limit: float = 60.0, screen: int = 16, starts: int = 2, seed: int = 0) -> TuningResult:
+def tune_gradient(
+    problem: TuningProblem,
+    max_iterations: int = 60,
+    tolerance: float = 1e-6,
+    time_limit: float = 60.0,
+    screen: int = 16,
+    starts: int = 2,
+    seed: int = 0,
+) -> TuningResult:
     """Minimise eq. (29) over the log-gains: multi-start IPOPT (exact gradient, limited-memory Hessian, box bounds).
 
     Parameters
@@ -302,9 +326,15 @@ def tune_gradient(problem: TuningProblem, max_iterations: int = 60, tolerance: f
         remaining = time_limit - (time.perf_counter() - begin)
         if remaining <= 0:
             break
-        options: dict[str, Any] = {"print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes",
-                   "ipopt.hessian_approximation": "limited-memory", "ipopt.max_iter": int(max_iterations),
-                   "ipopt.tol": float(tolerance), "ipopt.max_wall_time": float(remaining)}
+        options: dict[str, Any] = {
+            "print_time": False,
+            "ipopt.print_level": 0,
+            "ipopt.sb": "yes",
+            "ipopt.hessian_approximation": "limited-memory",
+            "ipopt.max_iter": int(max_iterations),
+            "ipopt.tol": float(tolerance),
+            "ipopt.max_wall_time": float(remaining),
+        }
         nlp: dict[str, Any] = {"x": p, "f": scale * problem.objective(p)}
         solver = ca.nlpsol("dmp_gain_tuning", "ipopt", nlp, options)
         solution = solver(x0=candidates[k], lbx=np.log(problem.lower), ubx=np.log(problem.upper))
@@ -319,8 +349,16 @@ def tune_gradient(problem: TuningProblem, max_iterations: int = 60, tolerance: f
     if not math.isfinite(best_error):
         raise SolverError("gain tuning found no finite value of eq. (29) at any start")
     seconds = time.perf_counter() - begin
-    return TuningResult("ipopt", problem.gains(np.exp(best_x)), best_error, initial_error, seconds, evaluations,
-                        np.minimum.accumulate(np.asarray(history)), best_status)
+    return TuningResult(
+        "ipopt",
+        problem.gains(np.exp(best_x)),
+        best_error,
+        initial_error,
+        seconds,
+        evaluations,
+        np.minimum.accumulate(np.asarray(history)),
+        best_status,
+    )
 
 
 def tune_genetic(problem: TuningProblem, population: int = 20, generations: int = 15, seed: int = 0) -> TuningResult:
@@ -339,8 +377,23 @@ def tune_genetic(problem: TuningProblem, population: int = 20, generations: int 
         ``method="genetic"``.
     """
     initial_error = problem.error(problem.initial)
-    found = genetic.minimise(_batch(problem), np.log(problem.lower), np.log(problem.upper), population=population,
-                             generations=generations, seed=seed, initial=np.log(problem.initial))
+    found = genetic.minimise(
+        _batch(problem),
+        np.log(problem.lower),
+        np.log(problem.upper),
+        population=population,
+        generations=generations,
+        seed=seed,
+        initial=np.log(problem.initial),
+    )
     values = np.exp(found.x)
-    return TuningResult("genetic", problem.gains(values), found.value, initial_error, found.seconds,
-                        found.evaluations, found.history, "finished")
+    return TuningResult(
+        "genetic",
+        problem.gains(values),
+        found.value,
+        initial_error,
+        found.seconds,
+        found.evaluations,
+        found.history,
+        "finished",
+    )

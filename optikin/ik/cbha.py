@@ -78,8 +78,10 @@ def distributed_tube_range(geometry: CBHAGeometry, elongation: str = "distribute
     a, b = distribution_coefficients(geometry, elongation)
     lo, hi = np.asarray(geometry.leg_min), np.asarray(geometry.leg_max)
     slices = section_slices(geometry)
-    return (np.array([np.max((lo[s] - a[s]) / b[s]) for s in slices]),
-            np.array([np.min((hi[s] - a[s]) / b[s]) for s in slices]))
+    return (
+        np.array([np.max((lo[s] - a[s]) / b[s]) for s in slices]),
+        np.array([np.min((hi[s] - a[s]) / b[s]) for s in slices]),
+    )
 
 
 def distribution_rows(arm: CBHAArm, q: ca.SX, elongation: str = "distributed") -> ca.SX:

@@ -117,7 +117,7 @@ def tip_residual(arm: ArmModel, target: str, orientation_length: float) -> ca.Fu
     quat, position = frames[-1]
     if target == "sections":
         ends = ca.SX.sym("ends", 3 * len(frames))
-        r = ca.vertcat(*[pos - ends[3 * i: 3 * i + 3] for i, (_, pos) in enumerate(frames)])
+        r = ca.vertcat(*[pos - ends[3 * i : 3 * i + 3] for i, (_, pos) in enumerate(frames)])
         return ca.Function(f"{arm.name}_ik_sections", [q, ends], [r], ["q", "ends"], ["r"])
     if target == "position":
         p = ca.SX.sym("p", 3)
@@ -168,8 +168,9 @@ def build_problem(arm: ArmModel, formulation: Formulation) -> LeastSquaresProble
     """
     needs_cbha = formulation.target == "legs" or formulation.elongation != "free"
     if needs_cbha and not isinstance(arm, CBHAArm):
-        raise ValueError(f"{formulation.target} targets with elongation {formulation.elongation!r} need a "
-                         f"CBHA arm, not {arm.name}")
+        raise ValueError(
+            f"{formulation.target} targets with elongation {formulation.elongation!r} need a CBHA arm, not {arm.name}"
+        )
     if formulation.target == "legs" and isinstance(arm, CBHAArm):
         return platform_problems(arm, formulation.tolerance)
     tip = tip_residual(arm, formulation.target, formulation.orientation_length)
@@ -184,10 +185,23 @@ def build_problem(arm: ArmModel, formulation: Formulation) -> LeastSquaresProble
     limits: dict[str, Any] = {}
     if isinstance(arm, CBHAArm):
         lower, upper = arm.leg_limits()
-        limits = {"constraints": arm.leg_lengths, "constraint_lower": lower, "constraint_upper": upper,
-                  "constraint_names": arm.leg_names}
+        limits = {
+            "constraints": arm.leg_lengths,
+            "constraint_lower": lower,
+            "constraint_upper": upper,
+            "constraint_names": arm.leg_names,
+        }
     if not formulation.exact:
         limits["stationarity_tolerance"] = PENALTY_STATIONARITY
-    return LeastSquaresProblem(residual, arm.lower, arm.upper, arm.periodic, tolerance=formulation.tolerance,
-                               weights=formulation.weights, exact=formulation.exact, name=name,
-                               variable_names=arm.config_names, **limits)
+    return LeastSquaresProblem(
+        residual,
+        arm.lower,
+        arm.upper,
+        arm.periodic,
+        tolerance=formulation.tolerance,
+        weights=formulation.weights,
+        exact=formulation.exact,
+        name=name,
+        variable_names=arm.config_names,
+        **limits,
+    )

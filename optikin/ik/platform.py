@@ -59,14 +59,27 @@ def platform_problems(arm: CBHAArm, tolerance: float) -> list[LeastSquaresProble
         legs = PLATFORM_LEG_LENGTHS(x[0], x[1], x[2], radii[k], radii[k + 1])
         residual = ca.Function(f"cbha_platform{k + 1}_legs", [x, q], [legs - q], ["x", "q"], ["r"])
         block = slice(3 * k, 3 * k + 3)
-        problems.append(LeastSquaresProblem(residual, arm.lower[block], arm.upper[block], np.zeros(3, dtype=bool),
-                                            tolerance=tolerance, name=f"cbha_platform{k + 1}",
-                                            variable_names=arm.config_names[block]))
+        problems.append(
+            LeastSquaresProblem(
+                residual,
+                arm.lower[block],
+                arm.upper[block],
+                np.zeros(3, dtype=bool),
+                tolerance=tolerance,
+                name=f"cbha_platform{k + 1}",
+                variable_names=arm.config_names[block],
+            )
+        )
     return problems
 
 
-def solve_platforms(adapter: NonlinearAdapter, problems: list[LeastSquaresProblem], legs: np.ndarray,
-                    start: np.ndarray, warm_start: bool = False) -> SolutionBatch:
+def solve_platforms(
+    adapter: NonlinearAdapter,
+    problems: list[LeastSquaresProblem],
+    legs: np.ndarray,
+    start: np.ndarray,
+    warm_start: bool = False,
+) -> SolutionBatch:
     """Every platform of every sample with one ``nonlinear`` adapter.
 
     Parameters
@@ -88,8 +101,10 @@ def solve_platforms(adapter: NonlinearAdapter, problems: list[LeastSquaresProble
         Configurations ``(N, 3 n_platforms)``; a sample's status is the worst of its platforms'
         (:data:`STATUS_PRIORITY`), its iterations and time add up over them, its residual is the largest.
     """
-    reports = [adapter.solve_many(problem, start[..., 3 * k: 3 * k + 3], legs[:, 3 * k: 3 * k + 3], warm_start)
-               for k, problem in enumerate(problems)]
+    reports = [
+        adapter.solve_many(problem, start[..., 3 * k : 3 * k + 3], legs[:, 3 * k : 3 * k + 3], warm_start)
+        for k, problem in enumerate(problems)
+    ]
     statuses = np.array([r.status for r in reports])  # (platform, sample)
     status = [next(s for s in STATUS_PRIORITY if s in column) for column in statuses.T]
     messages = []
@@ -135,8 +150,9 @@ class Realised:
     report: SolutionBatch
 
 
-def realise(arm: CBHAArm, configurations: np.ndarray, adapter: NonlinearAdapter,
-            problems: list[LeastSquaresProblem]) -> Realised:
+def realise(
+    arm: CBHAArm, configurations: np.ndarray, adapter: NonlinearAdapter, problems: list[LeastSquaresProblem]
+) -> Realised:
     """The leg lengths of ``configurations`` (eqs. 7-9) clipped to Table I, as the actuators would,
     the pose they produce (every platform solved by ``adapter`` from :func:`linearised_start`)
     and its tip (eq. 5). A configuration with a non-finite value, or applied lengths whose
@@ -154,5 +170,10 @@ def realise(arm: CBHAArm, configurations: np.ndarray, adapter: NonlinearAdapter,
     tip = np.full((len(Q), 3), np.nan)
     if solved.any():
         tip[solved] = arm.evaluate("fk_position", Q[solved])
-    return Realised(commanded=commanded, clipped=np.any(np.abs(applied - commanded) > CLIP_TOLERANCE, axis=1),
-                    configurations=Q, tip=tip, report=report)
+    return Realised(
+        commanded=commanded,
+        clipped=np.any(np.abs(applied - commanded) > CLIP_TOLERANCE, axis=1),
+        configurations=Q,
+        tip=tip,
+        report=report,
+    )

@@ -30,7 +30,14 @@ from pydantic import Field
 from optikin.arms.cbha import CBHAArm
 from optikin.baselines.nn_database import DatabaseSpec, Fig7Params, LearningDatabase
 from optikin.baselines.nn_models import (
-    SETTINGS, Task, TrainedModel, TrainingSetting, split_mse, split_rmse_by_variable, train_model)
+    SETTINGS,
+    Task,
+    TrainedModel,
+    TrainingSetting,
+    split_mse,
+    split_rmse_by_variable,
+    train_model,
+)
 from optikin.baselines.nn_store import load_models, save_models
 from optikin.options import Options, validate_options
 from optikin.problems import ProblemContext
@@ -58,13 +65,19 @@ class NNOptions(Options):
     """``options`` of the ``nn_fkm`` and ``nn_ikm`` kinds."""
 
     variants: tuple[SettingName, ...] = Field(
-        ("seed", "adam"), min_length=1, description="training settings, one trained variant each "
-                                                    "(optikin.baselines.nn_models.SETTINGS)")
+        ("seed", "adam"),
+        min_length=1,
+        description="training settings, one trained variant each (optikin.baselines.nn_models.SETTINGS)",
+    )
     setting: Literal["full", "small"] = Field(
-        "full", description="full: the settings as named; small: two widths, at most 15 epochs (tests, notebooks)")
+        "full", description="full: the settings as named; small: two widths, at most 15 epochs (tests, notebooks)"
+    )
     penalty: float = Field(1e-3, ge=0, description="lambda of eq. (11) (nn_ikm only)")
-    store: str | None = Field(None, description="folder of trained models (relative to the working directory): "
-                                                "loaded when it matches the problem, otherwise trained and written")
+    store: str | None = Field(
+        None,
+        description="folder of trained models (relative to the working directory): "
+        "loaded when it matches the problem, otherwise trained and written",
+    )
     exact_samples: int = Field(200, ge=1, description="test samples given to the exact solvers (the first ones)")
     latency_repeats: int = Field(50, ge=1, description="one-sample calls timed for the latency")
 
@@ -121,16 +134,26 @@ def prepare(ctx: ProblemContext) -> Prepared:
     if not isinstance(ctx.arm, CBHAArm):
         raise ctx.error("arm.type", f"the nn kinds model the CBHA of seed 004, not {ctx.arm.name!r}")
     if ctx.solver is not None:
-        raise ctx.error("solver", f"{ctx.solver.name!r}: the nn kinds train networks; list the exact solver "
-                                  "presets to compare with under baselines")
+        raise ctx.error(
+            "solver",
+            f"{ctx.solver.name!r}: the nn kinds train networks; list the exact solver "
+            "presets to compare with under baselines",
+        )
     o = options(ctx)
     db, seconds = timed(ctx.load_data)
     return Prepared(ctx.spec, ctx.arm, o, db, seconds)
 
 
 # ---------------------------------------------------------------------------------------- running
-def obtain_models(progress: Progress, db: LearningDatabase, tasks: list[Task], setting: TrainingSetting,
-                  penalty: float, store: str | None, label: str) -> tuple[list[TrainedModel], bool]:
+def obtain_models(
+    progress: Progress,
+    db: LearningDatabase,
+    tasks: list[Task],
+    setting: TrainingSetting,
+    penalty: float,
+    store: str | None,
+    label: str,
+) -> tuple[list[TrainedModel], bool]:
     """Models of ``tasks`` and whether they were trained: loaded from ``store/label`` when it
     exists, else trained (and saved there when ``store`` is given)."""
     penalties = {t.key: (penalty if t.penalised else 0.0) for t in tasks}
@@ -139,8 +162,10 @@ def obtain_models(progress: Progress, db: LearningDatabase, tasks: list[Task], s
         required = {t.key: (setting, penalties[t.key]) for t in tasks}
         return load_models(folder, db.geometry, db.spec, required), False
     models = []
-    with progress.task(f"training {label}: {len(tasks)} models x {len(setting.neurons)} widths",
-                       total=len(tasks) * len(setting.neurons)) as advance:
+    with progress.task(
+        f"training {label}: {len(tasks)} models x {len(setting.neurons)} widths",
+        total=len(tasks) * len(setting.neurons),
+    ) as advance:
         for task in tasks:
             models.append(train_model(task, db, setting, penalties[task.key], on_width=lambda n, v: advance()))
     if folder is not None:
@@ -163,7 +188,7 @@ def latency(fn: Callable[[np.ndarray], Any], inputs: np.ndarray, repeats: int) -
     fn(inputs[:1])
     times = []
     for i in range(repeats):
-        row = inputs[i % len(inputs): i % len(inputs) + 1]
+        row = inputs[i % len(inputs) : i % len(inputs) + 1]
         start = time.perf_counter()
         fn(row)
         times.append(time.perf_counter() - start)
@@ -229,8 +254,12 @@ def error_stats(errors: np.ndarray) -> dict[str, float]:
     finite = e[np.isfinite(e)]
     stats: dict[str, float] = {"samples without a tip": int(e.size - finite.size)}
     if finite.size:
-        stats |= {"tip error mean [mm]": float(finite.mean()), "tip error median [mm]": float(np.median(finite)),
-                  "tip error p95 [mm]": float(np.percentile(finite, 95)), "tip error max [mm]": float(finite.max())}
+        stats |= {
+            "tip error mean [mm]": float(finite.mean()),
+            "tip error median [mm]": float(np.median(finite)),
+            "tip error p95 [mm]": float(np.percentile(finite, 95)),
+            "tip error max [mm]": float(finite.max()),
+        }
     return stats
 
 
@@ -252,8 +281,9 @@ def model_metrics(label: str, models: list[TrainedModel], db: LearningDatabase) 
     return out
 
 
-def network_row(run: NetworkRun, db: LearningDatabase, metrics: dict[str, Any],
-                extra: dict[str, Any] | None = None) -> MethodRow:
+def network_row(
+    run: NetworkRun, db: LearningDatabase, metrics: dict[str, Any], extra: dict[str, Any] | None = None
+) -> MethodRow:
     """The comparison row of one trained variant (its model metrics are added to ``metrics``)."""
     label, models = run.label, run.models
     mm = model_metrics(label, models, db)
@@ -261,30 +291,48 @@ def network_row(run: NetworkRun, db: LearningDatabase, metrics: dict[str, Any],
     row = {f"test MSE {m.task.key}": mm[f"{label} {m.task.key}"]["test MSE"] for m in models}
     row |= {f"neurons {m.task.key}": m.neurons for m in models}
     row |= error_stats(run.errors) | (extra or {})
-    row |= {"time per sample, batch [us]": run.batch_seconds / len(run.errors) * 1e6,
-            "latency, one sample [us]": run.latency * 1e6,
-            "training time [s]": sum(m.training_time for m in models)}
+    row |= {
+        "time per sample, batch [us]": run.batch_seconds / len(run.errors) * 1e6,
+        "latency, one sample [us]": run.latency * 1e6,
+        "training time [s]": sum(m.training_time for m in models),
+    }
     return MethodRow(label, "solver", row)
 
 
 def solver_row(run: SolverRun, extra: dict[str, Any]) -> MethodRow:
     """The comparison row of an exact solver preset on ``len(run.report)`` samples."""
     report = run.report
-    return MethodRow(run.name, "baseline", {
-        "samples": len(report), "ok [%]": float(100 * np.mean(np.array(report.status) == "ok")),
-        **error_stats(run.errors), **extra, "batched": report.batched,
-        "time per sample [us]": run.seconds / len(report) * 1e6})
+    return MethodRow(
+        run.name,
+        "baseline",
+        {
+            "samples": len(report),
+            "ok [%]": float(100 * np.mean(np.array(report.status) == "ok")),
+            **error_stats(run.errors),
+            **extra,
+            "batched": report.batched,
+            "time per sample [us]": run.seconds / len(report) * 1e6,
+        },
+    )
 
 
 def search_arrays(run: NetworkRun) -> dict[str, np.ndarray]:
     """``search_<setting>_<task>``: ``(widths, 2)`` rows of (width, validation criterion), widths sorted."""
-    return {f"search_{run.setting.name}_{m.task.key}": np.array([[n, m.search[n]] for n in sorted(m.search)])
-            for m in run.models}
+    return {
+        f"search_{run.setting.name}_{m.task.key}": np.array([[n, m.search[n]] for n in sorted(m.search)])
+        for m in run.models
+    }
 
 
-def comparison_result(prep: Prepared, networks: Sequence[NetworkRun], comparison: list[MethodRow],
-                      errors: dict[str, np.ndarray], metrics: dict[str, Any], arrays: dict[str, np.ndarray],
-                      note: str) -> Result:
+def comparison_result(
+    prep: Prepared,
+    networks: Sequence[NetworkRun],
+    comparison: list[MethodRow],
+    errors: dict[str, np.ndarray],
+    metrics: dict[str, Any],
+    arrays: dict[str, np.ndarray],
+    note: str,
+) -> Result:
     """The result of either kind: the first network variant is the method, every row a comparison.
 
     Parameters
@@ -298,9 +346,17 @@ def comparison_result(prep: Prepared, networks: Sequence[NetworkRun], comparison
         arrays |= search_arrays(run)
     arrays |= {f"tip_errors_{name}": e for name, e in errors.items()}
     return Result(
-        problem=spec.name, kind=spec.kind, solver=main, title=spec.title, arm=prep.arm.describe(),
-        status=["ok" if np.isfinite(e) else "failed" for e in errors[main]], residuals=errors[main],
-        timings={"database [s]": prep.seconds}, metrics=metrics, comparison=comparison, arrays=arrays,
+        problem=spec.name,
+        kind=spec.kind,
+        solver=main,
+        title=spec.title,
+        arm=prep.arm.describe(),
+        status=["ok" if np.isfinite(e) else "failed" for e in errors[main]],
+        residuals=errors[main],
+        timings={"database [s]": prep.seconds},
+        metrics=metrics,
+        comparison=comparison,
+        arrays=arrays,
         notes=[note],
     )
 

@@ -21,8 +21,9 @@ def pick_samples(n: int, count: int) -> np.ndarray:
     return np.unique(np.linspace(0, n - 1, min(n, count)).astype(int))
 
 
-def draw_shapes(ax, curves: list[np.ndarray], markers: list[np.ndarray], truths: list[np.ndarray] | None = None,
-                colours=None) -> None:
+def draw_shapes(
+    ax, curves: list[np.ndarray], markers: list[np.ndarray], truths: list[np.ndarray] | None = None, colours=None
+) -> None:
     """On a 3-D axis: each PH curve ``(T, 3)`` (line), its markers ``(K, 3)`` (dots), the ground truth (dashed)."""
     colours = colours if colours is not None else plt.cm.viridis(np.linspace(0, 1, len(curves)))
     for k, (c, m) in enumerate(zip(curves, markers)):
@@ -33,27 +34,41 @@ def draw_shapes(ax, curves: list[np.ndarray], markers: list[np.ndarray], truths:
     every = np.concatenate([c for c in curves] + [m for m in markers]) * MM
     lo, hi = np.nanmin(every, axis=0), np.nanmax(every, axis=0)
     centre, half = 0.5 * (lo + hi), 0.5 * max(float(np.nanmax(hi - lo)), 1e-6)
-    ax.set(xlim=(centre[0] - half, centre[0] + half), ylim=(centre[1] - half, centre[1] + half),
-           zlim=(centre[2] - half, centre[2] + half), xlabel="x [mm]", ylabel="y [mm]", zlabel="z [mm]")
+    ax.set(
+        xlim=(centre[0] - half, centre[0] + half),
+        ylim=(centre[1] - half, centre[1] + half),
+        zlim=(centre[2] - half, centre[2] + half),
+        xlabel="x [mm]",
+        ylabel="y [mm]",
+        zlabel="z [mm]",
+    )
     ax.legend(loc="upper left", fontsize=8)
 
 
-def shapes_3d(path: Path, curves: np.ndarray, markers: np.ndarray, title: str, truths: np.ndarray | None = None,
-              count: int = 6) -> None:
+def shapes_3d(
+    path: Path, curves: np.ndarray, markers: np.ndarray, title: str, truths: np.ndarray | None = None, count: int = 6
+) -> None:
     """PH curves ``(N, T, 3)`` with their markers ``(N, K, 3)`` (and model backbones), ``count`` samples."""
     pick = pick_samples(len(curves), count)
     fig = plt.figure(figsize=(6.4, 6.0))
     ax = fig.add_subplot(projection="3d")
-    draw_shapes(ax, [curves[i] for i in pick], [markers[i] for i in pick],
-                None if truths is None else [truths[i] for i in pick])
+    draw_shapes(
+        ax, [curves[i] for i in pick], [markers[i] for i in pick], None if truths is None else [truths[i] for i in pick]
+    )
     ax.set_title(title)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
 
-def per_sample(path: Path, series: dict[str, np.ndarray], ylabel: str, title: str,
-               labels: dict[str, list[str]] | None = None, reference: dict[str, float] | None = None) -> None:
+def per_sample(
+    path: Path,
+    series: dict[str, np.ndarray],
+    ylabel: str,
+    title: str,
+    labels: dict[str, list[str]] | None = None,
+    reference: dict[str, float] | None = None,
+) -> None:
     """One panel per named array ``(N,)`` or ``(N, K)`` against the sample index; dotted lines at ``reference``."""
     fig, axes = plt.subplots(len(series), 1, figsize=(7.0, 2.5 * len(series)), sharex=True, squeeze=False)
     for ax, (name, y) in zip(axes[:, 0], series.items()):
@@ -79,8 +94,14 @@ def times_per_sample(path: Path, seconds: dict[str, np.ndarray], title: str) -> 
     """Wall time per sample of each method (log scale, microseconds)."""
     fig, ax = plt.subplots(figsize=(7.0, 3.4))
     for name, s in seconds.items():
-        ax.semilogy(np.arange(len(s)), np.asarray(s) * 1e6, ".-", lw=0.8, ms=3,
-                    label=f"{name} (median {np.median(s) * 1e6:.0f} us)")
+        ax.semilogy(
+            np.arange(len(s)),
+            np.asarray(s) * 1e6,
+            ".-",
+            lw=0.8,
+            ms=3,
+            label=f"{name} (median {np.median(s) * 1e6:.0f} us)",
+        )
     ax.set(xlabel="sample", ylabel="time per sample [us]", title=title)
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8)
@@ -89,8 +110,9 @@ def times_per_sample(path: Path, seconds: dict[str, np.ndarray], title: str) -> 
     plt.close(fig)
 
 
-def chains_3d(path: Path, links: list[np.ndarray], markers: list[np.ndarray], truths: list[np.ndarray], title: str,
-              count: int = 3) -> None:
+def chains_3d(
+    path: Path, links: list[np.ndarray], markers: list[np.ndarray], truths: list[np.ndarray], title: str, count: int = 3
+) -> None:
     """Chains of PH links: per link curves ``(N, T, 3)``, markers ``(N, K, 3)``, truth ``(N, M, 3)``.
 
     ``count`` samples are drawn.

@@ -62,8 +62,9 @@ class PHOptions(Options):
 
     twist_weight: float = Field(0.0, ge=0, description="weight of the twist energy int tau^2 ds")
     nodes: int = Field(DEFAULT_NODES, ge=2, le=200, strict=True, description="Gauss-Legendre nodes of the energy")
-    free_speeds: bool = Field(False, strict=True,
-                              description="false: end speeds = backbone length; true: free, arc length held")
+    free_speeds: bool = Field(
+        False, strict=True, description="false: end speeds = backbone length; true: free, arc length held"
+    )
     length: str | float = Field("arc", description="backbone length: arc | markers | model | a length [m]")
     fixed_base: bool = Field(True, strict=True, description="average the base pose over the recording")
 
@@ -104,14 +105,14 @@ def recording_of(problem: str, samples: int | None = None) -> Any:
 
 
 # ------------------------------------------------------------------------------ end data
-def shape_samples(recording: MarkerRecording, options: PHOptions,
-                  source: str) -> tuple[MarkerRecording, np.ndarray, list[ShapeData]]:
+def shape_samples(
+    recording: MarkerRecording, options: PHOptions, source: str
+) -> tuple[MarkerRecording, np.ndarray, list[ShapeData]]:
     """The recording (base pose averaged with ``fixed_base``), its backbone lengths and end data."""
     if options.fixed_base:
         recording = recording.with_fixed_base()
     lengths = backbone_lengths(recording, options.length, source)
     return recording, lengths, end_data(recording, lengths, source)
-
 
 
 def backbone_lengths(recording: MarkerRecording, mode: str | float, source: str) -> np.ndarray:
@@ -120,15 +121,20 @@ def backbone_lengths(recording: MarkerRecording, mode: str | float, source: str)
     if not isinstance(mode, str):
         return np.full(n, float(mode))
     if mode == "arc":
-        return arc_length_estimate(recording.base_position, recording.base_direction, recording.tip_position,
-                                   recording.tip_direction)
+        return arc_length_estimate(
+            recording.base_position, recording.base_direction, recording.tip_position, recording.tip_direction
+        )
     if mode == "markers":
-        points = np.concatenate([recording.base_position[:, None], recording.markers,
-                                 recording.tip_position[:, None]], 1)
+        points = np.concatenate(
+            [recording.base_position[:, None], recording.markers, recording.tip_position[:, None]], 1
+        )
         return np.linalg.norm(np.diff(points, axis=1), axis=2).sum(axis=1)
     if recording.truth is None:
-        raise InputDataError("length 'model' needs a synthetic recording (the vertebra model's backbone length)",
-                             source=source, field="length")
+        raise InputDataError(
+            "length 'model' needs a synthetic recording (the vertebra model's backbone length)",
+            source=source,
+            field="length",
+        )
     return recording.truth.backbone_length.copy()
 
 
@@ -139,9 +145,18 @@ def end_data(recording: MarkerRecording, lengths: np.ndarray, source: str) -> li
     """
     chord = np.linalg.norm(recording.tip_position - recording.base_position, axis=1)
     lengths = np.maximum(lengths, chord * (1.0 + 1e-9))
-    return [ShapeData.checked(recording.base_position[i], recording.base_direction[i], recording.tip_position[i],
-                              recording.tip_direction[i], length=lengths[i], source=source, sample=i)
-            for i in range(len(recording))]
+    return [
+        ShapeData.checked(
+            recording.base_position[i],
+            recording.base_direction[i],
+            recording.tip_position[i],
+            recording.tip_direction[i],
+            length=lengths[i],
+            source=source,
+            sample=i,
+        )
+        for i in range(len(recording))
+    ]
 
 
 # ------------------------------------------------------------------------------ methods
@@ -203,13 +218,20 @@ def ph_methods(ctx: ProblemContext, others: tuple[str, ...] = ()) -> list[tuple[
     return methods
 
 
-def solve_methods(ctx: ProblemContext, energy: EnergySettings, free_speeds: bool, samples: list[ShapeData],
-                  label: str = "", others: tuple[str, ...] = ()) -> dict[str, MethodRun]:
+def solve_methods(
+    ctx: ProblemContext,
+    energy: EnergySettings,
+    free_speeds: bool,
+    samples: list[ShapeData],
+    label: str = "",
+    others: tuple[str, ...] = (),
+) -> dict[str, MethodRun]:
     """Every ``ph`` method on ``samples`` (in order); models are built (and compiled) before the clock starts."""
     runs: dict[str, MethodRun] = {}
     methods = ph_methods(ctx, others)
-    with ctx.progress.task(f"{ctx.spec.kind}{label}: {len(samples)} samples x {len(methods)} methods",
-                           total=len(methods)) as advance:
+    with ctx.progress.task(
+        f"{ctx.spec.kind}{label}: {len(samples)} samples x {len(methods)} methods", total=len(methods)
+    ) as advance:
         for name, role, adapter in methods:
             tic = time.perf_counter()
             model = adapter.model(energy, free_speeds)
@@ -290,9 +312,16 @@ def summary_of(values_mm: np.ndarray) -> dict[str, float]:
 
 
 # ------------------------------------------------------------------------------ smaller runs of shipped problems
-def problem_variant(name: str, directory: Path, *, samples: int | None = None, solver: str | None = None,
-                    baselines: list[str] | None = None, options: dict[str, Any] | None = None,
-                    data_params: dict[str, Any] | None = None) -> Path:
+def problem_variant(
+    name: str,
+    directory: Path,
+    *,
+    samples: int | None = None,
+    solver: str | None = None,
+    baselines: list[str] | None = None,
+    options: dict[str, Any] | None = None,
+    data_params: dict[str, Any] | None = None,
+) -> Path:
     """A copy of problem ``name`` in ``directory`` with fewer samples, another solver, baselines or options.
 
     For notebooks and tests that run a shipped problem on a small setting; the copy

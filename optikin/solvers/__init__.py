@@ -37,8 +37,7 @@ class Backend:
     module: str = ""
 
 
-def register_backend(name: str, family: str, summary: str,
-                     options: type[Options] = NoOptions) -> Callable:
+def register_backend(name: str, family: str, summary: str, options: type[Options] = NoOptions) -> Callable:
     """Decorator registering ``build(preset, options) -> adapter`` as backend ``name``.
 
     ``options`` is the model the preset's ``options:`` are validated against; the

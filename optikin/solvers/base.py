@@ -105,8 +105,14 @@ class SolutionBatch:
         return len(self.status)
 
     def __getitem__(self, k: int) -> Solution:
-        return Solution(self.x[k], self.status[k], int(self.iterations[k]), float(self.residual[k]),
-                        float(self.seconds[k]), self.messages[k])
+        return Solution(
+            self.x[k],
+            self.status[k],
+            int(self.iterations[k]),
+            float(self.residual[k]),
+            float(self.seconds[k]),
+            self.messages[k],
+        )
 
 
 class EvaluationBackend(Protocol):
@@ -118,11 +124,18 @@ class EvaluationBackend(Protocol):
 class NonlinearBackend(Protocol):
     """Family ``nonlinear``: one solve from ``x0``, or many (optionally warm-started along a trajectory)."""
 
-    def solve(self, problem: "LeastSquaresProblem", x0: np.ndarray, p: np.ndarray,
-              x_ref: np.ndarray | None = None) -> Solution: ...
+    def solve(
+        self, problem: "LeastSquaresProblem", x0: np.ndarray, p: np.ndarray, x_ref: np.ndarray | None = None
+    ) -> Solution: ...
 
-    def solve_many(self, problem: "LeastSquaresProblem", X0: np.ndarray, P: np.ndarray, warm_start: bool = False,
-                   x_ref: np.ndarray | None = None) -> SolutionBatch: ...
+    def solve_many(
+        self,
+        problem: "LeastSquaresProblem",
+        X0: np.ndarray,
+        P: np.ndarray,
+        warm_start: bool = False,
+        x_ref: np.ndarray | None = None,
+    ) -> SolutionBatch: ...
 
 
 class ShapeBackend(Protocol):

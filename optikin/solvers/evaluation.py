@@ -33,9 +33,11 @@ class CompiledOptions(Options):
     """Preset options of backend ``casadi_compiled``."""
 
     compiler: CompilerName = Field("gcc", description="C compiler, found on PATH by name")
-    flags: list[CompilerFlag] = Field(default_factory=lambda: ["-O3"],
-                                      description="compiler flags, optimisation flags only (e.g. -O2, "
-                                                  "-march=native); -O3 alone keeps results bit-identical")
+    flags: list[CompilerFlag] = Field(
+        default_factory=lambda: ["-O3"],
+        description="compiler flags, optimisation flags only (e.g. -O2, "
+        "-march=native); -O3 alone keeps results bit-identical",
+    )
 
 
 class MapEvaluator:
@@ -111,7 +113,12 @@ class CompiledEvaluator(MapEvaluator):
 
 
 register_backend("casadi_map", "evaluation", "CasADi Function.map over the batch", options=NoOptions)(MapEvaluator)
-register_backend("casadi_call", "evaluation", "one CasADi call per sample from Python",
-                 options=NoOptions)(CallEvaluator)
-register_backend("casadi_compiled", "evaluation", "CasADi code generation + C compiler, one C call per batch",
-                 options=CompiledOptions)(CompiledEvaluator)
+register_backend("casadi_call", "evaluation", "one CasADi call per sample from Python", options=NoOptions)(
+    CallEvaluator
+)
+register_backend(
+    "casadi_compiled",
+    "evaluation",
+    "CasADi code generation + C compiler, one C call per batch",
+    options=CompiledOptions,
+)(CompiledEvaluator)

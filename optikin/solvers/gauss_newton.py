@@ -93,9 +93,11 @@ def step_function(problem: LeastSquaresProblem, second_order: bool = False) -> c
             F = ca.diag(free)
             A = ca.mtimes(F, ca.mtimes(H, F)) + ca.diag(1 - free) + lam * ca.diag(scaling)
             return -free * ca.solve(A, free * g)
+
         return direction
 
     if m < n:
+
         def gauss_newton(free):
             mf = free / scaling
             A = ca.mtimes(J, ca.mtimes(ca.diag(mf), J.T)) + lam * ca.DM.eye(m)
@@ -113,8 +115,13 @@ def step_function(problem: LeastSquaresProblem, second_order: bool = False) -> c
     x_new = ca.if_else(periodic, wrapped, ca.fmin(ca.fmax(moved, lower), upper))
     outward = ca.logic_or(ca.logic_and(lower_active, g > 0), ca.logic_and(upper_active, g < 0))
     stationarity = ca.norm_2(ca.if_else(outward, 0, g)) / (ca.norm_fro(J) * rn + 1e-300)
-    return ca.Function(f"{problem.name}_{'newton' if second_order else 'gn'}_step", [ca.vertcat(x, p, mu)],
-                       [ca.vertcat(x_new, rn, stationarity)], ["x_p_mu"], ["x_new_info"])
+    return ca.Function(
+        f"{problem.name}_{'newton' if second_order else 'gn'}_step",
+        [ca.vertcat(x, p, mu)],
+        [ca.vertcat(x_new, rn, stationarity)],
+        ["x_p_mu"],
+        ["x_new_info"],
+    )
 
 
 SLOW_PROGRESS = 0.9
@@ -127,18 +134,23 @@ the workspace)."""
 class GaussNewtonOptions(Options):
     """Preset options of backend ``gauss_newton``."""
 
-    damping: StrictFloat = Field(10.0, gt=0, description="initial mu of the Levenberg parameter "
-                                                          "lam = mu ||r||^2 [1/(units of r)^2]")
+    damping: StrictFloat = Field(
+        10.0, gt=0, description="initial mu of the Levenberg parameter lam = mu ||r||^2 [1/(units of r)^2]"
+    )
     damping_min: StrictFloat = Field(1e-12, gt=0, description="smallest mu [1/(units of r)^2]")
-    damping_max: StrictFloat = Field(1e12, gt=0, description="largest mu; a sample whose mu grows above it "
-                                                              "stops (stuck) [1/(units of r)^2]")
-    second_order: StrictBool = Field(True, description="switch a stalled sample (large residual) to the Newton "
-                                                       "model J^T J + sum r_i Hess r_i")
+    damping_max: StrictFloat = Field(
+        1e12, gt=0, description="largest mu; a sample whose mu grows above it stops (stuck) [1/(units of r)^2]"
+    )
+    second_order: StrictBool = Field(
+        True, description="switch a stalled sample (large residual) to the Newton model J^T J + sum r_i Hess r_i"
+    )
     compile: StrictBool = Field(False, description="code-generate the step Function and compile it to C")
-    flags: tuple[CompilerFlag, ...] = Field(("-O3",), description="C compiler flags of compile: true, from "
-                                                                    "optikin.codegen.ALLOWED_FLAGS")
-    batch: StrictBool = Field(True, description="independent samples: one batched step evaluation per "
-                                                "iteration for all of them")
+    flags: tuple[CompilerFlag, ...] = Field(
+        ("-O3",), description="C compiler flags of compile: true, from optikin.codegen.ALLOWED_FLAGS"
+    )
+    batch: StrictBool = Field(
+        True, description="independent samples: one batched step evaluation per iteration for all of them"
+    )
 
 
 class GaussNewton(NonlinearAdapter):
@@ -181,14 +193,13 @@ class GaussNewton(NonlinearAdapter):
 
             def single(x, p, mu):
                 packed[:n] = x
-                packed[n:n + n_p] = p
+                packed[n : n + n_p] = p
                 packed[-1] = mu
                 call()
                 return x_new, info.tolist()
 
             problem.cache[key] = single
         return problem.cache[key]
-
 
     def _batch(self, problem: LeastSquaresProblem, second_order: bool):
         """``(X, P, mu) -> (X_new, info (2, N))`` over the rows of ``X``: one call into CasADi (or C)."""
@@ -211,8 +222,9 @@ class GaussNewton(NonlinearAdapter):
         return min(problem.tolerance, self.limits.tolerance)
 
     # ------------------------------------------------------------------ one sample
-    def solve(self, problem: LeastSquaresProblem, x0: np.ndarray, p: np.ndarray,
-              x_ref: np.ndarray | None = None) -> Solution:
+    def solve(
+        self, problem: LeastSquaresProblem, x0: np.ndarray, p: np.ndarray, x_ref: np.ndarray | None = None
+    ) -> Solution:
         started = time.perf_counter()
         gauss_newton = step = self._single(problem, False)
         tol, stat_tol = self._stop_tolerance(problem), problem.stationarity_tolerance
@@ -249,8 +261,14 @@ class GaussNewton(NonlinearAdapter):
         return Solution(x, status, calls, rn, elapsed, message)
 
     # ------------------------------------------------------------------ many independent samples at once
-    def solve_many(self, problem: LeastSquaresProblem, X0: np.ndarray, P: np.ndarray, warm_start: bool = False,
-                   x_ref: np.ndarray | None = None) -> SolutionBatch:
+    def solve_many(
+        self,
+        problem: LeastSquaresProblem,
+        X0: np.ndarray,
+        P: np.ndarray,
+        warm_start: bool = False,
+        x_ref: np.ndarray | None = None,
+    ) -> SolutionBatch:
         if warm_start or not self.options.batch:
             return super().solve_many(problem, X0, P, warm_start, x_ref)
         return self.solve_batch(problem, X0, P)
@@ -294,8 +312,9 @@ class GaussNewton(NonlinearAdapter):
         while True:
             # Samples still running: not solved, not stationary, not stuck, under the iteration limit.
             rn, stationarity = info[0, idx], info[1, idx]
-            idx = idx[(rn > tol) & (stationarity > stat_tol) & (mu[idx] <= mu_max)
-                      & (calls[idx] < self.limits.max_iterations)]
+            idx = idx[
+                (rn > tol) & (stationarity > stat_tol) & (mu[idx] <= mu_max) & (calls[idx] < self.limits.max_iterations)
+            ]
             if idx.size == 0:
                 break
             if time.perf_counter() > deadline:
@@ -322,9 +341,20 @@ class GaussNewton(NonlinearAdapter):
         limited[idx] = timed_out
         elapsed = time.perf_counter() - started
         status, residual, messages = problem.classify_many(X, P, limited=limited)
-        return SolutionBatch(x=X, status=status, iterations=calls, residual=residual,
-                           seconds=np.full(N, elapsed / N), messages=messages, batched=True)
+        return SolutionBatch(
+            x=X,
+            status=status,
+            iterations=calls,
+            residual=residual,
+            seconds=np.full(N, elapsed / N),
+            messages=messages,
+            batched=True,
+        )
 
 
-register_backend("gauss_newton", "nonlinear", "damped projected Gauss-Newton on CasADi Jacobians; batched over samples",
-                 options=GaussNewtonOptions)(GaussNewton)
+register_backend(
+    "gauss_newton",
+    "nonlinear",
+    "damped projected Gauss-Newton on CasADi Jacobians; batched over samples",
+    options=GaussNewtonOptions,
+)(GaussNewton)

@@ -49,8 +49,9 @@ class NewtonOptions(Options):
     """Preset options of backend ``newton``."""
 
     plugin: Literal["newton", "fast_newton"] = Field("newton", description="CasADi rootfinder plugin")
-    abstolStep: StrictFloat = Field(1e-14, ge=0, description="stop when the Newton step's max-norm is at or "
-                                                             "below this (units of x)")
+    abstolStep: StrictFloat = Field(
+        1e-14, ge=0, description="stop when the Newton step's max-norm is at or below this (units of x)"
+    )
     line_search: StrictBool = Field(True, description="backtracking line search (plugin newton only)")
 
 
@@ -63,11 +64,15 @@ def optimality_system(problem: LeastSquaresProblem) -> tuple[ca.SX, ca.SX, ca.SX
     if problem.m == problem.n:
         return x, ca.vertcat(p, x_ref), r
     if problem.m > problem.n:
-        raise SolverError(f"{problem.name}: Newton's method needs at most as many residuals ({problem.m}) "
-                          f"as variables ({problem.n}); use a least-squares backend")
+        raise SolverError(
+            f"{problem.name}: Newton's method needs at most as many residuals ({problem.m}) "
+            f"as variables ({problem.n}); use a least-squares backend"
+        )
     if problem.weights is None:
-        raise SolverError(f"{problem.name}: {problem.m} residuals for {problem.n} variables and no redundancy "
-                          f"weights: the Newton system is not square")
+        raise SolverError(
+            f"{problem.name}: {problem.m} residuals for {problem.n} variables and no redundancy "
+            f"weights: the Newton system is not square"
+        )
     y = ca.SX.sym("y", problem.m)
     periodic = ca.DM(problem.periodic.astype(float))
     grad = ca.if_else(periodic, ca.sin(x - x_ref), x - x_ref)
@@ -86,9 +91,13 @@ class Newton(NonlinearAdapter):
         if key not in problem.cache:
             z, parameters, G = optimality_system(problem)
             g = ca.Function(f"{problem.name}_newton_system", [z, parameters], [G])
-            opts = {"max_iter": self.limits.max_iterations, "abstol": self.limits.tolerance,
-                    "abstolStep": self.options.abstolStep, "error_on_fail": False,
-                    "show_eval_warnings": False}
+            opts = {
+                "max_iter": self.limits.max_iterations,
+                "abstol": self.limits.tolerance,
+                "abstolStep": self.options.abstolStep,
+                "error_on_fail": False,
+                "show_eval_warnings": False,
+            }
             if self.options.plugin == "newton":
                 opts["line_search"] = self.options.line_search
             try:
@@ -116,8 +125,9 @@ class Newton(NonlinearAdapter):
             problem.cache[key] = ca.Function(f"{problem.name}_newton_packed", [w], [z[:n]])
         return problem.cache[key]
 
-    def solve(self, problem: LeastSquaresProblem, x0: np.ndarray, p: np.ndarray,
-              x_ref: np.ndarray | None = None) -> Solution:
+    def solve(
+        self, problem: LeastSquaresProblem, x0: np.ndarray, p: np.ndarray, x_ref: np.ndarray | None = None
+    ) -> Solution:
         started = time.perf_counter()
         call = self.rootfinder(problem)
         x0 = np.asarray(x0, dtype=float)
@@ -130,14 +140,21 @@ class Newton(NonlinearAdapter):
         iterations = call.stats().get("iter_count", -1)
         return self.finish(problem, z[: problem.n].copy(), p, iterations, started)
 
-    def solve_many(self, problem: LeastSquaresProblem, X0: np.ndarray, P: np.ndarray, warm_start: bool = False,
-                   x_ref: np.ndarray | None = None) -> SolutionBatch:
+    def solve_many(
+        self,
+        problem: LeastSquaresProblem,
+        X0: np.ndarray,
+        P: np.ndarray,
+        warm_start: bool = False,
+        x_ref: np.ndarray | None = None,
+    ) -> SolutionBatch:
         if warm_start:
             return super().solve_many(problem, X0, P, warm_start, x_ref)
         return self.solve_batch(problem, X0, P, x_ref)
 
-    def solve_batch(self, problem: LeastSquaresProblem, X0: np.ndarray, P: np.ndarray,
-                    x_ref: np.ndarray | None = None) -> SolutionBatch:
+    def solve_batch(
+        self, problem: LeastSquaresProblem, X0: np.ndarray, P: np.ndarray, x_ref: np.ndarray | None = None
+    ) -> SolutionBatch:
         """Every row of ``P`` in one mapped call (module docstring); ``x_ref`` defaults to each start."""
         mapped = batched(self.packed_rootfinder(problem))  # built before the clock starts
         started = time.perf_counter()
@@ -152,9 +169,17 @@ class Newton(NonlinearAdapter):
         elapsed = time.perf_counter() - started
         limited = np.full(N, elapsed > self.limits.time_limit * N)
         status, residual, messages = problem.classify_many(X, P, limited=limited)
-        return SolutionBatch(x=X, status=status, iterations=np.full(N, -1), residual=residual,
-                           seconds=np.full(N, elapsed / N), messages=messages, batched=True)
+        return SolutionBatch(
+            x=X,
+            status=status,
+            iterations=np.full(N, -1),
+            residual=residual,
+            seconds=np.full(N, elapsed / N),
+            messages=messages,
+            batched=True,
+        )
 
 
-register_backend("newton", "nonlinear", "CasADi rootfinder (Newton) on r = 0 or its optimality system",
-                 options=NewtonOptions)(Newton)
+register_backend(
+    "newton", "nonlinear", "CasADi rootfinder (Newton) on r = 0 or its optimality system", options=NewtonOptions
+)(Newton)

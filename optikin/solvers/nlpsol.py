@@ -77,17 +77,29 @@ def nlp_of(problem: LeastSquaresProblem) -> tuple[dict, np.ndarray, np.ndarray, 
 
 def ipopt_options(limits: LimitsSpec, settings: dict[str, Any]) -> dict[str, Any]:
     """``nlpsol`` options of plugin ``ipopt``: the limits (module docstring), then the preset's ``settings``."""
-    ipopt = {"print_level": 0, "sb": "yes", "tol": limits.tolerance, "bound_relax_factor": 0.0,
-             "max_iter": limits.max_iterations, "max_wall_time": limits.time_limit}
+    ipopt = {
+        "print_level": 0,
+        "sb": "yes",
+        "tol": limits.tolerance,
+        "bound_relax_factor": 0.0,
+        "max_iter": limits.max_iterations,
+        "max_wall_time": limits.time_limit,
+    }
     ipopt.update(settings)
     return {"ipopt": ipopt, "print_time": False, "error_on_fail": False, "show_eval_warnings": False}
 
 
 def sqpmethod_options(limits: LimitsSpec, settings: dict[str, Any]) -> dict[str, Any]:
     """``nlpsol`` options of plugin ``sqpmethod``: quiet qrqp QPs and the limits, then the preset's ``settings``."""
-    options = {"qpsol": "qrqp", "qpsol_options": dict(QUIET_QP), "max_iter": limits.max_iterations,
-               "print_header": False, "print_iteration": False, "print_status": False,
-               "tol_pr": limits.tolerance}
+    options = {
+        "qpsol": "qrqp",
+        "qpsol_options": dict(QUIET_QP),
+        "max_iter": limits.max_iterations,
+        "print_header": False,
+        "print_iteration": False,
+        "print_status": False,
+        "tol_pr": limits.tolerance,
+    }
     options.update(settings)
     options.update({"print_time": False, "error_on_fail": False, "show_eval_warnings": False})
     return options
@@ -130,21 +142,24 @@ def checked_settings(plugin: str, settings: dict[str, Any]) -> dict[str, Any]:
     """
     x = ca.SX.sym("x")
     try:
-        build_nlpsol("optikin_check", plugin, {"x": x, "f": x * x, "g": x},
-                     PLUGIN_OPTIONS[plugin](LimitsSpec(), settings))
+        build_nlpsol(
+            "optikin_check", plugin, {"x": x, "f": x * x, "g": x}, PLUGIN_OPTIONS[plugin](LimitsSpec(), settings)
+        )
     except SettingError as exc:
         loc: tuple[str, ...] = (exc.name,) if exc.name else ()
         error = PydanticCustomError("plugin_setting", "{message}", {"message": exc.message})
         raise ValidationError.from_exception_data(
-            "settings", [InitErrorDetails(type=error, loc=loc, input=settings.get(exc.name, settings))]) from None
+            "settings", [InitErrorDetails(type=error, loc=loc, input=settings.get(exc.name, settings))]
+        ) from None
     return settings
 
 
 class IpoptOptions(Options):
     """Preset options of backend ``ipopt``."""
 
-    settings: dict[str, Any] = Field(default_factory=dict, description="IPOPT options (e.g. mu_strategy, "
-                                                                       "hessian_approximation), over optikin's")
+    settings: dict[str, Any] = Field(
+        default_factory=dict, description="IPOPT options (e.g. mu_strategy, hessian_approximation), over optikin's"
+    )
 
     @field_validator("settings")
     @classmethod
@@ -155,8 +170,9 @@ class IpoptOptions(Options):
 class SqpmethodOptions(Options):
     """Preset options of backend ``sqpmethod``."""
 
-    settings: dict[str, Any] = Field(default_factory=dict, description="sqpmethod options (e.g. qpsol, "
-                                                                       "hessian_approximation), over optikin's")
+    settings: dict[str, Any] = Field(
+        default_factory=dict, description="sqpmethod options (e.g. qpsol, hessian_approximation), over optikin's"
+    )
 
     @field_validator("settings")
     @classmethod
@@ -180,8 +196,9 @@ class NlpsolAdapter(NonlinearAdapter):
         except SettingError as exc:
             raise SolverError(f"{self.preset.name}: {exc.message}") from None
 
-    def solver(self, problem: LeastSquaresProblem) -> tuple[BufferedFunction, np.ndarray, np.ndarray, np.ndarray,
-                                                          np.ndarray]:
+    def solver(
+        self, problem: LeastSquaresProblem
+    ) -> tuple[BufferedFunction, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         key = ("nlpsol", self)
         if key not in problem.cache:
             nlp, lbx, ubx, lbg, ubg = nlp_of(problem)
@@ -189,16 +206,25 @@ class NlpsolAdapter(NonlinearAdapter):
             problem.cache[key] = (call, lbx, ubx, lbg, ubg)
         return problem.cache[key]
 
-    def solve(self, problem: LeastSquaresProblem, x0: np.ndarray, p: np.ndarray,
-              x_ref: np.ndarray | None = None) -> Solution:
+    def solve(
+        self, problem: LeastSquaresProblem, x0: np.ndarray, p: np.ndarray, x_ref: np.ndarray | None = None
+    ) -> Solution:
         started = time.perf_counter()
         call, lbx, ubx, lbg, ubg = self.solver(problem)
         x0 = np.asarray(x0, dtype=float)
         reference = x0 if x_ref is None else np.asarray(x_ref, dtype=float)
         try:
             # nlpsol inputs: x0, p, lbx, ubx, lbg, ubg, lam_x0, lam_g0
-            x = call(x0, np.concatenate([np.ravel(p), reference]), lbx, ubx, lbg, ubg,
-                     np.zeros(problem.n), np.zeros(len(lbg)))[0].copy()
+            x = call(
+                x0,
+                np.concatenate([np.ravel(p), reference]),
+                lbx,
+                ubx,
+                lbg,
+                ubg,
+                np.zeros(problem.n),
+                np.zeros(len(lbg)),
+            )[0].copy()
             # A preset may let IPOPT relax the bounds (bound_relax_factor); put the point back inside.
             x = np.where(problem.periodic, x, np.clip(x, problem.lower, problem.upper))
         except RuntimeError as exc:
@@ -223,5 +249,6 @@ class Sqpmethod(NlpsolAdapter):
 
 
 register_backend("ipopt", "nonlinear", "interior point (IPOPT) through CasADi nlpsol", options=IpoptOptions)(Ipopt)
-register_backend("sqpmethod", "nonlinear", "CasADi's SQP method (qrqp QPs) through nlpsol",
-                 options=SqpmethodOptions)(Sqpmethod)
+register_backend("sqpmethod", "nonlinear", "CasADi's SQP method (qrqp QPs) through nlpsol", options=SqpmethodOptions)(
+    Sqpmethod
+)

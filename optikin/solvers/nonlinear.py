@@ -187,8 +187,10 @@ class LeastSquaresProblem:
         """Masks of the non-periodic variables at their lower / upper bound."""
         span = ca.DM(self.upper - self.lower)
         fixed = ca.DM(~self.periodic)
-        return (ca.logic_and(fixed, x <= ca.DM(self.lower) + margin * span),
-                ca.logic_and(fixed, x >= ca.DM(self.upper) - margin * span))
+        return (
+            ca.logic_and(fixed, x <= ca.DM(self.lower) + margin * span),
+            ca.logic_and(fixed, x >= ca.DM(self.upper) - margin * span),
+        )
 
     # ------------------------------------------------------------------ numeric helpers
     def fast(self, name: str) -> BufferedFunction:
@@ -216,8 +218,9 @@ class LeastSquaresProblem:
             wrapped = self.lower + np.mod(x - self.lower, self.upper - self.lower)
         return np.where(self.periodic, wrapped, x)
 
-    def classify(self, x: np.ndarray, p: np.ndarray, elapsed: float, time_limit: float,
-                 error: str = "") -> tuple[str, float, str]:
+    def classify(
+        self, x: np.ndarray, p: np.ndarray, elapsed: float, time_limit: float, error: str = ""
+    ) -> tuple[str, float, str]:
         """``(status, ||r||, message)`` of a returned point ``x`` (module docstring)."""
         if error:
             return "failed", float("nan"), error
@@ -257,8 +260,9 @@ class LeastSquaresProblem:
             return "unreachable", rn, "stationary point of the residual: closest reachable configuration"
         return "not_converged", rn, ""
 
-    def classify_many(self, X: np.ndarray, P: np.ndarray, limited: np.ndarray | None = None
-                      ) -> tuple[list[str], np.ndarray, list[str]]:
+    def classify_many(
+        self, X: np.ndarray, P: np.ndarray, limited: np.ndarray | None = None
+    ) -> tuple[list[str], np.ndarray, list[str]]:
         """:meth:`classify` for a batch (rows of ``X`` and ``P``, ``X`` already wrapped);
         ``limited`` marks samples cut off by a limit."""
         N = len(X)
@@ -267,12 +271,13 @@ class LeastSquaresProblem:
         rn, stationarity, outside = batched(self.packed_check).raw(packed).T
         rn = np.where(finite, rn, np.nan)
         limited = np.zeros(N, dtype=bool) if limited is None else limited
-        verdicts = [self.verdict(float(rn[i]), float(stationarity[i]), float(outside[i]), X[i], bool(limited[i]))
-                    for i in range(N)]
+        verdicts = [
+            self.verdict(float(rn[i]), float(stationarity[i]), float(outside[i]), X[i], bool(limited[i]))
+            for i in range(N)
+        ]
         return [v[0] for v in verdicts], rn, [v[1] for v in verdicts]
 
-    def verdict(self, rn: float, stationarity: float, outside: float, x: np.ndarray,
-                limited: bool) -> tuple[str, str]:
+    def verdict(self, rn: float, stationarity: float, outside: float, x: np.ndarray, limited: bool) -> tuple[str, str]:
         """``(status, message)`` of one sample of :meth:`classify_many` from its checks."""
         if not np.isfinite(rn):
             return "failed", "non-finite solution"
@@ -305,12 +310,19 @@ class NonlinearAdapter:
         self.limits = preset.limits
         self.options = options
 
-    def solve(self, problem: LeastSquaresProblem, x0: np.ndarray, p: np.ndarray,
-              x_ref: np.ndarray | None = None) -> Solution:
+    def solve(
+        self, problem: LeastSquaresProblem, x0: np.ndarray, p: np.ndarray, x_ref: np.ndarray | None = None
+    ) -> Solution:
         raise NotImplementedError
 
-    def solve_many(self, problem: LeastSquaresProblem, X0: np.ndarray, P: np.ndarray, warm_start: bool = False,
-                   x_ref: np.ndarray | None = None) -> SolutionBatch:
+    def solve_many(
+        self,
+        problem: LeastSquaresProblem,
+        X0: np.ndarray,
+        P: np.ndarray,
+        warm_start: bool = False,
+        x_ref: np.ndarray | None = None,
+    ) -> SolutionBatch:
         """Solve every row of ``P``; see the module docstring for ``warm_start`` and ``x_ref``."""
         P = np.atleast_2d(np.asarray(P, dtype=float))
         X0 = np.broadcast_to(np.asarray(X0, dtype=float), (len(P), problem.n))
@@ -324,8 +336,15 @@ class NonlinearAdapter:
                 previous = report.x
         return SolutionBatch.of(reports, problem.n)
 
-    def finish(self, problem: LeastSquaresProblem, x: np.ndarray, p: np.ndarray, iterations: int,
-               started: float, error: str = "") -> Solution:
+    def finish(
+        self,
+        problem: LeastSquaresProblem,
+        x: np.ndarray,
+        p: np.ndarray,
+        iterations: int,
+        started: float,
+        error: str = "",
+    ) -> Solution:
         """Classify the returned point and package the report."""
         elapsed = time.perf_counter() - started
         x = problem.wrap(np.asarray(x, dtype=float).ravel())

@@ -44,8 +44,9 @@ FAMILY = "ph"
 _MODELS: dict[tuple, ShapeEnergyModel] = {}
 
 
-def shared_model(settings: EnergySettings, free_speeds: bool, compile: bool = False,
-                 coarse_grid: int = 12) -> ShapeEnergyModel:
+def shared_model(
+    settings: EnergySettings, free_speeds: bool, compile: bool = False, coarse_grid: int = 12
+) -> ShapeEnergyModel:
     """The model of these settings, built once per process (compiled code is also cached on disk)."""
     key = (settings, free_speeds, compile, coarse_grid)
     if key not in _MODELS:
@@ -58,11 +59,14 @@ class NewtonOptions(Options):
 
     compile: bool = Field(False, strict=True, description="compile the Newton Functions to C (cached on disk)")
     warm_start: bool = Field(True, strict=True, description="start each sample from the previous ok solution")
-    fallback: bool = Field(True, strict=True,
-                           description="coarse-grid restart, then IPOPT, when Newton does not converge")
-    basin_check: bool = Field(False, strict=True,
-                              description="also run Newton from the coarse grid on warm-started samples, "
-                                          "keep the lower minimum")
+    fallback: bool = Field(
+        True, strict=True, description="coarse-grid restart, then IPOPT, when Newton does not converge"
+    )
+    basin_check: bool = Field(
+        False,
+        strict=True,
+        description="also run Newton from the coarse grid on warm-started samples, keep the lower minimum",
+    )
     coarse_grid: int = Field(12, ge=2, strict=True, description="points per angle of the coarse start grid")
 
 
@@ -77,8 +81,7 @@ class GridOptions(Options):
     """Options of backend ``ph_grid``."""
 
     n: int = Field(64, ge=2, strict=True, description="points per free angle")
-    n_ratio: int = Field(9, ge=2, strict=True,
-                         description="end-speed ratios in [1/3, 3] (free end speeds only)")
+    n_ratio: int = Field(9, ge=2, strict=True, description="end-speed ratios in [1/3, 3] (free end speeds only)")
 
 
 class PHAdapter:
@@ -122,8 +125,14 @@ class NewtonAdapter(PHAdapter):
 
     def solve_one(self, model: ShapeEnergyModel, data: ShapeData, previous: np.ndarray | None) -> ShapeSolution:
         limits = self.preset.limits
-        return model.solve_newton(data, previous, tolerance=limits.tolerance, max_iterations=limits.max_iterations,
-                                  fallback=self.options.fallback, basin_check=self.options.basin_check)
+        return model.solve_newton(
+            data,
+            previous,
+            tolerance=limits.tolerance,
+            max_iterations=limits.max_iterations,
+            fallback=self.options.fallback,
+            basin_check=self.options.basin_check,
+        )
 
 
 class IpoptAdapter(PHAdapter):
@@ -148,9 +157,12 @@ class GridAdapter(PHAdapter):
         return model.solve_grid(data, n=self.options.n, n_ratio=self.options.n_ratio)
 
 
-register_backend("ph_newton", FAMILY, "Newton on compiled CasADi derivatives, warm-started (PH fast path)",
-                 options=NewtonOptions)(NewtonAdapter)
-register_backend("ph_ipopt", FAMILY, "CasADi nlpsol IPOPT, warm or cold (PH reference)",
-                 options=IpoptOptions)(IpoptAdapter)
-register_backend("ph_grid", FAMILY, "dense grid over the free PH angles (and speed ratios)",
-                 options=GridOptions)(GridAdapter)
+register_backend(
+    "ph_newton", FAMILY, "Newton on compiled CasADi derivatives, warm-started (PH fast path)", options=NewtonOptions
+)(NewtonAdapter)
+register_backend("ph_ipopt", FAMILY, "CasADi nlpsol IPOPT, warm or cold (PH reference)", options=IpoptOptions)(
+    IpoptAdapter
+)
+register_backend("ph_grid", FAMILY, "dense grid over the free PH angles (and speed ratios)", options=GridOptions)(
+    GridAdapter
+)

@@ -48,16 +48,20 @@ class LeastSquaresOptions(Options):
     xtol: StrictFloat = Field(1e-15, ge=EPS, description="relative change of the scaled variables that stops it")
     gtol: StrictFloat = Field(1e-15, ge=EPS, description="scaled gradient norm that stops it")
     x_scale: Literal["weights", "jac"] | StrictFloat = Field(
-        "weights", description="scale of the variables: 'weights' (their ranges, 1/W), 'jac' (scipy's Jacobian "
-                               "scaling) or a positive number (units of x)")
-    regularisation: StrictFloat = Field(0.0, ge=0, description="Tikhonov rows sqrt(regularisation) W (x - x_ref) "
-                                                               "on a redundant problem (dimensionless)")
+        "weights",
+        description="scale of the variables: 'weights' (their ranges, 1/W), 'jac' (scipy's Jacobian "
+        "scaling) or a positive number (units of x)",
+    )
+    regularisation: StrictFloat = Field(
+        0.0, ge=0, description="Tikhonov rows sqrt(regularisation) W (x - x_ref) on a redundant problem (dimensionless)"
+    )
 
     @field_validator("x_scale", mode="wrap")
     @classmethod
     def _scale(cls, value: Any, handler: Any) -> Any:
-        error = PydanticCustomError("x_scale", "expected 'weights', 'jac' or a positive number, got {value}",
-                                    {"value": repr(value)})
+        error = PydanticCustomError(
+            "x_scale", "expected 'weights', 'jac' or a positive number, got {value}", {"value": repr(value)}
+        )
         try:
             scale = handler(value)
         except ValueError:
@@ -80,8 +84,15 @@ class _TimeLimit(Exception):
 class _Residual:
     """``fun`` and ``jac`` for scipy with one CasADi evaluation per distinct ``x``; keeps the best point."""
 
-    def __init__(self, problem: LeastSquaresProblem, p: np.ndarray, x_ref: np.ndarray, regularisation: float,
-                 deadline: float, transform: bool = False):
+    def __init__(
+        self,
+        problem: LeastSquaresProblem,
+        p: np.ndarray,
+        x_ref: np.ndarray,
+        regularisation: float,
+        deadline: float,
+        transform: bool = False,
+    ):
         self.call = problem.fast("residual_jacobian")
         self.transformed = ~problem.periodic if transform else np.zeros(problem.n, dtype=bool)
         self.problem, self.p, self.x_ref, self.deadline = problem, np.ravel(p), x_ref, deadline
@@ -158,18 +169,33 @@ class ScipyLeastSquares(NonlinearAdapter):
         ranges = np.ones(problem.n) if problem.weights is None else 1.0 / problem.weights
         return np.where(residual.transformed, 1.0, ranges)
 
-    def solve(self, problem: LeastSquaresProblem, x0: np.ndarray, p: np.ndarray,
-              x_ref: np.ndarray | None = None) -> Solution:
+    def solve(
+        self, problem: LeastSquaresProblem, x0: np.ndarray, p: np.ndarray, x_ref: np.ndarray | None = None
+    ) -> Solution:
         started = time.perf_counter()
         x0 = problem.project(x0)
         reference = x0 if x_ref is None else np.asarray(x_ref, dtype=float)
-        residual = _Residual(problem, p, reference, self.options.regularisation,
-                             started + self.limits.time_limit, transform=self.transform_bounds)
+        residual = _Residual(
+            problem,
+            p,
+            reference,
+            self.options.regularisation,
+            started + self.limits.time_limit,
+            transform=self.transform_bounds,
+        )
         try:
-            result = least_squares(residual.fun, residual.to_z(x0), jac=residual.jac, method=self.method,
-                                   ftol=self.options.ftol, xtol=self.options.xtol,
-                                   gtol=self.options.gtol, x_scale=self.x_scale(residual),
-                                   max_nfev=self.limits.max_iterations, **self.extra(problem))
+            result = least_squares(
+                residual.fun,
+                residual.to_z(x0),
+                jac=residual.jac,
+                method=self.method,
+                ftol=self.options.ftol,
+                xtol=self.options.xtol,
+                gtol=self.options.gtol,
+                x_scale=self.x_scale(residual),
+                max_nfev=self.limits.max_iterations,
+                **self.extra(problem),
+            )
             x, iterations = residual.to_x(result.x), result.nfev
         except _TimeLimit:  # the best point seen (the start if no residual was finite)
             x = x0 if residual.best_x is None else residual.best_x
@@ -198,7 +224,9 @@ class TrustRegionReflective(ScipyLeastSquares):
         return {"bounds": (lower, upper), "tr_solver": self.options.tr_solver}
 
 
-register_backend("lm", "nonlinear", "scipy least_squares, MINPACK Levenberg-Marquardt",
-                 options=LeastSquaresOptions)(LevenbergMarquardt)
-register_backend("trf", "nonlinear", "scipy least_squares, trust-region reflective with bounds",
-                 options=TrfOptions)(TrustRegionReflective)
+register_backend("lm", "nonlinear", "scipy least_squares, MINPACK Levenberg-Marquardt", options=LeastSquaresOptions)(
+    LevenbergMarquardt
+)
+register_backend("trf", "nonlinear", "scipy least_squares, trust-region reflective with bounds", options=TrfOptions)(
+    TrustRegionReflective
+)

@@ -43,9 +43,12 @@ def one_blas_thread():
 
 
 def _errors(demo, position: np.ndarray, quaternion: np.ndarray) -> dict[str, float]:
-    return {"position error [mm]": float(np.abs(position - demo.position).max() * 1e3),
-            "orientation error [mrad]": float(quat_angle(quat_multiply(quaternion,
-                                                                       quat_conjugate(demo.quaternion))).max() * 1e3)}
+    return {
+        "position error [mm]": float(np.abs(position - demo.position).max() * 1e3),
+        "orientation error [mrad]": float(
+            quat_angle(quat_multiply(quaternion, quat_conjugate(demo.quaternion))).max() * 1e3
+        ),
+    }
 
 
 def test_movement_primitives_cartesian_dmp(benchmark, demo):

@@ -42,6 +42,7 @@ def case(request):
 def test_fk_tip_throughput(benchmark, case, path):
     arm, Q, reference = case
     if path == "numpy":
+
         def run():
             return numpy_tip_dq(arm, Q)
     else:

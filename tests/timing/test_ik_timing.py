@@ -55,9 +55,16 @@ def arm():
 
 
 def problem_of(arm, target: str) -> LeastSquaresProblem:
-    return LeastSquaresProblem(tip_residual(arm, target, 0.396), arm.lower, arm.upper, arm.periodic,
-                               tolerance=1e-10, weights=1.0 / (arm.upper - arm.lower), name=f"timing_{target}",
-                               variable_names=arm.config_names)
+    return LeastSquaresProblem(
+        tip_residual(arm, target, 0.396),
+        arm.lower,
+        arm.upper,
+        arm.periodic,
+        tolerance=1e-10,
+        weights=1.0 / (arm.upper - arm.lower),
+        name=f"timing_{target}",
+        variable_names=arm.config_names,
+    )
 
 
 @pytest.fixture(scope="module", params=["position", "pose"])
@@ -80,8 +87,13 @@ def test_warm_started_trajectory(benchmark, trajectory, preset):
     report = benchmark.pedantic(run, rounds=ROUNDS[preset], warmup_rounds=0, iterations=1)
     per_solve = benchmark.stats.stats.median / len(P)
     ok = report.status.count("ok")
-    benchmark.extra_info.update({"median per solve [us]": round(per_solve * 1e6, 1), "solved": f"{ok}/{len(P)}",
-                                 "median iterations": float(np.median(report.iterations))})
+    benchmark.extra_info.update(
+        {
+            "median per solve [us]": round(per_solve * 1e6, 1),
+            "solved": f"{ok}/{len(P)}",
+            "median iterations": float(np.median(report.iterations)),
+        }
+    )
     if preset == "lm":
         _lm_per_solve[target] = per_solve
     elif target in _lm_per_solve:
@@ -110,8 +122,14 @@ def test_batched_throughput(benchmark, independent, preset):
     benchmark.group = "ik independent targets, position, cold start"
     report = benchmark.pedantic(run, rounds=3 if preset == "lm" else 5, warmup_rounds=0, iterations=1)
     rate = len(P) / benchmark.stats.stats.median
-    benchmark.extra_info.update({"targets": len(P), "solves per second": round(rate),
-                                 "solved": f"{report.status.count('ok')}/{len(P)}", "batched": report.batched})
+    benchmark.extra_info.update(
+        {
+            "targets": len(P),
+            "solves per second": round(rate),
+            "solved": f"{report.status.count('ok')}/{len(P)}",
+            "batched": report.batched,
+        }
+    )
     if preset == "lm":
         _lm_per_solve["batch"] = 1.0 / rate
     elif "batch" in _lm_per_solve:
@@ -143,8 +161,13 @@ def test_cbha_platforms(benchmark, cbha, preset):
     benchmark.group = f"ik cbha platforms (16 per posture), {len(legs)} postures"
     report = benchmark.pedantic(run, rounds=3, warmup_rounds=0, iterations=1)
     per_posture = benchmark.stats.stats.median / len(legs)
-    benchmark.extra_info.update({"median per posture [us]": round(per_posture * 1e6, 1),
-                                 "solved": f"{report.status.count('ok')}/{len(legs)}", "batched": report.batched})
+    benchmark.extra_info.update(
+        {
+            "median per posture [us]": round(per_posture * 1e6, 1),
+            "solved": f"{report.status.count('ok')}/{len(legs)}",
+            "batched": report.batched,
+        }
+    )
     if preset == "lm":
         _lm_per_solve["cbha platforms"] = per_posture
     elif "cbha platforms" in _lm_per_solve:
@@ -165,8 +188,14 @@ def test_cbha_tip(benchmark, cbha, preset):
     benchmark.group = "ik cbha tip position -> 48 variables, closest to rest, cold start"
     report = benchmark.pedantic(run, rounds=3 if preset != "ipopt" else 1, warmup_rounds=0, iterations=1)
     per_solve = benchmark.stats.stats.median / len(P)
-    benchmark.extra_info.update({"median per solve [us]": round(per_solve * 1e6, 1), "targets": len(P),
-                                 "solved": f"{report.status.count('ok')}/{len(P)}", "batched": report.batched})
+    benchmark.extra_info.update(
+        {
+            "median per solve [us]": round(per_solve * 1e6, 1),
+            "targets": len(P),
+            "solved": f"{report.status.count('ok')}/{len(P)}",
+            "batched": report.batched,
+        }
+    )
     if preset == "lm":
         _lm_per_solve["cbha tip"] = per_solve
     elif "cbha tip" in _lm_per_solve:

@@ -38,8 +38,13 @@ import pytest
 from optikin.arms.cbha import CBHAGeometry
 from optikin.baselines.nn_database import DatabaseSpec, build_database
 from optikin.baselines.nn_models import (
-    SETTINGS, forward_tasks, hybrid_forward_configurations, hybrid_inverse_configurations, inverse_tasks,
-    train_model)
+    SETTINGS,
+    forward_tasks,
+    hybrid_forward_configurations,
+    hybrid_inverse_configurations,
+    inverse_tasks,
+    train_model,
+)
 from optikin.ik.formulation import Formulation, build_problem, rest_configuration
 from optikin.ik.platform import linearised_start, platform_problems, solve_platforms
 from optikin.problems.nn_shared import PLATFORM_TOLERANCE, TIP_TOLERANCE
@@ -67,8 +72,13 @@ def platform_solver(db, preset: str):
 def tip_solver(db, preset: str):
     """Tips ``(N, 3)`` -> leg lengths, by the preset from the rest pose (as ``nn_ikm``)."""
     arm, adapter = db.arm, build_preset(preset)
-    formulation = Formulation(target="position", redundancy="rest", rest=rest_configuration(arm),
-                              weights=1.0 / (arm.upper - arm.lower), tolerance=TIP_TOLERANCE)
+    formulation = Formulation(
+        target="position",
+        redundancy="rest",
+        rest=rest_configuration(arm),
+        weights=1.0 / (arm.upper - arm.lower),
+        tolerance=TIP_TOLERANCE,
+    )
     problem = build_problem(arm, formulation)
     return lambda P: arm.evaluate("leg_lengths", adapter.solve_many(problem, formulation.rest, P).x)
 
@@ -87,6 +97,7 @@ def test_forward(benchmark, trained, method):
     arm = db.arm
     legs = db.leg_lengths[db.test][:N_FKM]
     if method == "mlp":
+
         def run(L=legs):
             return arm.evaluate("fk_position", hybrid_forward_configurations(forward, L))
     else:
@@ -95,10 +106,11 @@ def test_forward(benchmark, trained, method):
 
         def run(L=legs):
             return solve(L)
+
     run(legs[:1])
     benchmark.group = f"nn fkm: leg lengths -> tip, {N_FKM} held-out arms (lm: {N_SCIPY})"
     tip = benchmark.pedantic(run, rounds=3 if method == "lm" else 9, warmup_rounds=1, iterations=1)
-    benchmark.extra_info["max tip error [mm]"] = float(1e3 * np.abs(tip - db.tip[db.test][:len(legs)]).max())
+    benchmark.extra_info["max tip error [mm]"] = float(1e3 * np.abs(tip - db.tip[db.test][: len(legs)]).max())
     record(benchmark, f"fkm {method}", len(legs), None if method == "mlp" else "fkm mlp")
 
 
@@ -108,6 +120,7 @@ def test_inverse(benchmark, trained, method):
     arm = db.arm
     tips = db.tip[db.test][:N_FKM]
     if method == "mlp":
+
         def run(P=tips):
             return arm.evaluate("leg_lengths", hybrid_inverse_configurations(inverse, P))
     else:
@@ -115,6 +128,7 @@ def test_inverse(benchmark, trained, method):
 
         def run(P=tips):
             return solve(P)
+
     run(tips[:1])
     benchmark.group = f"nn ikm: tip -> leg lengths, {N_FKM} held-out tips (exact solvers: {N_TIP})"
     benchmark.pedantic(run, rounds=1 if method != "mlp" else 9, warmup_rounds=0, iterations=1)

@@ -58,8 +58,10 @@ from optikin.baselines.ph_comparators import (
 from optikin.problems.ph_ik import tube_length_function
 from optikin.solvers import build_preset
 
-GROUPS = {False: "PH shape, 100-posture CBHA trajectory, given speeds (seed setting): time per sample",
-          True: "PH shape, 100-posture CBHA trajectory, free speeds, length held: time per sample"}
+GROUPS = {
+    False: "PH shape, 100-posture CBHA trajectory, given speeds (seed setting): time per sample",
+    True: "PH shape, 100-posture CBHA trajectory, free speeds, length held: time per sample",
+}
 _grid_median: dict[bool, float] = {}
 _ph_ik_median: list[float] = []
 
@@ -105,13 +107,15 @@ def _bench(benchmark, case, name, solve_one, warm=True):
     energies = np.array([s.energy for s in solutions])
     gap = energies - reference
     median = benchmark.stats.stats.median
-    benchmark.extra_info.update({
-        "median per sample [us]": median * 1e6,
-        "max energy gap": float(np.max(gap)),
-        "samples with relative gap > 1e-6": int(np.sum(gap > 1e-6 * np.abs(reference))),
-        "not ok": int(sum(s.status != "ok" for s in solutions)),
-        "newton fallbacks": int(sum(bool(s.notes) and s.method == "newton" for s in solutions)),
-    })
+    benchmark.extra_info.update(
+        {
+            "median per sample [us]": median * 1e6,
+            "max energy gap": float(np.max(gap)),
+            "samples with relative gap > 1e-6": int(np.sum(gap > 1e-6 * np.abs(reference))),
+            "not ok": int(sum(s.status != "ok" for s in solutions)),
+            "newton fallbacks": int(sum(bool(s.notes) and s.method == "newton" for s in solutions)),
+        }
+    )
     if name == "grid":
         _grid_median[free] = median
     elif free in _grid_median:
@@ -133,16 +137,27 @@ def test_ipopt_cold(benchmark, case):
 
 def test_ipopt_warm(benchmark, case):
     model = ShapeEnergyModel(EnergySettings(), free_speeds=case[0])
-    _bench(benchmark, case, "ipopt warm",
-           lambda d, x0: model.solve_nlp(d, x0) if x0 is not None else model.solve_nlp(d, starts=3))
+    _bench(
+        benchmark,
+        case,
+        "ipopt warm",
+        lambda d, x0: model.solve_nlp(d, x0) if x0 is not None else model.solve_nlp(d, starts=3),
+    )
 
 
-@pytest.mark.parametrize("compiled, basin_check", [(False, False), (True, False), (True, True)],
-                         ids=["vm", "compiled", "compiled-basin-check"])
+@pytest.mark.parametrize(
+    "compiled, basin_check",
+    [(False, False), (True, False), (True, True)],
+    ids=["vm", "compiled", "compiled-basin-check"],
+)
 def test_newton(benchmark, case, compiled, basin_check):
     model = ShapeEnergyModel(EnergySettings(), free_speeds=case[0], compile=compiled)
-    _bench(benchmark, case, f"newton {'compiled' if compiled else 'vm'}",
-           lambda d, x0: model.solve_newton(d, x0, basin_check=basin_check))
+    _bench(
+        benchmark,
+        case,
+        f"newton {'compiled' if compiled else 'vm'}",
+        lambda d, x0: model.solve_newton(d, x0, basin_check=basin_check),
+    )
 
 
 def test_ph_ik_compiled(benchmark, case):
@@ -191,12 +206,13 @@ def test_newton_raphson_ik(benchmark, case, recording):
     benchmark.group = GROUPS[False]
     benchmark.pedantic(step, rounds=n, iterations=1, warmup_rounds=0)
     median = benchmark.stats.stats.median
-    benchmark.extra_info.update({
-        "median per sample [us]": median * 1e6,
-        "not ok": sum(s != "ok" for s in status),
-        "mean |L error| [mm]": float(np.nanmean(np.abs(lengths - recording.tube_lengths)) * 1e3),
-    })
+    benchmark.extra_info.update(
+        {
+            "median per sample [us]": median * 1e6,
+            "not ok": sum(s != "ok" for s in status),
+            "mean |L error| [mm]": float(np.nanmean(np.abs(lengths - recording.tube_lengths)) * 1e3),
+        }
+    )
     if _ph_ik_median:
         benchmark.extra_info["ratio to ph-ik"] = median / _ph_ik_median[-1]
     assert len(status) == n and all(status)
-

@@ -106,7 +106,10 @@ def test_cvxpy_parameters(benchmark, steps, solver):
     _bench(benchmark, f"cvxpy {solver}", qp("qp_cvxpy", solver=solver), steps)
 
 
-@pytest.mark.parametrize("Controller", [MRACController, PseudoInverseController, DampedLeastSquaresController],
-                         ids=["mrac", "pseudo-inverse", "damped-least-squares"])
+@pytest.mark.parametrize(
+    "Controller",
+    [MRACController, PseudoInverseController, DampedLeastSquaresController],
+    ids=["mrac", "pseudo-inverse", "damped-least-squares"],
+)
 def test_unconstrained_baselines(benchmark, steps, Controller):
     _bench(benchmark, Controller.name, Controller(ARM, 1 / RATE, "pose"), steps)

@@ -66,14 +66,16 @@ def solve(ctx: ProblemContext) -> Result:
     return report.result(ctx.spec, run.solve(ctx))
 
 
-register_kind(ProblemKind(
-    name="dmp",
-    summary="learn a demonstrated motion with DMPs (cvxpy regression, NLP gain tuning) and generalise it",
-    run=solve,
-    backend_families=(),
-    default_solver=None,
-    baselines=("lstsq", "lwr", "genetic"),
-    options=DmpOptions,
-    data_family="demonstrations",
-    figures=figures.figures,
-))
+register_kind(
+    ProblemKind(
+        name="dmp",
+        summary="learn a demonstrated motion with DMPs (cvxpy regression, NLP gain tuning) and generalise it",
+        run=solve,
+        backend_families=(),
+        default_solver=None,
+        baselines=("lstsq", "lwr", "genetic"),
+        options=DmpOptions,
+        data_family="demonstrations",
+        figures=figures.figures,
+    )
+)

@@ -29,7 +29,7 @@ QUATERNION_SCENARIOS = ("reproduction", "goal switch", "perturbation coupled")
 def variants_of(arrays: Mapping[str, np.ndarray]) -> list[str]:
     """The variants of a result, in the order they were run (each has a reproduction array)."""
     suffix = "__reproduction"
-    return [name[:-len(suffix)] for name in arrays if name.endswith(suffix)]
+    return [name[: -len(suffix)] for name in arrays if name.endswith(suffix)]
 
 
 def figures(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -> dict[str, Drawer]:

@@ -36,8 +36,9 @@ class GainOptions(Options):
     beta: float = Field(_GAINS.beta, gt=0, description="damping of the transformation system (eqs. 11, 17)")
     gamma: float = Field(_GAINS.gamma, gt=0, description="spring to damping ratio (eqs. 11, 17)")
     zeta: float = Field(_GAINS.zeta, gt=0, description="decay rate of the phase (eq. 15)")
-    beta_g0: float = Field(_GAINS.beta_g0, ge=0, allow_inf_nan=True,
-                           description="rate of the goal filter (eq. 24); .inf: the goal jumps")
+    beta_g0: float = Field(
+        _GAINS.beta_g0, ge=0, allow_inf_nan=True, description="rate of the goal filter (eq. 24); .inf: the goal jumps"
+    )
     alpha_s: float = Field(_GAINS.alpha_s, ge=0, description="coupling to the goal and reference gaps (eqs. 26-27)")
     alpha: float = Field(_GAINS.alpha, ge=0, description="phase stopping by the gaps (eqs. 25, 28)")
 
@@ -65,10 +66,12 @@ class GoalSwitch(Options):
     """A new goal, relative to the goal before it (the demonstration's for the first)."""
 
     time: float = Field(ge=0, description="when the goal switches [s] (at most 3 tau)")
-    rotate: tuple[float, ...] = Field((0.0, 0.0, 0.0), min_length=3, max_length=3,
-                                      description="rotation vector applied to the orientation [rad]")
-    translate: tuple[float, ...] = Field((0.0, 0.0, 0.0), min_length=3, max_length=3,
-                                         description="translation added to the position [m]")
+    rotate: tuple[float, ...] = Field(
+        (0.0, 0.0, 0.0), min_length=3, max_length=3, description="rotation vector applied to the orientation [rad]"
+    )
+    translate: tuple[float, ...] = Field(
+        (0.0, 0.0, 0.0), min_length=3, max_length=3, description="translation added to the position [m]"
+    )
 
 
 class Disturbance(Options):
@@ -83,8 +86,9 @@ class Disturbance(Options):
 class Coupling(Options):
     """A DMP coupled to the demonstration (eq. 27), run against the plain one under the disturbance."""
 
-    phase_stopping: PhaseStopping = Field("tracking", description="the error that slows the phase "
-                                                                  "(optikin.dmp.canonical): tracking or seed")
+    phase_stopping: PhaseStopping = Field(
+        "tracking", description="the error that slows the phase (optikin.dmp.canonical): tracking or seed"
+    )
     alpha_s: float = Field(0.0, ge=0, description="coupling gain (eqs. 26-27)")
     alpha: float = Field(0.0, ge=0, description="phase-stopping gain (eqs. 25, 28); > 0 needs phase_stopping: seed")
 
@@ -96,7 +100,8 @@ class Coupling(Options):
                 "tracking_against_demonstration",
                 "phase stopping on the tracking error needs the robot's pose as the reference; here the DMP is "
                 "coupled to the demonstration (eq. 27), which runs on in time, so the lag the stopping creates "
-                "would feed itself (optikin.dmp.canonical): use phase_stopping: seed (eq. 28) or alpha: 0")
+                "would feed itself (optikin.dmp.canonical): use phase_stopping: seed (eq. 28) or alpha: 0",
+            )
         return alpha
 
 
@@ -129,15 +134,18 @@ class DmpOptions(Options):
 
     variants: tuple[Variant, ...] = Field(("cartesian",), min_length=1, description="the DMPs learned and compared")
     n_basis: int = Field(50, ge=2, description="Gaussian basis functions per gap component (eq. 13)")
-    smoothing: float | None = Field(None, gt=0, description="cutoff [Hz] of the low-pass applied to the "
-                                                            "demonstration before learning; null: none")
+    smoothing: float | None = Field(
+        None, gt=0, description="cutoff [Hz] of the low-pass applied to the demonstration before learning; null: none"
+    )
     gains: GainOptions = Field(default_factory=GainOptions)
     regression: RegressionOptions = Field(default_factory=RegressionOptions)
     goal_switches: tuple[GoalSwitch, ...] = Field((), description="new goals, each relative to the one before")
     disturbance: Disturbance | None = Field(None, description="a step force on eq. (17); null: no perturbation")
-    couplings: dict[str, Coupling] = Field(default_factory=_default_couplings, min_length=1,
-                                           description="label -> coupled DMP run against the plain one under "
-                                                       "the disturbance")
+    couplings: dict[str, Coupling] = Field(
+        default_factory=_default_couplings,
+        min_length=1,
+        description="label -> coupled DMP run against the plain one under the disturbance",
+    )
     tuning: Tuning | None = Field(None, description="gain tuning; null: none")
     settle: float = Field(5.0, gt=0, description="goal-switch roll-outs last settle x tau")
     tolerance: Tolerance = Field(default_factory=Tolerance)

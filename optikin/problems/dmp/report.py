@@ -45,10 +45,19 @@ def result(spec: ProblemSpec, outcome: DmpOutcome) -> Result:
     if outcome.tuning is not None:
         comparison += [_tuning_row(outcome.tuning, found) for found in outcome.tuning.results]
     first = outcome.reproductions[0]
-    return Result(problem=spec.name, kind=spec.kind, solver=f"{outcome.method} regression", title=spec.title,
-                  arm={"demonstration": spec.data.source}, status=status,
-                  timings={"fit [ms]": first.fit.seconds * 1e3}, metrics=metrics, comparison=comparison,
-                  arrays=arrays(outcome), notes=notes(outcome, labels))
+    return Result(
+        problem=spec.name,
+        kind=spec.kind,
+        solver=f"{outcome.method} regression",
+        title=spec.title,
+        arm={"demonstration": spec.data.source},
+        status=status,
+        timings={"fit [ms]": first.fit.seconds * 1e3},
+        metrics=metrics,
+        comparison=comparison,
+        arrays=arrays(outcome),
+        notes=notes(outcome, labels),
+    )
 
 
 def error_summary(errors: dict[str, np.ndarray], prefix: str) -> dict[str, float]:
@@ -62,9 +71,12 @@ def error_summary(errors: dict[str, np.ndarray], prefix: str) -> dict[str, float
 
 
 def _reproduction_row(r: Reproduction, method: str) -> MethodRow:
-    row: dict[str, float | int | str] = {"fit residual": r.fit.residual, "fit time [ms]": r.fit.seconds * 1e3,
-                                         "roll-out time [ms]": r.rollout.seconds * 1e3,
-                                         **error_summary(r.errors, "reproduction")}
+    row: dict[str, float | int | str] = {
+        "fit residual": r.fit.residual,
+        "fit time [ms]": r.fit.seconds * 1e3,
+        "roll-out time [ms]": r.rollout.seconds * 1e3,
+        **error_summary(r.errors, "reproduction"),
+    }
     if r.truth_errors is not None:  # the recording's noise-free motion
         row |= error_summary(r.truth_errors, "vs true motion")
     if r.unit_error is not None:
@@ -86,11 +98,16 @@ def _perturbation_metrics(push: PerturbationRun) -> dict[str, float]:
 
 def _tuning_row(tuning: TuningOutcome, found: TuningResult) -> MethodRow:
     metrics: dict[str, float | int | str] = {
-        "eq. 29 error": found.error, "eq. 29 error at start": found.initial_error, "time [s]": found.seconds,
-        "objective evaluations": found.evaluations, "status": found.status,
-        **{n: getattr(found.gains, n) for n in tuning.names}}
-    return MethodRow(f"tuning {tuning.variant} ({found.method})", "solver" if found.method == "ipopt" else "baseline",
-                     metrics)
+        "eq. 29 error": found.error,
+        "eq. 29 error at start": found.initial_error,
+        "time [s]": found.seconds,
+        "objective evaluations": found.evaluations,
+        "status": found.status,
+        **{n: getattr(found.gains, n) for n in tuning.names},
+    }
+    return MethodRow(
+        f"tuning {tuning.variant} ({found.method})", "solver" if found.method == "ipopt" else "baseline", metrics
+    )
 
 
 def arrays(outcome: DmpOutcome) -> dict[str, np.ndarray]:
@@ -108,8 +125,11 @@ def arrays(outcome: DmpOutcome) -> dict[str, np.ndarray]:
     if isinstance(recording, sources.InterfaceRecording):
         out |= {"imu": recording.imu, "relative": recording.relative, "section_angles": recording.angles}
     if isinstance(recording, sources.KinectRecording):
-        out |= {"kinect_position": recording.position, "kinect_rpy": recording.rpy,
-                "kinect_filtered_rpy": recording.filtered_rpy}
+        out |= {
+            "kinect_position": recording.position,
+            "kinect_rpy": recording.rpy,
+            "kinect_filtered_rpy": recording.filtered_rpy,
+        }
     return out
 
 
@@ -119,9 +139,11 @@ def notes(outcome: DmpOutcome, labels: list[str]) -> list[str]:
     seed = next((r for r in outcome.reproductions if r.variant == "seed" and r.role == "solver"), None)
     if seed is not None:
         qd = seed.rollout.y[:, 4:]
-        out.append("seed variant: |Q_d| stays at its initial value "
-                   f"({np.linalg.norm(qd[0]):.4f}; demonstration ends at "
-                   f"{np.linalg.norm(outcome.demo.dual_quaternion[-1, 4:]):.4f}), so the tip cannot change its "
-                   "distance from the origin (optikin.dmp.pose)")
+        out.append(
+            "seed variant: |Q_d| stays at its initial value "
+            f"({np.linalg.norm(qd[0]):.4f}; demonstration ends at "
+            f"{np.linalg.norm(outcome.demo.dual_quaternion[-1, 4:]):.4f}), so the tip cannot change its "
+            "distance from the origin (optikin.dmp.pose)"
+        )
     out.append(f"labels of the per-roll-out status: {labels}")
     return out

@@ -111,8 +111,13 @@ class Learner:
     path: Path
 
     def dmp(self, variant: str, gains: Gains | None = None, phase_stopping: str = "tracking") -> DMP:
-        return make_dmp(variant, self.options.n_basis, self.gains if gains is None else gains,
-                        smoothing=self.options.smoothing, phase_stopping=phase_stopping)
+        return make_dmp(
+            variant,
+            self.options.n_basis,
+            self.gains if gains is None else gains,
+            smoothing=self.options.smoothing,
+            phase_stopping=phase_stopping,
+        )
 
     def fit(self, dmp: DMP, variant: str, method: str) -> Fit:
         """Learn the demonstration in the variant's layout with ``method`` (ridge and bound as the options say)."""
@@ -130,8 +135,9 @@ class Learner:
         except OptikinError as exc:
             raise SpecError(str(self.path), "options.regression", str(exc)) from None
 
-    def reproduce(self, variant: str, method: str, role: str,
-                  truth: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[DMP, Reproduction]:
+    def reproduce(
+        self, variant: str, method: str, role: str, truth: tuple[np.ndarray, np.ndarray] | None = None
+    ) -> tuple[DMP, Reproduction]:
         """A new DMP of ``variant`` fitted by ``method`` and rolled out over the demonstration."""
         dmp = self.dmp(variant)
         fit = self.fit(dmp, variant, method)
@@ -148,8 +154,7 @@ def solve(ctx: ProblemContext) -> DmpOutcome:
     options: DmpOptions = ctx.options
     recording = ctx.load_data()
     demo = sources.pose_demonstration(recording)
-    learner = Learner(demo, options, options.gains.gains(), f"{ctx.path.name}: data ({ctx.spec.data.source})",
-                      ctx.path)
+    learner = Learner(demo, options, options.gains.gains(), f"{ctx.path.name}: data ({ctx.spec.data.source})", ctx.path)
     method = options.regression.method
     outcome = DmpOutcome(demo, recording, method)
     truth = true_motion(ctx, recording)
@@ -166,8 +171,9 @@ def solve(ctx: ProblemContext) -> DmpOutcome:
     goals = goal_switches(ctx, options, demo)
     final_rpy = np.unwrap(rpy_from_quat(demo.quaternion), axis=0)[-1]
     if goals:
-        outcome.goal_switches = [switch_goals(variant, dmp, goals, final_rpy, options)
-                                 for variant, dmp in models.items()]
+        outcome.goal_switches = [
+            switch_goals(variant, dmp, goals, final_rpy, options) for variant, dmp in models.items()
+        ]
     if options.disturbance is not None:
         outcome.perturbations = perturbations(ctx, learner, models)
     if options.tuning is not None:
@@ -197,16 +203,19 @@ def goal_switches(ctx: ProblemContext, options: DmpOptions, demo: sources.PoseDe
     return goals
 
 
-def switch_goals(variant: str, dmp: DMP, goals: list[Goal], final_rpy: np.ndarray,
-                 options: DmpOptions) -> GoalSwitchRun:
+def switch_goals(
+    variant: str, dmp: DMP, goals: list[Goal], final_rpy: np.ndarray, options: DmpOptions
+) -> GoalSwitchRun:
     """Roll ``dmp`` out for ``settle x tau`` through the goal switches; converged within the tolerance?"""
     switches = [(when, variant_data(variant, p, q, final_rpy)) for when, p, q in goals]
     out = dmp.rollout(duration=options.settle * dmp.tau, goal_switches=switches)
     _, p_goal, q_goal = goals[-1]
     final = {k: float(v[0]) for k, v in pose_errors(variant, out.y[-1:], p_goal, q_goal).items()}
     tolerance = options.tolerance
-    converged = (final.get("position", 0.0) * MM <= tolerance.position_mm
-                 and final.get("orientation", 0.0) * MRAD <= tolerance.orientation_mrad)
+    converged = (
+        final.get("position", 0.0) * MM <= tolerance.position_mm
+        and final.get("orientation", 0.0) * MRAD <= tolerance.orientation_mrad
+    )
     state = rollout_status(out.y, unit_error(variant, out.y))
     return GoalSwitchRun(variant, out.y, final, state if state != "ok" or converged else "not_converged")
 
@@ -239,8 +248,9 @@ def perturbations(ctx: ProblemContext, learner: Learner, models: dict[str, DMP])
     return runs
 
 
-def perturb(learner: Learner, variant: str, label: str, coupling: Coupling | None,
-            push: Callable[[np.ndarray], np.ndarray]) -> PerturbationRun:
+def perturb(
+    learner: Learner, variant: str, label: str, coupling: Coupling | None, push: Callable[[np.ndarray], np.ndarray]
+) -> PerturbationRun:
     """A new DMP of ``variant`` (coupled to the demonstration as learned, eq. 27, unless plain), rolled out with
     and without the push; the deviation is the push's effect on the same DMP."""
     if coupling is None:
@@ -253,13 +263,20 @@ def perturb(learner: Learner, variant: str, label: str, coupling: Coupling | Non
     calm = dmp.rollout(reference=reference)
     out = dmp.rollout(disturbance=push, reference=reference)
     p_calm, q_calm = variant_pose(variant, calm.y)
-    return PerturbationRun(variant, label, out.y, pose_errors(variant, out.y, p_calm, q_calm),
-                           float(out.phase[-1]), float(calm.phase[-1]),
-                           rollout_status(out.y, unit_error(variant, out.y)))
+    return PerturbationRun(
+        variant,
+        label,
+        out.y,
+        pose_errors(variant, out.y, p_calm, q_calm),
+        float(out.phase[-1]),
+        float(calm.phase[-1]),
+        rollout_status(out.y, unit_error(variant, out.y)),
+    )
 
 
-def tune(ctx: ProblemContext, learner: Learner, tuning: Tuning, goals: list[Goal],
-         final_rpy: np.ndarray) -> TuningOutcome:
+def tune(
+    ctx: ProblemContext, learner: Learner, tuning: Tuning, goals: list[Goal], final_rpy: np.ndarray
+) -> TuningOutcome:
     """Tune the gains of ``tuning.variant`` by multi-start IPOPT, and by the GA when it is a baseline."""
     names = tuple(tuning.gains)
     variant = tuning.variant or learner.options.variants[0]
@@ -270,15 +287,25 @@ def tune(ctx: ProblemContext, learner: Learner, tuning: Tuning, goals: list[Goal
         when, p, q = goals[0]
         extra = {"new_goal": variant_data(variant, p, q, final_rpy), "switch_time": when}
     demo = learner.demo
-    problem = tuning_problem(learner.dmp(variant), demo.t, variant_data(variant, demo.position, demo.quaternion),
-                             names, scenario=tuning.scenario, **extra)
+    problem = tuning_problem(
+        learner.dmp(variant),
+        demo.t,
+        variant_data(variant, demo.position, demo.quaternion),
+        names,
+        scenario=tuning.scenario,
+        **extra,
+    )
     seed = ctx.spec.data.seed
     with ctx.progress.task(f"dmp: tuning {', '.join(names)}", total=2) as advance:
-        results = [tune_gradient(problem, max_iterations=tuning.max_iterations, screen=tuning.screen,
-                                 starts=tuning.starts, seed=seed)]
+        results = [
+            tune_gradient(
+                problem, max_iterations=tuning.max_iterations, screen=tuning.screen, starts=tuning.starts, seed=seed
+            )
+        ]
         advance()
         if "genetic" in ctx.spec.baselines:
-            results.append(tune_genetic(problem, population=tuning.population, generations=tuning.generations,
-                                        seed=seed))
+            results.append(
+                tune_genetic(problem, population=tuning.population, generations=tuning.generations, seed=seed)
+            )
         advance()
     return TuningOutcome(variant, names, results)

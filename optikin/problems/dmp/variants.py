@@ -43,8 +43,9 @@ def make_dmp(variant: str, n_basis: int, gains: Gains, **options: Any) -> DMP:
     return DMP(space, n_basis=n_basis, gains=gains, **options)
 
 
-def variant_data(variant: str, position: np.ndarray, quaternion: np.ndarray,
-                 rpy_reference: np.ndarray | None = None) -> np.ndarray:
+def variant_data(
+    variant: str, position: np.ndarray, quaternion: np.ndarray, rpy_reference: np.ndarray | None = None
+) -> np.ndarray:
     """Poses ``(..., size)`` in the state layout of a variant from positions ``(..., 3)`` [m] and unit
     quaternions ``(..., 4)``; ``rpy`` angles [rad] are unwrapped along a sequence, or taken nearest to
     ``rpy_reference`` for a single pose."""
@@ -76,8 +77,9 @@ def variant_pose(variant: str, y: np.ndarray) -> tuple[np.ndarray | None, np.nda
     return None, quat_from_rpy(y[..., 0], y[..., 1], y[..., 2])
 
 
-def pose_errors(variant: str, y: np.ndarray, position: np.ndarray | None,
-                quaternion: np.ndarray | None) -> dict[str, np.ndarray]:
+def pose_errors(
+    variant: str, y: np.ndarray, position: np.ndarray | None, quaternion: np.ndarray | None
+) -> dict[str, np.ndarray]:
     """Per-sample ``position`` error [m] and ``orientation`` error [rad] of roll-out states against poses."""
     p, q = variant_pose(variant, y)
     errors = {}

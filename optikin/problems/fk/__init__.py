@@ -44,14 +44,16 @@ def solve(ctx: ProblemContext) -> Result:
     return report(ctx, run(ctx))
 
 
-register_kind(ProblemKind(
-    name="fk",
-    summary="forward kinematics over a configuration sweep or trajectory",
-    run=solve,
-    backend_families=("evaluation",),
-    default_solver="casadi-map",
-    baselines=("numpy",),
-    options=FkOptions,
-    data_family="configurations",
-    figures=figures.figures,
-))
+register_kind(
+    ProblemKind(
+        name="fk",
+        summary="forward kinematics over a configuration sweep or trajectory",
+        run=solve,
+        backend_families=("evaluation",),
+        default_solver="casadi-map",
+        baselines=("numpy",),
+        options=FkOptions,
+        data_family="configurations",
+        figures=figures.figures,
+    )
+)

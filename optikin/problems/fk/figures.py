@@ -42,8 +42,13 @@ def figures(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -> dic
             if t is not None:
                 plots.time_series(path, t, {"tip position": position * MM}, "[mm]", f"{name}: tip position")
             else:
-                plots.scatter_3d(path, position, f"{name}: tip positions",
-                                 colour=np.linalg.norm(position, axis=1) * MM, colour_label="distance from base [mm]")
+                plots.scatter_3d(
+                    path,
+                    position,
+                    f"{name}: tip positions",
+                    colour=np.linalg.norm(position, axis=1) * MM,
+                    colour_label="distance from base [mm]",
+                )
 
         drawers["tip"] = draw_tip
     return drawers

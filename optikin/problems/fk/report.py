@@ -34,13 +34,22 @@ def comparison(ctx: ProblemContext, outcome: FkOutcome) -> list[MethodRow]:
         return 0.0 if reference is None else float(np.abs(reference - tip_position).max() * MM)
 
     solver = ctx.solver.name if ctx.solver is not None else "none"
-    rows = [MethodRow(solver, "solver", {"time per sample [us]": outcome.tip_seconds / n * 1e6,
-                                         DIFFERENCE: distance(position)})]
+    rows = [
+        MethodRow(
+            solver, "solver", {"time per sample [us]": outcome.tip_seconds / n * 1e6, DIFFERENCE: distance(position)}
+        )
+    ]
     for baseline in outcome.baselines:
-        rows.append(MethodRow(baseline.name, "baseline", {
-            "time per sample [us]": baseline.seconds / n * 1e6,
-            DIFFERENCE: distance(position if baseline.name == "numpy" else dq_translation(baseline.tip_dq)),
-        }))
+        rows.append(
+            MethodRow(
+                baseline.name,
+                "baseline",
+                {
+                    "time per sample [us]": baseline.seconds / n * 1e6,
+                    DIFFERENCE: distance(position if baseline.name == "numpy" else dq_translation(baseline.tip_dq)),
+                },
+            )
+        )
     return rows
 
 
@@ -52,22 +61,39 @@ def tip_metrics(outcome: FkOutcome) -> dict[str, float | list[float]]:
         f"tip {axis} range [mm]": [float(position[:, k].min() * MM), float(position[:, k].max() * MM)]
         for k, axis in enumerate("xyz")
     }
-    return {**ranges, "max distance base-tip [mm]": float(reach.max() * MM),
-            "max unit-norm error of tip dual quaternion": float(outcome.unit_error.max())}
+    return {
+        **ranges,
+        "max distance base-tip [mm]": float(reach.max() * MM),
+        "max unit-norm error of tip dual quaternion": float(outcome.unit_error.max()),
+    }
 
 
 def report(ctx: ProblemContext, outcome: FkOutcome) -> Result:
     """The Result of an ``fk`` run (arrays: configurations, tip_dq, tip_position, section_dq, backbone, t)."""
     spec, n = ctx.spec, outcome.configurations.shape[0]
-    arrays = {"configurations": outcome.configurations, "tip_dq": outcome.tip_dq,
-              "tip_position": dq_translation(outcome.tip_dq), "section_dq": outcome.section_dq,
-              "backbone": outcome.backbone}
+    arrays = {
+        "configurations": outcome.configurations,
+        "tip_dq": outcome.tip_dq,
+        "tip_position": dq_translation(outcome.tip_dq),
+        "section_dq": outcome.section_dq,
+        "backbone": outcome.backbone,
+    }
     if outcome.t is not None:
         arrays["t"] = outcome.t
     return Result(
-        problem=spec.name, kind=spec.kind, solver=None if ctx.solver is None else ctx.solver.name,
-        title=spec.title, arm=ctx.arm.describe(), status=sample_status(outcome), residuals=outcome.unit_error,
-        timings={"build [s]": outcome.build_seconds, "fk_dq total [s]": outcome.tip_seconds,
-                 "per sample [us]": outcome.tip_seconds / n * 1e6},
-        metrics=tip_metrics(outcome), comparison=comparison(ctx, outcome), arrays=arrays,
+        problem=spec.name,
+        kind=spec.kind,
+        solver=None if ctx.solver is None else ctx.solver.name,
+        title=spec.title,
+        arm=ctx.arm.describe(),
+        status=sample_status(outcome),
+        residuals=outcome.unit_error,
+        timings={
+            "build [s]": outcome.build_seconds,
+            "fk_dq total [s]": outcome.tip_seconds,
+            "per sample [us]": outcome.tip_seconds / n * 1e6,
+        },
+        metrics=tip_metrics(outcome),
+        comparison=comparison(ctx, outcome),
+        arrays=arrays,
     )

@@ -83,8 +83,9 @@ def unit_error(tip: np.ndarray) -> np.ndarray:
     return np.maximum(np.abs(norm_err), np.abs(dot_err))
 
 
-def evaluate_all(ctx: ProblemContext, evaluator: EvaluationBackend,
-                 Q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+def evaluate_all(
+    ctx: ProblemContext, evaluator: EvaluationBackend, Q: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     """Tip ``(N, 8)``, sections ``(N, m, 8)``, backbone ``(N, K, 3)`` and the time of the tip evaluation [s]."""
     arm = ctx.arm
     with ctx.progress.task(f"fk: {Q.shape[0]} samples", total=3) as advance:

@@ -104,13 +104,15 @@ def run(ctx: ProblemContext) -> Result:
     return result_of(ctx, solve(ctx))
 
 
-register_kind(ProblemKind(
-    name="ik",
-    summary="inverse kinematics by Newton / nonlinear least squares, backends compared on the same targets",
-    run=run,
-    backend_families=(FAMILY,),
-    default_solver="gauss-newton",
-    options=IkOptions,
-    data_family=TARGETS,
-    figures=figures.figures,
-))
+register_kind(
+    ProblemKind(
+        name="ik",
+        summary="inverse kinematics by Newton / nonlinear least squares, backends compared on the same targets",
+        run=run,
+        backend_families=(FAMILY,),
+        default_solver="gauss-newton",
+        options=IkOptions,
+        data_family=TARGETS,
+        figures=figures.figures,
+    )
+)

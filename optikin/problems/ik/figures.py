@@ -43,17 +43,29 @@ def figures(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -> dic
         if tips is not None:
             drawers["targets"] = partial(draw_targets, tips=tips, residual=residual, title=title)
     if residual is not None and "t" in arrays and "error" in arrays:
-        drawers["trajectory"] = partial(draw_trajectory, t=arrays["t"], residual=residual, error=arrays["error"],
-                                        title=f"{name}: along the trajectory")
+        drawers["trajectory"] = partial(
+            draw_trajectory,
+            t=arrays["t"],
+            residual=residual,
+            error=arrays["error"],
+            title=f"{name}: along the trajectory",
+        )
     methods = [row["method"] for row in summary.get("comparison", [])]
     keys = [array_key(m) for m in methods]
     if methods and all(f"{what}_{k}" in arrays for k in keys for what in ("tip_error", "time", "status")):
-        margins = {m: arrays[f"leg_margin_{k}"] for m, k in zip(methods, keys)} if all(
-            f"leg_margin_{k}" in arrays for k in keys) else None
+        margins = (
+            {m: arrays[f"leg_margin_{k}"] for m, k in zip(methods, keys)}
+            if all(f"leg_margin_{k}" in arrays for k in keys)
+            else None
+        )
         drawers["comparison"] = partial(
-            draw_comparison, title=name, errors={m: arrays[f"tip_error_{k}"] for m, k in zip(methods, keys)},
+            draw_comparison,
+            title=name,
+            errors={m: arrays[f"tip_error_{k}"] for m, k in zip(methods, keys)},
             seconds={m: arrays[f"time_{k}"] for m, k in zip(methods, keys)},
-            status={m: arrays[f"status_{k}"] for m, k in zip(methods, keys)}, margins=margins)
+            status={m: arrays[f"status_{k}"] for m, k in zip(methods, keys)},
+            margins=margins,
+        )
     return drawers
 
 
@@ -78,8 +90,14 @@ def draw_trajectory(path: Path, t: np.ndarray, residual: np.ndarray, error: np.n
     plots.time_series(path, t, series, "", title, labels=("",))
 
 
-def draw_comparison(path: Path, title: str, errors: Mapping[str, np.ndarray], seconds: Mapping[str, np.ndarray],
-                    status: Mapping[str, np.ndarray], margins: Mapping[str, np.ndarray] | None = None) -> None:
+def draw_comparison(
+    path: Path,
+    title: str,
+    errors: Mapping[str, np.ndarray],
+    seconds: Mapping[str, np.ndarray],
+    status: Mapping[str, np.ndarray],
+    margins: Mapping[str, np.ndarray] | None = None,
+) -> None:
     """Per method: the distribution of tip errors [m], the median time per solve [us] with the share of
     ``ok`` samples and, when ``margins`` are given, the smallest leg margins to Table I [mm]."""
     names = list(errors)
@@ -88,8 +106,9 @@ def draw_comparison(path: Path, title: str, errors: Mapping[str, np.ndarray], se
     y = np.arange(len(names))
 
     finite = [np.maximum(errors[n][np.isfinite(errors[n])], FLOOR) for n in names]
-    axes[0].boxplot(finite, positions=y, orientation="horizontal", widths=0.6, manage_ticks=False,
-                    flierprops={"markersize": 2})
+    axes[0].boxplot(
+        finite, positions=y, orientation="horizontal", widths=0.6, manage_ticks=False, flierprops={"markersize": 2}
+    )
     axes[0].set_xscale("log")
     axes[0].set_xlabel("tip error [m] (fk_dq of the answer)")
 
@@ -99,13 +118,13 @@ def draw_comparison(path: Path, title: str, errors: Mapping[str, np.ndarray], se
     axes[1].set_xscale("log")
     axes[1].set_xlabel("median time per solve [us]")
     for bar, share in zip(bars, ok):
-        axes[1].text(bar.get_width(), bar.get_y() + bar.get_height() / 2, f" {share:.0f}% ok", va="center",
-                     fontsize=8)
+        axes[1].text(bar.get_width(), bar.get_y() + bar.get_height() / 2, f" {share:.0f}% ok", va="center", fontsize=8)
 
     if margins is not None:
         values = [margins[n][np.isfinite(margins[n])] * 1e3 for n in names]
-        axes[2].boxplot(values, positions=y, orientation="horizontal", widths=0.6, manage_ticks=False,
-                        flierprops={"markersize": 2})
+        axes[2].boxplot(
+            values, positions=y, orientation="horizontal", widths=0.6, manage_ticks=False, flierprops={"markersize": 2}
+        )
         axes[2].axvline(0.0, color="tab:red", lw=1)
         axes[2].set_xlabel("smallest leg margin to Table I [mm]")
     axes[0].set_yticks(y, names)

@@ -27,37 +27,57 @@ class FormulationOptions(Options):
     """How the targets are matched and the redundancy resolved; every field may be set by a variant."""
 
     redundancy: Redundancy = Field(
-        "rest", description="which solution of a redundant problem: closest to rest, closest to the previous "
-                            "solution, reached by minimum-norm corrections, or the penalty of seed 004 eq. (11)")
-    penalty: StrictFloat = Field(1e-6, gt=0, description="lambda of eq. (11): m^2 on the configuration, a pure "
-                                                          "number on the position")
-    penalty_on: PenaltyReading = Field("configuration", description="what eq. (11) penalises: the weighted "
-                                                                    "distance to rest, or the tip position")
-    elongation: Elongation = Field("free", description="CBHA only: the elongation distribution of seed 004 "
-                                                       "section IV (distributed or affine reading), or none")
-    rest: list[StrictFloat] | None = Field(None, description="rest configuration (units of the arm's variables); "
-                                                             "default straight at nominal lengths, else mid-range")
-    weights: list[Positive] | None = Field(None, description="diagonal W of ||W (q - q_ref)|| (1/units of each "
-                                                             "variable); default the inverse ranges")
+        "rest",
+        description="which solution of a redundant problem: closest to rest, closest to the previous "
+        "solution, reached by minimum-norm corrections, or the penalty of seed 004 eq. (11)",
+    )
+    penalty: StrictFloat = Field(
+        1e-6, gt=0, description="lambda of eq. (11): m^2 on the configuration, a pure number on the position"
+    )
+    penalty_on: PenaltyReading = Field(
+        "configuration", description="what eq. (11) penalises: the weighted distance to rest, or the tip position"
+    )
+    elongation: Elongation = Field(
+        "free",
+        description="CBHA only: the elongation distribution of seed 004 "
+        "section IV (distributed or affine reading), or none",
+    )
+    rest: list[StrictFloat] | None = Field(
+        None,
+        description="rest configuration (units of the arm's variables); "
+        "default straight at nominal lengths, else mid-range",
+    )
+    weights: list[Positive] | None = Field(
+        None, description="diagonal W of ||W (q - q_ref)|| (1/units of each variable); default the inverse ranges"
+    )
     tolerance: StrictFloat = Field(1e-10, gt=0, description="||r|| counted as solved [m]")
-    orientation_length: StrictFloat | None = Field(None, gt=0, description="pose targets: length L scaling the "
-                                                                           "orientation rows [m]; default the "
-                                                                           "arm's reach bound")
+    orientation_length: StrictFloat | None = Field(
+        None, gt=0, description="pose targets: length L scaling the orientation rows [m]; default the arm's reach bound"
+    )
 
 
 class IkOptions(FormulationOptions):
     """``options`` of kind ``ik`` (module docstring of :mod:`optikin.problems.ik`)."""
 
-    target: TargetKind = Field("position", description="tip position, tip pose (unit dual quaternion) or, on a "
-                                                       "CBHA, the 48 leg lengths")
+    target: TargetKind = Field(
+        "position", description="tip position, tip pose (unit dual quaternion) or, on a CBHA, the 48 leg lengths"
+    )
     start: Literal["rest"] | list[StrictFloat] = Field(
-        "rest", description="start configuration of independent targets and of a trajectory's first one: "
-                            "'rest' or a configuration (units of the arm's variables)")
-    restarts: StrictInt = Field(2, ge=0, description="retries of a target not solved (count): from the nearest "
-                                                     "solved target's solution, then from random configurations")
+        "rest",
+        description="start configuration of independent targets and of a trajectory's first one: "
+        "'rest' or a configuration (units of the arm's variables)",
+    )
+    restarts: StrictInt = Field(
+        2,
+        ge=0,
+        description="retries of a target not solved (count): from the nearest "
+        "solved target's solution, then from random configurations",
+    )
     variants: dict[str, FormulationOptions] = Field(
-        default_factory=dict, description="label -> formulation options over these: the problem's solver on "
-                                          "other formulations of the same targets")
+        default_factory=dict,
+        description="label -> formulation options over these: the problem's solver on "
+        "other formulations of the same targets",
+    )
 
     @field_validator("start", mode="wrap")
     @classmethod
@@ -65,5 +85,6 @@ class IkOptions(FormulationOptions):
         try:
             return handler(value)
         except ValueError:
-            raise PydanticCustomError("start", "expected 'rest' or a configuration (a list of numbers), "
-                                               "got {value}", {"value": repr(value)}) from None
+            raise PydanticCustomError(
+                "start", "expected 'rest' or a configuration (a list of numbers), got {value}", {"value": repr(value)}
+            ) from None

@@ -35,13 +35,16 @@ def _stat(f: Callable[[np.ndarray], Any], values: np.ndarray) -> float:
     return float(f(values)) if values.size else float("nan")
 
 
-def tip_metrics(targets: Targets, formulation: Formulation, checks: dict[str, np.ndarray],
-                ok: np.ndarray) -> dict[str, Any]:
+def tip_metrics(
+    targets: Targets, formulation: Formulation, checks: dict[str, np.ndarray], ok: np.ndarray
+) -> dict[str, Any]:
     """Metrics of tip targets from the checks: tip and angle errors [m, rad], distance from rest, CBHA legs [mm]."""
     reachable = targets.reachable
     tip_error = checks["tip_error"]
-    metrics: dict[str, Any] = {"max tip error ok [m]": _stat(np.max, tip_error[ok]),
-                               "median tip error [m]": _stat(np.median, tip_error)}
+    metrics: dict[str, Any] = {
+        "max tip error ok [m]": _stat(np.max, tip_error[ok]),
+        "median tip error [m]": _stat(np.median, tip_error),
+    }
     within = reachable & (tip_error <= formulation.tolerance)
     metrics["tip within tolerance [%]"] = 100.0 * within.sum() / max(int(reachable.sum()), 1)
     if "angle_error" in checks:
@@ -74,13 +77,15 @@ def method_metrics(run: MethodRun, targets: Targets) -> dict[str, Any]:
     if (~reachable).any():
         metrics["unreachable flagged"] = f"{int((status[~reachable] == 'unreachable').sum())}/{int((~reachable).sum())}"
         metrics["unreachable reported ok"] = int(ok[~reachable].sum())
-    metrics.update({
-        "median iterations": float(np.median(report.iterations)) if np.all(report.iterations >= 0) else None,
-        "median time per solve [us]": float(np.median(report.seconds) * 1e6),
-        "mean time per solve [us]": float(run.wall / len(report) * 1e6),
-        "batched": report.batched,
-        "statuses": ", ".join(f"{s}: {int((status == s).sum())}" for s in dict.fromkeys(report.status)),
-    })
+    metrics.update(
+        {
+            "median iterations": float(np.median(report.iterations)) if np.all(report.iterations >= 0) else None,
+            "median time per solve [us]": float(np.median(report.seconds) * 1e6),
+            "mean time per solve [us]": float(run.wall / len(report) * 1e6),
+            "batched": report.batched,
+            "statuses": ", ".join(f"{s}: {int((status == s).sum())}" for s in dict.fromkeys(report.status)),
+        }
+    )
     return metrics
 
 
@@ -89,12 +94,22 @@ def arrays_of(outcome: IkOutcome) -> dict[str, np.ndarray]:
     ``solution_tips`` for leg targets."""
     targets, main = outcome.targets, outcome.main
     error = main.checks["leg_error" if targets.kind == "legs" else "tip_error"]
-    arrays = {"targets": targets.values, "reachable": targets.reachable,
-              "true_configurations": targets.configurations, "solutions": main.report.x, "error": error}
+    arrays = {
+        "targets": targets.values,
+        "reachable": targets.reachable,
+        "true_configurations": targets.configurations,
+        "solutions": main.report.x,
+        "error": error,
+    }
     for run in outcome.runs:
         key, r = array_key(run.method.name), run.report
-        arrays |= {f"residual_{key}": r.residual, f"status_{key}": np.array(r.status), f"solutions_{key}": r.x,
-                   f"time_{key}": r.seconds, f"iterations_{key}": r.iterations}
+        arrays |= {
+            f"residual_{key}": r.residual,
+            f"status_{key}": np.array(r.status),
+            f"solutions_{key}": r.x,
+            f"time_{key}": r.seconds,
+            f"iterations_{key}": r.iterations,
+        }
         arrays |= {f"{check}_{key}": values for check, values in run.checks.items()}
     if targets.t is not None:
         arrays["t"] = targets.t
@@ -111,8 +126,9 @@ def notes_of(outcome: IkOutcome) -> list[str]:
         for status in ("failed", "timeout"):
             where = [i for i, s in enumerate(r.status) if s == status]
             if where:
-                notes.append(f"{run.method.name}: {len(where)} samples {status}, "
-                             f"e.g. sample {where[0]}: {r.messages[where[0]]}")
+                notes.append(
+                    f"{run.method.name}: {len(where)} samples {status}, e.g. sample {where[0]}: {r.messages[where[0]]}"
+                )
     return notes
 
 
@@ -130,8 +146,17 @@ def result_of(ctx: ProblemContext, outcome: IkOutcome) -> Result:
     }
     comparison = [MethodRow(run.method.name, run.method.role, method_metrics(run, targets)) for run in outcome.runs]
     return Result(
-        problem=spec.name, kind=spec.kind, solver=outcome.main.method.name, title=spec.title, arm=ctx.arm.describe(),
-        status=list(main.status), iterations=main.iterations, residuals=main.residual,
+        problem=spec.name,
+        kind=spec.kind,
+        solver=outcome.main.method.name,
+        title=spec.title,
+        arm=ctx.arm.describe(),
+        status=list(main.status),
+        iterations=main.iterations,
+        residuals=main.residual,
         timings={"median per solve [us]": float(np.median(main.seconds) * 1e6)},
-        metrics=metrics, comparison=comparison, arrays=arrays_of(outcome), notes=notes_of(outcome),
+        metrics=metrics,
+        comparison=comparison,
+        arrays=arrays_of(outcome),
+        notes=notes_of(outcome),
     )

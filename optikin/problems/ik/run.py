@@ -53,8 +53,12 @@ def setup_of(ctx: ProblemContext) -> IkSetup:
     start = formulation.rest if options.start == "rest" else configuration(ctx, "options.start", options.start)
     variants = {}
     for label, variant in options.variants.items():
-        merged = FormulationOptions(**{key: getattr(variant if key in variant.model_fields_set else options, key)
-                                       for key in FormulationOptions.model_fields})
+        merged = FormulationOptions(
+            **{
+                key: getattr(variant if key in variant.model_fields_set else options, key)
+                for key in FormulationOptions.model_fields
+            }
+        )
 
         def where(key: str, label: str = label, variant: FormulationOptions = variant) -> str:
             return f"options.variants.{label}.{key}" if key in variant.model_fields_set else f"options.{key}"
@@ -76,17 +80,26 @@ def formulation_of(ctx: ProblemContext, target: str, o: FormulationOptions, wher
     orientation_length = 1.0
     if target == "pose":
         orientation_length = reach_bound(arm) if o.orientation_length is None else o.orientation_length
-    return Formulation(target=target, redundancy=o.redundancy, rest=rest, weights=weights, tolerance=o.tolerance,
-                       orientation_length=orientation_length, penalty=o.penalty, penalty_on=o.penalty_on,
-                       elongation=o.elongation)
+    return Formulation(
+        target=target,
+        redundancy=o.redundancy,
+        rest=rest,
+        weights=weights,
+        tolerance=o.tolerance,
+        orientation_length=orientation_length,
+        penalty=o.penalty,
+        penalty_on=o.penalty_on,
+        elongation=o.elongation,
+    )
 
 
 def vector(ctx: ProblemContext, field: str, value: object) -> np.ndarray:
     """``value`` as one number per configuration variable of ``ctx.arm``; else an error naming ``field``."""
     v = np.asarray(value, dtype=float)
     if v.shape != (ctx.arm.n_config,):
-        raise ctx.error(field, f"expected {ctx.arm.n_config} numbers ({', '.join(ctx.arm.config_names)}), "
-                               f"got {value!r}")
+        raise ctx.error(
+            field, f"expected {ctx.arm.n_config} numbers ({', '.join(ctx.arm.config_names)}), got {value!r}"
+        )
     return v
 
 
@@ -98,8 +111,9 @@ def configuration(ctx: ProblemContext, field: str, value: object) -> np.ndarray:
     outside = (q < arm.lower - 1e-12 * span) | (q > arm.upper + 1e-12 * span)
     if outside.any():
         j = int(np.argmax(outside))
-        raise ctx.error(field, f"{arm.config_names[j]} = {q[j]:.6g} outside its bounds "
-                               f"[{arm.lower[j]:.6g}, {arm.upper[j]:.6g}]")
+        raise ctx.error(
+            field, f"{arm.config_names[j]} = {q[j]:.6g} outside its bounds [{arm.lower[j]:.6g}, {arm.upper[j]:.6g}]"
+        )
     return q
 
 
@@ -126,8 +140,11 @@ def methods_of(ctx: ProblemContext, setup: IkSetup) -> list[Method]:
         # the runner checked that it is a preset of this kind's family
         methods.append(Method(name, "baseline", build_preset(name), setup.formulation, problem))
     for label, formulation in setup.variants.items():
-        methods.append(Method(f"{ctx.solver.name} [{label}]", "variant", ctx.adapter, formulation,
-                              build_problem(ctx.arm, formulation)))
+        methods.append(
+            Method(
+                f"{ctx.solver.name} [{label}]", "variant", ctx.adapter, formulation, build_problem(ctx.arm, formulation)
+            )
+        )
     return methods
 
 
@@ -143,8 +160,9 @@ def solver_of(adapter: NonlinearAdapter, problem: Problem) -> Solve:
     return lambda X0, P, warm, x_ref: adapter.solve_many(problem, X0, P, warm_start=warm, x_ref=x_ref)
 
 
-def solve_targets(solve: Solve, targets: Targets, setup: IkSetup, formulation: Formulation,
-                  ctx: ProblemContext) -> SolutionBatch:
+def solve_targets(
+    solve: Solve, targets: Targets, setup: IkSetup, formulation: Formulation, ctx: ProblemContext
+) -> SolutionBatch:
     """Solve every target: warm-started along a trajectory; else batched, then the samples not solved retried
     ``setup.restarts`` times, first from the solution of the nearest solved target, then from random
     admissible configurations (seeded), keeping the better point; a sample's time and iterations include
@@ -170,8 +188,9 @@ def keep_better(report: SolutionBatch, retry: np.ndarray, again: SolutionBatch) 
     """Fold the retries ``again`` of samples ``retry`` into ``report``: iterations and time add up, the point
     is replaced when the retry is ``ok`` or has a residual no larger."""
     for j, i in enumerate(retry):
-        better = again.status[j] == "ok" or (np.isfinite(again.residual[j]) and
-                                             not again.residual[j] >= report.residual[i])
+        better = again.status[j] == "ok" or (
+            np.isfinite(again.residual[j]) and not again.residual[j] >= report.residual[i]
+        )
         report.iterations[i] += again.iterations[j]
         report.seconds[i] += again.seconds[j]
         if better:

@@ -48,13 +48,15 @@ def solve(ctx: ProblemContext) -> Result:
     return report(run(ctx))
 
 
-register_kind(ProblemKind(
-    name="nn_fkm",
-    summary="seed 004 hybrid forward kinematics (MLP per section) against exact platform solvers",
-    run=solve,
-    backend_families=("nonlinear",),
-    default_solver=None,
-    options=NNOptions,
-    data_family="nn_database",
-    figures=figures.figures,
-))
+register_kind(
+    ProblemKind(
+        name="nn_fkm",
+        summary="seed 004 hybrid forward kinematics (MLP per section) against exact platform solvers",
+        run=solve,
+        backend_families=("nonlinear",),
+        default_solver=None,
+        options=NNOptions,
+        data_family="nn_database",
+        figures=figures.figures,
+    )
+)

@@ -20,8 +20,7 @@ def report(outcome: FKMOutcome) -> Result:
     """
     prep, test, k = outcome.prep, outcome.test, outcome.exact_samples
     db = prep.db
-    metrics: dict[str, Any] = {"database": db.summary(), "database time [s]": prep.seconds,
-                               "test samples": len(test)}
+    metrics: dict[str, Any] = {"database": db.summary(), "database time [s]": prep.seconds, "test samples": len(test)}
     comparison: list[MethodRow] = []
     errors: dict[str, np.ndarray] = {}
     arrays: dict[str, np.ndarray] = {}
@@ -30,14 +29,28 @@ def report(outcome: FKMOutcome) -> Result:
         errors[net.label] = net.errors
         arrays |= net.arrays
     for solver in outcome.solvers:
-        comparison.append(solver_row(solver, {
-            "max |platform variables - truth|": float(np.max(np.abs(solver.report.x - db.configurations[test[:k]]))),
-            "max leg residual [m]": float(np.max(solver.report.residual)),
-            "latency, one sample [us]": solver.latency * 1e6}))
+        comparison.append(
+            solver_row(
+                solver,
+                {
+                    "max |platform variables - truth|": float(
+                        np.max(np.abs(solver.report.x - db.configurations[test[:k]]))
+                    ),
+                    "max leg residual [m]": float(np.max(solver.report.residual)),
+                    "latency, one sample [us]": solver.latency * 1e6,
+                },
+            )
+        )
         errors[solver.name] = solver.errors
         arrays |= solver.arrays
-    arrays |= {"test_rows": test, "leg_lengths": db.leg_lengths[test], "configurations": db.configurations[test],
-               "tip": db.tip[test]}
-    note = ("Every MSE is on the test split; tip errors through the exact chain of eq. (5); "
-            f"exact solvers on the first {k} test arms, every platform from eqs. (7)-(9) linearised.")
+    arrays |= {
+        "test_rows": test,
+        "leg_lengths": db.leg_lengths[test],
+        "configurations": db.configurations[test],
+        "tip": db.tip[test],
+    }
+    note = (
+        "Every MSE is on the test split; tip errors through the exact chain of eq. (5); "
+        f"exact solvers on the first {k} test arms, every platform from eqs. (7)-(9) linearised."
+    )
     return comparison_result(prep, outcome.networks, comparison, errors, metrics, arrays, note)

@@ -10,7 +10,16 @@ from optikin.baselines.nn_models import TrainingSetting, forward_tasks, hybrid_f
 from optikin.ik.platform import linearised_start, platform_problems, solve_platforms
 from optikin.problems import ProblemContext
 from optikin.problems.nn_shared import (
-    PLATFORM_TOLERANCE, NetworkRun, Prepared, SolverRun, latency, obtain_models, prepare, time_network, timed)
+    PLATFORM_TOLERANCE,
+    NetworkRun,
+    Prepared,
+    SolverRun,
+    latency,
+    obtain_models,
+    prepare,
+    time_network,
+    timed,
+)
 from optikin.solvers import build_preset
 from optikin.solvers.base import SolutionBatch
 from optikin.solvers.nonlinear import LeastSquaresProblem
@@ -52,8 +61,9 @@ def run_network(ctx: ProblemContext, prep: Prepared, setting: TrainingSetting) -
     """The forward networks of ``setting`` (Fig. 9): configurations from the test arms' legs, tips by eq. (5)."""
     arm, db = prep.arm, prep.db
     legs, truth_tip = db.leg_lengths[db.test], db.tip[db.test]
-    models, trained = obtain_models(ctx.progress, db, forward_tasks(db), setting, 0.0, prep.options.store,
-                                    f"fkm-{setting.name}")
+    models, trained = obtain_models(
+        ctx.progress, db, forward_tasks(db), setting, 0.0, prep.options.store, f"fkm-{setting.name}"
+    )
 
     def hybrid(L: np.ndarray) -> np.ndarray:
         return arm.evaluate("fk_position", hybrid_forward_configurations(models, L))
@@ -61,8 +71,15 @@ def run_network(ctx: ProblemContext, prep: Prepared, setting: TrainingSetting) -
     Q = hybrid_forward_configurations(models, legs)
     tip = arm.evaluate("fk_position", Q)
     batch, one = time_network(hybrid, legs, prep.options.latency_repeats)
-    return NetworkRun(setting, models, trained, np.linalg.norm(tip - truth_tip, axis=1), batch, one,
-                      {f"tip_{setting.name}": tip, f"configurations_{setting.name}": Q})
+    return NetworkRun(
+        setting,
+        models,
+        trained,
+        np.linalg.norm(tip - truth_tip, axis=1),
+        batch,
+        one,
+        {f"tip_{setting.name}": tip, f"configurations_{setting.name}": Q},
+    )
 
 
 def run_solver(prep: Prepared, name: str, problems: list[LeastSquaresProblem], k: int) -> PlatformSolverRun:
@@ -77,8 +94,14 @@ def run_solver(prep: Prepared, name: str, problems: list[LeastSquaresProblem], k
     solve(legs[:1])  # build (and compile) before the clock starts
     report, seconds = timed(lambda: solve(legs[:k]))
     tip = arm.evaluate("fk_position", report.x)
-    return PlatformSolverRun(name, report, np.linalg.norm(tip - truth_tip[:k], axis=1), seconds,
-                             {f"tip_{name}": tip}, latency(solve, legs, prep.options.latency_repeats))
+    return PlatformSolverRun(
+        name,
+        report,
+        np.linalg.norm(tip - truth_tip[:k], axis=1),
+        seconds,
+        {f"tip_{name}": tip},
+        latency(solve, legs, prep.options.latency_repeats),
+    )
 
 
 def run(ctx: ProblemContext) -> FKMOutcome:

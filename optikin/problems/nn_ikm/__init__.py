@@ -50,13 +50,15 @@ def solve(ctx: ProblemContext) -> Result:
     return report(run(ctx))
 
 
-register_kind(ProblemKind(
-    name="nn_ikm",
-    summary="seed 004 hybrid inverse kinematics (MLPs NN1-NN4, eq. 11) against exact tip IK solvers",
-    run=solve,
-    backend_families=("nonlinear",),
-    default_solver=None,
-    options=NNOptions,
-    data_family="nn_database",
-    figures=figures.figures,
-))
+register_kind(
+    ProblemKind(
+        name="nn_ikm",
+        summary="seed 004 hybrid inverse kinematics (MLPs NN1-NN4, eq. 11) against exact tip IK solvers",
+        run=solve,
+        backend_families=("nonlinear",),
+        default_solver=None,
+        options=NNOptions,
+        data_family="nn_database",
+        figures=figures.figures,
+    )
+)

@@ -21,27 +21,47 @@ def report(outcome: IKMOutcome) -> Result:
     """
     prep, test, k = outcome.prep, outcome.test, outcome.exact_samples
     db = prep.db
-    metrics: dict[str, Any] = {"database": db.summary(), "database time [s]": prep.seconds,
-                               "test samples": len(test), "penalty (eq. 11)": prep.options.penalty}
+    metrics: dict[str, Any] = {
+        "database": db.summary(),
+        "database time [s]": prep.seconds,
+        "test samples": len(test),
+        "penalty (eq. 11)": prep.options.penalty,
+    }
     comparison: list[MethodRow] = []
     errors: dict[str, np.ndarray] = {}
     arrays: dict[str, np.ndarray] = {}
     for net in outcome.networks:
-        comparison.append(network_row(net, db, metrics, {
-            "tip error of the predicted pose, unclipped, median [mm]": float(np.median(net.unclipped) * MM),
-            "lengths clipped to Table I [%]": float(100 * net.realised.clipped.mean())}))
+        comparison.append(
+            network_row(
+                net,
+                db,
+                metrics,
+                {
+                    "tip error of the predicted pose, unclipped, median [mm]": float(np.median(net.unclipped) * MM),
+                    "lengths clipped to Table I [%]": float(100 * net.realised.clipped.mean()),
+                },
+            )
+        )
         errors[net.label] = net.errors
         arrays |= net.arrays
     for solver in outcome.solvers:
         iterations = solver.report.iterations
-        comparison.append(solver_row(solver, {
-            "lengths clipped to Table I [%]": float(100 * solver.realised.clipped.mean()),
-            "median iterations": float(np.median(iterations)) if np.all(iterations >= 0) else None}))
+        comparison.append(
+            solver_row(
+                solver,
+                {
+                    "lengths clipped to Table I [%]": float(100 * solver.realised.clipped.mean()),
+                    "median iterations": float(np.median(iterations)) if np.all(iterations >= 0) else None,
+                },
+            )
+        )
         errors[solver.name] = solver.errors
         arrays |= solver.arrays
     arrays |= {"test_rows": test, "targets": db.tip[test], "configurations": db.configurations[test]}
-    note = ("Every MSE is on the test split; each method's leg lengths are clipped to Table I and realised through "
-            "the exact platform and chain kinematics before its tip error is measured; exact solvers on the first "
-            f"{k} test tips, from the straight mid-range pose, for the admissible configuration nearest it "
-            f"({outcome.formulation.label()}).")
+    note = (
+        "Every MSE is on the test split; each method's leg lengths are clipped to Table I and realised through "
+        "the exact platform and chain kinematics before its tip error is measured; exact solvers on the first "
+        f"{k} test tips, from the straight mid-range pose, for the admissible configuration nearest it "
+        f"({outcome.formulation.label()})."
+    )
     return comparison_result(prep, outcome.networks, comparison, errors, metrics, arrays, note)

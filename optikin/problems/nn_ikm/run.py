@@ -11,8 +11,17 @@ from optikin.ik.formulation import Formulation, build_problem, rest_configuratio
 from optikin.ik.platform import Realised, platform_problems, realise
 from optikin.problems import ProblemContext
 from optikin.problems.nn_shared import (
-    PLATFORM_TOLERANCE, REALISER, TIP_TOLERANCE, NetworkRun, Prepared, SolverRun, obtain_models, prepare,
-    time_network, timed)
+    PLATFORM_TOLERANCE,
+    REALISER,
+    TIP_TOLERANCE,
+    NetworkRun,
+    Prepared,
+    SolverRun,
+    obtain_models,
+    prepare,
+    time_network,
+    timed,
+)
 from optikin.solvers import build_preset
 from optikin.solvers.nonlinear import LeastSquaresProblem, NonlinearAdapter
 
@@ -68,13 +77,13 @@ class Realiser:
     adapter: NonlinearAdapter
 
 
-def run_network(ctx: ProblemContext, prep: Prepared, setting: TrainingSetting,
-                realiser: Realiser) -> InverseNetworkRun:
+def run_network(ctx: ProblemContext, prep: Prepared, setting: TrainingSetting, realiser: Realiser) -> InverseNetworkRun:
     """NN1-NN4 of ``setting`` (Fig. 10) on the test tips, their lengths realised."""
     arm, db, o = prep.arm, prep.db, prep.options
     targets = db.tip[db.test]
-    models, trained = obtain_models(ctx.progress, db, inverse_tasks(db), setting, o.penalty, o.store,
-                                    f"ikm-{setting.name}")
+    models, trained = obtain_models(
+        ctx.progress, db, inverse_tasks(db), setting, o.penalty, o.store, f"ikm-{setting.name}"
+    )
 
     def hybrid(P: np.ndarray) -> np.ndarray:
         return arm.evaluate("leg_lengths", hybrid_inverse_configurations(models, P))
@@ -84,29 +93,54 @@ def run_network(ctx: ProblemContext, prep: Prepared, setting: TrainingSetting,
     unclipped = np.linalg.norm(arm.evaluate("fk_position", Q) - targets, axis=1)
     batch, one = time_network(hybrid, targets, o.latency_repeats)
     s = setting.name
-    arrays = {f"tip_{s}": realised.tip, f"leg_lengths_{s}": realised.commanded, f"predicted_{s}": Q,
-              f"configurations_{s}": realised.configurations}
-    return InverseNetworkRun(setting, models, trained, np.linalg.norm(realised.tip - targets, axis=1), batch, one,
-                             arrays, realised, unclipped)
+    arrays = {
+        f"tip_{s}": realised.tip,
+        f"leg_lengths_{s}": realised.commanded,
+        f"predicted_{s}": Q,
+        f"configurations_{s}": realised.configurations,
+    }
+    return InverseNetworkRun(
+        setting,
+        models,
+        trained,
+        np.linalg.norm(realised.tip - targets, axis=1),
+        batch,
+        one,
+        arrays,
+        realised,
+        unclipped,
+    )
 
 
 def tip_formulation(prep: Prepared) -> Formulation:
     """The tip-position IK for the admissible configuration nearest the straight mid-range pose."""
     arm = prep.arm
-    return Formulation(target="position", redundancy="rest", rest=rest_configuration(arm),
-                       weights=1.0 / (arm.upper - arm.lower), tolerance=TIP_TOLERANCE)
+    return Formulation(
+        target="position",
+        redundancy="rest",
+        rest=rest_configuration(arm),
+        weights=1.0 / (arm.upper - arm.lower),
+        tolerance=TIP_TOLERANCE,
+    )
 
 
-def run_solver(prep: Prepared, name: str, problem: LeastSquaresProblem, start: np.ndarray, k: int,
-               realiser: Realiser) -> TipSolverRun:
+def run_solver(
+    prep: Prepared, name: str, problem: LeastSquaresProblem, start: np.ndarray, k: int, realiser: Realiser
+) -> TipSolverRun:
     """Solver preset ``name`` on ``problem`` for the first ``k`` test tips from ``start``, its answers realised."""
     arm, targets = prep.arm, prep.db.tip[prep.db.test]
     adapter = build_preset(name)
     adapter.solve(problem, start, targets[0])  # build before the clock starts
     report, seconds = timed(lambda: adapter.solve_many(problem, start, targets[:k]))
     realised = realise(arm, report.x, realiser.adapter, realiser.problems)
-    return TipSolverRun(name, report, np.linalg.norm(realised.tip - targets[:k], axis=1), seconds,
-                        {f"tip_{name}": realised.tip, f"configurations_{name}": realised.configurations}, realised)
+    return TipSolverRun(
+        name,
+        report,
+        np.linalg.norm(realised.tip - targets[:k], axis=1),
+        seconds,
+        {f"tip_{name}": realised.tip, f"configurations_{name}": realised.configurations},
+        realised,
+    )
 
 
 def run(ctx: ProblemContext) -> IKMOutcome:

@@ -46,14 +46,16 @@ def solve(ctx: ProblemContext) -> Result:
     return report(ctx, run(ctx))
 
 
-register_kind(ProblemKind(
-    name="ph_chain",
-    summary="two CBHAs and a hanging rope, each link a PH quintic from its end poses (seed 002 IV.B, V.C)",
-    run=solve,
-    backend_families=("ph",),
-    default_solver="ph-newton",
-    baselines=(),
-    options=PHChainOptions,
-    data_family="rope_chains",
-    figures=figures.figures,
-))
+register_kind(
+    ProblemKind(
+        name="ph_chain",
+        summary="two CBHAs and a hanging rope, each link a PH quintic from its end poses (seed 002 IV.B, V.C)",
+        run=solve,
+        backend_families=("ph",),
+        default_solver="ph-newton",
+        baselines=(),
+        options=PHChainOptions,
+        data_family="rope_chains",
+        figures=figures.figures,
+    )
+)

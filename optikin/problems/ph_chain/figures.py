@@ -26,7 +26,7 @@ def time_series(arrays: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
     out: dict[str, np.ndarray] = {}
     for key, link in LINKS.items():
         prefix = f"seconds_{key}_"
-        out |= {f"{name[len(prefix):]} ({link})": value for name, value in arrays.items() if name.startswith(prefix)}
+        out |= {f"{name[len(prefix) :]} ({link})": value for name, value in arrays.items() if name.startswith(prefix)}
     return out
 
 
@@ -36,12 +36,17 @@ def figures(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -> dic
     drawers: dict[str, Drawer] = {}
     needed = [f"{k}_{part}" for k in LINKS for part in ("ph_points", "markers")] + list(TRUTHS.values())
     if all(k in arrays for k in needed):
+
         def draw_shapes(path: Path) -> None:
             from optikin.problems import ph_figures
 
-            ph_figures.chains_3d(path, [arrays[f"{k}_ph_points"] for k in LINKS],
-                                 [arrays[f"{k}_markers"] for k in LINKS], [arrays[TRUTHS[k]] for k in LINKS],
-                                 f"{name}: CBHA 1, rope, CBHA 2 ({solver})")
+            ph_figures.chains_3d(
+                path,
+                [arrays[f"{k}_ph_points"] for k in LINKS],
+                [arrays[f"{k}_markers"] for k in LINKS],
+                [arrays[TRUTHS[k]] for k in LINKS],
+                f"{name}: CBHA 1, rope, CBHA 2 ({solver})",
+            )
 
         drawers["shapes"] = draw_shapes
     if all(f"{k}_marker_distance" in arrays for k in LINKS):
@@ -55,6 +60,7 @@ def figures(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -> dic
         drawers["errors"] = draw_errors
     seconds = time_series(arrays)
     if seconds:
+
         def draw_times(path: Path) -> None:
             from optikin.problems import ph_figures
 

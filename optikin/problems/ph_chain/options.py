@@ -10,5 +10,6 @@ from optikin.problems.ph_shared import PHOptions
 class PHChainOptions(PHOptions):
     """Options of ``ph_chain`` (besides :class:`~optikin.problems.ph_shared.PHOptions`, which set the arm links)."""
 
-    rope_free_speeds: bool = Field(True, strict=True,
-                                   description="rope: end speeds free and arc length held to the rope length")
+    rope_free_speeds: bool = Field(
+        True, strict=True, description="rope: end speeds free and arc length held to the rope length"
+    )

@@ -43,8 +43,10 @@ def chain_metrics(outcome: ChainOutcome, marker_distance: dict[str, np.ndarray])
         "truth: mean of the largest distance per link [mm]": [float(np.nanmean(truth[k])) for k in LINKS],
         "truth: largest distance per link [mm]": [float(np.nanmax(truth[k])) for k in LINKS],
         "median time per sample, all links [us]": float(np.median(sum(main[k].seconds for k in LINKS)) * 1e6),
-        "rope chord / length min-max": [float(np.min(chord) / outcome.chain.rope_length),
-                                        float(np.max(chord) / outcome.chain.rope_length)],
+        "rope chord / length min-max": [
+            float(np.min(chord) / outcome.chain.rope_length),
+            float(np.max(chord) / outcome.chain.rope_length),
+        ],
     }
 
 
@@ -66,9 +68,12 @@ def chain_arrays(outcome: ChainOutcome, marker_distance: dict[str, np.ndarray]) 
 def sample_status(outcome: ChainOutcome) -> list[str]:
     """``ok`` where the solver solved all three links, else the first link's status that is not."""
     main = outcome.main
-    return ["ok" if all(main[name].status[i] == "ok" for name in LINKS) else
-            next(main[name].status[i] for name in LINKS if main[name].status[i] != "ok")
-            for i in range(len(outcome.chain))]
+    return [
+        "ok"
+        if all(main[name].status[i] == "ok" for name in LINKS)
+        else next(main[name].status[i] for name in LINKS if main[name].status[i] != "ok")
+        for i in range(len(outcome.chain))
+    ]
 
 
 def report(ctx: ProblemContext, outcome: ChainOutcome) -> Result:
@@ -78,12 +83,21 @@ def report(ctx: ProblemContext, outcome: ChainOutcome) -> Result:
     metrics = chain_metrics(outcome, marker_distance)
     rope = "free, length held" if options.rope_free_speeds else "set to its length"
     return Result(
-        problem=spec.name, kind=spec.kind, solver=outcome.solver, title=spec.title, arm=ctx.arm.describe(),
-        status=sample_status(outcome), iterations=np.sum([main[k].iterations for k in LINKS], axis=0),
+        problem=spec.name,
+        kind=spec.kind,
+        solver=outcome.solver,
+        title=spec.title,
+        arm=ctx.arm.describe(),
+        status=sample_status(outcome),
+        iterations=np.sum([main[k].iterations for k in LINKS], axis=0),
         residuals=np.nanmax(np.column_stack([marker_distance[k].max(axis=1) for k in LINKS]), axis=1) / MM,
         timings={"median per sample, all links [us]": metrics["median time per sample, all links [us]"]},
-        metrics=metrics, comparison=chain_rows(outcome), arrays=chain_arrays(outcome, marker_distance),
-        notes=[f"{len(outcome.chain)} postures; rope {outcome.chain.rope_length} m; arms: backbone length "
-               f"{options.length}, end speeds {'free' if options.free_speeds else 'set to the length'}; rope: end "
-               f"speeds {rope}; residual = largest marker distance of the sample over the links [m]"],
+        metrics=metrics,
+        comparison=chain_rows(outcome),
+        arrays=chain_arrays(outcome, marker_distance),
+        notes=[
+            f"{len(outcome.chain)} postures; rope {outcome.chain.rope_length} m; arms: backbone length "
+            f"{options.length}, end speeds {'free' if options.free_speeds else 'set to the length'}; rope: end "
+            f"speeds {rope}; residual = largest marker distance of the sample over the links [m]"
+        ],
     )

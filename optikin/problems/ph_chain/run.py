@@ -57,25 +57,35 @@ class ChainOutcome:
     def truths(self) -> dict[str, np.ndarray]:
         """Per link, the ground truth ``(N, M, 3)`` [m]: vertebra centres, dense catenary points."""
         assert self.arm1.truth is not None and self.arm2.truth is not None, "a synthetic chain has its ground truth"
-        return {"CBHA 1": self.arm1.truth.vertebrae, "rope": self.chain.rope_truth,
-                "CBHA 2": self.arm2.truth.vertebrae}
+        return {"CBHA 1": self.arm1.truth.vertebrae, "rope": self.chain.rope_truth, "CBHA 2": self.arm2.truth.vertebrae}
 
 
 def reversed_data(data: ShapeData) -> ShapeData:
     """The same backbone traversed from its end (CBHA 2 runs from its tip C to its base D)."""
-    return ShapeData(data.p1, -data.t1, data.p0, -data.t0, None if data.speeds is None else data.speeds[::-1],
-                     data.length)
+    return ShapeData(
+        data.p1, -data.t1, data.p0, -data.t0, None if data.speeds is None else data.speeds[::-1], data.length
+    )
 
 
-def chain_links(chain: RopeChainRecording, arm1: MarkerRecording, arm2: MarkerRecording, length: str | float,
-                source: str) -> dict[str, list[ShapeData]]:
+def chain_links(
+    chain: RopeChainRecording, arm1: MarkerRecording, arm2: MarkerRecording, length: str | float, source: str
+) -> dict[str, list[ShapeData]]:
     """End data of every link and posture; the joints are checked (C0, Singh et al. 2018, eqs. 19-22)."""
     n = len(chain)
     links = {
         "CBHA 1": end_data(arm1, backbone_lengths(arm1, length, source), source),
-        "rope": [ShapeData.checked(arm1.tip_position[i], chain.rope_directions[i, 0], arm2.tip_position[i],
-                                   chain.rope_directions[i, 1], length=chain.rope_length, source=source, sample=i)
-                 for i in range(n)],
+        "rope": [
+            ShapeData.checked(
+                arm1.tip_position[i],
+                chain.rope_directions[i, 0],
+                arm2.tip_position[i],
+                chain.rope_directions[i, 1],
+                length=chain.rope_length,
+                source=source,
+                sample=i,
+            )
+            for i in range(n)
+        ],
         "CBHA 2": [reversed_data(d) for d in end_data(arm2, backbone_lengths(arm2, length, source), source)],
     }
     for i in range(n):

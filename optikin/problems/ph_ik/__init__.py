@@ -51,14 +51,16 @@ def solve(ctx: ProblemContext) -> Result:
     return report(ctx, run(ctx))
 
 
-register_kind(ProblemKind(
-    name="ph_ik",
-    summary="CBHA tube lengths from the PH backbone of the end poses, against the reference (seed 002 V.B)",
-    run=solve,
-    backend_families=("ph",),
-    default_solver="ph-newton",
-    baselines=COMPARATORS,
-    options=PHIkOptions,
-    data_family="markers",
-    figures=figures.figures,
-))
+register_kind(
+    ProblemKind(
+        name="ph_ik",
+        summary="CBHA tube lengths from the PH backbone of the end poses, against the reference (seed 002 V.B)",
+        run=solve,
+        backend_families=("ph",),
+        default_solver="ph-newton",
+        baselines=COMPARATORS,
+        options=PHIkOptions,
+        data_family="markers",
+        figures=figures.figures,
+    )
+)

@@ -32,12 +32,18 @@ def figures(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -> dic
         def draw_errors(path: Path) -> None:
             from optikin.problems import ph_figures
 
-            ph_figures.per_sample(path, series, "[mm]", f"{name}: tube-length errors ({solver}, {frame} frame)",
-                                  {"|L - L_ref|": TUBES, "L_ref": TUBES})
+            ph_figures.per_sample(
+                path,
+                series,
+                "[mm]",
+                f"{name}: tube-length errors ({solver}, {frame} frame)",
+                {"|L - L_ref|": TUBES, "L_ref": TUBES},
+            )
 
         drawers["errors"] = draw_errors
     seconds = prefixed(arrays, "ik_seconds_")
     if seconds:
+
         def draw_times(path: Path) -> None:
             from optikin.problems import ph_figures
 

@@ -13,7 +13,10 @@ class PHIkOptions(PHOptions):
     """Options of ``ph_ik`` (besides :class:`~optikin.problems.ph_shared.PHOptions`)."""
 
     frame: Literal["rmf", "euler_rodrigues"] = Field(
-        "rmf", description="the frame that carries the tubes: rotation-minimising or Euler-Rodrigues")
+        "rmf", description="the frame that carries the tubes: rotation-minimising or Euler-Rodrigues"
+    )
     tube_radius: tuple[PositiveFloat, PositiveFloat] | None = Field(
-        None, description="[base, tip] offset radius of the tubes [m]; default: the CBHA's r_max, r_min "
-                          "(required for another arm)")
+        None,
+        description="[base, tip] offset radius of the tubes [m]; default: the CBHA's r_max, r_min "
+        "(required for another arm)",
+    )

@@ -12,10 +12,10 @@ from optikin.problems.ph_ik.run import IkOutcome
 from optikin.problems.ph_shared import MM, method_rows, summary_of
 from optikin.results import MethodRow, Result
 
-SEED_TABLE_II_MM = {"PH": {"L1": (0.0112, 4.4020, 2.8239), "L2": (0.0032, 5.2327, 2.2020),
-                           "L3": (0.0012, 3.5959, 0.9768)},
-                    "Newton-Raphson": {"L1": (1.9555, 13.2310, 6.3947), "L2": (0.1101, 7.5254, 3.9361),
-                                       "L3": (0.0054, 9.9292, 6.2398)}}
+SEED_TABLE_II_MM = {
+    "PH": {"L1": (0.0112, 4.4020, 2.8239), "L2": (0.0032, 5.2327, 2.2020), "L3": (0.0012, 3.5959, 0.9768)},
+    "Newton-Raphson": {"L1": (1.9555, 13.2310, 6.3947), "L2": (0.1101, 7.5254, 3.9361), "L3": (0.0054, 9.9292, 6.2398)},
+}
 """Singh et al. 2018, Table II: (min, max, mean) absolute tube-length error over the trajectory, mm."""
 SEED_TABLE_III_S = {"PH": 0.00027, NEWTON_RAPHSON: 0.23351, HYBRID: 0.01208}
 """Singh et al. 2018, Table III: time cost for one sample, seconds."""
@@ -35,8 +35,11 @@ def ph_rows(outcome: IkOutcome) -> list[MethodRow]:
     extra = {}
     for name in outcome.runs:
         err = np.abs(outcome.tubes[name] - outcome.reference) * MM
-        extra[name] = {"mean |L error| [mm]": float(np.nanmean(err)), "max |L error| [mm]": float(np.nanmax(err)),
-                       "median IK time per sample [us]": float(np.median(outcome.ik_seconds[name]) * 1e6)}
+        extra[name] = {
+            "mean |L error| [mm]": float(np.nanmean(err)),
+            "max |L error| [mm]": float(np.nanmax(err)),
+            "median IK time per sample [us]": float(np.median(outcome.ik_seconds[name]) * 1e6),
+        }
     rows = method_rows(outcome.runs, extra)
     other_errors = np.abs(outcome.other_tubes - outcome.reference) * MM
     other: dict[str, Any] = {**error_metrics(other_errors), "mean |L error| [mm]": float(np.nanmean(other_errors))}
@@ -55,16 +58,21 @@ def comparator_rows(outcome: IkOutcome) -> tuple[list[MethodRow], dict[str, np.n
         failed = np.flatnonzero(status != "ok")
         seed_time = SEED_TABLE_III_S.get(name)
         metrics: dict[str, Any] = {
-            "ok": f"{len(status) - failed.size}/{len(status)}", "failures": int(failed.size),
-            **error_metrics(errors), "mean |L error| [mm]": summary_of(errors.ravel())["avg"],
+            "ok": f"{len(status) - failed.size}/{len(status)}",
+            "failures": int(failed.size),
+            **error_metrics(errors),
+            "mean |L error| [mm]": summary_of(errors.ravel())["avg"],
             "median IK time per sample [us]": float(np.median(found.seconds) * 1e6),
-            **({f"seed 002 Table III, {name}: time per sample [us]": seed_time * 1e6} if seed_time else {})}
+            **({f"seed 002 Table III, {name}: time per sample [us]": seed_time * 1e6} if seed_time else {}),
+        }
         rows.append(MethodRow(name, "baseline", metrics))
         key = name.replace("-", "_")
         arrays |= {f"tube_lengths_{key}": found.lengths, f"status_{key}": status, f"ik_seconds_{name}": found.seconds}
         if failed.size:
-            notes.append(f"{name}: {failed.size} of {len(status)} postures not ok (no tube lengths), "
-                         f"e.g. sample {failed[0]}: {found.status[failed[0]]}, {found.messages[failed[0]]}")
+            notes.append(
+                f"{name}: {failed.size} of {len(status)} postures not ok (no tube lengths), "
+                f"e.g. sample {failed[0]}: {found.status[failed[0]]}, {found.messages[failed[0]]}"
+            )
     return rows, arrays, notes
 
 
@@ -76,22 +84,29 @@ def ik_metrics(outcome: IkOutcome) -> dict[str, Any]:
         "median IK time per sample [us]": float(np.median(outcome.ik_seconds[outcome.solver]) * 1e6),
         "seed 002 Table II, PH: L1 / L2 / L3 mean error [mm]": [v[2] for v in SEED_TABLE_II_MM["PH"].values()],
         "seed 002 Table III, PH: time per sample [us]": SEED_TABLE_III_S["PH"] * 1e6,
-        f"max |L({outcome.other_frame}) - L({outcome.layout.frame})| [mm]":
-            float(np.nanmax(np.abs(outcome.other_tubes - tubes)) * MM),
+        f"max |L({outcome.other_frame}) - L({outcome.layout.frame})| [mm]": float(
+            np.nanmax(np.abs(outcome.other_tubes - tubes)) * MM
+        ),
     }
     truth = outcome.recording.truth
     if truth is not None:
         metrics["backbone length estimate error mean / max [mm]"] = [
             float(np.mean(np.abs(outcome.lengths - truth.backbone_length)) * MM),
-            float(np.max(np.abs(outcome.lengths - truth.backbone_length)) * MM)]
+            float(np.max(np.abs(outcome.lengths - truth.backbone_length)) * MM),
+        ]
     return metrics
 
 
 def ik_arrays(outcome: IkOutcome) -> dict[str, np.ndarray]:
     """The arrays of the ``ph`` methods (the figures draw from these and the comparators')."""
-    arrays = {"t": outcome.recording.t, "reference_tube_lengths": outcome.reference,
-              "tube_lengths": outcome.tubes[outcome.solver], f"tube_lengths_{outcome.other_frame}": outcome.other_tubes,
-              "backbone_length": outcome.lengths, "ph_points": outcome.main.curves.point(np.linspace(0, 1, 101))}
+    arrays = {
+        "t": outcome.recording.t,
+        "reference_tube_lengths": outcome.reference,
+        "tube_lengths": outcome.tubes[outcome.solver],
+        f"tube_lengths_{outcome.other_frame}": outcome.other_tubes,
+        "backbone_length": outcome.lengths,
+        "ph_points": outcome.main.curves.point(np.linspace(0, 1, 101)),
+    }
     for name, method in outcome.runs.items():
         arrays[f"ik_seconds_{name}"] = outcome.ik_seconds[name]
         arrays[f"energy_{name}"] = method.energies
@@ -103,15 +118,27 @@ def report(ctx: ProblemContext, outcome: IkOutcome) -> Result:
     spec, main, layout, options = ctx.spec, outcome.main, outcome.layout, outcome.options
     errors = np.abs(outcome.tubes[outcome.solver] - outcome.reference) * MM
     rows, comparator_arrays, comparator_notes = comparator_rows(outcome)
-    notes = [f"{len(outcome.recording)} postures from {outcome.recording.source or spec.data.source}; tubes carried "
-             f"by the {layout.frame} frame at {layout.radius_start * MM:.1f} mm (base) to "
-             f"{layout.radius_end * MM:.1f} mm (tip); backbone length: {options.length}; end speeds "
-             f"{options.speeds_note()}"]
+    notes = [
+        f"{len(outcome.recording)} postures from {outcome.recording.source or spec.data.source}; tubes carried "
+        f"by the {layout.frame} frame at {layout.radius_start * MM:.1f} mm (base) to "
+        f"{layout.radius_end * MM:.1f} mm (tip); backbone length: {options.length}; end speeds "
+        f"{options.speeds_note()}"
+    ]
     return Result(
-        problem=spec.name, kind=spec.kind, solver=outcome.solver, title=spec.title, arm=ctx.arm.describe(),
-        status=main.status, iterations=main.iterations, residuals=np.nanmax(errors, axis=1) / MM,
-        timings={"median IK per sample [us]": float(np.median(outcome.ik_seconds[outcome.solver]) * 1e6),
-                 "build [s]": main.build_seconds},
-        metrics=ik_metrics(outcome), comparison=ph_rows(outcome) + rows,
-        arrays={**ik_arrays(outcome), **comparator_arrays}, notes=notes + comparator_notes,
+        problem=spec.name,
+        kind=spec.kind,
+        solver=outcome.solver,
+        title=spec.title,
+        arm=ctx.arm.describe(),
+        status=main.status,
+        iterations=main.iterations,
+        residuals=np.nanmax(errors, axis=1) / MM,
+        timings={
+            "median IK per sample [us]": float(np.median(outcome.ik_seconds[outcome.solver]) * 1e6),
+            "build [s]": main.build_seconds,
+        },
+        metrics=ik_metrics(outcome),
+        comparison=ph_rows(outcome) + rows,
+        arrays={**ik_arrays(outcome), **comparator_arrays},
+        notes=notes + comparator_notes,
     )

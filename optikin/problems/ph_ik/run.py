@@ -74,8 +74,9 @@ def tube_length_function(model: ShapeEnergyModel, layout: TubeLayout) -> ca.Func
     return ca.Function("ph_tube_lengths", [x, P, n0], [tube_lengths(curve, n0, layout)], ["x", "P", "n0"], ["L"])
 
 
-def timed_tube_lengths(function: ca.Function, run: MethodRun, samples: list[ShapeData], normals: np.ndarray,
-                       compiled: bool) -> tuple[np.ndarray, np.ndarray]:
+def timed_tube_lengths(
+    function: ca.Function, run: MethodRun, samples: list[ShapeData], normals: np.ndarray, compiled: bool
+) -> tuple[np.ndarray, np.ndarray]:
     """Tube lengths ``(N, M)`` of a method's solutions, one buffered call per sample, and each call's time."""
     f = BufferedFunction(function, compiled=compiled)
     x_in, p_in, n_in = f.inputs
@@ -108,13 +109,15 @@ def comparators_of(ctx: ProblemContext) -> list[str]:
     """The comparators listed in ``baselines``; they need a CBHA."""
     names = [n for n in COMPARATORS if n in ctx.spec.baselines]
     if names and not isinstance(ctx.arm, CBHAArm):
-        raise ctx.error("baselines", f"{names[0]}: needs a cbha arm (CBHA inverse kinematics), "
-                                     f"not {ctx.spec.arm.type!r}")
+        raise ctx.error(
+            "baselines", f"{names[0]}: needs a cbha arm (CBHA inverse kinematics), not {ctx.spec.arm.type!r}"
+        )
     return names
 
 
-def method_tubes(runs: dict[str, MethodRun], samples: list[ShapeData], layout: TubeLayout,
-                 normals: np.ndarray) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+def method_tubes(
+    runs: dict[str, MethodRun], samples: list[ShapeData], layout: TubeLayout, normals: np.ndarray
+) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
     """Per method: tube lengths, and time per posture (shape solve plus one tube-length call)."""
     tubes, ik_seconds = {}, {}
     for name, method in runs.items():
@@ -133,8 +136,9 @@ def run(ctx: ProblemContext) -> IkOutcome:
     recording = ctx.load_data()
     source = f"{ctx.path.name}: data"
     if recording.tube_lengths is None:
-        raise InputDataError("no reference tube lengths: the recording needs columns L1, L2, L3", source=source,
-                             field="L1")
+        raise InputDataError(
+            "no reference tube lengths: the recording needs columns L1, L2, L3", source=source, field="L1"
+        )
     reference = recording.tube_lengths
     recording, lengths, samples = shape_samples(recording, options, source)
     runs = solve_methods(ctx, options.energy, options.free_speeds, samples, others=COMPARATORS)
@@ -144,5 +148,18 @@ def run(ctx: ProblemContext) -> IkOutcome:
     other_tubes = tube_lengths(runs[solver].curves, normals, layout.with_frame(other))
     found = {name: run_comparator(cast(CBHAArm, ctx.arm), name, recording, source) for name in comparators}
     ik_seconds |= {name: c.seconds for name, c in found.items()}
-    return IkOutcome(recording, reference, lengths, samples, runs, layout, tubes, ik_seconds, other, other_tubes,
-                     found, solver, options)
+    return IkOutcome(
+        recording,
+        reference,
+        lengths,
+        samples,
+        runs,
+        layout,
+        tubes,
+        ik_seconds,
+        other,
+        other_tubes,
+        found,
+        solver,
+        options,
+    )

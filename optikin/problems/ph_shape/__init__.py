@@ -49,14 +49,16 @@ def solve(ctx: ProblemContext) -> Result:
     return report(ctx, run(ctx))
 
 
-register_kind(ProblemKind(
-    name="ph_shape",
-    summary="CBHA backbones from end poses as minimum-energy PH quintics, against markers (seed 002 V.A)",
-    run=solve,
-    backend_families=("ph",),
-    default_solver="ph-newton",
-    baselines=(),
-    options=PHShapeOptions,
-    data_family="markers",
-    figures=figures.figures,
-))
+register_kind(
+    ProblemKind(
+        name="ph_shape",
+        summary="CBHA backbones from end poses as minimum-energy PH quintics, against markers (seed 002 V.A)",
+        run=solve,
+        backend_families=("ph",),
+        default_solver="ph-newton",
+        baselines=(),
+        options=PHShapeOptions,
+        data_family="markers",
+        figures=figures.figures,
+    )
+)

@@ -21,7 +21,7 @@ MM = 1e3
 
 def prefixed(arrays: Mapping[str, np.ndarray], prefix: str) -> dict[str, np.ndarray]:
     """The arrays whose names start with ``prefix``, by the rest of their name."""
-    return {name[len(prefix):]: value for name, value in arrays.items() if name.startswith(prefix)}
+    return {name[len(prefix) :]: value for name, value in arrays.items() if name.startswith(prefix)}
 
 
 def figures(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -> dict[str, Drawer]:
@@ -29,14 +29,20 @@ def figures(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -> dic
     name, solver = summary.get("problem", "ph_shape"), summary.get("solver", "")
     drawers: dict[str, Drawer] = {}
     if all(k in arrays for k in ("ph_points", "markers", "base_position", "tip_position")):
-        points = np.concatenate([arrays["base_position"][:, None], arrays["markers"],
-                                 arrays["tip_position"][:, None]], axis=1)
+        points = np.concatenate(
+            [arrays["base_position"][:, None], arrays["markers"], arrays["tip_position"][:, None]], axis=1
+        )
 
         def draw_shapes(path: Path) -> None:
             from optikin.problems import ph_figures
 
-            ph_figures.shapes_3d(path, arrays["ph_points"], points, f"{name}: PH backbones ({solver}) and markers",
-                                 arrays.get("vertebrae"))
+            ph_figures.shapes_3d(
+                path,
+                arrays["ph_points"],
+                points,
+                f"{name}: PH backbones ({solver}) and markers",
+                arrays.get("vertebrae"),
+            )
 
         drawers["shapes"] = draw_shapes
     if "marker_distance" in arrays:
@@ -55,6 +61,7 @@ def figures(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -> dic
         drawers["errors"] = draw_errors
     seconds = prefixed(arrays, "seconds_")
     if seconds:
+
         def draw_times(path: Path) -> None:
             from optikin.problems import ph_figures
 

@@ -31,7 +31,8 @@ def truth_metrics(outcome: ShapeOutcome) -> tuple[dict[str, Any], dict[str, np.n
         "model backbone: largest vertebra distance [mm]": float(np.nanmax(vertebra_distance)),
         "backbone length estimate error mean / max [mm]": [
             float(np.mean(np.abs(lengths - truth.backbone_length)) * MM),
-            float(np.max(np.abs(lengths - truth.backbone_length)) * MM)],
+            float(np.max(np.abs(lengths - truth.backbone_length)) * MM),
+        ],
     }
     return metrics, {"vertebrae": truth.vertebrae, "vertebra_distance": vertebra_distance / MM}
 
@@ -40,10 +41,15 @@ def shape_arrays(outcome: ShapeOutcome) -> dict[str, np.ndarray]:
     """The arrays of the result (the figures draw from these)."""
     recording, curves = outcome.recording, outcome.main.curves
     arrays: dict[str, np.ndarray] = {
-        "t": recording.t, "markers": recording.markers, "marker_distance": outcome.distances[outcome.solver],
-        "backbone_length": outcome.lengths, "ph_points": curves.point(np.linspace(0, 1, CURVE_POINTS)),
-        "ph_p0": curves.p0, "ph_coefficients": np.stack([curves.A0, curves.A1, curves.A2], axis=1),
-        "base_position": recording.base_position, "tip_position": recording.tip_position,
+        "t": recording.t,
+        "markers": recording.markers,
+        "marker_distance": outcome.distances[outcome.solver],
+        "backbone_length": outcome.lengths,
+        "ph_points": curves.point(np.linspace(0, 1, CURVE_POINTS)),
+        "ph_p0": curves.p0,
+        "ph_coefficients": np.stack([curves.A0, curves.A1, curves.A2], axis=1),
+        "base_position": recording.base_position,
+        "tip_position": recording.tip_position,
     }
     for name, method in outcome.runs.items():
         arrays[f"energy_{name}"] = method.energies
@@ -65,12 +71,25 @@ def report(ctx: ProblemContext, outcome: ShapeOutcome) -> Result:
     metrics.update(truth)
     extra = {name: {"mean marker distance [mm]": float(np.nanmean(d) * MM)} for name, d in outcome.distances.items()}
     return Result(
-        problem=spec.name, kind=spec.kind, solver=outcome.solver, title=spec.title, arm=ctx.arm.describe(),
-        status=main.status, iterations=main.iterations, residuals=np.nanmax(distance, axis=1) / MM,
-        timings={"median per sample [us]": float(np.median(main.seconds) * 1e6),
-                 "mean per sample [us]": float(np.mean(main.seconds) * 1e6), "build [s]": main.build_seconds},
-        metrics=metrics, comparison=method_rows(outcome.runs, extra), arrays={**shape_arrays(outcome), **truth_arrays},
-        notes=[f"{len(outcome.recording)} postures from {outcome.recording.source or spec.data.source}; residual = "
-               f"largest marker distance of the sample [m]; backbone length: {options.length}; end speeds "
-               f"{options.speeds_note()}"],
+        problem=spec.name,
+        kind=spec.kind,
+        solver=outcome.solver,
+        title=spec.title,
+        arm=ctx.arm.describe(),
+        status=main.status,
+        iterations=main.iterations,
+        residuals=np.nanmax(distance, axis=1) / MM,
+        timings={
+            "median per sample [us]": float(np.median(main.seconds) * 1e6),
+            "mean per sample [us]": float(np.mean(main.seconds) * 1e6),
+            "build [s]": main.build_seconds,
+        },
+        metrics=metrics,
+        comparison=method_rows(outcome.runs, extra),
+        arrays={**shape_arrays(outcome), **truth_arrays},
+        notes=[
+            f"{len(outcome.recording)} postures from {outcome.recording.source or spec.data.source}; residual = "
+            f"largest marker distance of the sample [m]; backbone length: {options.length}; end speeds "
+            f"{options.speeds_note()}"
+        ],
     )

@@ -58,14 +58,16 @@ def solve(ctx: ProblemContext) -> Result:
     return report.result(ctx, run(ctx))
 
 
-register_kind(ProblemKind(
-    name="tracking",
-    summary="closed-loop tip tracking: a bounded QP per control step vs MRAC, pseudo-inverse, DLS",
-    run=solve,
-    backend_families=("qp",),
-    default_solver="qp-osqp",
-    baselines=tuple(BASELINES),
-    options=TrackingOptions,
-    data_family="references",
-    figures=figures.figures,
-))
+register_kind(
+    ProblemKind(
+        name="tracking",
+        summary="closed-loop tip tracking: a bounded QP per control step vs MRAC, pseudo-inverse, DLS",
+        run=solve,
+        backend_families=("qp",),
+        default_solver="qp-osqp",
+        baselines=tuple(BASELINES),
+        options=TrackingOptions,
+        data_family="references",
+        figures=figures.figures,
+    )
+)

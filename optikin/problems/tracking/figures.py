@@ -28,12 +28,12 @@ from optikin.results import Drawer
 class Trace:
     """One controller's curves along a run (``N`` steps); ``None`` where the result does not hold them."""
 
-    position: np.ndarray | None = None           # (N, 3) true tip position [m]
-    position_error: np.ndarray | None = None     # (N,) [m]
+    position: np.ndarray | None = None  # (N, 3) true tip position [m]
+    position_error: np.ndarray | None = None  # (N,) [m]
     orientation_error: np.ndarray | None = None  # (N,) [rad], pose task only
-    q: np.ndarray | None = None                  # (N, n) plant configuration
-    lyapunov: np.ndarray | None = None           # (N,) V(e) = e'e/2
-    step_time: np.ndarray | None = None          # (N,) [s]
+    q: np.ndarray | None = None  # (N, n) plant configuration
+    lyapunov: np.ndarray | None = None  # (N,) V(e) = e'e/2
+    step_time: np.ndarray | None = None  # (N,) [s]
 
 
 @dataclass(frozen=True)
@@ -49,8 +49,10 @@ class TrackingView:
     def of_runs(cls, runs: Mapping[str, TrackingRun]) -> "TrackingView":
         """The view of simulated runs ``{label: run}`` of one reference."""
         first = next(iter(runs.values()))
-        traces = {label: Trace(run.position, run.position_error, run.orientation_error, run.q, run.lyapunov,
-                               run.step_time) for label, run in runs.items()}
+        traces = {
+            label: Trace(run.position, run.position_error, run.orientation_error, run.q, run.lyapunov, run.step_time)
+            for label, run in runs.items()
+        }
         return cls(first.t, first.reference.position, first.arm.describe(), traces)
 
     def curves(self, field: str) -> dict[str, np.ndarray]:
@@ -72,9 +74,11 @@ def figures(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -> dic
         "lyapunov": (lyapunov, "lyapunov", "V(e) = e'e/2"),
         "step_times": (step_times, "step_time", "time per control step"),
     }
-    return {name: partial(draw, view=view, title=f"{title}: {words}")
-            for name, (draw, field, words) in drawn.items()
-            if view.curves(field) and (name != "limits" or "config_names" in view.arm)}
+    return {
+        name: partial(draw, view=view, title=f"{title}: {words}")
+        for name, (draw, field, words) in drawn.items()
+        if view.curves(field) and (name != "limits" or "config_names" in view.arm)
+    }
 
 
 def traces(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -> dict[str, Trace]:
@@ -107,8 +111,14 @@ def _trace(arrays: Mapping[str, np.ndarray], name: str) -> Trace:
         if pose and "reference" in arrays:
             relative = quat_multiply(quat_conjugate(dq_rotation(arrays["reference"])), dq_rotation(x))
             orientation_error = quat_angle(relative)
-    return Trace(position, position_error, orientation_error, arrays.get(f"q_{name}"), arrays.get(f"V_{name}"),
-                 arrays.get(f"step_time_{name}"))
+    return Trace(
+        position,
+        position_error,
+        orientation_error,
+        arrays.get(f"q_{name}"),
+        arrays.get(f"V_{name}"),
+        arrays.get(f"step_time_{name}"),
+    )
 
 
 def _save(fig: Any, path: Path, title: str) -> None:

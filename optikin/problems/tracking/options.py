@@ -18,29 +18,38 @@ class PlantOptions(Options):
     """How the simulated arm differs from the controller's model, what disturbs it and how it is measured."""
 
     length_scale: PositiveFloat | list[PositiveFloat] = Field(
-        1.0, description="true / modelled arc length: one value, or one per section")
+        1.0, description="true / modelled arc length: one value, or one per section"
+    )
     disturbance: list[float] | None = Field(
-        None, description="configuration offset added over disturbance_window, one per variable [SI units]")
+        None, description="configuration offset added over disturbance_window, one per variable [SI units]"
+    )
     disturbance_window: tuple[float, float] | None = Field(
-        None, description="[t_on, t_off) of the disturbance [s]; null: the whole run")
+        None, description="[t_on, t_off) of the disturbance [s]; null: the whole run"
+    )
     configuration_noise: NonNegativeFloat | list[NonNegativeFloat] = Field(
-        0.0, description="standard deviation of the configuration sensor: one value, or one per variable [SI units]")
+        0.0, description="standard deviation of the configuration sensor: one value, or one per variable [SI units]"
+    )
     tip_position_noise: float = Field(0.0, ge=0.0, description="standard deviation of the tip position sensor [m]")
     tip_angle_noise: float = Field(0.0, ge=0.0, description="standard deviation of the tip orientation sensor [rad]")
     feedback: Literal["tip", "model"] = Field(
-        "tip", description="tip: the tip is measured; model: computed by the model from the measured configuration")
+        "tip", description="tip: the tip is measured; model: computed by the model from the measured configuration"
+    )
 
 
 class MracOptions(Options):
     """The MRAC baseline (Seleem et al. 2020, eqs. 32-35); null gains take the paper's values for the task."""
 
     gain: NonNegativeFloat | list[NonNegativeFloat] | None = Field(
-        None, description="initial K, one value or one per task row [1/s]; null: the paper's optimised K")
+        None, description="initial K, one value or one per task row [1/s]; null: the paper's optimised K"
+    )
     adaptation: NonNegativeFloat | list[NonNegativeFloat] | None = Field(
-        None, description="adaptation rates gamma_a, one value or one per task row; "
-                          "null: the paper's for position, 50 for the pose")
+        None,
+        description="adaptation rates gamma_a, one value or one per task row; "
+        "null: the paper's for position, 50 for the pose",
+    )
     gain_limit: PositiveFloat | list[PositiveFloat] = Field(
-        100.0, description="saturation of the adapted gains, one value or one per task row [1/s]")
+        100.0, description="saturation of the adapted gains, one value or one per task row [1/s]"
+    )
     natural_frequency: float = Field(10.0, gt=0.0, description="w_n of the second-order reference model [rad/s]")
     damping_ratio: float = Field(1.0, gt=0.0, description="zeta of the second-order reference model")
 
@@ -58,17 +67,23 @@ class TrackingOptions(Options):
     start: list[float] | None = Field(None, description="initial configuration; null: where the reference starts")
     start_offset: list[float] | None = Field(None, description="added to the initial configuration [SI units]")
     gain: NonNegativeFloat | list[NonNegativeFloat] = Field(
-        10.0, description="K of the QP, pseudo-inverse and DLS: one value or one per task row [1/s]")
+        10.0, description="K of the QP, pseudo-inverse and DLS: one value or one per task row [1/s]"
+    )
     damping: float = Field(1e-4, ge=0.0, description="lambda, the weight of ||qdot||^2 in the QP and DLS")
     rate_limits: dict[str, PositiveFloat] | list[PositiveFloat] | None = Field(
-        None, description="rate limits by variable name or prefix (S, theta, phi), or one per variable [m/s, rad/s]; "
-                          "null: S 0.1, theta pi, phi 2 pi")
+        None,
+        description="rate limits by variable name or prefix (S, theta, phi), or one per variable [m/s, rad/s]; "
+        "null: S 0.1, theta pi, phi 2 pi",
+    )
     limit_margin: NonNegativeFloat | list[NonNegativeFloat] = Field(
-        1e-9, description="distance the QP keeps from the configuration limits: one value or one per variable")
-    limit_gain: float = Field(1.0, gt=0.0, le=1.0,
-                              description="fraction of the distance to a limit one step may cover (pink: 0.5)")
+        1e-9, description="distance the QP keeps from the configuration limits: one value or one per variable"
+    )
+    limit_gain: float = Field(
+        1.0, gt=0.0, le=1.0, description="fraction of the distance to a limit one step may cover (pink: 0.5)"
+    )
     fallback: Literal["hold", "damped_least_squares"] = Field(
-        "hold", description="command applied when the QP solver fails")
+        "hold", description="command applied when the QP solver fails"
+    )
     compiled: bool = Field(False, description="compile the per-step CasADi Function with a C compiler")
     plant: PlantOptions = Field(default_factory=PlantOptions, description="the simulated arm and its sensors")
     mrac: MracOptions = Field(default_factory=MracOptions, description="the MRAC baseline")

@@ -13,9 +13,12 @@ from optikin.problems.tracking.run import TrackingOutcome
 from optikin.results import MethodRow, Result
 
 COMPARED = {
-    "rms [mm]": "position error rms [mm]", "final [mm]": "position error final [mm]",
-    "final [deg]": "orientation error final [deg]", "outside limits": "samples outside limits",
-    "excess S [mm]": "max limit excess S [mm]", "excess theta [deg]": "max limit excess theta [deg]",
+    "rms [mm]": "position error rms [mm]",
+    "final [mm]": "position error final [mm]",
+    "final [deg]": "orientation error final [deg]",
+    "outside limits": "samples outside limits",
+    "excess S [mm]": "max limit excess S [mm]",
+    "excess theta [deg]": "max limit excess theta [deg]",
     "step [us]": "step time median [us]",
 }
 """Columns of the comparison table: short name -> metric of :meth:`TrackingRun.metrics`."""
@@ -33,12 +36,21 @@ def result(ctx: ProblemContext, outcome: TrackingOutcome) -> Result:
             metrics[f"{tracking.controller}: gain saturation steps"] = summaries[name]["gain saturation steps"]
     timings = {f"{name} run [s]": value for name, value in outcome.wall.items()} | {
         "qp step median [us]": float(metrics["step time median [us]"]),
-        "qp step p95 [us]": float(metrics["step time p95 [us]"])}
+        "qp step p95 [us]": float(metrics["step time p95 [us]"]),
+    }
     return Result(
-        problem=spec.name, kind=spec.kind, solver=None if ctx.solver is None else ctx.solver.name, title=spec.title,
-        arm=ctx.arm.describe(), status=["ok" if s == "ok" else "failed" for s in qp_run.status],
-        residuals=qp_run.position_error, timings=timings, metrics=metrics, comparison=comparison,
-        arrays=arrays(outcome), notes=notes(runs, summaries),
+        problem=spec.name,
+        kind=spec.kind,
+        solver=None if ctx.solver is None else ctx.solver.name,
+        title=spec.title,
+        arm=ctx.arm.describe(),
+        status=["ok" if s == "ok" else "failed" for s in qp_run.status],
+        residuals=qp_run.position_error,
+        timings=timings,
+        metrics=metrics,
+        comparison=comparison,
+        arrays=arrays(outcome),
+        notes=notes(runs, summaries),
     )
 
 
@@ -59,11 +71,19 @@ def converged(metrics: dict[str, Any], tolerance: ToleranceOptions) -> bool:
 def arrays(outcome: TrackingOutcome) -> dict[str, np.ndarray]:
     """The reference and, per controller name, its configurations, rates, tip, ``V(e)`` and step times."""
     reference = outcome.reference
-    out: dict[str, np.ndarray] = {"t": reference.t, "reference": reference.value,
-                                  "reference_position": reference.position}
+    out: dict[str, np.ndarray] = {
+        "t": reference.t,
+        "reference": reference.value,
+        "reference_position": reference.position,
+    }
     for name, tracking in outcome.runs.items():
-        out |= {f"q_{name}": tracking.q, f"qdot_{name}": tracking.qdot, f"x_{name}": tracking.x,
-                f"V_{name}": tracking.lyapunov, f"step_time_{name}": tracking.step_time}
+        out |= {
+            f"q_{name}": tracking.q,
+            f"qdot_{name}": tracking.qdot,
+            f"x_{name}": tracking.x,
+            f"V_{name}": tracking.lyapunov,
+            f"step_time_{name}": tracking.step_time,
+        }
         if tracking.gains is not None:
             out[f"gains_{name}"] = tracking.gains
     return out
@@ -79,13 +99,19 @@ def notes(runs: dict[str, TrackingRun], summaries: dict[str, dict[str, Any]]) ->
     for name, tracking in runs.items():
         m = summaries[name]
         if m["samples outside limits"]:
-            worst = ", ".join(f"{variable} {m[f'max limit excess {variable} [{unit}]']:.3g} {unit}"
-                              for variable, unit in (("S", "mm"), ("theta", "deg"))
-                              if m.get(f"max limit excess {variable} [{unit}]", 0) > 0)
-            out.append(f"{tracking.controller}: outside the configuration limits on {m['samples outside limits']} "
-                       f"steps ({m['steps the controller kept or took outside']} by its own command); "
-                       f"farthest: {worst}")
+            worst = ", ".join(
+                f"{variable} {m[f'max limit excess {variable} [{unit}]']:.3g} {unit}"
+                for variable, unit in (("S", "mm"), ("theta", "deg"))
+                if m.get(f"max limit excess {variable} [{unit}]", 0) > 0
+            )
+            out.append(
+                f"{tracking.controller}: outside the configuration limits on {m['samples outside limits']} "
+                f"steps ({m['steps the controller kept or took outside']} by its own command); "
+                f"farthest: {worst}"
+            )
         if m.get("gain saturation steps"):
-            out.append(f"{tracking.controller}: adaptive gain saturated on {m['gain saturation steps']} steps, "
-                       f"first at t = {m['first gain saturation [s]']:.4g} s")
+            out.append(
+                f"{tracking.controller}: adaptive gain saturated on {m['gain saturation steps']} steps, "
+                f"first at t = {m['first gain saturation [s]']:.4g} s"
+            )
     return out

@@ -18,8 +18,11 @@ from optikin.data.references import TrackingReference
 from optikin.problems import ProblemContext
 from optikin.problems.tracking.options import PlantOptions, ToleranceOptions, TrackingOptions
 
-BASELINES: dict[str, type[Controller]] = {"mrac": MRACController, "pseudo_inverse": PseudoInverseController,
-                                          "damped_least_squares": DampedLeastSquaresController}
+BASELINES: dict[str, type[Controller]] = {
+    "mrac": MRACController,
+    "pseudo_inverse": PseudoInverseController,
+    "damped_least_squares": DampedLeastSquaresController,
+}
 """The kind's own baselines: ``baselines:`` name -> controller (its ``name`` labels its rows and curves)."""
 
 
@@ -57,8 +60,9 @@ def run(ctx: ProblemContext) -> TrackingOutcome:
     controllers = _controllers(ctx, options, reference.dt, reference.task)
     runs: dict[str, TrackingRun] = {}
     wall: dict[str, float] = {}
-    with ctx.progress.task(f"tracking: {len(controllers)} controllers x {len(reference.t)} steps",
-                           total=len(controllers)) as advance:
+    with ctx.progress.task(
+        f"tracking: {len(controllers)} controllers x {len(reference.t)} steps", total=len(controllers)
+    ) as advance:
         for name, controller in controllers.items():
             start = time.perf_counter()
             runs[name] = simulate(controller, reference, q0, plant, seed=ctx.spec.data.seed)
@@ -67,8 +71,9 @@ def run(ctx: ProblemContext) -> TrackingOutcome:
     return TrackingOutcome(reference, runs, wall, options.tolerance)
 
 
-def _vector(ctx: ProblemContext, value: float | list[float], n: int, field: str,
-            allow_scalar: bool = False) -> np.ndarray:
+def _vector(
+    ctx: ProblemContext, value: float | list[float], n: int, field: str, allow_scalar: bool = False
+) -> np.ndarray:
     """``value`` as ``n`` numbers (a scalar repeated where allowed); otherwise an error naming ``field``."""
     v = np.asarray(value, dtype=float)
     if allow_scalar and v.ndim == 0:
@@ -93,13 +98,17 @@ def _plant(ctx: ProblemContext, options: PlantOptions) -> Plant:
     disturbance = None
     if options.disturbance is not None:
         disturbance = tuple(_vector(ctx, options.disturbance, n, "options.plant.disturbance"))
-    noise = tuple(_vector(ctx, options.configuration_noise, n, "options.plant.configuration_noise",
-                          allow_scalar=True))
+    noise = tuple(_vector(ctx, options.configuration_noise, n, "options.plant.configuration_noise", allow_scalar=True))
     scale = options.length_scale
-    plant = Plant(length_scale=tuple(scale) if isinstance(scale, list) else scale, disturbance=disturbance,
-                  disturbance_window=options.disturbance_window or (0.0, np.inf), configuration_noise=noise,
-                  tip_position_noise=options.tip_position_noise, tip_angle_noise=options.tip_angle_noise,
-                  feedback=options.feedback)
+    plant = Plant(
+        length_scale=tuple(scale) if isinstance(scale, list) else scale,
+        disturbance=disturbance,
+        disturbance_window=options.disturbance_window or (0.0, np.inf),
+        configuration_noise=noise,
+        tip_position_noise=options.tip_position_noise,
+        tip_angle_noise=options.tip_angle_noise,
+        feedback=options.feedback,
+    )
     try:
         plant.length_factors(ctx.arm)
     except ValueError as exc:
@@ -112,10 +121,21 @@ def _controllers(ctx: ProblemContext, options: TrackingOptions, dt: float, task:
     arm, o = ctx.arm, options
     compiled = o.compiled
     try:
-        controllers: dict[str, Controller] = {"qp": QPController(
-            arm, dt, task, o.gain, o.damping, solver=ctx.adapter.create(arm.n_config, task_dimension(task)),
-            rate_limits=o.rate_limits, margin=o.limit_margin, limit_gain=o.limit_gain, fallback=o.fallback,
-            compiled=compiled)}
+        controllers: dict[str, Controller] = {
+            "qp": QPController(
+                arm,
+                dt,
+                task,
+                o.gain,
+                o.damping,
+                solver=ctx.adapter.create(arm.n_config, task_dimension(task)),
+                rate_limits=o.rate_limits,
+                margin=o.limit_margin,
+                limit_gain=o.limit_gain,
+                fallback=o.fallback,
+                compiled=compiled,
+            )
+        }
         for name in ctx.spec.baselines:
             if name == "mrac":
                 controllers[name] = MRACController(arm, dt, task, **o.mrac.model_dump(), compiled=compiled)

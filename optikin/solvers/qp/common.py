@@ -70,11 +70,11 @@ def upper_triangle_csc_indices(n: int) -> tuple[np.ndarray, np.ndarray]:
     return rows, cols
 
 
-def failed(n: int, message: str, seconds: float = 0.0, iterations: int = -1,
-           extras: dict[str, Any] | None = None) -> Solution:
+def failed(
+    n: int, message: str, seconds: float = 0.0, iterations: int = -1, extras: dict[str, Any] | None = None
+) -> Solution:
     """A failed step: ``x`` all NaN, ``message`` the solver's reason."""
-    return Solution(np.full(n, np.nan), "failed", iterations, seconds=seconds, message=message,
-                    extras=extras or {})
+    return Solution(np.full(n, np.nan), "failed", iterations, seconds=seconds, message=message, extras=extras or {})
 
 
 class StepSolverFactory(Generic[OptionsT]):

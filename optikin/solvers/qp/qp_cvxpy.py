@@ -36,7 +36,8 @@ class CvxpyOptions(Options):
 
     solver: str = Field("CLARABEL", description="a cvxpy solver installed here (CLARABEL, OSQP, ...; any case)")
     settings: dict[str, float | int | bool | str] = Field(
-        default_factory=dict, description="keyword arguments of Problem.solve, in the solver's own names")
+        default_factory=dict, description="keyword arguments of Problem.solve, in the solver's own names"
+    )
 
     @field_validator("solver")
     @classmethod

@@ -76,8 +76,14 @@ class OSQPStepSolver:
         rows, cols = upper_triangle_csc_indices(n)
         pattern = sp.csc_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n))
         self.problem = osqp.OSQP()
-        self.problem.setup(pattern + n * sp.identity(n, format="csc"), np.zeros(n), sp.identity(n, format="csc"),
-                           -np.ones(n), np.ones(n), **self.settings)
+        self.problem.setup(
+            pattern + n * sp.identity(n, format="csc"),
+            np.zeros(n),
+            sp.identity(n, format="csc"),
+            -np.ones(n),
+            np.ones(n),
+            **self.settings,
+        )
         self._solver = getattr(self.problem, "_solver", None)  # the fast path (class docstring)
         self._solved = osqp.SolverStatus.OSQP_SOLVED
 
@@ -96,12 +102,14 @@ class OSQPStepSolver:
         extras = {"primal_residual": info.prim_res, "dual_residual": info.dual_res}
         if info.status_val == self._solved:
             return Solution(x, "ok", info.iter, seconds=info.run_time, extras=extras)
-        return Solution(np.full(self.n, np.nan), "failed", info.iter, seconds=info.run_time, message=info.status,
-                        extras=extras)
+        return Solution(
+            np.full(self.n, np.nan), "failed", info.iter, seconds=info.run_time, message=info.status, extras=extras
+        )
 
 
-@register_backend("qp_osqp", "qp", "OSQP set up once, updated in place and warm-started every step",
-                  options=OSQPOptions)
+@register_backend(
+    "qp_osqp", "qp", "OSQP set up once, updated in place and warm-started every step", options=OSQPOptions
+)
 def build(preset: SolverSpec, options: OSQPOptions) -> StepSolverFactory[OSQPOptions]:
     """The factory of OSQP step solvers with the preset's settings."""
     return StepSolverFactory(OSQPStepSolver, options)

@@ -29,8 +29,7 @@ from optikin.solvers.qp.common import QPData, StepSolverFactory, failed
 from optikin.spec import SolverSpec
 
 TIGHT: dict[str, dict[str, Any]] = {
-    "osqp": {"eps_abs": 1e-7, "eps_rel": 1e-7, "rho": 1.0, "polishing": False, "max_iter": 4000,
-             "raise_error": False},
+    "osqp": {"eps_abs": 1e-7, "eps_rel": 1e-7, "rho": 1.0, "polishing": False, "max_iter": 4000, "raise_error": False},
     "proxqp": {"eps_abs": 1e-12, "eps_rel": 0.0},
     "clarabel": {"tol_gap_abs": 1e-10, "tol_gap_rel": 1e-10, "tol_feas": 1e-10},
     "scs": {"eps_abs": 1e-8, "eps_rel": 1e-8},
@@ -50,7 +49,8 @@ class QpsolversOptions(Options):
 
     solver: str = Field("daqp", description="a qpsolvers solver installed here (daqp, quadprog, proxqp, ...)")
     settings: dict[str, float | int | bool | str] = Field(
-        default_factory=dict, description="keyword arguments of the solver, over the tight defaults (TIGHT)")
+        default_factory=dict, description="keyword arguments of the solver, over the tight defaults (TIGHT)"
+    )
 
     @field_validator("solver")
     @classmethod
@@ -82,8 +82,7 @@ class QpsolversStepSolver:
         return Solution(x, "ok", seconds=seconds)
 
 
-@register_backend("qp_qpsolvers", "qp", "qpsolvers.solve_qp with bounds, one call per step",
-                  options=QpsolversOptions)
+@register_backend("qp_qpsolvers", "qp", "qpsolvers.solve_qp with bounds, one call per step", options=QpsolversOptions)
 def build(preset: SolverSpec, options: QpsolversOptions) -> StepSolverFactory[QpsolversOptions]:
     """The factory of qpsolvers step solvers for the preset's solver."""
     return StepSolverFactory(QpsolversStepSolver, options)
