@@ -6,7 +6,7 @@ Skipped in the normal run (``--benchmark-skip`` in pyproject's addopts); run wit
 
 The demonstration is a smooth rest-to-rest pose motion, 1,000 samples over
 10 s; every method learns it with 50 basis functions per dimension and rolls
-it out over the same 10 s (issue 5). BLAS runs on one thread (threadpoolctl, in
+it out over the same 10 s. BLAS runs on one thread (threadpoolctl, in
 case the variable was not set). movement_primitives runs first in the group;
 ``extra_info`` holds each method's reproduction error and its speed-up over
 movement_primitives measured in the same session. optikin's roll-out Function
