@@ -75,7 +75,7 @@ def time_series(
             ax.plot(t, y[:, j], lw=1.2, label=labels[j] if j < len(labels) else str(j))
         ax.set_ylabel(f"{name}\n{ylabel}")
         ax.grid(alpha=0.3)
-        if any(line.get_label() for line in ax.get_lines()):
+        if any(not str(line.get_label()).startswith("_") for line in ax.get_lines()):
             ax.legend(loc="upper right", fontsize=8, ncol=min(4, y.shape[1]))
     axes[-1, 0].set_xlabel("t [s]")
     axes[0, 0].set_title(title)
