@@ -1,9 +1,9 @@
 """Configuration samples for an arm (data family ``configurations``): random, trajectory, sweep or CSV.
 
 Each source is registered with :func:`~optikin.data.sources.register_source` and a
-params model, and returns ``(Q, t)``: configurations ``(N, n_config)`` and sample
-times ``(N,)`` in seconds (``None`` when the samples are not a trajectory). Every
-random draw uses ``data.seed``.
+params model, and returns :class:`Configurations` (unpacked as ``Q, t``):
+configurations ``(N, n_config)`` and sample times ``(N,)`` in seconds (``None`` when
+the samples are not a trajectory). Every random draw uses ``data.seed``.
 
 ``random``      uniform draws inside the arm's bounds (no params).
 ``trajectory``  every variable a sinusoid about its mid-range (``rate``, ``amplitude``, ``frequency``).
@@ -18,7 +18,9 @@ CSV files have a header row naming the arm's configuration variables (e.g.
 from __future__ import annotations
 
 import csv
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any, Iterator
 
 import numpy as np
 from pydantic import Field, StrictFloat, field_validator
@@ -31,8 +33,42 @@ from optikin.spec import DataSpec
 
 FAMILY = "configurations"
 
-Configurations = tuple[np.ndarray, np.ndarray | None]
-"""``(Q (N, n_config), t (N,) [s] or None)``."""
+
+@dataclass(frozen=True)
+class Configurations:
+    """What a source of family ``configurations`` returns; unpacks as ``Q, t``.
+
+    Attributes
+    ----------
+    values:
+        Configurations ``(N, n_config)``.
+    t:
+        Sample times ``(N,)`` [s], or None when the samples are not a trajectory.
+    skipped_rows:
+        Rows of a file source left out because ``data.samples`` asked for fewer (0 otherwise).
+    """
+
+    values: np.ndarray
+    t: np.ndarray | None = None
+    skipped_rows: int = 0
+
+    def __iter__(self) -> Iterator[Any]:
+        return iter((self.values, self.t))
+
+
+def first_rows(data: DataSpec, rows: int) -> tuple[int, int]:
+    """How many of a file's ``rows`` a file source keeps, and how many it skips.
+
+    Every row unless the problem file gives ``data.samples``; then the first ``data.samples``.
+    """
+    keep = min(rows, data.samples) if "samples" in data.model_fields_set else rows
+    return keep, rows - keep
+
+
+def skipped_rows_notes(skipped: int, params: Any) -> list[str]:
+    """The note of a result whose file source skipped rows: ``["N rows of FILE skipped (data.samples)"]``,
+    FILE as ``params.file`` names it; no note when none were skipped."""
+    return [f"{skipped} rows of {params.file} skipped (data.samples)"] if skipped else []
 
 
 class TrajectoryParams(Options):
@@ -74,7 +110,7 @@ class CsvParams(Options):
 @register_source(FAMILY, "random", "uniform draws inside the arm's bounds", params=NoOptions)
 def random_configurations(arm: ArmModel, data: DataSpec, params: NoOptions, path: Path) -> Configurations:
     """``data.samples`` configurations drawn uniformly inside the arm's bounds; no sample times."""
-    return arm.sample_configurations(data.samples, np.random.default_rng(data.seed)), None
+    return Configurations(arm.sample_configurations(data.samples, np.random.default_rng(data.seed)))
 
 
 def smooth_motion(arm: ArmModel, samples: int, seed: int, params: TrajectoryParams) -> tuple[np.ndarray, np.ndarray]:
@@ -113,7 +149,7 @@ def smooth_motion(arm: ArmModel, samples: int, seed: int, params: TrajectoryPara
 )
 def smooth_trajectory(arm: ArmModel, data: DataSpec, params: TrajectoryParams, path: Path) -> Configurations:
     """:func:`smooth_motion` with ``data.samples`` samples from ``data.seed``."""
-    return smooth_motion(arm, data.samples, data.seed, params)
+    return Configurations(*smooth_motion(arm, data.samples, data.seed, params))
 
 
 @register_source(FAMILY, "sweep", "one variable over its whole range, the others held fixed", params=SweepParams)
@@ -140,17 +176,19 @@ def sweep(arm: ArmModel, data: DataSpec, params: SweepParams, path: Path) -> Con
     j = arm.config_names.index(name)
     Q = np.tile(q, (data.samples, 1))
     Q[:, j] = np.linspace(arm.lower[j], arm.upper[j], data.samples)
-    return Q, None
+    return Configurations(Q)
 
 
 @register_source(
     FAMILY, "csv", "configurations read from a CSV file (one column per variable, optional t)", params=CsvParams
 )
 def configurations_from_csv(arm: ArmModel, data: DataSpec, params: CsvParams, path: Path) -> Configurations:
-    """The first ``data.samples`` rows of ``params.file`` (relative to the problem file's folder)."""
+    """The rows of ``params.file`` (relative to the problem file's folder): all of them, or the first
+    ``data.samples`` when the problem file gives it (:func:`first_rows`)."""
     csv_path = (Path(path).parent / params.file).resolve()
     Q, t = read_configuration_csv(csv_path, arm.config_names)
-    return Q[: data.samples], (None if t is None else t[: data.samples])
+    keep, skipped = first_rows(data, len(Q))
+    return Configurations(Q[:keep], None if t is None else t[:keep], skipped)
 
 
 def read_configuration_csv(csv_path: Path, names: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray | None]:

@@ -76,6 +76,7 @@ from optikin.algebra import quat_from_axis_angle, quat_from_matrix, quat_multipl
 from optikin.arms.base import ArmModel
 from optikin.arms.cbha import LEG_DIRECTIONS, PLATFORM_LEG_LENGTHS, CBHAArm
 from optikin.curves.catenary import catenary
+from optikin.data.configurations import first_rows
 from optikin.data.sources import register_source
 from optikin.errors import InputDataError, SpecError
 from optikin.options import Options
@@ -110,7 +111,8 @@ class MarkerRecording:
     Positions in metres, quaternions ``(w, x, y, z)`` (rigid-body orientation: z along
     the backbone). ``tube_lengths`` are whole tubes ``(N, 3)``, ``section_tube_lengths``
     section 1 ``(N, 3)``. ``marker_vertebrae``: the 1-based vertebra of each intermediate
-    marker, when known (empty otherwise).
+    marker, when known (empty otherwise). ``skipped_rows``: rows of a file source left out
+    because ``data.samples`` asked for fewer.
     """
 
     t: np.ndarray
@@ -124,6 +126,7 @@ class MarkerRecording:
     source: str = ""
     truth: CBHATruth | None = field(default=None, repr=False)
     marker_vertebrae: tuple[int, ...] = ()
+    skipped_rows: int = 0
 
     def __post_init__(self):
         if self.marker_vertebrae and len(self.marker_vertebrae) != self.markers.shape[1]:
@@ -506,7 +509,8 @@ def synthetic_source(arm: ArmModel, data: DataSpec, params: SyntheticMarkerParam
     "markers", "csv", "a recorded marker CSV file (columns in optikin.data.markers)", params=CsvMarkerParams
 )
 def csv_source(arm: ArmModel, data: DataSpec, params: CsvMarkerParams, path: Path) -> MarkerRecording:
-    """:func:`read_marker_csv` of ``params.file`` (relative to the problem file), first ``data.samples`` rows."""
+    """:func:`read_marker_csv` of ``params.file`` (relative to the problem file): every row, or the first
+    ``data.samples`` when the problem file gives it."""
     recording = read_marker_csv((Path(path).parent / params.file).resolve())
     if params.intermediate is not None:
         try:
@@ -515,7 +519,8 @@ def csv_source(arm: ArmModel, data: DataSpec, params: CsvMarkerParams, path: Pat
             raise SpecError(
                 path, "data.params.intermediate", f"{exc} (the file has {recording.markers.shape[1]} marker columns)"
             ) from None
-    return recording.take(slice(0, data.samples))
+    keep, skipped = first_rows(data, len(recording))
+    return replace(recording.take(slice(0, keep)), skipped_rows=skipped)
 
 
 # ------------------------------------------------------------------------------ two arms holding a rope

@@ -31,7 +31,7 @@ from pydantic import Field, StrictBool, StrictFloat, StrictInt, field_validator
 from optikin.algebra import dq_from_rotation_translation, dq_translation, quat_normalize
 from optikin.arms.base import ArmModel
 from optikin.arms.constant_curvature import ConstantCurvatureArm
-from optikin.data.configurations import TrajectoryParams, read_configuration_csv, smooth_motion
+from optikin.data.configurations import TrajectoryParams, first_rows, read_configuration_csv, smooth_motion
 from optikin.data.sources import register_source
 from optikin.errors import InputDataError, SpecError
 from optikin.options import Options
@@ -50,7 +50,8 @@ class Targets:
 
     ``configurations`` holds the configuration each target was made from (NaN rows when
     unknown), ``reachable`` whether the target is known to be reachable (True), known to be
-    outside the workspace (False); ``t`` the sample times of a trajectory (else None).
+    outside the workspace (False); ``t`` the sample times of a trajectory (else None);
+    ``skipped_rows`` the rows of a file source left out because ``data.samples`` asked for fewer.
     """
 
     kind: str
@@ -59,6 +60,7 @@ class Targets:
     reachable: np.ndarray
     t: np.ndarray | None = None
     trajectory: bool = False
+    skipped_rows: int = 0
 
     def __len__(self) -> int:
         return len(self.values)
@@ -169,11 +171,13 @@ def trajectory_targets(
 
 @register_source(FAMILY, "csv", "targets read from a CSV file (x, y, z [, qw, qx, qy, qz] [, t])", params=CsvParams)
 def csv_targets(arm: ArmModel, data: DataSpec, params: CsvParams, path: Path, kind: str = "position") -> Targets:
-    """Targets from a CSV file with a header row (module docstring); reachability unknown (treated as reachable)."""
+    """Targets from a CSV file with a header row (module docstring): every row, or the first ``data.samples``
+    when the problem file gives it; reachability unknown (treated as reachable)."""
     csv_path = (Path(path).parent / params.file).resolve()
     names = ("x", "y", "z") if kind == "position" else ("x", "y", "z", "qw", "qx", "qy", "qz")
     values, t = read_configuration_csv(csv_path, names)
-    values, t = values[: data.samples], (None if t is None else t[: data.samples])
+    keep, skipped = first_rows(data, len(values))
+    values, t = values[:keep], (None if t is None else t[:keep])
     if kind == "pose":
         norms = np.linalg.norm(values[:, 3:], axis=1)
         bad = np.flatnonzero(np.abs(norms - 1.0) > 1e-6)
@@ -183,4 +187,12 @@ def csv_targets(arm: ArmModel, data: DataSpec, params: CsvParams, path: Path, ki
             )
         values = dq_from_rotation_translation(values[:, 3:], values[:, :3])
     configurations = np.full((len(values), arm.n_config), np.nan)
-    return Targets(kind, values, configurations, np.ones(len(values), dtype=bool), t=t, trajectory=params.trajectory)
+    return Targets(
+        kind,
+        values,
+        configurations,
+        np.ones(len(values), dtype=bool),
+        t=t,
+        trajectory=params.trajectory,
+        skipped_rows=skipped,
+    )

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from optikin.algebra import dq_translation
+from optikin.data.configurations import skipped_rows_notes
 from optikin.problems import ProblemContext
 from optikin.problems.fk.run import FkOutcome
 from optikin.results import MethodRow, Result
@@ -96,4 +97,5 @@ def report(ctx: ProblemContext, outcome: FkOutcome) -> Result:
         metrics=tip_metrics(outcome),
         comparison=comparison(ctx, outcome),
         arrays=arrays,
+        notes=skipped_rows_notes(outcome.skipped_rows, ctx.data_params),
     )

@@ -46,6 +46,8 @@ class FkOutcome:
         Building (and compiling) the Functions on one sample, and evaluating ``fk_dq`` on all.
     baselines:
         The baselines run, in the order of the problem file.
+    skipped_rows:
+        Rows of a file source left out because ``data.samples`` asked for fewer.
     """
 
     configurations: np.ndarray
@@ -57,6 +59,7 @@ class FkOutcome:
     build_seconds: float
     tip_seconds: float
     baselines: list[BaselineRun] = field(default_factory=list)
+    skipped_rows: int = 0
 
 
 def timed(fn: Callable[[], T], repeats: int = 1) -> tuple[T, float]:
@@ -112,11 +115,13 @@ def run_baseline(arm: ArmModel, name: str, Q: np.ndarray) -> BaselineRun:
 def run(ctx: ProblemContext) -> FkOutcome:
     """Evaluate the solver's backend and every baseline on the configurations of ``data:``."""
     arm = ctx.arm
-    Q, t = ctx.load_data()
-    Q = arm.validate(Q, source=f"{ctx.path.name}: data ({ctx.spec.data.source})")
+    samples = ctx.load_data()
+    Q = arm.validate(samples.values, source=f"{ctx.path.name}: data ({ctx.spec.data.source})")
     evaluator = ctx.adapter
     # Build the Functions (and compile them, for compiled backends) before timing.
     t_build = timed(lambda: [evaluator.evaluate(arm, name, Q[:1]) for name in FUNCTIONS])[1]
     tip, sections, backbone, t_tip = evaluate_all(ctx, evaluator, Q)
     baselines = [run_baseline(arm, name, Q) for name in ctx.spec.baselines]
-    return FkOutcome(Q, t, tip, sections, backbone, unit_error(tip), t_build, t_tip, baselines)
+    return FkOutcome(
+        Q, samples.t, tip, sections, backbone, unit_error(tip), t_build, t_tip, baselines, samples.skipped_rows
+    )

@@ -16,6 +16,7 @@ from typing import Any, Callable
 
 import numpy as np
 
+from optikin.data.configurations import skipped_rows_notes
 from optikin.data.targets import Targets
 from optikin.ik.formulation import Formulation
 from optikin.problems import ProblemContext
@@ -158,5 +159,5 @@ def result_of(ctx: ProblemContext, outcome: IkOutcome) -> Result:
         metrics=metrics,
         comparison=comparison,
         arrays=arrays_of(outcome),
-        notes=notes_of(outcome),
+        notes=skipped_rows_notes(targets.skipped_rows, ctx.data_params) + notes_of(outcome),
     )

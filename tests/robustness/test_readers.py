@@ -1,0 +1,130 @@
+"""The CSV readers of the data sources: how many rows a file source reads, what a reader rejects and how it says so.
+
+A file source reads every row unless ``data.samples`` is given; fewer samples than rows is
+said in a note. A reader names the file, the row (``sample``, counted from 0 over the data
+rows, and the line of the file) and the column of a bad cell, shows at most a short escaped
+excerpt of what it found, and refuses binary, non-UTF-8 and very large files.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from optikin.data.markers import CsvMarkerParams, csv_source
+from optikin.runner import prepare, solve
+from optikin.spec import DataSpec
+
+CONFIG_HEADER = "t,S1,theta1,phi1,S2,theta2,phi2"
+
+
+def config_rows(n: int) -> list[str]:
+    """``n`` admissible configurations of the two-section arm, 10 ms apart."""
+    return [f"{0.01 * i:.2f},0.18,{0.1 + 0.002 * i:.3f},0.2,0.18,0.3,1.0" for i in range(n)]
+
+
+def write_csv(path: Path, header: str, rows: list[str]) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text("\n".join([header, *rows]) + "\n")
+    return path
+
+
+MARKER_HEADER = (
+    ["t"]
+    + [f"{b}_{c}" for b in ("base", "tip") for c in ("x", "y", "z", "qw", "qx", "qy", "qz")]
+    + ["m1_x", "m1_y", "m1_z"]
+)
+
+
+def marker_rows(n: int) -> list[str]:
+    """``n`` postures of a straight arm 0.2 m long, base and tip frames aligned, 0.1 s apart."""
+    return [f"{0.1 * i:.1f},0,0,0,1,0,0,0,0,0,0.2,1,0,0,0,0,0,0.1" for i in range(n)]
+
+
+def fk_problem(tmp_path: Path, data: dict[str, Any]) -> Path:
+    spec = {
+        "name": "csv-fk",
+        "title": "fk from a CSV file",
+        "kind": "fk",
+        "arm": {"type": "constant_curvature", "params": {"section_lengths": [0.18, 0.18]}},
+        "data": data,
+    }
+    path = tmp_path / "problems" / "csv-fk.yaml"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(yaml.safe_dump(spec))
+    return path
+
+
+def ik_problem(tmp_path: Path, data: dict[str, Any], target: str = "position") -> Path:
+    spec = {
+        "name": "csv-ik",
+        "title": "ik from a CSV file",
+        "kind": "ik",
+        "arm": {"type": "constant_curvature", "params": {"section_lengths": [0.18, 0.18]}},
+        "data": data,
+        "solver": "gauss-newton",
+        "options": {"target": target, "redundancy": "minimum_norm", "restarts": 0},
+    }
+    path = tmp_path / "problems" / "csv-ik.yaml"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(yaml.safe_dump(spec))
+    return path
+
+
+def target_rows(n: int) -> list[str]:
+    """``n`` tip positions on a small circle inside the workspace of the two-section arm [m]."""
+    angle = np.linspace(0.0, 2 * np.pi, n, endpoint=False)
+    return [f"{0.05 * np.cos(a):.6f},{0.05 * np.sin(a):.6f},0.33" for a in angle]
+
+
+# --------------------------------------------------------------------------- 1. rows read by a file source
+
+
+def test_fk_csv_without_samples_reads_every_row(tmp_path):
+    write_csv(tmp_path / "problems" / "q.csv", CONFIG_HEADER, config_rows(250))
+    result, _ = solve(str(fk_problem(tmp_path, {"source": "csv", "params": {"file": "q.csv"}})), figures=False)
+    assert result.samples == 250
+    np.testing.assert_allclose(result.arrays["t"], 0.01 * np.arange(250), atol=1e-12)
+    assert not any("skipped" in note for note in result.notes)
+
+
+def test_fk_csv_with_fewer_samples_says_how_many_rows_were_skipped(tmp_path):
+    write_csv(tmp_path / "problems" / "q.csv", CONFIG_HEADER, config_rows(250))
+    problem = fk_problem(tmp_path, {"source": "csv", "samples": 100, "params": {"file": "q.csv"}})
+    result, _ = solve(str(problem), figures=False)
+    assert result.samples == 100
+    assert "150 rows of q.csv skipped (data.samples)" in result.notes
+
+
+def test_fk_csv_with_as_many_samples_as_rows_has_no_note(tmp_path):
+    write_csv(tmp_path / "problems" / "q.csv", CONFIG_HEADER, config_rows(7))
+    problem = fk_problem(tmp_path, {"source": "csv", "samples": 7, "params": {"file": "q.csv"}})
+    result, _ = solve(str(problem), figures=False)
+    assert result.samples == 7 and not any("skipped" in note for note in result.notes)
+
+
+def test_ik_csv_without_samples_reads_every_row(tmp_path):
+    write_csv(tmp_path / "problems" / "p.csv", "x,y,z", target_rows(250))
+    _, ctx = prepare(str(ik_problem(tmp_path, {"source": "csv", "params": {"file": "p.csv"}})))
+    targets = ctx.data_source.load(ctx.arm, ctx.spec.data, ctx.data_params, ctx.path, kind="position")
+    assert len(targets) == 250 and targets.skipped_rows == 0
+
+
+def test_ik_csv_with_fewer_samples_says_how_many_rows_were_skipped(tmp_path):
+    write_csv(tmp_path / "problems" / "p.csv", "x,y,z", target_rows(12))
+    problem = ik_problem(tmp_path, {"source": "csv", "samples": 5, "params": {"file": "p.csv"}})
+    result, _ = solve(str(problem), figures=False)
+    assert result.samples == 5
+    assert "7 rows of p.csv skipped (data.samples)" in result.notes
+
+
+def test_marker_csv_without_samples_reads_every_row(tmp_path):
+    write_csv(tmp_path / "rec.csv", ",".join(MARKER_HEADER), marker_rows(130))
+    params = CsvMarkerParams(file="rec.csv")
+    recording = csv_source(None, DataSpec(source="csv"), params, tmp_path / "problem.yaml")
+    assert len(recording) == 130 and recording.skipped_rows == 0
+    recording = csv_source(None, DataSpec(source="csv", samples=30), params, tmp_path / "problem.yaml")
+    assert len(recording) == 30 and recording.skipped_rows == 100
