@@ -33,10 +33,43 @@ import numpy as np
 from optikin.algebra import dq_from_rotation_translation, dq_translation, transform_from_dq
 from optikin.algebra.backend import Array
 from optikin.batch import batch_evaluate
+from optikin.checks import check_configuration
 from optikin.errors import InputDataError
 
 FUNCTION_NAMES = ("fk_dq", "fk_position", "fk_transform", "section_dq", "jac_position", "jac_dq", "backbone")
 """The Functions every arm offers (table in the module docstring)."""
+
+
+class ArmFunction(ca.Function):
+    """A CasADi Function of one configuration that names the batch method when given a numpy batch.
+
+    It is a :class:`casadi.Function` (symbolic calls, ``map``, code generation and buffers work
+    as usual); a call with a numpy array or a list of shape ``(N, n_config)``, ``N > 1``, or of
+    a wrong length raises a :class:`ValueError` instead of CasADi's shape error (batches go
+    through :meth:`ArmModel.evaluate`).
+
+    Parameters
+    ----------
+    function : casadi.Function
+        The Function, one input ``q`` (``n_config x 1``).
+    arm_name, short_name : str
+        For the message: the arm and the Function's name on it (``fk_dq``).
+    """
+
+    def __init__(self, function: ca.Function, arm_name: str, short_name: str) -> None:
+        super().__init__(function)
+        self.arm_name, self.short_name = arm_name, short_name
+
+    def __call__(self, *args: Any, **kwargs: Any) -> Any:
+        if len(args) == 1 and isinstance(args[0], (np.ndarray, list, tuple)):
+            shape = np.shape(args[0])
+            n = self.size1_in(0)
+            if (len(shape) == 1 and shape[0] != n) or (len(shape) == 2 and shape[1] == n and shape[0] != 1):
+                raise ValueError(
+                    f"{self.arm_name}.{self.short_name} takes one configuration of shape ({n},), got shape {shape}; "
+                    f"for a batch (N, {n}) use arm.evaluate({self.short_name!r}, Q)"
+                )
+        return super().__call__(*args, **kwargs)
 
 
 class ArmModel(ABC):
@@ -141,7 +174,8 @@ class ArmModel(ABC):
         return [dq_from_rotation_translation(quat, p) for quat, p in self.section_frames(self._q)]
 
     def _function(self, name: str, out: ca.SX, out_name: str) -> ca.Function:
-        return ca.Function(f"{self.name}_{name}", [self._q], [out], ["q"], [out_name], {"cse": True})
+        f = ca.Function(f"{self.name}_{name}", [self._q], [out], ["q"], [out_name], {"cse": True})
+        return ArmFunction(f, self.name, name)
 
     @cached_property
     def fk_dq(self) -> ca.Function:
@@ -207,10 +241,13 @@ class ArmModel(ABC):
             raise KeyError(f"{self.name} has no function {name!r}; known: {', '.join(known)}")
         return getattr(self, name)
 
-    def evaluate(self, name: str, configurations: np.ndarray) -> np.ndarray:
+    def evaluate(self, name: str, configurations: np.ndarray, check: bool = False) -> np.ndarray:
         """Evaluate the Function ``name`` on a batch of configurations.
 
         One zero-copy call into CasADi for the whole batch (:func:`optikin.batch.batch_evaluate`).
+        The shape is always checked. A row with a NaN gives NaN outputs (a failed sample of a
+        batch stays failed); ``check=True`` rejects it, and values outside the bounds, with
+        :func:`optikin.checks.check_configuration`.
 
         Parameters
         ----------
@@ -218,6 +255,8 @@ class ArmModel(ABC):
             A name accepted by :meth:`function`.
         configurations : numpy.ndarray
             ``(N, n_config)``, or one configuration ``(n_config,)``.
+        check : bool
+            Whether to require finite configurations inside the bounds.
 
         Returns
         -------
@@ -227,6 +266,13 @@ class ArmModel(ABC):
             configuration.
         """
         Q = np.asarray(configurations, dtype=float)
+        if Q.ndim not in (1, 2) or Q.shape[-1] != self.n_config:
+            raise ValueError(
+                f"configurations: expected shape (N, {self.n_config}) or ({self.n_config},) for {self.name} "
+                f"({', '.join(self.config_names)}), got shape {Q.shape}"
+            )
+        if check:
+            check_configuration(self, Q, name="configurations", batch=True)
         single = Q.ndim == 1
         out = batch_evaluate(self.function(name), np.atleast_2d(Q))
         if out.shape[2] == 1:
@@ -328,17 +374,26 @@ class ArmModel(ABC):
             "periodic": self.periodic.tolist(),
         }
 
-    def transform_of(self, q: np.ndarray) -> np.ndarray:
-        """Numeric tip transform of one configuration.
+    def transform_of(self, q: np.ndarray, check: bool = True) -> np.ndarray:
+        """Numeric tip transform of one configuration or a batch.
 
         Parameters
         ----------
         q : numpy.ndarray
-            One configuration ``(n_config,)``.
+            One configuration ``(n_config,)`` or a batch ``(N, n_config)``, SI units.
+        check : bool
+            Whether to require finite values inside the bounds (:func:`optikin.checks.check_configuration`).
 
         Returns
         -------
         numpy.ndarray
-            ``(4, 4)`` homogeneous transform, translation in metres.
+            ``(4, 4)`` homogeneous transform (``(N, 4, 4)`` for a batch), translation in metres.
+
+        Raises
+        ------
+        ValueError
+            For a wrong shape; with ``check``, a non-finite value or one outside the bounds.
         """
-        return np.asarray(self.fk_transform(np.asarray(q, dtype=float)))
+        if check:
+            check_configuration(self, q, batch=True)
+        return self.evaluate("fk_transform", q)

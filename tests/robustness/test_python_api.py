@@ -1,0 +1,121 @@
+"""Misuse of the Python API: batches where one configuration is expected, NaN and non-unit inputs.
+
+Every bad call raises a ValueError that names the argument (and the method that takes
+batches); the numpy-facing methods accept one configuration or a batch.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from pytransform3d.transformations import transform_from_dual_quaternion
+
+from optikin.arms import CBHAArm, ConstantCurvatureArm
+from optikin.checks import check_configuration, check_dual_quaternion, check_quaternion
+
+ARM = ConstantCurvatureArm()
+BENT = np.array([0.18, 0.6, 0.3, 0.17, -0.4, 1.2])
+
+
+@pytest.mark.parametrize("name", ["fk_dq", "fk_position", "fk_transform", "jac_position", "jac_dq", "backbone"])
+def test_a_batch_through_a_single_configuration_function_names_evaluate(name):
+    with pytest.raises(ValueError, match=rf"{name}.*\(6,\).*arm\.evaluate\('{name}', Q\)"):
+        ARM.function(name)(np.stack([BENT, BENT, BENT]))
+
+
+def test_a_configuration_of_the_wrong_length_is_a_value_error():
+    with pytest.raises(ValueError, match=r"shape \(6,\), got shape \(5,\)"):
+        ARM.fk_dq(BENT[:5])
+    with pytest.raises(ValueError, match=r"configurations: expected shape \(N, 6\)"):
+        ARM.evaluate("fk_dq", np.zeros((4, 5)))
+
+
+def test_one_configuration_still_goes_through_the_function():
+    T = np.asarray(ARM.fk_transform(ARM.straight_configuration()))
+    np.testing.assert_allclose(T[:3, 3], [0.0, 0.0, 0.36], atol=1e-15)  # straight: the tip on the z axis
+
+
+def test_transform_of_takes_a_batch_and_agrees_with_pytransform3d():
+    Q = np.stack([BENT, ARM.straight_configuration(), BENT * [1, -1, 1, 1, 0.5, 1]])
+    T = ARM.transform_of(Q)
+    assert T.shape == (3, 4, 4)
+    dq = ARM.evaluate("fk_dq", Q)
+    for k in range(3):
+        # optikin's dual quaternion (Q_r, Q_d) with Q_d = 0.5 (0, p) Q_r is pytransform3d's layout
+        np.testing.assert_allclose(T[k], transform_from_dual_quaternion(dq[k]), atol=1e-12)
+    np.testing.assert_allclose(ARM.transform_of(BENT), T[0])
+
+
+@pytest.mark.parametrize(
+    "q, match",
+    [
+        (np.full(6, np.nan), r"q: S1 = nan is not a finite number"),
+        (BENT * [1, 1, 1, 1, np.inf, 1], r"q: theta2 = -inf is not a finite number"),
+        (BENT * [1, 10, 1, 1, 1, 1], r"q: theta1 = 6 outside its bounds"),
+        (BENT * [10, 1, 1, 1, 1, 1], r"q: S1 = 1.8 outside its bounds"),
+    ],
+)
+def test_transform_of_rejects_bad_configurations(q, match):
+    with pytest.raises(ValueError, match=match):
+        ARM.transform_of(q)
+    ARM.transform_of(q, check=False)  # the opt-out computes without looking
+
+
+def test_evaluate_checks_on_request_naming_the_sample():
+    Q = np.stack([BENT, BENT, BENT])
+    Q[2, 4] = np.nan
+    with pytest.raises(ValueError, match=r"configurations\[2\]: theta2 = nan"):
+        ARM.evaluate("fk_position", Q, check=True)
+    assert np.isnan(ARM.evaluate("fk_position", Q)[2]).all()  # a failed sample stays failed by default
+
+
+def test_periodic_angles_are_not_bound_checked():
+    q = BENT.copy()
+    q[2] += 4 * np.pi  # phi1 two turns on: the same pose
+    np.testing.assert_allclose(ARM.transform_of(q), ARM.transform_of(BENT), atol=1e-12)
+
+
+def test_check_configuration_of_a_cbha_names_the_platform_variable():
+    arm = CBHAArm()
+    q = arm.straight_configuration()
+    q[4] = 1.0
+    with pytest.raises(ValueError, match=r"q: theta2 = 1 outside its bounds"):
+        check_configuration(arm, q)
+
+
+@pytest.mark.parametrize(
+    "q, unit, match",
+    [
+        ([1.0, 0.0, 0.0], True, r"q: expected quaternions .* got shape \(3,\)"),
+        ([0.0, 0.0, 0.0, 0.0], False, r"q: .* a zero quaternion"),
+        ([0.0, 0.0, 0.0, 0.0], True, r"q: .* norm 0: not a unit quaternion"),
+        ([[1.0, 0, 0, 0], [1.0, 1.0, 0, 0]], True, r"q\[1\]: .* norm 1.41421: not a unit quaternion"),
+        ([[1.0, 0, 0, 0], [np.nan, 0, 0, 0]], True, r"q\[1\]: .* non-finite"),
+    ],
+)
+def test_check_quaternion(q, unit, match):
+    with pytest.raises(ValueError, match=match):
+        check_quaternion(q, unit=unit)
+
+
+def test_check_quaternion_accepts_pytransform3d_rotations():
+    from pytransform3d.rotations import quaternion_from_axis_angle
+
+    q = quaternion_from_axis_angle([0.3, -0.5, 0.8, 1.1])
+    np.testing.assert_array_equal(check_quaternion(q), q)
+
+
+def test_check_dual_quaternion():
+    from pytransform3d.transformations import dual_quaternion_from_transform
+
+    T = ARM.transform_of(BENT)
+    dq = dual_quaternion_from_transform(T)
+    np.testing.assert_array_equal(check_dual_quaternion(dq), dq)
+    bad = dq.copy()
+    bad[4:] += 0.1 * dq[:4]  # a dual part with a component along the real part
+    with pytest.raises(ValueError, match=r"target: Q_r \. Q_d = 0.1: not a unit dual quaternion"):
+        check_dual_quaternion(bad, name="target")
+    with pytest.raises(ValueError, match=r"dq: real part .* norm 2"):
+        check_dual_quaternion(2 * dq)
+    with pytest.raises(ValueError, match=r"dq: expected dual quaternions"):
+        check_dual_quaternion(dq[:7])
