@@ -106,7 +106,7 @@ class RateBounds:
         if np.any(lower > upper):
             raise ValueError("margin leaves no room between the configuration limits")
         self.lower, self.upper = lower, upper
-        # One CasADi call (~1 us) instead of seven numpy ufuncs on six numbers (~1 us each).
+        # One CasADi call per step instead of seven numpy ufuncs on six numbers (each costs about as much).
         q = ca.SX.sym("q", arm.n_config)
         rate = ca.DM(self.rate)
         bounds = [ca.fmin(ca.fmax(gain * (ca.DM(limit) - q) / self.dt, -rate), rate) for limit in (lower, upper)]
