@@ -32,10 +32,10 @@ BOUND_TOLERANCE = 1e-9
 
 
 class ParameterError(ValueError):
-    """A model parameter is unusable; ``field`` is its dotted name (``section_lengths.0``)."""
+    """An unusable model parameter: ``field`` its dotted name (``section_lengths.0``), ``message`` what is wrong."""
 
     def __init__(self, field: str, message: str) -> None:
-        self.field = field
+        self.field, self.message = field, message
         super().__init__(f"{field}: {message}")
 
 

@@ -17,6 +17,7 @@ from typing import Any, cast
 from optikin.arms.base import ArmModel
 from optikin.arms.cbha import CBHAArm, CBHAGeometry
 from optikin.arms.constant_curvature import ConstantCurvatureArm
+from optikin.checks import ParameterError
 from optikin.errors import SpecError
 from optikin.registry import ARMS
 
@@ -47,7 +48,9 @@ def build_arm(arm_type: str, params: dict[str, Any], path: str | Path = "<arm>")
     ------
     optikin.errors.SpecError
         Naming ``arm.type`` for an unknown arm, ``arm.params.<name>`` for an unknown
-        parameter, ``arm.params`` for a value the constructor rejects.
+        parameter or a value the constructor rejects (``arm.params.section_lengths.0: not a
+        finite number``; :class:`optikin.checks.ParameterError`), ``arm.params`` for any other
+        value it rejects.
     """
     try:
         factory = ARMS.get(arm_type)
@@ -60,5 +63,7 @@ def build_arm(arm_type: str, params: dict[str, Any], path: str | Path = "<arm>")
             raise SpecError(str(path), f"arm.params.{key}", f"unknown parameter of {arm_type}; known: {known}")
     try:
         return cast(ArmModel, factory(**params))
+    except ParameterError as exc:
+        raise SpecError(str(path), f"arm.params.{exc.field}", exc.message) from None
     except (TypeError, ValueError) as exc:
         raise SpecError(str(path), "arm.params", str(exc)) from None

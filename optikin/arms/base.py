@@ -33,7 +33,7 @@ import numpy as np
 from optikin.algebra import dq_from_rotation_translation, dq_translation, transform_from_dq
 from optikin.algebra.backend import Array
 from optikin.batch import batch_evaluate
-from optikin.checks import check_configuration
+from optikin.checks import ParameterError, check_configuration
 from optikin.errors import InputDataError
 
 FUNCTION_NAMES = ("fk_dq", "fk_position", "fk_transform", "section_dq", "jac_position", "jac_dq", "backbone")
@@ -93,8 +93,10 @@ class ArmModel(ABC):
     Raises
     ------
     ValueError
-        When the bounds or the flags do not have one entry per variable, or a lower
-        bound lies above its upper bound.
+        When the bounds or the flags do not have one entry per variable, a bound is not a
+        finite number, or a lower bound lies above its upper bound; an
+        :class:`optikin.checks.ParameterError` for ``backbone_points_per_section`` not a
+        positive integer.
     """
 
     def __init__(
@@ -115,7 +117,14 @@ class ArmModel(ABC):
         if np.any(self.lower > self.upper):
             bad = [n for n, lo, hi in zip(self.config_names, self.lower, self.upper) if lo > hi]
             raise ValueError(f"{name}: lower bound above upper bound for {', '.join(bad)}")
-        self.backbone_points_per_section = int(backbone_points_per_section)
+        for bound, values in (("lower", self.lower), ("upper", self.upper)):
+            if not np.all(np.isfinite(values)):
+                j = int(np.argmax(~np.isfinite(values)))
+                raise ValueError(f"{name}: {bound} bound of {self.config_names[j]} is not a finite number")
+        points = backbone_points_per_section
+        if isinstance(points, bool) or not isinstance(points, (int, np.integer)) or points < 1:
+            raise ParameterError("backbone_points_per_section", f"must be a positive integer, got {points!r}")
+        self.backbone_points_per_section = int(points)
         self.periodic = np.zeros(self.n_config, dtype=bool) if periodic is None else np.asarray(periodic, dtype=bool)
         if self.periodic.shape != (self.n_config,):
             raise ValueError(f"{name}: periodic must have one flag per configuration variable")

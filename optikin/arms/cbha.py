@@ -52,6 +52,7 @@ from optikin.algebra import (
 )
 from optikin.algebra.backend import Array
 from optikin.arms.base import ArmModel
+from optikin.checks import ParameterError, check_parameter
 from optikin.errors import InputDataError
 
 TABLE_I_LEG_MIN_MM = (8.5, 8.5, 8.5, 7.0, 7.0, 7.0, 8.5, 10.0, 6.5, 8.0, 8.0, 7.5, 7.5, 7.0, 7.0, 6.5)
@@ -92,10 +93,11 @@ class CBHAGeometry:
 
     Raises
     ------
-    ValueError
-        For fewer than 2 vertebrae, radii not ``0 < r_min <= r_max``, limits not one per
-        platform or not ``|r_k - r_{k+1}| < leg_min <= leg_max``, sections that do not add
-        up to the platforms, or a non-finite tool offset.
+    optikin.checks.ParameterError
+        A :class:`ValueError` naming the field (``leg_min.3``): a value that is not a finite
+        number, fewer than 2 vertebrae, radii not ``0 < r_min <= r_max``, limits not one per
+        platform or not ``|r_k - r_{k+1}| < leg_min <= leg_max``, or sections that do not add
+        up to the platforms.
     """
 
     n_vertebrae: int = 17
@@ -107,28 +109,39 @@ class CBHAGeometry:
     tool_offset: float = 0.0
 
     def __post_init__(self) -> None:
-        for name, kind in (("leg_min", float), ("leg_max", float), ("platforms_per_section", int)):
-            object.__setattr__(self, name, tuple(kind(v) for v in getattr(self, name)))
-        n_platforms = self.n_vertebrae - 1
-        if n_platforms < 1:
-            raise ValueError(f"n_vertebrae must be at least 2, got {self.n_vertebrae}")
-        if not 0 < self.r_min <= self.r_max:
-            raise ValueError(f"radii must satisfy 0 < r_min <= r_max, got r_min={self.r_min}, r_max={self.r_max}")
-        if len(self.leg_min) != n_platforms or len(self.leg_max) != n_platforms:
-            raise ValueError(f"leg_min and leg_max need one value per platform ({n_platforms})")
+        n = self.n_vertebrae
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 2:
+            raise ParameterError("n_vertebrae", f"must be an integer of at least 2, got {n!r}")
+        n_platforms = n - 1
+        for name in ("r_max", "r_min"):
+            object.__setattr__(self, name, float(check_parameter(getattr(self, name), name, positive=True)))
+        for name in ("leg_min", "leg_max"):
+            values = check_parameter(getattr(self, name), name, positive=True)
+            if values.shape != (n_platforms,):
+                raise ParameterError(name, f"leg_min and leg_max need one value per platform ({n_platforms})")
+            object.__setattr__(self, name, tuple(float(v) for v in values))
+        object.__setattr__(self, "tool_offset", float(check_parameter(self.tool_offset, "tool_offset")))
+        sections = self.platforms_per_section
+        if not all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in sections):
+            raise ParameterError("platforms_per_section", f"expected integers, got {sections!r}")
+        object.__setattr__(self, "platforms_per_section", tuple(int(v) for v in sections))
         if sum(self.platforms_per_section) != n_platforms or min(self.platforms_per_section) < 1:
-            raise ValueError(
-                f"platforms_per_section {self.platforms_per_section} must be positive and add up to {n_platforms}"
+            raise ParameterError(
+                "platforms_per_section",
+                f"{list(self.platforms_per_section)} must be positive and add up to {n_platforms}",
+            )
+        if not self.r_min <= self.r_max:
+            raise ParameterError(
+                "r_min", f"radii must satisfy 0 < r_min <= r_max, got r_min={self.r_min}, r_max={self.r_max}"
             )
         step = abs(self.r_max - self.r_min) / n_platforms
-        for k, (lo, hi) in enumerate(zip(self.leg_min, self.leg_max), start=1):
+        for k, (lo, hi) in enumerate(zip(self.leg_min, self.leg_max)):
             if not step < lo <= hi:
-                raise ValueError(
-                    f"platform {k}: leg limits must satisfy |r_k - r_k+1| = {step:.4g} < "
-                    f"leg_min <= leg_max, got [{lo}, {hi}]"
+                raise ParameterError(
+                    f"leg_min.{k}",
+                    f"platform {k + 1}: leg limits must satisfy |r_k - r_k+1| = {step:.4g} < "
+                    f"leg_min <= leg_max, got [{lo}, {hi}]",
                 )
-        if not np.isfinite(self.tool_offset):
-            raise ValueError(f"tool_offset must be finite, got {self.tool_offset}")
 
     @property
     def n_platforms(self) -> int:
@@ -374,6 +387,12 @@ class CBHAArm(ArmModel):
     backbone_points_per_section : int
         Points per section in :attr:`backbone`; the default, one per platform, gives the
         vertebra centres exactly.
+
+    Raises
+    ------
+    optikin.checks.ParameterError
+        For a geometry field the :class:`CBHAGeometry` rejects, named ``geometry.<field>`` when
+        ``geometry`` is a mapping.
     """
 
     extra_function_names = CBHA_FUNCTION_NAMES
@@ -387,7 +406,10 @@ class CBHAArm(ArmModel):
         if geometry is None:
             geometry = CBHAGeometry()
         elif isinstance(geometry, Mapping):
-            geometry = CBHAGeometry(**geometry)
+            try:
+                geometry = CBHAGeometry(**geometry)
+            except ParameterError as exc:
+                raise ParameterError(f"geometry.{exc.field}", exc.message) from None
         self.geometry = geometry
         names = tuple(f"{v}{k}" for k in range(1, geometry.n_platforms + 1) for v in ("Z", "theta", "psi"))
         self.leg_names = tuple(f"q{m}_{k}" for k in range(1, geometry.n_platforms + 1) for m in (1, 2, 3))

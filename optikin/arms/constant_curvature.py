@@ -35,6 +35,7 @@ from optikin.algebra import backend as B
 from optikin.algebra import check_unit_quaternions, quat_conjugate, quat_multiply, quat_rotate
 from optikin.algebra.backend import Array
 from optikin.arms.base import ArmModel
+from optikin.checks import ParameterError, check_parameter
 
 DEFAULT_SECTION_LENGTH = 0.18
 """Seed 000 section VII: two rods of 18 cm each."""
@@ -167,8 +168,11 @@ class ConstantCurvatureArm(ArmModel):
 
     Raises
     ------
+    optikin.checks.ParameterError
+        A :class:`ValueError` naming the parameter (``section_lengths.0``) for a value that is not
+        a finite number or not positive.
     ValueError
-        For non-positive lengths or bounds outside the ranges above.
+        For bounds outside the ranges above.
     """
 
     def __init__(
@@ -179,13 +183,14 @@ class ConstantCurvatureArm(ArmModel):
         name: str = "cc",
         backbone_points_per_section: int = 20,
     ) -> None:
-        lengths = np.asarray(section_lengths, dtype=float)
-        if lengths.ndim != 1 or len(lengths) == 0 or np.any(lengths <= 0):
-            raise ValueError(f"section_lengths must be positive, got {section_lengths}")
-        lo, hi = length_range
-        if not 0 < lo <= hi:
+        lengths = check_parameter(section_lengths, "section_lengths", positive=True)
+        if lengths.ndim != 1 or len(lengths) == 0:
+            raise ParameterError("section_lengths", f"expected a list of section lengths, got {section_lengths!r}")
+        lo, hi = (float(v) for v in check_parameter(length_range, "length_range", positive=True, size=2))
+        if not lo <= hi:
             raise ValueError(f"length_range must satisfy 0 < low <= high, got {length_range}")
-        if not 0 < theta_max <= np.pi:
+        theta_max = float(check_parameter(theta_max, "theta_max", positive=True, size=None))
+        if not theta_max <= np.pi:
             raise ValueError(f"theta_max must be in (0, pi], got {theta_max}")
         self.section_lengths = lengths
         self.length_range = (float(lo), float(hi))

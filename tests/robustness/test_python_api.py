@@ -119,3 +119,64 @@ def test_check_dual_quaternion():
         check_dual_quaternion(2 * dq)
     with pytest.raises(ValueError, match=r"dq: expected dual quaternions"):
         check_dual_quaternion(dq[:7])
+
+
+# ------------------------------------------------------------------------------ arm parameters
+@pytest.mark.parametrize(
+    "params, field",
+    [
+        ({"section_lengths": [float("nan"), 0.18]}, "section_lengths.0: not a finite number"),
+        ({"section_lengths": [0.18, float("inf")]}, "section_lengths.1: not a finite number"),
+        ({"section_lengths": [0.18, -0.1]}, "section_lengths.1: must be positive"),
+        ({"length_range": [0.9, float("nan")]}, "length_range.1: not a finite number"),
+        ({"length_range": [0.9, -1.0]}, "length_range.1: must be positive"),
+        ({"theta_max": float("nan")}, "theta_max: not a finite number"),
+        ({"backbone_points_per_section": 2.5}, "backbone_points_per_section: must be a positive integer"),
+    ],
+)
+def test_constant_curvature_parameters_are_named(params, field):
+    from optikin.arms import build_arm
+    from optikin.errors import SpecError
+
+    with pytest.raises(ValueError, match=field):
+        ConstantCurvatureArm(**params)
+    with pytest.raises(SpecError, match=rf"arm\.yaml: arm\.params\.{field}"):
+        build_arm("constant_curvature", params, "arm.yaml")
+
+
+@pytest.mark.parametrize(
+    "geometry, field",
+    [
+        ({"r_max": float("nan")}, "geometry.r_max: not a finite number"),
+        ({"tool_offset": float("inf")}, "geometry.tool_offset: not a finite number"),
+        ({"leg_min": [0.0085] * 15 + [float("nan")]}, "geometry.leg_min.15: not a finite number"),
+        ({"leg_max": [0.02] * 3}, r"geometry.leg_max: leg_min and leg_max need one value per platform \(16\)"),
+    ],
+)
+def test_cbha_geometry_fields_are_named(geometry, field):
+    from optikin.arms import build_arm
+    from optikin.errors import SpecError
+
+    with pytest.raises(SpecError, match=rf"arm\.params\.{field}"):
+        build_arm("cbha", {"geometry": geometry}, "arm.yaml")
+
+
+def test_a_nan_section_length_in_a_problem_file_is_blamed_on_the_arm(tmp_path, capsys):
+    import yaml
+
+    from optikin.cli import main
+
+    spec = {
+        "name": "nan-arm",
+        "title": "an arm with a NaN section length",
+        "description": "misuse",
+        "kind": "ik",
+        "arm": {"type": "constant_curvature", "params": {"section_lengths": [float("nan"), 0.18]}},
+        "data": {"source": "random", "seed": 1, "samples": 2},
+        "solver": "gauss-newton",
+        "options": {"target": "position"},
+    }
+    path = tmp_path / "nan-arm.yaml"
+    path.write_text(yaml.safe_dump(spec))
+    assert main(["solve", str(path), "--no-figures", "--out", str(tmp_path / "out")]) == 2
+    assert "nan-arm.yaml: arm.params.section_lengths.0: not a finite number" in capsys.readouterr().err
