@@ -17,7 +17,6 @@ CSV files have a header row naming the arm's configuration variables (e.g.
 
 from __future__ import annotations
 
-import csv
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Iterator
@@ -26,8 +25,9 @@ import numpy as np
 from pydantic import Field, StrictFloat, field_validator
 
 from optikin.arms.base import ArmModel
+from optikin.data.csvread import columns_of, read_table
 from optikin.data.sources import register_source
-from optikin.errors import InputDataError, SpecError
+from optikin.errors import SpecError
 from optikin.options import NoOptions, Options
 from optikin.spec import DataSpec
 
@@ -192,7 +192,7 @@ def configurations_from_csv(arm: ArmModel, data: DataSpec, params: CsvParams, pa
 
 
 def read_configuration_csv(csv_path: Path, names: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray | None]:
-    """Columns ``names`` (and ``t`` if present) of a CSV file with a header row.
+    """Columns ``names`` (and ``t`` if present) of a CSV file with a header row (:mod:`optikin.data.csvread`).
 
     Parameters
     ----------
@@ -209,34 +209,13 @@ def read_configuration_csv(csv_path: Path, names: tuple[str, ...]) -> tuple[np.n
     Raises
     ------
     InputDataError
-        The file cannot be read, is empty, lacks a column or holds a cell that is not a number.
+        The file cannot be read or is refused (:mod:`optikin.data.csvread`), lacks a
+        column, has no data rows or a cell that is not a number; ``t`` is not finite or
+        does not increase strictly.
     """
-    try:
-        with open(csv_path, newline="") as fh:
-            rows = list(csv.reader(fh))
-    except OSError as exc:
-        raise InputDataError(f"cannot read: {exc.strerror or exc}", source=str(csv_path)) from None
-    if not rows:
-        raise InputDataError("empty file", source=str(csv_path))
-    header = [h.strip() for h in rows[0]]
-    missing = [n for n in names if n not in header]
-    if missing:
-        raise InputDataError(
-            f"missing column(s) {', '.join(missing)}; header is {', '.join(header)}", source=str(csv_path)
-        )
-    wanted = list(names) + (["t"] if "t" in header else [])
-    index = [header.index(n) for n in wanted]
-    values = np.empty((len(rows) - 1, len(wanted)))
-    for i, row in enumerate(rows[1:]):
-        for k, j in enumerate(index):
-            try:
-                values[i, k] = float(row[j])
-            except (IndexError, ValueError):
-                cell = row[j] if j < len(row) else "<missing>"
-                raise InputDataError(
-                    f"{cell!r} is not a number", source=str(csv_path), sample=i, field=wanted[k]
-                ) from None
-    if len(values) == 0:
-        raise InputDataError("no data rows", source=str(csv_path))
-    t = values[:, len(names)] if "t" in wanted else None
-    return values[:, : len(names)], t
+    source = str(csv_path)
+    table = read_table(csv_path, columns_of(source, names, optional=("t",), finite=("t",)))
+    if "t" not in table.columns:
+        return table.stacked(names), None
+    table.check_increasing("t")
+    return table.stacked(names), table.column("t")

@@ -65,6 +65,7 @@ from optikin.arms.constant_curvature import (
     section_angles_from_quaternion,
 )
 from optikin.arms.base import ArmModel
+from optikin.data.csvread import columns_of, read_table
 from optikin.data.sources import register_source
 from optikin.errors import InputDataError, SpecError
 from optikin.options import Options
@@ -391,50 +392,16 @@ def read_csv(path: str | Path, unit_tolerance: float = 1e-3) -> PoseDemonstratio
     problem raises :class:`InputDataError` naming the file, row and column.
     """
     path = Path(path)
-    source = str(path)
-    try:
-        with path.open(newline="") as handle:
-            reader = csv.DictReader(handle)
-            header = [h.strip() for h in (reader.fieldnames or [])]
-            missing = [c for c in CSV_COLUMNS if c not in header]
-            if missing:
-                raise InputDataError(
-                    f"missing column(s) {', '.join(missing)}; expected {','.join(CSV_COLUMNS)}",
-                    source=source,
-                    field=missing[0],
-                )
-            rows = []
-            for number, row in enumerate(reader):
-                values = []
-                for column in CSV_COLUMNS:
-                    text = (row.get(column) or "").strip()
-                    try:
-                        values.append(float(text))
-                    except ValueError:
-                        raise InputDataError(
-                            f"not a number: {text!r}", source=source, sample=number, field=column
-                        ) from None
-                rows.append(values)
-    except OSError as exc:
-        raise InputDataError(f"cannot read the file: {exc.strerror}", source=source) from None
-    data = np.array(rows, dtype=float).reshape(-1, len(CSV_COLUMNS))
-    if data.shape[0] < 3:
-        raise InputDataError(f"a demonstration needs at least 3 rows, got {data.shape[0]}", source=source)
-    bad = np.argwhere(~np.isfinite(data))
-    if bad.size:
-        raise InputDataError("value is not finite", source=source, sample=int(bad[0, 0]), field=CSV_COLUMNS[bad[0, 1]])
-    steps = np.diff(data[:, 0])
-    if np.any(steps <= 0):
-        k = int(np.flatnonzero(steps <= 0)[0]) + 1
-        raise InputDataError("times must increase strictly", source=source, sample=k, field="t")
-    norms = np.linalg.norm(data[:, 4:], axis=1)
-    off = np.flatnonzero(np.abs(norms - 1.0) > unit_tolerance)
-    if off.size:
-        raise InputDataError(
-            f"quaternion norm {norms[off[0]]:.6f} is not 1", source=source, sample=int(off[0]), field="qw"
-        )
+    table = read_table(path, columns_of(str(path), CSV_COLUMNS, finite=("t",)))
+    if len(table) < 3:
+        raise InputDataError(f"a demonstration needs at least 3 rows, got {len(table)}", source=str(path))
+    table.check_finite(CSV_COLUMNS[1:])
+    table.check_increasing("t")
+    quaternion = table.check_unit_quaternions(CSV_COLUMNS[4:], unit_tolerance)
     return PoseDemonstration(
-        t=data[:, 0], position=data[:, 1:4], quaternion=quat_hemisphere_continuous(quat_normalize(data[:, 4:]))
+        t=table.column("t"),
+        position=table.stacked(CSV_COLUMNS[1:4]),
+        quaternion=quat_hemisphere_continuous(quat_normalize(quaternion)),
     )
 
 

@@ -62,7 +62,6 @@ the message gives the line) and the column.
 from __future__ import annotations
 
 import csv
-import math
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from pathlib import Path
@@ -77,8 +76,9 @@ from optikin.arms.base import ArmModel
 from optikin.arms.cbha import LEG_DIRECTIONS, PLATFORM_LEG_LENGTHS, CBHAArm
 from optikin.curves.catenary import catenary
 from optikin.data.configurations import first_rows
+from optikin.data.csvread import missing_columns, read_table
 from optikin.data.sources import register_source
-from optikin.errors import InputDataError, SpecError
+from optikin.errors import SpecError
 from optikin.options import Options
 from optikin.spec import DataSpec
 
@@ -356,81 +356,61 @@ def write_marker_csv(recording: MarkerRecording, path: Path) -> Path:
 
 
 def read_marker_csv(path: Path) -> MarkerRecording:
-    """Read a recording from a CSV file in the documented columns (module docstring)."""
+    """Read a recording from a CSV file in the documented columns (module docstring).
+
+    Parameters
+    ----------
+    path:
+        The file (:mod:`optikin.data.csvread`: UTF-8 text with a header row).
+
+    Returns
+    -------
+    MarkerRecording
+        Every row; quaternions normalised; ``source`` the file.
+
+    Raises
+    ------
+    InputDataError
+        The file cannot be read or is refused, lacks a column, has no data rows or a cell
+        that is not a finite number; a quaternion's norm is more than
+        :data:`QUATERNION_TOLERANCE` from 1; ``t`` does not increase strictly.
+    """
     path = Path(path)
     source = str(path)
-    try:
-        with open(path, newline="") as fh:
-            rows = list(csv.reader(fh))
-    except OSError as exc:
-        raise InputDataError(f"cannot read: {exc.strerror or exc}", source=source) from None
-    if not rows:
-        raise InputDataError("empty file", source=source)
-    header = [h.strip() for h in rows[0]]
-    n_markers = 0
-    while all(f"m{n_markers + 1}_{c}" in header for c in "xyz"):
-        n_markers += 1
-    required = _header(max(n_markers, 1), False, False)
-    missing = [c for c in required if c not in header]
-    if missing:
-        raise InputDataError(
-            f"missing column(s) {', '.join(missing)} (intermediate markers m1_x, m1_y, m1_z, ... "
-            f"are numbered from 1); header is {', '.join(header)}",
-            source=source,
-            field=missing[0],
+
+    def select(header: tuple[str, ...]) -> tuple[list[str], list[str]]:
+        n_markers = 0
+        while all(f"m{n_markers + 1}_{c}" in header for c in "xyz"):
+            n_markers += 1
+        hint = " (intermediate markers m1_x, m1_y, m1_z, ... are numbered from 1)"
+        error = missing_columns(source, header, _header(max(n_markers, 1), False, False), hint)
+        if error is not None:
+            raise error
+        has_lengths = all(c in header for c in ("L1", "L2", "L3"))
+        has_section = all(c in header for c in ("S1_L1", "S1_L2", "S1_L3"))
+        wanted = _header(n_markers, has_lengths, has_section)
+        return wanted, wanted
+
+    table = read_table(path, select)
+    base_q, tip_q = (
+        quat_normalize(
+            table.check_unit_quaternions([f"{body}_{c}" for c in ("qw", "qx", "qy", "qz")], QUATERNION_TOLERANCE)
         )
-    has_lengths = all(c in header for c in ("L1", "L2", "L3"))
-    has_section = all(c in header for c in ("S1_L1", "S1_L2", "S1_L3"))
-    wanted = _header(n_markers, has_lengths, has_section)
-    index = [header.index(c) for c in wanted]
-    data = rows[1:]
-    if not data:
-        raise InputDataError("no data rows", source=source)
-    values = np.empty((len(data), len(wanted)))
-    for i, row in enumerate(data):
-        for k, j in enumerate(index):
-            cell = row[j].strip() if j < len(row) else ""
-            try:
-                value = float(cell)
-            except ValueError:
-                value = math.nan
-            if not math.isfinite(value):
-                shown = repr(cell) if cell else "an empty cell"
-                raise InputDataError(
-                    f"{shown} is not a finite number (line {i + 2})", source=source, sample=i, field=wanted[k]
-                )
-            values[i, k] = value
-    column = {name: values[:, k] for k, name in enumerate(wanted)}
-
-    def stacked(names):
-        return np.column_stack([column[c] for c in names])
-
-    def orientation(body):
-        names = [f"{body}_{c}" for c in ("qw", "qx", "qy", "qz")]
-        q = stacked(names)
-        error = np.abs(np.linalg.norm(q, axis=1) - 1.0)
-        if np.any(error > QUATERNION_TOLERANCE):
-            i = int(np.argmax(error > QUATERNION_TOLERANCE))
-            raise InputDataError(
-                f"{q[i].tolist()} is not a unit quaternion (| |q| - 1 | = {error[i]:.3g} > "
-                f"{QUATERNION_TOLERANCE:g}; line {i + 2})",
-                source=source,
-                sample=i,
-                field=", ".join(names),
-            )
-        return quat_normalize(q)
-
-    n = len(data)
-    markers = stacked([f"m{k}_{c}" for k in range(1, n_markers + 1) for c in "xyz"]).reshape(n, n_markers, 3)
+        for body in ("base", "tip")
+    )
+    table.check_increasing("t")
+    n_markers = sum(1 for c in table.columns if c.startswith("m") and c.endswith("_x"))
+    n = len(table)
+    has = set(table.columns)
     return MarkerRecording(
-        t=column["t"],
-        base_position=stacked(["base_x", "base_y", "base_z"]),
-        base_orientation=orientation("base"),
-        tip_position=stacked(["tip_x", "tip_y", "tip_z"]),
-        tip_orientation=orientation("tip"),
-        markers=markers,
-        tube_lengths=stacked(["L1", "L2", "L3"]) if has_lengths else None,
-        section_tube_lengths=stacked(["S1_L1", "S1_L2", "S1_L3"]) if has_section else None,
+        t=table.column("t"),
+        base_position=table.stacked(["base_x", "base_y", "base_z"]),
+        base_orientation=base_q,
+        tip_position=table.stacked(["tip_x", "tip_y", "tip_z"]),
+        tip_orientation=tip_q,
+        markers=table.stacked([f"m{k}_{c}" for k in range(1, n_markers + 1) for c in "xyz"]).reshape(n, n_markers, 3),
+        tube_lengths=table.stacked(["L1", "L2", "L3"]) if "L1" in has else None,
+        section_tube_lengths=table.stacked(["S1_L1", "S1_L2", "S1_L3"]) if "S1_L1" in has else None,
         source=source,
     )
 

@@ -31,9 +31,10 @@ from pydantic import Field, StrictBool, StrictFloat, StrictInt, field_validator
 from optikin.algebra import dq_from_rotation_translation, dq_translation, quat_normalize
 from optikin.arms.base import ArmModel
 from optikin.arms.constant_curvature import ConstantCurvatureArm
-from optikin.data.configurations import TrajectoryParams, first_rows, read_configuration_csv, smooth_motion
+from optikin.data.configurations import TrajectoryParams, first_rows, smooth_motion
+from optikin.data.csvread import columns_of, read_table
 from optikin.data.sources import register_source
-from optikin.errors import InputDataError, SpecError
+from optikin.errors import SpecError
 from optikin.options import Options
 from optikin.spec import DataSpec
 
@@ -173,19 +174,11 @@ def trajectory_targets(
 def csv_targets(arm: ArmModel, data: DataSpec, params: CsvParams, path: Path, kind: str = "position") -> Targets:
     """Targets from a CSV file with a header row (module docstring): every row, or the first ``data.samples``
     when the problem file gives it; reachability unknown (treated as reachable)."""
-    csv_path = (Path(path).parent / params.file).resolve()
-    names = ("x", "y", "z") if kind == "position" else ("x", "y", "z", "qw", "qx", "qy", "qz")
-    values, t = read_configuration_csv(csv_path, names)
+    if kind == "legs":
+        raise SpecError(str(path), "data.source", "leg-length targets cannot be read from a CSV file")
+    values, t = read_target_csv((Path(path).parent / params.file).resolve(), kind)
     keep, skipped = first_rows(data, len(values))
     values, t = values[:keep], (None if t is None else t[:keep])
-    if kind == "pose":
-        norms = np.linalg.norm(values[:, 3:], axis=1)
-        bad = np.flatnonzero(np.abs(norms - 1.0) > 1e-6)
-        if bad.size:
-            raise InputDataError(
-                f"quaternion norm {norms[bad[0]]:.6g} is not 1", source=str(csv_path), sample=int(bad[0]), field="qw"
-            )
-        values = dq_from_rotation_translation(values[:, 3:], values[:, :3])
     configurations = np.full((len(values), arm.n_config), np.nan)
     return Targets(
         kind,
@@ -196,3 +189,44 @@ def csv_targets(arm: ArmModel, data: DataSpec, params: CsvParams, path: Path, ki
         trajectory=params.trajectory,
         skipped_rows=skipped,
     )
+
+
+QUATERNION_TOLERANCE = 1e-6
+"""| |q| - 1 | accepted for a pose target read from a file."""
+
+
+def read_target_csv(csv_path: Path, kind: str) -> tuple[np.ndarray, np.ndarray | None]:
+    """Position or pose targets from a CSV file with a header row (:mod:`optikin.data.csvread`).
+
+    Parameters
+    ----------
+    csv_path:
+        The file.
+    kind:
+        ``position`` (columns ``x, y, z``) or ``pose`` (also ``qw, qx, qy, qz``).
+
+    Returns
+    -------
+    values, t:
+        Positions ``(rows, 3)`` or unit dual quaternions ``(rows, 8)``, and the ``t``
+        column ``(rows,)`` [s] or None without one.
+
+    Raises
+    ------
+    InputDataError
+        The file cannot be read or is refused, lacks a column, has no data rows or a cell
+        that is not a finite number; ``t`` does not increase strictly; a quaternion's norm
+        is more than :data:`QUATERNION_TOLERANCE` from 1.
+    """
+    names = ("x", "y", "z") if kind == "position" else ("x", "y", "z", "qw", "qx", "qy", "qz")
+    table = read_table(csv_path, columns_of(str(csv_path), names, optional=("t",), finite=(*names, "t")))
+    t = None
+    if "t" in table.columns:
+        table.check_increasing("t")
+        t = table.column("t")
+    position = table.stacked(("x", "y", "z"))
+    if kind == "position":
+        return position, t
+    return dq_from_rotation_translation(
+        table.check_unit_quaternions(("qw", "qx", "qy", "qz"), QUATERNION_TOLERANCE), position
+    ), t

@@ -12,9 +12,14 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pytest
 import yaml
 
-from optikin.data.markers import CsvMarkerParams, csv_source
+from optikin.cli import EXIT_BAD_INPUT, main
+from optikin.data.configurations import read_configuration_csv
+from optikin.data.demonstrations import read_csv as read_demonstration_csv
+from optikin.data.markers import CsvMarkerParams, csv_source, read_marker_csv
+from optikin.errors import InputDataError, SpecError
 from optikin.runner import prepare, solve
 from optikin.spec import DataSpec
 
@@ -109,6 +114,7 @@ def test_fk_csv_with_as_many_samples_as_rows_has_no_note(tmp_path):
 def test_ik_csv_without_samples_reads_every_row(tmp_path):
     write_csv(tmp_path / "problems" / "p.csv", "x,y,z", target_rows(250))
     _, ctx = prepare(str(ik_problem(tmp_path, {"source": "csv", "params": {"file": "p.csv"}})))
+    assert ctx.data_source is not None
     targets = ctx.data_source.load(ctx.arm, ctx.spec.data, ctx.data_params, ctx.path, kind="position")
     assert len(targets) == 250 and targets.skipped_rows == 0
 
@@ -128,3 +134,102 @@ def test_marker_csv_without_samples_reads_every_row(tmp_path):
     assert len(recording) == 130 and recording.skipped_rows == 0
     recording = csv_source(None, DataSpec(source="csv", samples=30), params, tmp_path / "problem.yaml")
     assert len(recording) == 30 and recording.skipped_rows == 100
+
+
+# --------------------------------------------------------------------------- 2. cells rejected at read time
+
+POSE_HEADER = "x,y,z,qw,qx,qy,qz"
+POSE = "0.05,0,0.33,1,0,0,0"
+
+
+def load_targets(tmp_path: Path, header: str, rows: list[str], target: str = "position"):
+    write_csv(tmp_path / "problems" / "p.csv", header, rows)
+    _, ctx = prepare(str(ik_problem(tmp_path, {"source": "csv", "params": {"file": "p.csv"}}, target)))
+    assert ctx.data_source is not None
+    return ctx.data_source.load(ctx.arm, ctx.spec.data, ctx.data_params, ctx.path, kind=target)
+
+
+@pytest.mark.parametrize("cell", ["nan", "inf", "-inf", "NaN", "1e999"])
+def test_a_non_finite_target_cell_names_file_row_line_and_column(tmp_path, cell):
+    rows = ["0.05,0,0.33", "0.04,0.01,0.33", f"0.03,{cell},0.33"]
+    with pytest.raises(InputDataError, match=r"p\.csv: sample 2: y: .* is not a finite number \(line 4\)"):
+        load_targets(tmp_path, "x,y,z", rows)
+
+
+@pytest.mark.parametrize(
+    "quaternion, norm",
+    [("nan,0,0,0", "nan"), ("1.1,0,0,0", "1.1"), ("0.5,0.5,0.5,0.5000001", None), ("0,0,0,0", "0")],
+)
+def test_a_nan_or_non_unit_target_quaternion_is_refused(tmp_path, quaternion, norm):
+    rows = [POSE, f"0.05,0,0.33,{quaternion}"]
+    if norm is None:  # within 1e-6 of unit length: accepted
+        assert len(load_targets(tmp_path, POSE_HEADER, rows, "pose")) == 2
+        return
+    with pytest.raises(InputDataError, match=r"p\.csv: sample 1: .*(finite|not a unit quaternion).*\(line 3\)"):
+        load_targets(tmp_path, POSE_HEADER, rows, "pose")
+
+
+def test_a_non_finite_target_quaternion_exits_2_naming_file_line_and_column(tmp_path, capsys):
+    write_csv(tmp_path / "problems" / "p.csv", POSE_HEADER, [POSE, "0.05,0,0.33,nan,0,0,0"])
+    problem = ik_problem(tmp_path, {"source": "csv", "params": {"file": "p.csv"}}, "pose")
+    assert main(["solve", str(problem), "--out", str(tmp_path / "out"), "--no-figures"]) == EXIT_BAD_INPUT
+    err = capsys.readouterr().err
+    assert "p.csv: sample 1: qw:" in err and "(line 3)" in err
+
+
+@pytest.mark.parametrize(
+    "times, line",
+    [(["0", "nan", "0.2"], 3), (["0", "0.1", "0.05"], 4), (["0", "0.1", "0.1"], 4), (["inf", "1", "2"], 2)],
+)
+def test_configuration_times_must_be_finite_and_increase(tmp_path, times, line):
+    rows = [f"{t},0.18,0.1,0.2,0.18,0.3,1.0" for t in times]
+    path = write_csv(tmp_path / "q.csv", CONFIG_HEADER, rows)
+    with pytest.raises(InputDataError, match=rf"q\.csv: sample {line - 2}: t: .*\(line {line}\)"):
+        read_configuration_csv(path, ("S1", "theta1", "phi1", "S2", "theta2", "phi2"))
+
+
+def test_configuration_times_are_checked_on_the_line_they_are_on(tmp_path):
+    path = tmp_path / "q.csv"
+    path.write_text(CONFIG_HEADER + "\n0,0.18,0.1,0.2,0.18,0.3,1.0\n\n0.1,0.18,0.1,0.2,0.18,0.3,1.0\nnan,0,0,0,0,0,0\n")
+    with pytest.raises(InputDataError, match=r"sample 2: t: 'nan' is not a finite number \(line 5\)"):
+        read_configuration_csv(path, ("S1", "theta1", "phi1", "S2", "theta2", "phi2"))
+
+
+@pytest.mark.parametrize("times, line", [(["0", "nan"], 3), (["0.2", "0.1"], 3), (["-inf", "0"], 2)])
+def test_marker_times_must_be_finite_and_increase(tmp_path, times, line):
+    rows = [f"{t},0,0,0,1,0,0,0,0,0,0.2,1,0,0,0,0,0,0.1" for t in times]
+    path = write_csv(tmp_path / "rec.csv", ",".join(MARKER_HEADER), rows)
+    with pytest.raises(InputDataError, match=rf"rec\.csv: sample {line - 2}: t: .*\(line {line}\)"):
+        read_marker_csv(path)
+
+
+def test_a_nan_marker_quaternion_is_refused(tmp_path):
+    rows = marker_rows(2)
+    rows[1] = rows[1].replace(",1,0,0,0,0,0,0.1", ",nan,0,0,0,0,0,0.1")
+    with pytest.raises(InputDataError, match=r"sample 1: tip_qw: 'nan' is not a finite number \(line 3\)"):
+        read_marker_csv(write_csv(tmp_path / "rec.csv", ",".join(MARKER_HEADER), rows))
+
+
+def test_demonstration_errors_give_the_line(tmp_path):
+    rows = ["0,0,0,0,1,0,0,0", "0.1,0,0,0,1,0,0,0", "0.2,0,inf,0,1,0,0,0"]
+    path = write_csv(tmp_path / "demo.csv", "t,x,y,z,qw,qx,qy,qz", rows)
+    with pytest.raises(InputDataError, match=r"demo\.csv: sample 2: y: inf is not a finite number \(line 4\)"):
+        read_demonstration_csv(path)
+
+
+def test_leg_length_targets_cannot_come_from_a_csv_file(tmp_path):
+    write_csv(tmp_path / "problems" / "p.csv", "x,y,z", target_rows(3))
+    spec = {
+        "name": "legs-csv",
+        "title": "leg targets from a CSV file",
+        "kind": "ik",
+        "arm": {"type": "cbha"},
+        "data": {"source": "csv", "params": {"file": "p.csv"}},
+        "solver": "gauss-newton",
+        "options": {"target": "legs", "redundancy": "minimum_norm", "restarts": 0},
+    }
+    path = tmp_path / "problems" / "legs-csv.yaml"
+    path.write_text(yaml.safe_dump(spec))
+    with pytest.raises(SpecError, match="leg-length targets cannot be read from a CSV file") as info:
+        solve(str(path), figures=False)
+    assert info.value.field == "data.source"

@@ -1,0 +1,282 @@
+"""The one reader of numeric CSV files behind every file source (configurations, targets, markers, demonstrations).
+
+A file is UTF-8 text (an initial byte-order mark is allowed) with a header row naming
+the columns and one row per sample; blank lines are skipped, columns not asked for are
+ignored, cells are decimal numbers as Python's ``float`` reads them (``1.5``,
+``-2e-3``; ``nan`` and ``inf`` only where a reader allows them). A file is refused
+before it is parsed when it is not a regular file, is larger than :data:`MAX_BYTES`,
+holds a NUL byte (binary) or is not valid UTF-8.
+
+Every error is an :class:`~optikin.errors.InputDataError` naming the file, the row
+(``sample``: the data row counted from 0, and the 1-based ``line`` of the file in the
+message) and the column. A message shows what the file holds only as a short escaped
+excerpt (:func:`excerpt`, at most :data:`EXCERPT_LENGTH` characters): never a whole
+line or header, so pointing a source at an unexpected file (``/proc/self/environ``, a
+key file) does not print it.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import os
+import stat
+from array import array
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Sequence
+
+import numpy as np
+
+from optikin.errors import InputDataError
+
+MAX_BYTES = 200 * 1024 * 1024
+"""Largest CSV file read [bytes]; a larger one is refused before reading."""
+EXCERPT_LENGTH = 20
+"""Most characters of a file's text an error message shows (cell or header name, escaped)."""
+HEADER_NAMES_SHOWN = 4
+"""Header names an error about a missing column shows."""
+
+
+def excerpt(text: str, limit: int = EXCERPT_LENGTH) -> str:
+    """``repr(text)``, cut to at most ``limit`` characters (a cut excerpt ends with ``...``).
+
+    Escaping (``repr``) keeps control characters and terminal escapes out of messages.
+    """
+    shown = repr(text[: limit + 1])
+    if len(shown) <= limit and len(text) <= limit:
+        return shown
+    keep = min(len(text), limit)
+    while keep and len(repr(text[:keep])) + 3 > limit:
+        keep -= 1
+    return repr(text[:keep]) + "..."
+
+
+def _describe(cell: str) -> str:
+    return excerpt(cell.strip()) if cell.strip() else "an empty cell"
+
+
+@dataclass(frozen=True)
+class Table:
+    """The numeric columns read from a CSV file.
+
+    Attributes
+    ----------
+    source:
+        The file, as errors name it.
+    columns:
+        The column names, in the order of ``values``.
+    values:
+        ``(rows, len(columns))`` floats.
+    lines:
+        ``(rows,)`` the 1-based line of the file each row starts on.
+    header:
+        Every column name of the file's header row (stripped).
+    """
+
+    source: str
+    columns: tuple[str, ...]
+    values: np.ndarray
+    lines: np.ndarray
+    header: tuple[str, ...]
+
+    def __len__(self) -> int:
+        return len(self.values)
+
+    def column(self, name: str) -> np.ndarray:
+        """The column ``name`` ``(rows,)``."""
+        return self.values[:, self.columns.index(name)]
+
+    def stacked(self, names: Sequence[str]) -> np.ndarray:
+        """The columns ``names`` side by side ``(rows, len(names))``."""
+        return self.values[:, [self.columns.index(n) for n in names]]
+
+    def error(self, message: str, row: int, column: str) -> InputDataError:
+        """An :class:`InputDataError` on data row ``row`` (from 0) and ``column``; the message gets the line."""
+        return InputDataError(
+            f"{message} (line {int(self.lines[row])})", source=self.source, sample=int(row), field=column
+        )
+
+    def check_finite(self, names: Sequence[str]) -> None:
+        """Raise on the first row (then column) of ``names`` holding NaN or an infinity."""
+        block = self.stacked(names)
+        bad = np.argwhere(~np.isfinite(block))
+        if bad.size:
+            i, k = (int(v) for v in bad[0])
+            raise self.error(f"{block[i, k]} is not a finite number", i, names[k])
+
+    def check_increasing(self, name: str = "t") -> None:
+        """Raise on the first row where column ``name`` does not increase strictly (NaN included)."""
+        t = self.column(name)
+        if not np.isfinite(t[:1]).all():
+            raise self.error(f"{t[0]} is not a finite number", 0, name)
+        with np.errstate(invalid="ignore"):
+            bad = np.flatnonzero(~(np.diff(t) > 0))
+        if bad.size:
+            k = int(bad[0]) + 1
+            raise self.error(f"times must increase strictly, got {t[k]:.9g} after {t[k - 1]:.9g}", k, name)
+
+    def check_unit_quaternions(self, names: Sequence[str], tolerance: float) -> np.ndarray:
+        """The columns ``names`` (``w, x, y, z``) ``(rows, 4)``, each row of norm within ``tolerance`` of 1.
+
+        NaN fails the check (``not |n - 1| <= tolerance``).
+        """
+        q = self.stacked(names)
+        norm = np.linalg.norm(q, axis=1)
+        with np.errstate(invalid="ignore"):
+            bad = np.flatnonzero(~(np.abs(norm - 1.0) <= tolerance))
+        if bad.size:
+            i = int(bad[0])
+            raise self.error(
+                f"norm {norm[i]:.9g}: not a unit quaternion, not 1 to within {tolerance:g}", i, ", ".join(names)
+            )
+        return q
+
+
+def missing_columns(source: str, header: Sequence[str], names: Sequence[str], hint: str = "") -> InputDataError | None:
+    """The error for the columns of ``names`` absent from ``header`` (None when all are there).
+
+    Names the missing columns (ours) and at most :data:`HEADER_NAMES_SHOWN` header names,
+    each an :func:`excerpt`.
+    """
+    missing = [n for n in names if n not in header]
+    if not missing:
+        return None
+    shown = ", ".join(excerpt(h) for h in header[:HEADER_NAMES_SHOWN])
+    more = ", ..." if len(header) > HEADER_NAMES_SHOWN else ""
+    return InputDataError(
+        f"missing column(s) {', '.join(missing)}{hint}; the header has {len(header)} column(s): {shown}{more}",
+        source=source,
+        field=missing[0],
+    )
+
+
+def _text(path: Path, source: str) -> str:
+    """The file's text, after the checks of the module docstring."""
+    try:
+        info = os.stat(path)
+        if not stat.S_ISREG(info.st_mode):
+            raise InputDataError("cannot read: not a regular file", source=source)
+        if info.st_size > MAX_BYTES:
+            raise InputDataError(
+                f"cannot read: {info.st_size / 2**20:.0f} MiB, larger than the {MAX_BYTES // 2**20} MiB "
+                "a CSV file may have",
+                source=source,
+            )
+        with open(path, "rb") as fh:
+            raw = fh.read(MAX_BYTES + 1)
+    except OSError as exc:
+        raise InputDataError(f"cannot read: {exc.strerror or type(exc).__name__}", source=source) from None
+    if len(raw) > MAX_BYTES:
+        raise InputDataError(
+            f"cannot read: larger than the {MAX_BYTES // 2**20} MiB a CSV file may have", source=source
+        )
+    if b"\x00" in raw:
+        raise InputDataError("not a CSV text file: it holds NUL bytes (a binary file?)", source=source)
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = raw.count(b"\n", 0, exc.start) + 1
+        raise InputDataError(
+            f"not a UTF-8 text file: byte 0x{raw[exc.start]:02x} on line {line} is not UTF-8", source=source
+        ) from None
+
+
+Selection = Callable[[tuple[str, ...]], tuple[Sequence[str], Sequence[str]]]
+"""``header -> (columns, finite)``: the columns to read, and those of them where NaN and infinities are refused."""
+
+
+def read_table(path: str | Path, select: Selection) -> Table:
+    """Read the numeric columns ``select(header)`` chooses from a CSV file with a header row.
+
+    Parameters
+    ----------
+    path:
+        The file.
+    select:
+        Given the file's header (names stripped), returns the columns to read and those of
+        them that must hold finite numbers; it raises (e.g. :func:`missing_columns`) when
+        the header lacks what the reader needs.
+
+    Returns
+    -------
+    Table
+        The columns, their values ``(rows, columns)`` and the line of each row.
+
+    Raises
+    ------
+    InputDataError
+        Besides the refusals of the module docstring: an empty file, no data rows, a row
+        with too few cells, a cell that is not a number (or, in a ``finite`` column, not
+        a finite one), malformed CSV quoting.
+    """
+    path = Path(path)
+    source = str(path)
+    reader = csv.reader(io.StringIO(_text(path, source), newline=""))
+    start = 1
+    try:
+        header_row = next(reader, None)
+        while header_row is not None and not header_row:
+            start = reader.line_num + 1
+            header_row = next(reader, None)
+        if header_row is None:
+            raise InputDataError("empty file", source=source)
+        header = tuple(h.strip() for h in header_row)
+        columns, finite = select(header)
+        columns = tuple(columns)
+        index = [header.index(c) for c in columns]
+        must_be_finite = [c in finite for c in columns]
+        values, lines = array("d"), array("q")
+        rows = 0
+        start = reader.line_num + 1
+        for row in reader:
+            line, start = start, reader.line_num + 1
+            if not row:
+                continue
+            for j, name, finite_only in zip(index, columns, must_be_finite):
+                if j >= len(row):
+                    raise InputDataError(
+                        f"a missing cell: the row has {len(row)} of the header's {len(header)} cells (line {line})",
+                        source=source,
+                        sample=rows,
+                        field=name,
+                    )
+                cell = row[j]
+                try:
+                    value = float(cell)
+                except ValueError:
+                    value = None
+                if value is None or (finite_only and not math.isfinite(value)):
+                    what = "a finite number" if finite_only else "a number"
+                    raise InputDataError(
+                        f"{_describe(cell)} is not {what} (line {line})", source=source, sample=rows, field=name
+                    )
+                values.append(value)
+            lines.append(line)
+            rows += 1
+    except csv.Error as exc:
+        raise InputDataError(f"malformed CSV on line {start}: {exc}", source=source) from None
+    if rows == 0:
+        raise InputDataError("no data rows", source=source)
+    return Table(
+        source,
+        columns,
+        np.frombuffer(values, dtype=float).reshape(rows, len(columns)).copy(),
+        np.frombuffer(lines, dtype=np.int64).copy(),
+        header,
+    )
+
+
+def columns_of(
+    source: str, names: Sequence[str], optional: Sequence[str] = (), finite: Sequence[str] = (), hint: str = ""
+) -> Selection:
+    """The :data:`Selection` of the columns ``names`` (all required) and of those of ``optional`` present."""
+
+    def select(header: tuple[str, ...]) -> tuple[Sequence[str], Sequence[str]]:
+        error = missing_columns(source, header, names, hint)
+        if error is not None:
+            raise error
+        return [*names, *(c for c in optional if c in header)], finite
+
+    return select
