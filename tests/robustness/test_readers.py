@@ -11,11 +11,17 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+import ast
+import os
+import re
+
 import numpy as np
 import pytest
 import yaml
 
 from optikin.cli import EXIT_BAD_INPUT, main
+from optikin.data.csvread import EXCERPT_LENGTH, MAX_BYTES, excerpt
+from optikin.data.targets import read_target_csv
 from optikin.data.configurations import read_configuration_csv
 from optikin.data.demonstrations import read_csv as read_demonstration_csv
 from optikin.data.markers import CsvMarkerParams, csv_source, read_marker_csv
@@ -233,3 +239,117 @@ def test_leg_length_targets_cannot_come_from_a_csv_file(tmp_path):
     with pytest.raises(SpecError, match="leg-length targets cannot be read from a CSV file") as info:
         solve(str(path), figures=False)
     assert info.value.field == "data.source"
+
+
+# --------------------------------------------------------------------------- 3. what an error shows of a file
+
+CONFIG_NAMES = ("S1", "theta1", "phi1", "S2", "theta2", "phi2")
+SECRET = "hunter2-do-not-print-me"
+
+READERS = {
+    "configurations": lambda path: read_configuration_csv(path, CONFIG_NAMES),
+    "targets": lambda path: read_target_csv(path, "pose"),
+    "markers": read_marker_csv,
+    "demonstrations": read_demonstration_csv,
+}
+
+
+def shown_excerpts(message: str) -> list[str]:
+    """The quoted excerpts of a message."""
+    return re.findall(r"'(?:[^'\\]|\\.)*'(?:\.\.\.)?", message)
+
+
+@pytest.mark.parametrize("reader", READERS)
+def test_a_missing_column_shows_no_more_than_a_few_short_header_names(tmp_path, reader):
+    names = [f"TOKEN_{k}={SECRET}" for k in range(30)]
+    path = tmp_path / "env.csv"
+    path.write_text(",".join(names) + "\n" + ",".join("1" for _ in names) + "\n")
+    with pytest.raises(InputDataError, match="missing column") as info:
+        READERS[reader](path)
+    message = str(info.value)
+    assert SECRET not in message and "TOKEN_4" not in message
+    assert all(len(e) <= EXCERPT_LENGTH for e in shown_excerpts(message))
+
+
+@pytest.mark.parametrize("reader", READERS)
+def test_proc_self_environ_is_refused_without_printing_it(reader):
+    environ = Path("/proc/self/environ")
+    if not environ.exists():
+        pytest.skip("no /proc")
+    with pytest.raises(InputDataError) as info:
+        READERS[reader](environ)
+    message = str(info.value)
+    entries = [e.decode(errors="replace") for e in environ.read_bytes().split(b"\0")]
+    assert not [e for e in entries if len(e) > EXCERPT_LENGTH and e[:EXCERPT_LENGTH] in message]
+
+
+@pytest.mark.parametrize("cell", ["x" * 5000, "\x1b[31mred\x1b[0m and more text", SECRET * 3, "\u202eevil"])
+def test_a_bad_cell_is_shown_as_a_short_escaped_excerpt(tmp_path, cell):
+    path = write_csv(tmp_path / "q.csv", CONFIG_HEADER, config_rows(2) + [f'0.5,0.18,"{cell}",0,0.18,0,0'])
+    with pytest.raises(InputDataError, match=r"q\.csv: sample 2: theta1: .* is not a number \(line 4\)") as info:
+        read_configuration_csv(path, CONFIG_NAMES)
+    message = str(info.value)
+    assert "\x1b" not in message and "\u202e" not in message and SECRET * 2 not in message
+    [shown] = shown_excerpts(message)
+    assert len(shown) <= EXCERPT_LENGTH
+
+
+@pytest.mark.parametrize(
+    "text, limit",
+    [("abc", 20), ("x" * 100, 20), ("\x00" * 30, 20), ("é" * 40, 12), ("'\"" * 20, 10), ("", 20)],
+)
+def test_excerpt_is_an_escaped_prefix_no_longer_than_its_limit(text, limit):
+    shown = excerpt(text, limit)
+    assert len(shown) <= limit
+    body = shown[:-3] if shown.endswith("...") else shown
+    assert text.startswith(ast.literal_eval(body))  # a repr: evaluates back to a prefix of the text
+
+
+@pytest.mark.parametrize("reader", READERS)
+@pytest.mark.parametrize(
+    "content, match",
+    [
+        (b"t,x,y\n0,\x00\x01\x02,1\n", "NUL bytes"),
+        (b"t,S1\n0,\xff\xfe\n", r"not a UTF-8 text file: byte 0xff on line 2"),
+        (b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR", "NUL bytes"),
+    ],
+)
+def test_binary_and_non_utf8_files_are_input_errors(tmp_path, reader, content, match):
+    path = tmp_path / "data.csv"
+    path.write_bytes(content)
+    with pytest.raises(InputDataError, match=match) as info:
+        READERS[reader](path)
+    assert str(path) in str(info.value)
+
+
+def test_a_binary_file_exits_2(tmp_path, capsys):
+    (tmp_path / "problems").mkdir()
+    (tmp_path / "problems" / "q.csv").write_bytes(b"\x7fELF\x02\x01\x01\x00\x00\x00")
+    problem = fk_problem(tmp_path, {"source": "csv", "params": {"file": "q.csv"}})
+    assert main(["solve", str(problem), "--out", str(tmp_path / "out"), "--no-figures"]) == EXIT_BAD_INPUT
+    assert "q.csv: not a CSV text file" in capsys.readouterr().err
+
+
+def test_a_very_large_file_is_refused_before_reading(tmp_path):
+    path = tmp_path / "huge.csv"
+    with open(path, "wb") as fh:  # sparse: no disk space used
+        fh.write((CONFIG_HEADER + "\n").encode())
+        fh.truncate(MAX_BYTES + 1)
+    with pytest.raises(InputDataError, match=r"huge\.csv: cannot read: .*larger than the 200 MiB"):
+        read_configuration_csv(path, CONFIG_NAMES)
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no named pipes")
+def test_a_named_pipe_is_refused_without_blocking(tmp_path):
+    os.mkfifo(tmp_path / "pipe.csv")
+    with pytest.raises(InputDataError, match="not a regular file"):
+        read_configuration_csv(tmp_path / "pipe.csv", CONFIG_NAMES)
+
+
+def test_a_short_row_and_an_overlong_cell_name_their_line(tmp_path):
+    path = write_csv(tmp_path / "q.csv", CONFIG_HEADER, config_rows(1) + ["0.1,0.18,0.1"])
+    with pytest.raises(InputDataError, match=r"sample 1: phi1: a missing cell: the row has 3 of .* \(line 3\)"):
+        read_configuration_csv(path, CONFIG_NAMES)
+    path = write_csv(tmp_path / "q.csv", CONFIG_HEADER, config_rows(1) + ["1" * 200_000])
+    with pytest.raises(InputDataError, match=r"q\.csv: malformed CSV on line 3: field larger than field limit"):
+        read_configuration_csv(path, CONFIG_NAMES)
