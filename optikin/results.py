@@ -3,9 +3,24 @@
 A :class:`Result` holds per-sample status, iterations, residuals and timings
 (every solve reports how it went), the arrays the problem produced, summary
 metrics, and one row per compared method. :func:`write_result` writes
-``result.json`` + ``arrays.npz`` + figures into ``OUT/<problem name>/``
-atomically: everything goes to a temporary folder first, which then replaces
-the old one in a single rename, so a failed run never leaves half a result.
+``result.json`` + ``arrays.npz`` + figures into ``OUT/<problem name>/``.
+
+Writing is safe against interruption and concurrent writers:
+
+* everything goes to a staging folder ``OUT/.NAME-tmp-HOST-PID-RANDOM/`` first
+  (unique per process and call), which replaces ``OUT/NAME/`` only once it is
+  complete: the old folder is renamed aside (``.NAME-old-HOST-PID-RANDOM``), the
+  new one renamed in, the old one removed. The swap holds an exclusive
+  ``fcntl.flock`` on ``OUT/.NAME.lock`` (removed when the swap is done), so
+  writers of the same result in one folder never interleave; the last swap wins
+  and the folder is always one complete result;
+* a process killed while writing (even by SIGKILL) leaves its temporaries behind;
+  the next write of that result removes the temporaries of this host whose
+  process is gone (``os.kill(pid, 0)``);
+* folders are created with the user's umask, like the files in them;
+* an existing file or symlink at ``OUT/NAME`` is never replaced or deleted, and an
+  ``--out`` that is a file, cannot be written or runs out of space is an
+  :class:`OutputError` naming the folder (exit 2), with nothing half-written left.
 
 Figures are drawn by the kind's :data:`FigureBuilder` from the arrays and the
 summary alone, so :func:`redraw` can draw them again from a written folder.
@@ -13,19 +28,25 @@ summary alone, so :func:`redraw` can draw them again from a written folder.
 
 from __future__ import annotations
 
+import fcntl
 import json
 import math
 import os
+import re
+import secrets
 import shutil
-import tempfile
+import socket
+import stat
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Any, Callable, Mapping
+from typing import Any, Callable, Iterator, Mapping
 
 import numpy as np
 
 from optikin import __version__
+from optikin.errors import OptikinError
 
 STATUSES = ("ok", "unreachable", "failed", "not_converged", "timeout")
 """Per-sample statuses a problem kind may report."""
@@ -127,6 +148,10 @@ def _json_ready(x: Any) -> Any:
     return x
 
 
+class OutputError(OptikinError):
+    """The output folder cannot take a result: names the folder, or the entry in the way."""
+
+
 def write_result(
     result: Result,
     out_dir: Path,
@@ -134,16 +159,46 @@ def write_result(
     arrays: list[str] | None = None,
     figure_builder: FigureBuilder | None = None,
 ) -> Path:
-    """Write ``result`` under ``out_dir/<problem>/`` atomically; returns that folder.
+    """Write ``result`` into ``out_dir/<problem>/``, replacing a previous one as a whole; returns that folder.
 
-    ``arrays`` restricts which arrays go into ``arrays.npz`` (all when None);
-    ``figure_builder`` draws the kind's figures from all of the result's arrays.
+    Parameters
+    ----------
+    result:
+        The result to write.
+    out_dir:
+        The output folder, created (with its parents) if missing.
+    figures:
+        Draw the figures of ``figure_builder``.
+    arrays:
+        Names of the arrays that go into ``arrays.npz`` (all when None).
+    figure_builder:
+        Draws the kind's figures from all of the result's arrays.
+
+    Returns
+    -------
+    Path
+        ``out_dir/<problem>``, holding one complete result.
+
+    Raises
+    ------
+    OutputError
+        ``out_dir`` is not a folder or cannot be written (read-only, full), or a file or
+        symlink is at ``out_dir/<problem>``; nothing of this write is left behind.
     """
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    final = out_dir / result.problem
-    staging = Path(tempfile.mkdtemp(prefix=f".{result.problem}-", dir=out_dir))
+    name = result.problem
+    final = out_dir / name
     try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except FileExistsError:
+        raise OutputError(f"{out_dir}: the output folder is not a folder") from None
+    except OSError as exc:
+        raise OutputError(f"{out_dir}: cannot create the output folder: {_reason(exc)}") from None
+    _refuse_non_folder(final)
+    _remove_stale(out_dir, name)
+    staging = out_dir / _temporary_name(name, "tmp")
+    try:
+        staging.mkdir()
         kept = result.arrays if arrays is None else {k: v for k, v in result.arrays.items() if k in arrays}
         summary = result.summary()
         summary["arrays"] = {k: list(np.shape(v)) for k, v in kept.items()}
@@ -152,24 +207,114 @@ def write_result(
             np.savez_compressed(staging / "arrays.npz", **kept)  # type: ignore[arg-type]
         if figures:
             drawers = figure_builder(result.arrays, summary) if figure_builder is not None else {}
-            for name, draw in drawers.items():
-                draw(staging / f"{name}.png")
-                summary["figures"].append(f"{name}.png")
+            for figure, draw in drawers.items():
+                draw(staging / f"{figure}.png")
+                summary["figures"].append(f"{figure}.png")
         (staging / "result.json").write_text(json.dumps(summary, indent=2) + "\n")
-        _replace_dir(staging, final)
+        with _locked(out_dir / f".{name}.lock"):
+            _refuse_non_folder(final)
+            _swap(staging, final)
+    except OSError as exc:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise OutputError(f"{out_dir}: cannot write the result {name!r}: {_reason(exc)}") from None
     except BaseException:
         shutil.rmtree(staging, ignore_errors=True)
         raise
     return final
 
 
-def _replace_dir(staging: Path, final: Path) -> None:
-    """Swap ``staging`` into ``final``; the old folder is removed only after the rename."""
+def _reason(exc: OSError) -> str:
+    return exc.strerror or str(exc)
+
+
+def _host() -> str:
+    """This machine's name as it appears in temporary names (a shared folder may serve several)."""
+    return re.sub(r"[^A-Za-z0-9.]", "_", socket.gethostname()) or "host"
+
+
+def _temporary_name(name: str, role: str) -> str:
+    """``.NAME-ROLE-HOST-PID-RANDOM``: unique per process and call, and tells whose it is."""
+    return f".{name}-{role}-{_host()}-{os.getpid()}-{secrets.token_hex(4)}"
+
+
+def _alive(pid: int) -> bool:
+    """Whether process ``pid`` of this host exists (one of another user counts)."""
+    if pid <= 0:
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def _remove_stale(out_dir: Path, name: str) -> None:
+    """Remove the temporaries of result ``name`` left in ``out_dir`` by dead processes of this host."""
+    pattern = re.compile(rf"\.{re.escape(name)}-(?:tmp|old)-{re.escape(_host())}-(\d+)-[0-9a-f]{{8}}")
+    try:
+        entries = list(out_dir.iterdir())
+    except OSError:
+        return
+    for entry in entries:
+        match = pattern.fullmatch(entry.name)
+        if match is not None and not _alive(int(match.group(1))):
+            if entry.is_dir() and not entry.is_symlink():
+                shutil.rmtree(entry, ignore_errors=True)
+            else:
+                entry.unlink(missing_ok=True)
+
+
+def _refuse_non_folder(final: Path) -> None:
+    """A file or symlink at ``final`` is the user's: name it rather than replace it."""
+    try:
+        mode = os.lstat(final).st_mode  # one look: another writer may be swapping the folder meanwhile
+    except FileNotFoundError:
+        return
+    if not stat.S_ISDIR(mode):
+        what = "a symlink" if stat.S_ISLNK(mode) else "a file"
+        raise OutputError(f"{final}: is {what}, not a result folder; move it away or choose another --out")
+
+
+@contextmanager
+def _locked(path: Path) -> Iterator[None]:
+    """Hold an exclusive ``flock`` on the lock file ``path``, removed again before it is released.
+
+    A waiter that wakes up on a lock file already removed (or replaced) opens the current one again.
+    """
+    while True:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX)
+            held, current = os.fstat(fd), os.stat(path)
+            if (held.st_dev, held.st_ino) == (current.st_dev, current.st_ino):
+                break
+        except FileNotFoundError:
+            pass
+        except BaseException:
+            os.close(fd)
+            raise
+        os.close(fd)
+    try:
+        yield
+    finally:
+        path.unlink(missing_ok=True)
+        os.close(fd)
+
+
+def _swap(staging: Path, final: Path) -> None:
+    """Put ``staging`` at ``final``; a previous folder there is renamed aside first and removed after."""
     old = None
-    if final.exists():
-        old = final.with_name(f".{final.name}-old-{os.getpid()}")
-        final.rename(old)
-    staging.rename(final)
+    if final.is_dir():
+        old = final.with_name(_temporary_name(final.name, "old"))
+        os.rename(final, old)
+    try:
+        os.rename(staging, final)
+    except BaseException:
+        if old is not None:
+            os.rename(old, final)
+        raise
     if old is not None:
         shutil.rmtree(old, ignore_errors=True)
 
@@ -197,17 +342,17 @@ def read_result(folder: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
 def redraw(
     folder: Path, figure_builder: FigureBuilder, summary: Mapping[str, Any], arrays: Mapping[str, np.ndarray]
 ) -> list[Path]:
-    """Draw a written result's figures again into ``folder``; each PNG replaces the old one atomically."""
+    """Draw a written result's figures again into ``folder``; each PNG replaces the old one atomically
+    (drawn to a temporary name first, created with the user's umask)."""
     written = []
     for name, draw in figure_builder(arrays, summary).items():
         final = Path(folder) / f"{name}.png"
-        fd, temporary = tempfile.mkstemp(prefix=f".{name}-", suffix=".png", dir=folder)
-        os.close(fd)
+        temporary = Path(folder) / f"{_temporary_name(name, 'tmp')}.png"
         try:
-            draw(Path(temporary))
+            draw(temporary)
             os.replace(temporary, final)
         except BaseException:
-            Path(temporary).unlink(missing_ok=True)
+            temporary.unlink(missing_ok=True)
             raise
         written.append(final)
     return written
