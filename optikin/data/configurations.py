@@ -10,9 +10,11 @@ the samples are not a trajectory). Every random draw uses ``data.seed``.
 ``sweep``       one variable over its whole range, the others fixed (``variable``, ``fixed``).
 ``csv``         rows of a CSV file (``file``).
 
-CSV files have a header row naming the arm's configuration variables (e.g.
-``S1,theta1,phi1,S2,theta2,phi2`` in metres and radians) and optionally a
-``t`` column in seconds; other columns are ignored.
+CSV files (:func:`read_configuration_csv`) have a header row naming the arm's
+configuration variables (e.g. ``S1,theta1,phi1,S2,theta2,phi2`` in metres and radians)
+and optionally a ``t`` column in seconds; other columns are ignored. The source reads
+every row, or the first ``data.samples`` when the problem file gives it (the rows left
+out are counted in :attr:`Configurations.skipped_rows`).
 """
 
 from __future__ import annotations
@@ -192,26 +194,37 @@ def configurations_from_csv(arm: ArmModel, data: DataSpec, params: CsvParams, pa
 
 
 def read_configuration_csv(csv_path: Path, names: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray | None]:
-    """Columns ``names`` (and ``t`` if present) of a CSV file with a header row (:mod:`optikin.data.csvread`).
+    """Columns ``names`` (and ``t`` if present) of a CSV file with a header row.
+
+    The format (:mod:`optikin.data.csvread` for what every reader refuses):
+
+    ================  ======================================================================
+    ``names``         one column per configuration variable, in the arm's units (lengths in
+                      metres, angles in radians); any number, NaN and infinities included:
+                      the kind checks them against the arm's bounds and names the sample
+    ``t``             optional: sample time in seconds, finite and strictly increasing
+    other columns     ignored
+    ================  ======================================================================
 
     Parameters
     ----------
     csv_path:
         The file.
     names:
-        The columns wanted, in order (other columns are ignored).
+        The columns wanted, in order.
 
     Returns
     -------
     values, t:
-        ``(rows, len(names))`` and the ``t`` column ``(rows,)``, or None without one.
+        ``(rows, len(names))`` and the ``t`` column ``(rows,)`` [s], or None without one.
 
     Raises
     ------
     InputDataError
-        The file cannot be read or is refused (:mod:`optikin.data.csvread`), lacks a
-        column, has no data rows or a cell that is not a number; ``t`` is not finite or
-        does not increase strictly.
+        Naming the file, the row (``sample`` from 0, and its line) and the column: the file
+        cannot be read or is refused (not a regular file, over 200 MiB, binary, not UTF-8),
+        is empty, lacks a column, has no data rows, a short row or a cell that is not a
+        number; ``t`` is not finite or does not increase strictly.
     """
     source = str(csv_path)
     table = read_table(csv_path, columns_of(source, names, optional=("t",), finite=("t",)))

@@ -386,10 +386,36 @@ def kinect_recording(
 def read_csv(path: str | Path, unit_tolerance: float = 1e-3) -> PoseDemonstration:
     """A demonstration from a CSV file with a header naming (at least) ``t,x,y,z,qw,qx,qy,qz``.
 
-    Times in seconds (strictly increasing), positions in metres, quaternions
-    ``(w, x, y, z)`` unit to within ``unit_tolerance`` (then normalised; sensor
-    quaternions are unit to a few decimals). Other columns are ignored. Any
-    problem raises :class:`InputDataError` naming the file, row and column.
+    The format (:mod:`optikin.data.csvread` for what every reader refuses); every cell
+    read must be a finite number, and there must be at least 3 rows:
+
+    ======================  ================================================================
+    ``t``                   time in seconds, strictly increasing
+    ``x, y, z``             tip position, metres
+    ``qw, qx, qy, qz``      tip orientation ``(w, x, y, z)``, unit to within ``unit_tolerance``
+                            (then normalised; sensor quaternions are unit to a few decimals)
+    other columns           ignored
+    ======================  ================================================================
+
+    Parameters
+    ----------
+    path:
+        The file.
+    unit_tolerance:
+        Largest ``| |q| - 1 |`` accepted.
+
+    Returns
+    -------
+    PoseDemonstration
+        Every row; quaternions normalised and made hemisphere-continuous.
+
+    Raises
+    ------
+    InputDataError
+        Naming the file, the row (``sample`` from 0, and its line) and the column: the file
+        cannot be read or is refused (not a regular file, over 200 MiB, binary, not UTF-8),
+        is empty, lacks a column, has fewer than 3 rows, a short row or a cell that is not
+        a finite number; times do not increase strictly; a quaternion is not unit.
     """
     path = Path(path)
     table = read_table(path, columns_of(str(path), CSV_COLUMNS, finite=("t",)))

@@ -53,10 +53,14 @@ one row per posture, all lengths in metres, quaternions ``(w, x, y, z)``:
 ``S1_L1, S1_L2, S1_L3``                optional: tube lengths of section 1
 =====================================  =========================================================
 
-Other columns are ignored. Quaternions within 1e-3 of unit length are normalised;
-anything else (missing column, empty or non-numeric cell, non-unit quaternion) raises
-:class:`InputDataError` naming the file, the row (``sample`` counts data rows from 0;
-the message gives the line) and the column.
+Other columns are ignored. Every cell read must be a finite number; ``t`` must increase
+strictly; quaternions within 1e-3 of unit length are normalised. Anything else (missing
+column, empty, non-numeric, NaN or infinite cell, non-unit quaternion, times that do not
+increase; a file refused by :mod:`optikin.data.csvread`: not a regular file, over
+200 MiB, binary, not UTF-8) raises :class:`InputDataError` naming the file, the row
+(``sample`` counts data rows from 0; the message gives the line) and the column. The
+``csv`` source reads every row, or the first ``data.samples`` when the problem file
+gives it (the rows left out counted in :attr:`MarkerRecording.skipped_rows`).
 """
 
 from __future__ import annotations
@@ -357,6 +361,10 @@ def write_marker_csv(recording: MarkerRecording, path: Path) -> Path:
 
 def read_marker_csv(path: Path) -> MarkerRecording:
     """Read a recording from a CSV file in the documented columns (module docstring).
+
+    Columns ``t`` [s]; ``base_x ... base_qz`` and ``tip_x ... tip_qz`` (positions [m],
+    unit quaternions ``(w, x, y, z)``); ``m1_x, m1_y, m1_z, ...`` [m], at least one marker;
+    optionally ``L1, L2, L3`` and ``S1_L1, S1_L2, S1_L3`` [m]. Other columns are ignored.
 
     Parameters
     ----------

@@ -12,7 +12,9 @@ target kind of :data:`TARGET_KINDS` and return :class:`Targets`:
                 in order, warm-started.
 ``csv``         targets read from a file (``params.file``, relative to the problem
                 file) with columns ``x, y, z`` in metres, plus ``qw, qx, qy, qz`` for
-                poses and optionally ``t`` (:class:`CsvParams`).
+                poses and optionally ``t`` (:class:`CsvParams`, :func:`read_target_csv`):
+                every row, or the first ``data.samples`` when the problem file gives it
+                (the rows left out counted in :attr:`Targets.skipped_rows`).
 
 Unreachable targets lie beyond the arm's reach bound (:func:`reach_bound`) by a
 factor drawn from ``params.margin`` (default ``[1.1, 1.5]``), in a uniformly random
@@ -196,27 +198,40 @@ QUATERNION_TOLERANCE = 1e-6
 
 
 def read_target_csv(csv_path: Path, kind: str) -> tuple[np.ndarray, np.ndarray | None]:
-    """Position or pose targets from a CSV file with a header row (:mod:`optikin.data.csvread`).
+    """Position or pose targets from a CSV file with a header row.
+
+    The format (:mod:`optikin.data.csvread` for what every reader refuses); every cell
+    read must be a finite number:
+
+    ======================  ================================================================
+    ``x, y, z``             tip position in the arm's base frame, metres
+    ``qw, qx, qy, qz``      poses only: tip orientation, a unit quaternion ``(w, x, y, z)``
+                            (norm within :data:`QUATERNION_TOLERANCE` of 1)
+    ``t``                   optional: time in seconds, strictly increasing
+    other columns           ignored
+    ======================  ================================================================
 
     Parameters
     ----------
     csv_path:
         The file.
     kind:
-        ``position`` (columns ``x, y, z``) or ``pose`` (also ``qw, qx, qy, qz``).
+        ``position`` or ``pose``.
 
     Returns
     -------
     values, t:
-        Positions ``(rows, 3)`` or unit dual quaternions ``(rows, 8)``, and the ``t``
+        Positions ``(rows, 3)`` [m] or unit dual quaternions ``(rows, 8)``, and the ``t``
         column ``(rows,)`` [s] or None without one.
 
     Raises
     ------
     InputDataError
-        The file cannot be read or is refused, lacks a column, has no data rows or a cell
-        that is not a finite number; ``t`` does not increase strictly; a quaternion's norm
-        is more than :data:`QUATERNION_TOLERANCE` from 1.
+        Naming the file, the row (``sample`` from 0, and its line) and the column: the file
+        cannot be read or is refused (not a regular file, over 200 MiB, binary, not UTF-8),
+        is empty, lacks a column, has no data rows, a short row or a cell that is not a
+        finite number (``nan``, ``inf``); ``t`` does not increase strictly; a quaternion's
+        norm is not 1 to within :data:`QUATERNION_TOLERANCE`.
     """
     names = ("x", "y", "z") if kind == "position" else ("x", "y", "z", "qw", "qx", "qy", "qz")
     table = read_table(csv_path, columns_of(str(csv_path), names, optional=("t",), finite=(*names, "t")))
@@ -227,6 +242,5 @@ def read_target_csv(csv_path: Path, kind: str) -> tuple[np.ndarray, np.ndarray |
     position = table.stacked(("x", "y", "z"))
     if kind == "position":
         return position, t
-    return dq_from_rotation_translation(
-        table.check_unit_quaternions(("qw", "qx", "qy", "qz"), QUATERNION_TOLERANCE), position
-    ), t
+    quaternion = table.check_unit_quaternions(("qw", "qx", "qy", "qz"), QUATERNION_TOLERANCE)
+    return dq_from_rotation_translation(quaternion, position), t
