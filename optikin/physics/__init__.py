@@ -1,0 +1,48 @@
+"""Static Cosserat-rod models of continuum arms: the physical ground truth of optikin's comparisons.
+
+==========================  ==========================================================
+:mod:`.rod`                 rod parameters (:class:`Rod`) and the equations it obeys
+:mod:`.tendons`             tendon routing and its loads (Rucker & Webster 2011)
+:mod:`.pneumatic`           pressurised chambers as axial forces at an offset
+:mod:`.model`               segments, arms, loads; the equations as CasADi Functions
+:mod:`.shooting`            the BVP by shooting (RK4 + Newton), load derivatives (IFT)
+:mod:`.collocation`         the same BVP by Gauss-Legendre collocation and IPOPT
+:mod:`.solution`            :class:`RodSolution`, what both solvers return
+==========================  ==========================================================
+
+Example
+-------
+>>> from optikin.physics import Loads, Rod, RodArm, ShootingSolver
+>>> rod = Rod(length=0.3, radius=0.01, youngs_modulus=1e6, poisson_ratio=0.5, density=1000.0)
+>>> solver = ShootingSolver(RodArm.single(rod))
+>>> solution = solver.solve(Loads(tip_force=(0.01, 0.0, 0.0)))
+>>> solution.status
+'ok'
+"""
+
+from optikin.physics.collocation import CollocationOptions, CollocationSolver
+from optikin.physics.model import LOAD_NAMES, ArmEquations, Loads, RodArm, Segment, load_vector
+from optikin.physics.pneumatic import Chamber, cbha_chambers
+from optikin.physics.rod import Rod
+from optikin.physics.shooting import LoadSensitivity, ShootingOptions, ShootingSolver
+from optikin.physics.solution import RodSolution
+from optikin.physics.tendons import Tendon
+
+__all__ = [
+    "LOAD_NAMES",
+    "ArmEquations",
+    "Chamber",
+    "CollocationOptions",
+    "CollocationSolver",
+    "LoadSensitivity",
+    "Loads",
+    "Rod",
+    "RodArm",
+    "RodSolution",
+    "Segment",
+    "ShootingOptions",
+    "ShootingSolver",
+    "Tendon",
+    "cbha_chambers",
+    "load_vector",
+]
