@@ -353,3 +353,20 @@ def test_a_short_row_and_an_overlong_cell_name_their_line(tmp_path):
     path = write_csv(tmp_path / "q.csv", CONFIG_HEADER, config_rows(1) + ["1" * 200_000])
     with pytest.raises(InputDataError, match=r"q\.csv: malformed CSV on line 3: field larger than field limit"):
         read_configuration_csv(path, CONFIG_NAMES)
+
+
+def test_ph_shape_csv_with_fewer_samples_says_how_many_rows_were_skipped(tmp_path):
+    write_csv(tmp_path / "rec.csv", ",".join(MARKER_HEADER), marker_rows(130))
+    spec = {
+        "name": "rec-shape",
+        "title": "markers from a file",
+        "kind": "ph_shape",
+        "arm": {"type": "cbha"},
+        "data": {"source": "csv", "samples": 30, "params": {"file": "rec.csv"}},
+        "solver": "ph-newton",
+        "options": {"length": "arc"},
+    }
+    problem = tmp_path / "rec-shape.yaml"
+    problem.write_text(yaml.safe_dump(spec))
+    result, _ = solve(str(problem))
+    assert result.samples == 30 and "100 rows of rec.csv skipped (data.samples)" in result.notes

@@ -6,6 +6,7 @@ from typing import Any
 
 import numpy as np
 
+from optikin.data.configurations import skipped_rows_notes
 from optikin.baselines.ph_comparators import HYBRID, NEWTON_RAPHSON
 from optikin.problems import ProblemContext
 from optikin.problems.ph_ik.run import IkOutcome
@@ -140,5 +141,5 @@ def report(ctx: ProblemContext, outcome: IkOutcome) -> Result:
         metrics=ik_metrics(outcome),
         comparison=ph_rows(outcome) + rows,
         arrays={**ik_arrays(outcome), **comparator_arrays},
-        notes=notes + comparator_notes,
+        notes=skipped_rows_notes(outcome.recording.skipped_rows, ctx.data_params) + notes + comparator_notes,
     )

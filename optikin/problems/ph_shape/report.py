@@ -6,6 +6,7 @@ from typing import Any
 
 import numpy as np
 
+from optikin.data.configurations import skipped_rows_notes
 from optikin.problems import ProblemContext
 from optikin.problems.ph_shape.run import ShapeOutcome
 from optikin.problems.ph_shared import MM, distances_to_curves, method_rows
@@ -87,7 +88,8 @@ def report(ctx: ProblemContext, outcome: ShapeOutcome) -> Result:
         metrics=metrics,
         comparison=method_rows(outcome.runs, extra),
         arrays={**shape_arrays(outcome), **truth_arrays},
-        notes=[
+        notes=skipped_rows_notes(outcome.recording.skipped_rows, ctx.data_params)
+        + [
             f"{len(outcome.recording)} postures from {outcome.recording.source or spec.data.source}; residual = "
             f"largest marker distance of the sample [m]; backbone length: {options.length}; end speeds "
             f"{options.speeds_note()}"
