@@ -4,8 +4,11 @@
 solver preset (the ``--solver`` argument, else the file's ``solver``, else the
 kind's default), checks that the kind accepts that backend and every listed
 baseline, validates ``options`` and ``data.params`` against the kind's and the
-data source's models, builds the arm, runs the kind, and optionally writes the
-result. Every error found before the run names the file and the dotted field.
+data source's models, builds the arm, refuses a run whose estimated memory
+passes the limit (:mod:`optikin.resources`), runs the kind, and optionally writes
+the result. Every error found before the run names the file and the dotted field;
+a run that runs out of memory all the same is a :class:`~optikin.errors.SpecError`
+on ``data.samples`` too (exit 2), not a traceback.
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ from optikin.options import validate_options
 from optikin.problems import ProblemContext, ProblemKind, load_kinds
 from optikin.progress import SILENT, Progress
 from optikin.registry import PROBLEM_KINDS
+from optikin.resources import check_memory
 from optikin.results import Result, write_result
 from optikin.solvers import LoadedPreset, load_backends, load_preset
 from optikin.spec import ProblemSpec, available, load_problem, provenance
@@ -106,6 +110,7 @@ def prepare(
         _tell(notify, provenance(preset_name, preset.path, "solvers"))
     adapter = None if preset is None else preset.build()
     arm = build_arm(spec.arm.type, spec.arm.params, path)
+    check_memory(kind.name, arm, 1 + len(spec.baselines), spec.data.samples, path)
     ctx = ProblemContext(
         spec=spec,
         path=path,
@@ -151,15 +156,22 @@ def solve(
         Receives one line per file used that is not one of optikin's own.
     """
     kind, ctx = prepare(problem, solver, progress, notify)
-    result = kind.run(ctx)
-    _check_arrays(ctx.spec, ctx.path, result)
-    written = None
-    if out is not None:
-        written = write_result(
-            result,
-            Path(out),
-            figures=figures and ctx.spec.outputs.figures,
-            arrays=ctx.spec.outputs.arrays,
-            figure_builder=kind.figures,
-        )
+    try:
+        result = kind.run(ctx)
+        _check_arrays(ctx.spec, ctx.path, result)
+        written = None
+        if out is not None:
+            written = write_result(
+                result,
+                Path(out),
+                figures=figures and ctx.spec.outputs.figures,
+                arrays=ctx.spec.outputs.arrays,
+                figure_builder=kind.figures,
+            )
+    except MemoryError:
+        raise SpecError(
+            ctx.path,
+            "data.samples",
+            f"the run ran out of memory with {ctx.spec.data.samples} samples; use fewer samples",
+        ) from None
     return result, written
