@@ -222,7 +222,7 @@ class GaussNewton(NonlinearAdapter):
         return min(problem.tolerance, self.limits.tolerance)
 
     # ------------------------------------------------------------------ one sample
-    def solve(
+    def solve_free(
         self, problem: LeastSquaresProblem, x0: np.ndarray, p: np.ndarray, x_ref: np.ndarray | None = None
     ) -> Solution:
         started = time.perf_counter()
@@ -261,7 +261,7 @@ class GaussNewton(NonlinearAdapter):
         return Solution(x, status, calls, rn, elapsed, message)
 
     # ------------------------------------------------------------------ many independent samples at once
-    def solve_many(
+    def solve_many_free(
         self,
         problem: LeastSquaresProblem,
         X0: np.ndarray,
@@ -270,7 +270,7 @@ class GaussNewton(NonlinearAdapter):
         x_ref: np.ndarray | None = None,
     ) -> SolutionBatch:
         if warm_start or not self.options.batch:
-            return super().solve_many(problem, X0, P, warm_start, x_ref)
+            return super().solve_many_free(problem, X0, P, warm_start, x_ref)
         return self.solve_batch(problem, X0, P)
 
     def solve_batch(self, problem: LeastSquaresProblem, X0: np.ndarray, P: np.ndarray) -> SolutionBatch:

@@ -125,7 +125,7 @@ class Newton(NonlinearAdapter):
             problem.cache[key] = ca.Function(f"{problem.name}_newton_packed", [w], [z[:n]])
         return problem.cache[key]
 
-    def solve(
+    def solve_free(
         self, problem: LeastSquaresProblem, x0: np.ndarray, p: np.ndarray, x_ref: np.ndarray | None = None
     ) -> Solution:
         started = time.perf_counter()
@@ -140,7 +140,7 @@ class Newton(NonlinearAdapter):
         iterations = call.stats().get("iter_count", -1)
         return self.finish(problem, z[: problem.n].copy(), p, iterations, started)
 
-    def solve_many(
+    def solve_many_free(
         self,
         problem: LeastSquaresProblem,
         X0: np.ndarray,
@@ -149,7 +149,7 @@ class Newton(NonlinearAdapter):
         x_ref: np.ndarray | None = None,
     ) -> SolutionBatch:
         if warm_start:
-            return super().solve_many(problem, X0, P, warm_start, x_ref)
+            return super().solve_many_free(problem, X0, P, warm_start, x_ref)
         return self.solve_batch(problem, X0, P, x_ref)
 
     def solve_batch(

@@ -206,7 +206,7 @@ class NlpsolAdapter(NonlinearAdapter):
             problem.cache[key] = (call, lbx, ubx, lbg, ubg)
         return problem.cache[key]
 
-    def solve(
+    def solve_free(
         self, problem: LeastSquaresProblem, x0: np.ndarray, p: np.ndarray, x_ref: np.ndarray | None = None
     ) -> Solution:
         started = time.perf_counter()

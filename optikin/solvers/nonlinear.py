@@ -37,12 +37,18 @@ CasADi's Newton rootfinder can return a non-converged iterate silently):
 ``timeout``        the preset's ``limits.time_limit`` was exceeded;
 ``failed``         non-finite values, a point outside the bounds, or a solver error;
 ``not_converged``  anything else (e.g. the iteration limit was reached).
+
+Fixed variables: a variable whose bounds coincide (``lower = upper``, e.g. the length
+of an inextensible section) is not solved for. The adapters' ``solve`` and
+``solve_many`` hand the backend :attr:`LeastSquaresProblem.reduced`, the problem
+over the free variables with the fixed ones substituted by their value, and put
+the fixed values back into the answer; so no backend sees a zero-width range.
 """
 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from typing import Any
 
@@ -109,10 +115,15 @@ class LeastSquaresProblem:
         self.lower = np.asarray(self.lower, dtype=float)
         self.upper = np.asarray(self.upper, dtype=float)
         self.periodic = np.asarray(self.periodic, dtype=bool)
+        if self.lower.shape != (self.n,) or self.upper.shape != (self.n,) or self.periodic.shape != (self.n,):
+            raise ValueError(f"{self.name}: lower, upper and periodic must have {self.n} entries")
+        if not np.all(self.lower <= self.upper):
+            j = int(np.argmax(~(self.lower <= self.upper)))
+            raise ValueError(f"{self.name}: bounds of variable {j} are not lower <= upper")
         if self.weights is not None:
             self.weights = np.asarray(self.weights, dtype=float)
-            if self.weights.shape != (self.n,) or np.any(self.weights <= 0):
-                raise ValueError(f"{self.name}: weights must be {self.n} positive numbers")
+            if self.weights.shape != (self.n,) or not np.all(np.isfinite(self.weights) & (self.weights > 0)):
+                raise ValueError(f"{self.name}: weights must be {self.n} positive finite numbers")
         if not self.variable_names:
             self.variable_names = tuple(f"x{i}" for i in range(self.n))
         if self.constraints is not None:
@@ -133,6 +144,64 @@ class LeastSquaresProblem:
     @property
     def m(self) -> int:
         return self.residual.size1_out(0)
+
+    @property
+    def fixed(self) -> np.ndarray:
+        """Mask of the fixed variables, ``lower = upper`` (module docstring)."""
+        return self.lower == self.upper
+
+    @property
+    def span(self) -> np.ndarray:
+        """``upper - lower``, with 1 for a fixed variable: the scale of bound violations."""
+        return np.where(self.fixed, 1.0, self.upper - self.lower)
+
+    @cached_property
+    def reduced(self) -> LeastSquaresProblem:
+        """The problem over the free variables, the fixed ones substituted by their value.
+
+        The same problem when no variable is fixed; otherwise residual ``r_f(x_f, p) = r(E x_f + c, p)``
+        and constraints likewise (``E`` inserts the free variables, ``c`` holds the fixed values),
+        with the bounds, wrapping, weights and names of the free variables. Its own cache.
+        """
+        fixed = self.fixed
+        if not fixed.any():
+            return self
+        free = ~fixed
+        x_free, p = ca.SX.sym("x", int(free.sum())), ca.SX.sym("p", self.n_data)
+        slots = iter(range(x_free.numel()))
+        x = ca.vertcat(*[x_free[next(slots)] if free[j] else ca.SX(self.lower[j]) for j in range(self.n)])
+        residual = ca.Function(f"{self.name}_free", [x_free, p], [self.residual(x, p)], ["x", "p"], ["r"])
+        constraints = None
+        if self.constraints is not None:
+            constraints = ca.Function(f"{self.name}_free_constraints", [x_free], [self.constraints(x)])
+        return LeastSquaresProblem(
+            residual,
+            self.lower[free],
+            self.upper[free],
+            self.periodic[free],
+            tolerance=self.tolerance,
+            weights=None if self.weights is None else self.weights[free],
+            stationarity_tolerance=self.stationarity_tolerance,
+            exact=self.exact,
+            name=self.name,
+            variable_names=tuple(v for v, f in zip(self.variable_names, free) if f),
+            constraints=constraints,
+            constraint_lower=self.constraint_lower,
+            constraint_upper=self.constraint_upper,
+            constraint_names=self.constraint_names,
+        )
+
+    def free_part(self, x: np.ndarray) -> np.ndarray:
+        """The free variables of points ``x (..., n)`` (the variables of :attr:`reduced`)."""
+        return np.asarray(x, dtype=float)[..., ~self.fixed]
+
+    def expand(self, x_free: np.ndarray) -> np.ndarray:
+        """Points ``(..., n)`` from points of :attr:`reduced` ``(..., n_free)``, the fixed variables at their value."""
+        x_free = np.asarray(x_free, dtype=float)
+        x = np.empty(x_free.shape[:-1] + (self.n,))
+        x[..., ~self.fixed] = x_free
+        x[..., self.fixed] = self.lower[self.fixed]
+        return x
 
     @property
     def constraint_bounds(self) -> tuple[np.ndarray, np.ndarray]:
@@ -166,9 +235,8 @@ class LeastSquaresProblem:
         blocked = ca.logic_or(ca.logic_and(lower_active, g > 0), ca.logic_and(upper_active, g < 0))
         projected = ca.if_else(blocked, 0, g)
         stationarity = ca.norm_2(projected) / (ca.norm_fro(J) * rn + 1e-300)
-        span = self.upper - self.lower
-        outside = ca.fmax(ca.DM(self.lower) - x, x - ca.DM(self.upper)) / ca.DM(span)
-        outside = ca.mmax(ca.if_else(ca.DM(self.periodic), 0, outside))
+        outside = ca.fmax(ca.DM(self.lower) - x, x - ca.DM(self.upper)) / ca.DM(self.span)
+        outside = ca.mmax(ca.if_else(ca.DM(self.periodic & ~self.fixed), 0, outside))
         if self.constraints is not None:
             c = self.constraints(x)
             lower, upper = self.constraint_bounds
@@ -184,12 +252,12 @@ class LeastSquaresProblem:
         return ca.Function(f"{self.name}_check_packed", [ca.vertcat(x, p)], [self.check(x, p)])
 
     def active_bounds(self, x: ca.SX, margin: float = 1e-12) -> tuple[ca.SX, ca.SX]:
-        """Masks of the non-periodic variables at their lower / upper bound."""
+        """Masks of the non-periodic variables at their lower / upper bound (a fixed variable is at both)."""
         span = ca.DM(self.upper - self.lower)
-        fixed = ca.DM(~self.periodic)
+        bounded = ca.DM(~self.periodic | self.fixed)
         return (
-            ca.logic_and(fixed, x <= ca.DM(self.lower) + margin * span),
-            ca.logic_and(fixed, x >= ca.DM(self.upper) - margin * span),
+            ca.logic_and(bounded, x <= ca.DM(self.lower) + margin * span),
+            ca.logic_and(bounded, x >= ca.DM(self.upper) - margin * span),
         )
 
     # ------------------------------------------------------------------ numeric helpers
@@ -205,9 +273,9 @@ class LeastSquaresProblem:
         x = np.array(x, dtype=float)
         if x.ndim == 1 and ((x >= self.lower) & (x <= self.upper)).all():
             return x  # the common case, a warm start: nothing to do
-        span = self.upper - self.lower
-        wrapped = self.lower + np.mod(x - self.lower, span)
-        return np.where(self.periodic, wrapped, np.clip(x, self.lower, self.upper))
+        with np.errstate(invalid="ignore"):  # a fixed periodic variable is clipped
+            wrapped = self.lower + np.mod(x - self.lower, self.upper - self.lower)
+        return np.where(self.periodic & ~self.fixed, wrapped, np.clip(x, self.lower, self.upper))
 
     def wrap(self, x: np.ndarray) -> np.ndarray:
         """Wrap periodic variables only (a point outside the bounds stays outside; NaN stays NaN)."""
@@ -216,7 +284,7 @@ class LeastSquaresProblem:
             return x
         with np.errstate(invalid="ignore"):
             wrapped = self.lower + np.mod(x - self.lower, self.upper - self.lower)
-        return np.where(self.periodic, wrapped, x)
+        return np.where(self.periodic & ~self.fixed, wrapped, x)
 
     def classify(
         self, x: np.ndarray, p: np.ndarray, elapsed: float, time_limit: float, error: str = ""
@@ -236,7 +304,7 @@ class LeastSquaresProblem:
 
     def violation_message(self, x: np.ndarray) -> str:
         """Which bound or constraint ``x`` violates most (relative to its range)."""
-        bounds = np.maximum(self.lower - x, x - self.upper) / (self.upper - self.lower) * ~self.periodic
+        bounds = np.maximum(self.lower - x, x - self.upper) / self.span * (~self.periodic | self.fixed)
         worst = int(np.argmax(bounds))
         message = f"{self.variable_names[worst]} = {x[worst]:.6g} outside its bounds"
         if self.constraints is not None:
@@ -302,7 +370,10 @@ class NonlinearAdapter:
     options:
         The preset's ``options`` validated against the backend's options model.
 
-    Subclasses implement :meth:`solve`; :meth:`solve_many` loops over samples unless overridden.
+    :meth:`solve` and :meth:`solve_many` remove the fixed variables (module docstring) and call
+    the backend's :meth:`solve_free` and :meth:`solve_many_free` on a problem without any;
+    subclasses implement :meth:`solve_free`, and :meth:`solve_many_free` loops over samples
+    unless overridden.
     """
 
     def __init__(self, preset: SolverSpec, options: Options):
@@ -313,7 +384,15 @@ class NonlinearAdapter:
     def solve(
         self, problem: LeastSquaresProblem, x0: np.ndarray, p: np.ndarray, x_ref: np.ndarray | None = None
     ) -> Solution:
-        raise NotImplementedError
+        """One solve from ``x0`` (``x_ref`` defaults to ``x0``); see the module docstring."""
+        reduced = problem.reduced
+        if reduced is problem:
+            return self.solve_free(problem, x0, p, x_ref)
+        if reduced.n == 0:
+            return self.finish(problem, problem.expand(np.zeros(0)), p, 0, time.perf_counter())
+        ref = None if x_ref is None else problem.free_part(x_ref)
+        solution = self.solve_free(reduced, problem.free_part(x0), p, ref)
+        return replace(solution, x=problem.expand(solution.x))
 
     def solve_many(
         self,
@@ -324,13 +403,39 @@ class NonlinearAdapter:
         x_ref: np.ndarray | None = None,
     ) -> SolutionBatch:
         """Solve every row of ``P``; see the module docstring for ``warm_start`` and ``x_ref``."""
+        reduced = problem.reduced
+        if reduced is problem:
+            return self.solve_many_free(problem, X0, P, warm_start, x_ref)
+        if reduced.n == 0:
+            x = problem.expand(np.zeros(0))
+            P = np.atleast_2d(np.asarray(P, dtype=float))
+            return SolutionBatch.of([self.finish(problem, x, p, 0, time.perf_counter()) for p in P], problem.n)
+        ref = None if x_ref is None else problem.free_part(x_ref)
+        batch = self.solve_many_free(reduced, problem.free_part(X0), P, warm_start, ref)
+        return replace(batch, x=problem.expand(batch.x))
+
+    def solve_free(
+        self, problem: LeastSquaresProblem, x0: np.ndarray, p: np.ndarray, x_ref: np.ndarray | None = None
+    ) -> Solution:
+        """:meth:`solve` on a problem without fixed variables (the backend's own)."""
+        raise NotImplementedError
+
+    def solve_many_free(
+        self,
+        problem: LeastSquaresProblem,
+        X0: np.ndarray,
+        P: np.ndarray,
+        warm_start: bool = False,
+        x_ref: np.ndarray | None = None,
+    ) -> SolutionBatch:
+        """:meth:`solve_many` on a problem without fixed variables: one :meth:`solve_free` per sample."""
         P = np.atleast_2d(np.asarray(P, dtype=float))
         X0 = np.broadcast_to(np.asarray(X0, dtype=float), (len(P), problem.n))
         reports: list[Solution] = []
         previous = None
         for k in range(len(P)):
             start = X0[k] if previous is None else previous
-            report = self.solve(problem, start, P[k], x_ref)
+            report = self.solve_free(problem, start, P[k], x_ref)
             reports.append(report)
             if warm_start and (report.status != "failed" or np.all(np.isfinite(report.x))):
                 previous = report.x

@@ -169,7 +169,7 @@ class ScipyLeastSquares(NonlinearAdapter):
         ranges = np.ones(problem.n) if problem.weights is None else 1.0 / problem.weights
         return np.where(residual.transformed, 1.0, ranges)
 
-    def solve(
+    def solve_free(
         self, problem: LeastSquaresProblem, x0: np.ndarray, p: np.ndarray, x_ref: np.ndarray | None = None
     ) -> Solution:
         started = time.perf_counter()

@@ -48,7 +48,9 @@ class FormulationOptions(Options):
         "default straight at nominal lengths, else mid-range",
     )
     weights: list[Positive] | None = Field(
-        None, description="diagonal W of ||W (q - q_ref)|| (1/units of each variable); default the inverse ranges"
+        None,
+        description="diagonal W of ||W (q - q_ref)|| (1/units of each variable); default the inverse ranges "
+        "(1 for a fixed variable, lower = upper)",
     )
     tolerance: StrictFloat = Field(1e-10, gt=0, description="||r|| counted as solved [m]")
     orientation_length: StrictFloat | None = Field(

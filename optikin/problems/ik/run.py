@@ -76,7 +76,7 @@ def formulation_of(ctx: ProblemContext, target: str, o: FormulationOptions, wher
         key = "elongation" if o.elongation != "free" else "redundancy"
         raise ctx.error(where(key), "leg-length targets have a unique solution: no penalty, no distribution")
     rest = rest_configuration(arm) if o.rest is None else configuration(ctx, where("rest"), o.rest)
-    weights = vector(ctx, where("weights"), 1.0 / (arm.upper - arm.lower) if o.weights is None else o.weights)
+    weights = vector(ctx, where("weights"), default_weights(arm) if o.weights is None else o.weights)
     orientation_length = 1.0
     if target == "pose":
         orientation_length = reach_bound(arm) if o.orientation_length is None else o.orientation_length
@@ -91,6 +91,12 @@ def formulation_of(ctx: ProblemContext, target: str, o: FormulationOptions, wher
         penalty_on=o.penalty_on,
         elongation=o.elongation,
     )
+
+
+def default_weights(arm: ArmModel) -> np.ndarray:
+    """The inverse ranges ``1 / (upper - lower)``; 1 for a fixed variable (``lower = upper``: not solved for)."""
+    span = arm.upper - arm.lower
+    return 1.0 / np.where(span > 0, span, 1.0)
 
 
 def vector(ctx: ProblemContext, field: str, value: object) -> np.ndarray:
