@@ -213,7 +213,9 @@ def write_result(
         (staging / "result.json").write_text(json.dumps(summary, indent=2) + "\n")
         with _locked(out_dir / f".{name}.lock"):
             _refuse_non_folder(final)
-            _swap(staging, final)
+            old = _swap(staging, final)
+        if old is not None:
+            shutil.rmtree(old, ignore_errors=True)
     except OSError as exc:
         shutil.rmtree(staging, ignore_errors=True)
         raise OutputError(f"{out_dir}: cannot write the result {name!r}: {_reason(exc)}") from None
@@ -303,8 +305,9 @@ def _locked(path: Path) -> Iterator[None]:
         os.close(fd)
 
 
-def _swap(staging: Path, final: Path) -> None:
-    """Put ``staging`` at ``final``; a previous folder there is renamed aside first and removed after."""
+def _swap(staging: Path, final: Path) -> Path | None:
+    """Put ``staging`` at ``final``; a previous folder there is renamed aside first, and its new name returned
+    (for the caller to remove once the lock is released)."""
     old = None
     if final.is_dir():
         old = final.with_name(_temporary_name(final.name, "old"))
@@ -315,8 +318,7 @@ def _swap(staging: Path, final: Path) -> None:
         if old is not None:
             os.rename(old, final)
         raise
-    if old is not None:
-        shutil.rmtree(old, ignore_errors=True)
+    return old
 
 
 def read_result(folder: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
