@@ -475,7 +475,7 @@ def _cbha(arm: ArmModel, path: Path, source: str) -> CBHAArm:
 @register_source(
     "markers",
     "synthetic",
-    "the CBHA vertebra model driven by its tubes, recorded by motion capture",
+    "the CBHA vertebra model driven by its tubes, recorded by motion capture (the vertebra model's own assumptions)",
     params=SyntheticMarkerParams,
 )
 def synthetic_source(arm: ArmModel, data: DataSpec, params: SyntheticMarkerParams, path: Path) -> MarkerRecording:

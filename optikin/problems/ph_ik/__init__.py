@@ -35,6 +35,7 @@ what the choice of frame is worth.
 from __future__ import annotations
 
 import optikin.data.markers  # noqa: F401 - registers the sources of data family "markers"
+import optikin.data.cosserat_markers  # noqa: F401 - registers source "cosserat" of data family "markers"
 from optikin.baselines.ph_comparators import COMPARATORS
 from optikin.problems import ProblemContext, ProblemKind, register_kind
 from optikin.problems.ph_ik import figures

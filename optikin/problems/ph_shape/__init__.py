@@ -34,6 +34,7 @@ Figures: shapes against markers in 3-D, distances per sample, time per sample.
 from __future__ import annotations
 
 import optikin.data.markers  # noqa: F401 - registers the sources of data family "markers"
+import optikin.data.cosserat_markers  # noqa: F401 - registers source "cosserat" of data family "markers"
 from optikin.problems import ProblemContext, ProblemKind, register_kind
 from optikin.problems.ph_shape import figures
 from optikin.problems.ph_shape.options import PHShapeOptions
