@@ -12,6 +12,8 @@ from scipy.spatial.transform import Rotation
 from optikin.curves.tubes import CBHA_TUBE_ANGLES
 from optikin.data.cosserat_markers import CosseratMarkerParams, cosserat_recording
 from optikin.data.sources import DATA_SOURCES
+from optikin.problems.ph_shared import distances_to_polylines, problem_variant
+from optikin.runner import solve
 
 DEFAULT = CosseratMarkerParams()
 FREE = dict(gravity=(0.0, 0.0, 0.0), segments_per_section=1, steps_per_segment=40)
@@ -150,3 +152,31 @@ def test_stations_off_the_solver_nodes_are_refused():
         CosseratMarkerParams(intermediate=(0.5, 1.0, 1.01))
     with pytest.raises(ValidationError, match="even"):
         CosseratMarkerParams(steps_per_segment=11)
+
+
+# ------------------------------------------------------------------------------ the PH kinds on it
+def test_distances_to_polylines_match_the_closed_form_of_a_circle():
+    theta = np.linspace(0.0, np.pi / 2, 4001)
+    circle = np.stack([np.cos(theta), np.sin(theta), 0 * theta], axis=-1)[None]  # radius 1, a quarter
+    points = np.array([[[0.0, 0.0, 0.3], [2.0 * np.cos(0.4), 2.0 * np.sin(0.4), 0.0], [1.0, -1.0, 0.0]]])
+    expected = [np.hypot(1.0, 0.3), 1.0, 1.0]  # to the centre's circle, radially out, past the end point (1, 0)
+    assert np.allclose(distances_to_polylines(points, circle), expected, atol=1e-7)
+
+
+STRAIGHT = dict(
+    gravity=[0.0, 0.0, 0.0], amplitude=0.0, noise=0.0, pose_noise=0.0, orientation_noise=0.0, length_noise=0.0
+)
+
+
+def test_ph_kinds_compare_tube_markers_with_the_tube_curves_at_their_offset(tmp_path):
+    shape, _ = solve(str(problem_variant("cbha-ph-shape-cosserat", tmp_path, samples=3, data_params=STRAIGHT)))
+    m = shape.metrics
+    # a straight, uniformly stretched arm: the PH backbone is its backbone, the PH tubes its tubes
+    assert m["truth backbone: largest node distance [mm]"] < 1e-6
+    assert np.max(m["tube markers: max distance to the PH tube curves per station [mm]"]) < 1e-3
+    # the backbone markers are compared with the backbone, never the tube markers (40 mm away)
+    assert np.max(m["max distance per marker [mm]"]) < 1e-6
+    ik, _ = solve(str(problem_variant("cbha-ph-ik-cosserat", tmp_path, samples=3, data_params=STRAIGHT)))
+    errors = ik.metrics["L1 / L2 / L3 mean error against the noise-free tube lengths [mm]"]
+    assert np.max(errors) < 1e-3
+    assert [row.metrics["failures"] for row in ik.comparison if row.method == "newton-raphson"] == [3]

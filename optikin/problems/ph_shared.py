@@ -41,6 +41,8 @@ from optikin.arms import build_arm
 from optikin.curves import EnergySettings, PHQuintic, ShapeData, ShapeEnergyModel, ShapeSolution, arc_length_estimate
 from optikin.curves.bernstein import bernstein_basis
 from optikin.curves.energy import DEFAULT_NODES
+from optikin.curves.tubes import TubeLayout, tube_points
+from optikin.data.cosserat_markers import CosseratRecording
 from optikin.data.markers import MarkerRecording
 from optikin.data.sources import source_of
 from optikin.errors import InputDataError
@@ -301,6 +303,35 @@ def distances_to_curves(curves: PHQuintic, points: np.ndarray, coarse: int = 401
         if not np.any(np.abs(step) > 1e-15):
             break
     return np.linalg.norm(at(P, tk) - points, axis=-1)
+
+
+def distances_to_polylines(points: np.ndarray, lines: np.ndarray) -> np.ndarray:
+    """Distance of each point ``(..., S, 3)`` to the polyline ``(..., T, 3)`` of the same batch: ``(..., S)``."""
+    out = np.empty(points.shape[:-1])
+    for i in np.ndindex(points.shape[:-2]):  # one line at a time: (S, T) pairs
+        a, ab = lines[i][None, :-1], np.diff(lines[i], axis=0)[None]  # (1, T - 1, 3)
+        p = points[i][:, None]  # (S, 1, 3)
+        t = np.clip(np.sum((p - a) * ab, axis=-1) / np.maximum(np.sum(ab * ab, axis=-1), 1e-300), 0.0, 1.0)
+        out[i] = np.min(np.linalg.norm(a + t[..., None] * ab - p, axis=-1), axis=-1)
+    return out
+
+
+def tube_marker_distances(
+    curves: PHQuintic, recording: MarkerRecording, markers: np.ndarray, frame: str = "rmf", points: int = 1001
+) -> np.ndarray | None:
+    """Distance of tube markers ``(N, M, S, 3)`` to the PH tube curves at their offset: ``(N, M, S)`` [m].
+
+    For a recording with tube markers (:class:`optikin.data.cosserat_markers.CosseratRecording`):
+    tube ``m`` of each curve is the offset curve of :func:`optikin.curves.tubes.tube_points` at the
+    recording's tube radii and angles, carried by ``frame`` from the base x axis, sampled at
+    ``points`` parameters (a polyline: its chord error is ``kappa h^2 / 8``, 0.3 um at 10 / m over 0.5 m); ``None``
+    for a recording without tube markers.
+    """
+    if not isinstance(recording, CosseratRecording):
+        return None
+    layout = TubeLayout(*recording.tube_radius, recording.tube_angles, frame)
+    lines = tube_points(curves, recording.base_normal, np.linspace(0.0, 1.0, points), layout)  # (N, M, T, 3)
+    return distances_to_polylines(markers, lines)
 
 
 def summary_of(values_mm: np.ndarray) -> dict[str, float]:

@@ -7,6 +7,7 @@ from typing import Any
 import numpy as np
 
 from optikin.data.configurations import skipped_rows_notes
+from optikin.data.cosserat_markers import CosseratTruth
 from optikin.baselines.ph_comparators import HYBRID, NEWTON_RAPHSON
 from optikin.problems import ProblemContext
 from optikin.problems.ph_ik.run import IkOutcome
@@ -90,6 +91,9 @@ def ik_metrics(outcome: IkOutcome) -> dict[str, Any]:
         ),
     }
     truth = outcome.recording.truth
+    if isinstance(truth, CosseratTruth):
+        clean = np.abs(tubes - truth.tube_lengths) * MM
+        metrics["L1 / L2 / L3 mean error against the noise-free tube lengths [mm]"] = list(np.nanmean(clean, axis=0))
     if truth is not None:
         metrics["backbone length estimate error mean / max [mm]"] = [
             float(np.mean(np.abs(outcome.lengths - truth.backbone_length)) * MM),

@@ -10,12 +10,20 @@ the methods), and the distance of every intermediate marker to it is computed
 backbone (the vertebra centres) is also compared with the PH curve, noise-free:
 the honest measure of how well a PH quintic can represent the vertebra model.
 
+On a ``cosserat`` recording (:mod:`optikin.data.cosserat_markers`: a Cosserat-rod
+CBHA none of the methods models, five markers on each tube at its offset) the
+backbone markers are the centroids of the three tubes' markers at each
+intermediate station, so they are compared with the backbone like with like; the
+truth backbone (every solver node) is compared with the PH backbone, and every
+tube marker with the PH tube curve at its offset (carried by the
+rotation-minimising frame from the base x axis).
+
 Problem file::
 
     kind: ph_shape
     arm: {type: cbha}
     data:
-      source: synthetic     # synthetic | csv (family markers, optikin.data.markers)
+      source: synthetic     # synthetic | cosserat | csv (family markers, optikin.data.markers)
       seed: 2018
       samples: 100
       params: {noise: 0.0003, rate: 240.0, stride: 24}

@@ -1,9 +1,12 @@
 """Figures of a ``ph_shape`` result, from its arrays and summary alone (``optikin plot`` redraws them).
 
 ``shapes``  PH backbones of six postures with their end points and markers (and the model's vertebra
-            centres): arrays ``ph_points``, ``markers``, ``base_position``, ``tip_position`` (``vertebrae``).
+            centres): arrays ``ph_points``, ``markers``, ``base_position``, ``tip_position`` (``vertebrae`` or
+            ``truth_backbone``).
 ``errors``  distance of each marker to the PH backbone per sample (``marker_distance``; the largest
-            vertebra distance, ``vertebra_distance``, when the recording is synthetic).
+            vertebra distance, ``vertebra_distance``, when the recording is synthetic; for a Cosserat
+            recording the largest truth-backbone distance, ``truth_backbone_distance``, and the tube
+            markers' distances to the PH tube curves, ``tube_marker_distance``).
 ``times``   time per sample of every method (``seconds_<method>``).
 """
 
@@ -41,7 +44,7 @@ def figures(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -> dic
                 arrays["ph_points"],
                 points,
                 f"{name}: PH backbones ({solver}) and markers",
-                arrays.get("vertebrae"),
+                arrays.get("vertebrae", arrays.get("truth_backbone")),
             )
 
         drawers["shapes"] = draw_shapes
@@ -52,6 +55,13 @@ def figures(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -> dic
         if "vertebra_distance" in arrays:
             series["model backbone"] = arrays["vertebra_distance"].max(axis=1) * MM
             labels["model backbone"] = ["largest vertebra distance"]
+        if "truth_backbone_distance" in arrays:
+            series["truth backbone"] = arrays["truth_backbone_distance"].max(axis=1) * MM
+            labels["truth backbone"] = ["largest node distance"]
+        if "tube_marker_distance" in arrays:
+            tubes = arrays["tube_marker_distance"] * MM  # (N, tube, station)
+            series["tube markers"] = tubes.mean(axis=1)
+            labels["tube markers"] = [f"station {j + 1}" for j in range(tubes.shape[2])]  # mean of the tubes
 
         def draw_errors(path: Path) -> None:
             from optikin.problems import ph_figures

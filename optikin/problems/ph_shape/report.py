@@ -7,9 +7,10 @@ from typing import Any
 import numpy as np
 
 from optikin.data.configurations import skipped_rows_notes
+from optikin.data.cosserat_markers import CosseratRecording, CosseratTruth
 from optikin.problems import ProblemContext
 from optikin.problems.ph_shape.run import ShapeOutcome
-from optikin.problems.ph_shared import MM, distances_to_curves, method_rows
+from optikin.problems.ph_shared import MM, distances_to_curves, method_rows, tube_marker_distances
 from optikin.results import Result
 
 SEED_MEAN_DISTANCES_MM = (1.2, 3.7, 3.1)
@@ -18,11 +19,52 @@ SEED_MEAN_DISTANCES_MM = (1.2, 3.7, 3.1)
 CURVE_POINTS = 101
 
 
+def cosserat_metrics(outcome: ShapeOutcome) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    """Metrics and arrays of a Cosserat recording's truth and tube markers (like with like).
+
+    The backbone markers (centroids of the three tubes' markers) are compared with the PH
+    backbone by :func:`report`; here the truth backbone (every solver node) is compared with
+    it, and each tube marker with the PH tube curve at its offset (not with the backbone,
+    from which it is 29-40 mm away).
+    """
+    recording, curves, lengths = outcome.recording, outcome.main.curves, outcome.lengths
+    truth = recording.truth
+    assert isinstance(truth, CosseratTruth) and isinstance(recording, CosseratRecording)
+    backbone = distances_to_curves(curves, truth.vertebrae) * MM  # (N, K)
+    clean = distances_to_curves(curves, truth.marker_truth) * MM
+    tubes = tube_marker_distances(curves, recording, recording.tube_markers)
+    tubes_clean = tube_marker_distances(curves, recording, truth.tube_markers)
+    assert tubes is not None and tubes_clean is not None
+    metrics: dict[str, Any] = {
+        "noise-free backbone markers: mean distance per marker [mm]": np.nanmean(clean, axis=0),
+        "truth backbone: mean of the largest node distance [mm]": float(np.nanmean(backbone.max(1))),
+        "truth backbone: largest node distance [mm]": float(np.nanmax(backbone)),
+        "tube markers: mean distance to the PH tube curves per station [mm]": np.nanmean(tubes * MM, axis=(0, 1)),
+        "tube markers: max distance to the PH tube curves per station [mm]": np.nanmax(tubes * MM, axis=(0, 1)),
+        "noise-free tube markers: mean distance to the PH tube curves per station [mm]": np.nanmean(
+            tubes_clean * MM, axis=(0, 1)
+        ),
+        "backbone length estimate error mean / max [mm]": [
+            float(np.mean(np.abs(lengths - truth.backbone_length)) * MM),
+            float(np.max(np.abs(lengths - truth.backbone_length)) * MM),
+        ],
+    }
+    arrays = {
+        "truth_backbone": truth.vertebrae,
+        "truth_backbone_distance": backbone / MM,
+        "tube_markers": recording.tube_markers,
+        "tube_marker_distance": tubes,
+    }
+    return metrics, arrays
+
+
 def truth_metrics(outcome: ShapeOutcome) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
     """Metrics and arrays of the synthetic recording's ground truth (empty for a recorded file)."""
     truth, lengths = outcome.recording.truth, outcome.lengths
     if truth is None:
         return {}, {}
+    if isinstance(truth, CosseratTruth):
+        return cosserat_metrics(outcome)
     curves = outcome.main.curves
     vertebra_distance = distances_to_curves(curves, truth.vertebrae) * MM  # (N, 17)
     clean = distances_to_curves(curves, truth.marker_truth) * MM
