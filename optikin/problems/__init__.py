@@ -26,21 +26,24 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable
+from typing import TYPE_CHECKING, Any, Callable, TypeVar
 
 import numpy as np
 
 from optikin.arms.base import ArmModel
 from optikin.data.sources import DataSource
-from optikin.errors import SpecError
+from optikin.errors import SolverError, SpecError
 from optikin.options import NoOptions, Options
 from optikin.progress import Progress
 from optikin.registry import PROBLEM_KINDS
 from optikin.results import FigureBuilder, Result
+from optikin.solvers.base import Adapter
 from optikin.spec import ProblemSpec, SolverSpec
 
 if TYPE_CHECKING:
     from optikin.solvers import LoadedPreset
+
+A = TypeVar("A")
 
 
 @dataclass
@@ -62,7 +65,8 @@ class ProblemContext:
     preset:
         The solver preset (spec, file, backend, typed options), or ``None``.
     adapter:
-        The preset's adapter, keeping its family's protocol (:mod:`optikin.solvers.base`).
+        The preset's adapter, keeping its family's protocol (:mod:`optikin.solvers.base`);
+        :meth:`backend` gives it with the type a kind expects.
     """
 
     spec: ProblemSpec
@@ -73,12 +77,20 @@ class ProblemContext:
     data_source: DataSource | None = None
     data_params: Any = None
     preset: "LoadedPreset | None" = None
-    adapter: Any = None
+    adapter: Adapter | None = None
 
     @property
     def solver(self) -> SolverSpec | None:
         """The solver preset's spec, or None."""
         return None if self.preset is None else self.preset.spec
+
+    def backend(self, expected: type[A]) -> A:
+        """The preset's adapter as ``expected`` (a family protocol of :mod:`optikin.solvers.base`, or an
+        adapter class); a kind run without a preset, or with one of another family, is a :class:`SolverError`."""
+        if not isinstance(self.adapter, expected):
+            got = "no solver preset" if self.adapter is None else type(self.adapter).__name__
+            raise SolverError(f"kind {self.spec.kind!r} needs a {getattr(expected, '__name__', expected)}, got {got}")
+        return self.adapter
 
     def rng(self, stream: int = 0) -> np.random.Generator:
         """A generator seeded from ``data.seed`` (``stream`` separates independent draws)."""

@@ -212,7 +212,7 @@ def ph_methods(ctx: ProblemContext, others: tuple[str, ...] = ()) -> list[tuple[
 
     ``others`` are baseline names the kind runs itself (not ``ph`` presets).
     """
-    methods = [(solver_name(ctx), "solver", ctx.adapter)]
+    methods = [(solver_name(ctx), "solver", ctx.backend(PHAdapter))]
     for name in ctx.spec.baselines:
         if name in [m[0] for m in methods] or name in others:
             continue

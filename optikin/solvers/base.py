@@ -27,7 +27,7 @@ Families
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Protocol, Sequence
+from typing import TYPE_CHECKING, Any, Protocol, Sequence, runtime_checkable
 
 import numpy as np
 
@@ -115,12 +115,14 @@ class SolutionBatch:
         )
 
 
+@runtime_checkable
 class EvaluationBackend(Protocol):
     """Family ``evaluation``: ``evaluate(arm, name, Q) -> (N, rows, cols)`` for ``Q`` of shape ``(N, n_config)``."""
 
     def evaluate(self, arm: "ArmModel", name: str, Q: np.ndarray) -> np.ndarray: ...
 
 
+@runtime_checkable
 class NonlinearBackend(Protocol):
     """Family ``nonlinear``: one solve from ``x0``, or many (optionally warm-started along a trajectory)."""
 
@@ -138,6 +140,7 @@ class NonlinearBackend(Protocol):
     ) -> SolutionBatch: ...
 
 
+@runtime_checkable
 class ShapeBackend(Protocol):
     """Family ``ph``: the CasADi energy model of given settings, and one solution per sample in order."""
 
@@ -146,13 +149,19 @@ class ShapeBackend(Protocol):
     def solve(self, model: Any, samples: Sequence[Any]) -> Sequence[Solution]: ...
 
 
+@runtime_checkable
 class QPStepSolver(Protocol):
     """One controller's QP solver: ``solve(data) -> Solution`` with ``x`` the joint rates (NaN on failure)."""
 
     def solve(self, data: Any) -> Solution: ...
 
 
+@runtime_checkable
 class QPBackend(Protocol):
     """Family ``qp``: a fresh per-controller solver for ``n`` rates and ``m`` task rows."""
 
     def create(self, n: int, m: int) -> QPStepSolver: ...
+
+
+Adapter = EvaluationBackend | NonlinearBackend | ShapeBackend | QPBackend
+"""What a preset's ``build`` returns: an adapter keeping one family's protocol."""

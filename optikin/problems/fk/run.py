@@ -117,7 +117,7 @@ def run(ctx: ProblemContext) -> FkOutcome:
     arm = ctx.arm
     samples = ctx.load_data()
     Q = arm.validate(samples.values, source=f"{ctx.path.name}: data ({ctx.spec.data.source})")
-    evaluator = ctx.adapter
+    evaluator = ctx.backend(EvaluationBackend)
     # Build the Functions (and compile them, for compiled backends) before timing.
     t_build = timed(lambda: [evaluator.evaluate(arm, name, Q[:1]) for name in FUNCTIONS])[1]
     tip, sections, backbone, t_tip = evaluate_all(ctx, evaluator, Q)

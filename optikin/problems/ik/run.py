@@ -139,7 +139,8 @@ def methods_of(ctx: ProblemContext, setup: IkSetup) -> list[Method]:
     """The problem's solver, each baseline preset not already listed, then the solver on each variant."""
     assert ctx.solver is not None
     problem = build_problem(ctx.arm, setup.formulation)
-    methods = [Method(ctx.solver.name, "solver", ctx.adapter, setup.formulation, problem)]
+    adapter = ctx.backend(NonlinearAdapter)
+    methods = [Method(ctx.solver.name, "solver", adapter, setup.formulation, problem)]
     for name in ctx.spec.baselines:
         if name in [m.name for m in methods]:
             continue
@@ -147,9 +148,7 @@ def methods_of(ctx: ProblemContext, setup: IkSetup) -> list[Method]:
         methods.append(Method(name, "baseline", build_preset(name), setup.formulation, problem))
     for label, formulation in setup.variants.items():
         methods.append(
-            Method(
-                f"{ctx.solver.name} [{label}]", "variant", ctx.adapter, formulation, build_problem(ctx.arm, formulation)
-            )
+            Method(f"{ctx.solver.name} [{label}]", "variant", adapter, formulation, build_problem(ctx.arm, formulation))
         )
     return methods
 

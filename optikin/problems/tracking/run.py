@@ -17,6 +17,7 @@ from optikin.control.task import Task, task_dimension
 from optikin.data.references import TrackingReference
 from optikin.problems import ProblemContext
 from optikin.problems.tracking.options import PlantOptions, ToleranceOptions, TrackingOptions
+from optikin.solvers.base import QPBackend
 
 BASELINES: dict[str, type[Controller]] = {
     "mrac": MRACController,
@@ -128,7 +129,7 @@ def _controllers(ctx: ProblemContext, options: TrackingOptions, dt: float, task:
                 task,
                 o.gain,
                 o.damping,
-                solver=ctx.adapter.create(arm.n_config, task_dimension(task)),
+                solver=ctx.backend(QPBackend).create(arm.n_config, task_dimension(task)),
                 rate_limits=o.rate_limits,
                 margin=o.limit_margin,
                 limit_gain=o.limit_gain,
