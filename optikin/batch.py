@@ -5,19 +5,27 @@ is handed to CasADi with ``Function.buffer()``: no copies, the configurations
 ``(N, n)`` in C order *are* the column-major ``n x N`` input of ``f.map(N)``, and
 the ``rows x (cols N)`` output lands directly in a numpy array ``(N, cols, rows)``.
 Building ``f.map(n)`` costs time in proportion to ``n``, so big batches run in
-chunks through one cached ``map(4096)`` (:class:`BatchFunction`). Timings: see
-``BENCHMARKS.md``.
+chunks through cached maps of at most 4096 samples, fewer for a Function costly
+enough that a chunk would take more than :data:`CHUNK_SECONDS` (:class:`BatchFunction`).
+Timings: see ``BENCHMARKS.md``.
 """
 
 from __future__ import annotations
 
 import threading
+import time
 from collections import OrderedDict
 
 import casadi as ca
 import numpy as np
 
 from optikin.errors import SolverError
+from optikin.interrupt import calls_casadi, check_interrupted
+
+CHUNK_SECONDS = 0.2
+"""Wall time a chunk of a batch aims at [s]."""
+PROBE = 16
+"""Samples of the first chunk of a Function whose cost per sample is not yet known."""
 
 
 def _dense_indices(f: ca.Function) -> np.ndarray | None:
@@ -43,10 +51,14 @@ class BatchFunction:
 
     ``batch(Q)`` returns ``(N, rows, cols)`` for output 0, the same numbers as
     ``f.map(N)(Q.T)``. Building ``f.map(n)`` the first time costs in proportion to
-    ``n`` (see ``BENCHMARKS.md``), so large batches run as chunks of :attr:`chunk`
-    samples through one cached ``map(chunk)``, plus one map for the remainder; maps
-    of the last ``max_sizes`` remainder sizes are cached. Calls are serialised by a
-    lock: a buffer holds raw pointers between ``set_arg`` and the call.
+    ``n`` (see ``BENCHMARKS.md``), so large batches run as chunks of at most
+    :attr:`chunk` samples through cached maps, plus one map for the remainder; the
+    maps of the last ``max_sizes`` sizes are kept, that of the current chunk size
+    always. A chunk is also kept short enough to take about :data:`CHUNK_SECONDS` at
+    the cost per sample measured on the previous one (the first has :data:`PROBE`
+    samples), because a stop request (:mod:`optikin.interrupt`) waits for the chunk
+    running. Calls are serialised by a lock: a buffer holds raw pointers between
+    ``set_arg`` and the call.
     """
 
     def __init__(self, f: ca.Function, chunk: int = 4096, max_sizes: int = 8):
@@ -61,6 +73,16 @@ class BatchFunction:
         self._max_sizes = int(max_sizes)
         self._maps: OrderedDict[int, tuple] = OrderedDict()
         self._lock = threading.Lock()
+        self._per_sample: float | None = None  # seconds per sample of the last chunk
+        self._size = min(self.chunk, PROBE)  # samples of a full chunk, as last chosen
+
+    def _chunk_size(self) -> int:
+        """Samples of the next full chunk: :attr:`chunk`, or the largest power of two that takes at
+        most :data:`CHUNK_SECONDS` at the last measured cost per sample (:data:`PROBE` before any)."""
+        if self._per_sample is not None:
+            fits = int(CHUNK_SECONDS / max(self._per_sample, 1e-12))
+            self._size = min(self.chunk, 1 << max(fits.bit_length() - 1, 0))
+        return self._size
 
     def _mapped(self, n: int) -> tuple:
         entry = self._maps.get(n)
@@ -69,12 +91,13 @@ class BatchFunction:
             buffer, call = fm.buffer()
             entry = self._maps[n] = (fm, buffer, call)
             while len(self._maps) > self._max_sizes:
-                oldest = next(k for k in self._maps if k != self.chunk)
+                oldest = next(k for k in self._maps if k != self._size)
                 del self._maps[oldest]
         else:
             self._maps.move_to_end(n)
         return entry
 
+    @calls_casadi
     def _run(self, n: int, x: memoryview, y: memoryview) -> None:
         _, buffer, call = self._mapped(n)
         buffer.set_arg(0, x)
@@ -92,13 +115,16 @@ class BatchFunction:
         if n == 0:
             return out
         x, y = Q.reshape(-1).data, out.reshape(-1).data
-        a, b, c = self.n_in, self.nnz_out, self.chunk
+        a, b = self.n_in, self.nnz_out
         with self._lock:
-            full = n - n % c if n > c else 0
-            for start in range(0, full, c):
-                self._run(c, x[start * a : (start + c) * a], y[start * b : (start + c) * b])
-            if full < n:
-                self._run(n - full, x[full * a :], y[full * b :])
+            start = 0
+            while start < n:
+                size = min(self._chunk_size(), n - start)
+                began = time.perf_counter()
+                self._run(size, x[start * a : (start + size) * a], y[start * b : (start + size) * b])
+                self._per_sample = (time.perf_counter() - began) / size
+                check_interrupted()
+                start += size
         return out
 
     def __call__(self, Q: np.ndarray) -> np.ndarray:
@@ -140,14 +166,15 @@ def _dm_batch_output(f: ca.Function, Q: np.ndarray) -> np.ndarray:
     if Q.shape[0] == 0:
         return np.empty((0, rows, cols))
     out = np.asarray(f.map(Q.shape[0], "serial")(Q.T))
+    check_interrupted()
     return out.reshape(rows, cols, Q.shape[0], order="F").transpose(2, 0, 1)
 
 
 def batch_evaluate(f: ca.Function, Q: np.ndarray) -> np.ndarray:
     """Output 0 of ``f`` on every row of ``Q (N, n)`` in one call into CasADi: ``(N, rows, cols)``.
 
-    Zero-copy through ``Function.buffer()``, in chunks through a cached
-    ``f.map(4096)`` (see :class:`BatchFunction`); bit-identical to ``f.map(N)(Q.T)``.
+    Zero-copy through ``Function.buffer()``, in chunks through cached maps of at
+    most 4096 samples (see :class:`BatchFunction`); bit-identical to ``f.map(N)(Q.T)``.
     Functions with several or sparse inputs fall back to ``f.map(N)`` with DM
     conversions. ``ArmModel.evaluate`` can use this directly.
     """

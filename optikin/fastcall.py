@@ -20,6 +20,8 @@ from typing import Any, cast
 import casadi as ca
 import numpy as np
 
+from optikin.interrupt import calls_casadi
+
 
 class BufferedFunction:
     """A CasADi Function bound to preallocated numpy arrays.
@@ -54,6 +56,7 @@ class BufferedFunction:
         for i, array in enumerate(self.outputs):
             self._buffer.set_res(i, array.data)
 
+    @calls_casadi
     def __call__(self, *args: Any) -> list[np.ndarray]:
         """Evaluate; arguments given (the first ones, in order) are copied into :attr:`inputs` first.
 

@@ -6,6 +6,8 @@ import sys
 from contextlib import contextmanager
 from typing import Any, Iterator
 
+from optikin.interrupt import check_interrupted
+
 
 class Progress:
     """Reports progress of named tasks; ``enabled=False`` (or no terminal) makes it silent."""
@@ -32,6 +34,7 @@ class _Advance:
         self._bar, self._task = bar, task_id
 
     def __call__(self, n: int = 1) -> None:
+        check_interrupted()
         if self._bar is not None:
             self._bar.advance(self._task, n)
 

@@ -41,6 +41,7 @@ from optikin.algebra import (
 from optikin.arms.base import ArmModel
 from optikin.control.base import Controller
 from optikin.fastcall import BufferedFunction
+from optikin.interrupt import check_interrupted
 from optikin.control.limits import limit_excess, periodic_mask, wrap_periodic
 from optikin.control.reference import Reference
 from optikin.control.task import TASK_FUNCTIONS
@@ -238,6 +239,7 @@ def simulate(
 
     z = np.array(q0, dtype=float)
     for k, t in enumerate(reference.t):
+        check_interrupted()
         q = z + plant.offset(arm, t)
         plant_fk.inputs[0][:] = q
         plant_fk()

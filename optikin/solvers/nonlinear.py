@@ -57,6 +57,7 @@ import numpy as np
 
 from optikin.batch import batched
 from optikin.fastcall import BufferedFunction
+from optikin.interrupt import check_interrupted
 from optikin.options import Options
 from optikin.solvers.base import Solution, SolutionBatch
 from optikin.spec import SolverSpec
@@ -434,6 +435,7 @@ class NonlinearAdapter:
         reports: list[Solution] = []
         previous = None
         for k in range(len(P)):
+            check_interrupted()
             start = X0[k] if previous is None else previous
             report = self.solve_free(problem, start, P[k], x_ref)
             reports.append(report)

@@ -35,6 +35,7 @@ import numpy as np
 from pydantic import Field
 
 from optikin.curves.min_energy import EnergySettings, ShapeData, ShapeEnergyModel, ShapeSolution
+from optikin.interrupt import check_interrupted
 from optikin.options import Options
 from optikin.solvers import register_backend
 from optikin.spec import SolverSpec
@@ -105,6 +106,7 @@ class PHAdapter:
         out: list[ShapeSolution] = []
         previous = None
         for data in samples:
+            check_interrupted()
             sol = self.solve_one(model, data, previous)
             out.append(sol)
             previous = sol.x if (self.warm_start and sol.status == "ok") else None
