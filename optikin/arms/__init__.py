@@ -17,12 +17,14 @@ from typing import Any, cast
 from optikin.arms.base import ArmModel
 from optikin.arms.cbha import CBHAArm, CBHAGeometry
 from optikin.arms.constant_curvature import ConstantCurvatureArm
+from optikin.arms.cosserat import CosseratArm
 from optikin.checks import ParameterError
 from optikin.errors import SpecError
 from optikin.registry import ARMS
 
 ARMS.register("constant_curvature")(ConstantCurvatureArm)
 ARMS.register("cbha")(CBHAArm)
+ARMS.register("cosserat")(CosseratArm)
 
 __all__ = ["ArmModel", "CBHAArm", "CBHAGeometry", "ConstantCurvatureArm", "build_arm"]
 
