@@ -169,3 +169,10 @@ def test_figures_are_redrawn_from_a_written_result(tmp_path):
         png.unlink()
     assert main(["plot", str(folder)]) == 0
     assert sorted(p.name for p in folder.glob("*.png")) == drawn
+
+
+def test_a_grid_too_large_is_refused_naming_its_points(tmp_path):
+    data = {"source": "grid", "params": {"points": 5000}}
+    with pytest.raises(SpecError) as err:
+        solve(str(problem(tmp_path, data=data)))
+    assert err.value.field == "data.params.points"

@@ -10,7 +10,7 @@ arm's bounds (a negative tension is an error naming the sample and the tendon).
 ``trajectory``  every actuator a sinusoid about its mid-range, sampled in time
                 (:class:`~optikin.data.configurations.TrajectoryParams`; seeded).
 ``random``      uniform draws inside the bounds (seeded).
-``grid``        a full grid over some actuators (:class:`GridParams`), the others fixed.
+``grid``        a full grid over some actuators (:class:`GridParams`), the others fixed, in order.
 ``csv``         rows of a CSV file, one column per actuator, optional ``t`` (:class:`CsvParams`).
 ``target_csv``  inverse statics only: tip targets read from a CSV file (``x, y, z`` [m], plus
                 ``qw, qx, qy, qz`` for poses, optional ``t``; :func:`optikin.data.targets.read_target_csv`).
@@ -38,6 +38,8 @@ from optikin.spec import DataSpec
 
 FAMILY = "actuations"
 """The data family of the ``statics`` kind."""
+MAX_GRID = 10_000_000
+"""Most samples a ``grid`` may have (the limit of ``data.samples``)."""
 
 
 @dataclass(frozen=True)
@@ -129,6 +131,8 @@ def grid_actuations(arm: ArmModel, data: DataSpec, params: GridParams, path: Pat
         base[names.index(key)] = value
     points = params.points or max(2, int(np.floor(data.samples ** (1.0 / max(len(chosen), 1)) + 1e-9)))
     columns = [names.index(n) for n in chosen]
+    if points ** len(columns) > MAX_GRID:
+        raise SpecError(str(path), "data.params.points", f"{points}^{len(columns)} grid points, more than {MAX_GRID:,}")
     axes = [np.linspace(arm.lower[j], arm.upper[j], points) for j in columns]
     values = np.tile(base, (points ** len(columns), 1))
     for row, combination in enumerate(itertools.product(*axes)):

@@ -317,7 +317,7 @@ def inverse(ctx: ProblemContext, samples: Actuations) -> InverseOutcome:
     outcome = inverse_targets(ctx, samples, solver)
     fixed = fixed_loads(arm, options.loads)
     start = start_of(ctx)
-    methods: list[tuple[str, str, NonlinearAdapter]] = [(ctx.solver.name, "solver", ctx.adapter)]  # type: ignore[list-item]
+    methods: list[tuple[str, str, NonlinearAdapter]] = [(ctx.solver.name, "solver", ctx.backend(NonlinearAdapter))]
     methods += [(name, "baseline", build_preset(name)) for name in ctx.spec.baselines if name != ctx.solver.name]
     n = len(outcome.targets)
     with ctx.progress.task(f"statics inverse: {n} targets x {len(methods)} methods", total=len(methods)) as advance:
