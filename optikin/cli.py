@@ -5,7 +5,8 @@ Exit status, one meaning each:
 0
     the run finished and every sample is ``ok``;
 1
-    the run finished but some samples failed;
+    the run finished but some samples failed, or the run missed a criterion of its
+    kind (e.g. a tracking run did not converge; a note says by how much);
 2
     bad input (a malformed file, an unknown name or field, bad data): one line
     naming the file, field or sample;

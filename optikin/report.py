@@ -26,12 +26,18 @@ def wide_console() -> Console:
 
 
 def print_result(result: Result, console: Console | None = None) -> None:
-    """Status counts, metrics, and the comparison of methods as tables."""
+    """Status counts, the run's criteria (met or not), metrics, and the comparison of methods as tables."""
     console = console or wide_console()
     counts = ", ".join(f"{k}: {v}" for k, v in result.status_counts().items())
     console.print(
         f"[bold]{result.problem}[/bold] ({result.kind}, solver {result.solver}): {result.samples} samples, {counts}"
     )
+    if result.criteria:
+        met = ", ".join(
+            f"{escape(name)} " + ("[green]met[/green]" if ok else "[red]not met[/red]")
+            for name, ok in result.criteria.items()
+        )
+        console.print(f"criteria: {met}")
     if result.metrics:
         table = Table(title="metrics", show_header=False)
         for k, v in result.metrics.items():

@@ -83,6 +83,9 @@ class Result:
     comparison: list[MethodRow] = field(default_factory=list)
     arrays: dict[str, np.ndarray] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    criteria: dict[str, bool] = field(default_factory=dict)
+    """Run-level success criteria the kind states (e.g. a tracking run converged), by name:
+    met or not; a note says by how much one was missed."""
 
     def __post_init__(self) -> None:
         unknown = sorted(set(self.status) - set(STATUSES))
@@ -98,7 +101,8 @@ class Result:
 
     @property
     def succeeded(self) -> bool:
-        return all(s == "ok" for s in self.status)
+        """Every sample ``ok`` and every criterion met."""
+        return all(s == "ok" for s in self.status) and all(self.criteria.values())
 
     def summary(self) -> dict[str, Any]:
         """Everything but the arrays and figures, as JSON-ready data."""
@@ -114,6 +118,8 @@ class Result:
             "samples": self.samples,
             "status_counts": self.status_counts(),
             "failed_samples": failed[:100],
+            "criteria": self.criteria,
+            "succeeded": self.succeeded,
             "timings": self.timings,
             "metrics": self.metrics,
             "comparison": [row.__dict__ for row in self.comparison],

@@ -76,7 +76,7 @@ def test_dmp_reference_starts_at_the_demonstration_and_is_tracked_within_limits(
 def test_every_scenario_runs_and_the_qp_never_takes_the_arm_outside_a_limit(tmp_path, name):
     result, written = solve(str(shortened(tmp_path, name)), out=tmp_path / "out", figures=False)
     assert (written / "result.json").is_file() and (written / "arrays.npz").is_file()
-    assert result.succeeded  # no QP failure on any step
+    assert result.status_counts() == {"ok": result.samples}  # no QP failure on any step
     q = result.arrays["q_qp"]
     assert np.all(np.isfinite(q)) and len(q) == len(result.arrays["t"])
     if name != "track-sensor-noise":  # with noise the limits hold on the measured configuration only

@@ -40,7 +40,13 @@ Options (all optional; :class:`~optikin.problems.tracking.options.TrackingOption
     tolerance: {position_mm: 0.05, orientation_deg: 0.05}   # convergence check on the last 10 % of the run
 
 Per-step status: ``ok``, or ``failed`` where the QP solver failed and the
-fallback was applied (the reason is in the notes).
+fallback was applied (the reason is in the notes). The run succeeds when every
+step is ``ok`` and the QP meets both criteria of the Result
+(:func:`~optikin.problems.tracking.report.success_criteria`): ``converged``
+(final errors within ``options.tolerance``) and ``within limits`` (no step on
+which its own command kept or took the arm outside the configuration limits);
+otherwise ``optikin solve`` exits 1 and a note says which criterion failed and by
+how much. The baselines' convergence is a reported metric, not a criterion.
 """
 
 from __future__ import annotations

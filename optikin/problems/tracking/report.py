@@ -38,6 +38,7 @@ def result(ctx: ProblemContext, outcome: TrackingOutcome) -> Result:
         "qp step median [us]": float(metrics["step time median [us]"]),
         "qp step p95 [us]": float(metrics["step time p95 [us]"]),
     }
+    criteria, missed = success_criteria(summaries["qp"], outcome.tolerance)
     return Result(
         problem=spec.name,
         kind=spec.kind,
@@ -50,7 +51,8 @@ def result(ctx: ProblemContext, outcome: TrackingOutcome) -> Result:
         metrics=metrics,
         comparison=comparison,
         arrays=arrays(outcome),
-        notes=notes(runs, summaries),
+        notes=missed + notes(runs, summaries),
+        criteria=criteria,
     )
 
 
@@ -66,6 +68,51 @@ def converged(metrics: dict[str, Any], tolerance: ToleranceOptions) -> bool:
     if "orientation error final [deg]" in metrics:
         ok = ok and metrics["orientation error final [deg]"] < tolerance.orientation_deg
     return bool(ok)
+
+
+def success_criteria(metrics: dict[str, Any], tolerance: ToleranceOptions) -> tuple[dict[str, bool], list[str]]:
+    """The run-level criteria of the solver under study (the QP), and a note for each one missed.
+
+    ``converged``: :func:`converged` (the final errors, means over the last 10 % of the run,
+    below ``options.tolerance``). ``within limits``: on no step did the QP's own command keep
+    or take the arm outside the configuration limits (a start outside them or a disturbance
+    does not count while the command leads back).
+
+    Parameters
+    ----------
+    metrics:
+        :meth:`~optikin.control.simulate.TrackingRun.metrics` of the QP's run.
+    tolerance:
+        ``options.tolerance``.
+
+    Returns
+    -------
+    tuple
+        ``{name: met}`` and the notes saying by how much each missed criterion failed.
+    """
+    missed = []
+    ok = converged(metrics, tolerance)
+    if not ok:
+        position = metrics["position error final [mm]"]
+        errors = [f"final position error {position:.4g} mm (tolerance {tolerance.position_mm:g} mm)"]
+        if "orientation error final [deg]" in metrics:
+            errors.append(
+                f"final orientation error {metrics['orientation error final [deg]']:.4g} deg "
+                f"(tolerance {tolerance.orientation_deg:g} deg)"
+            )
+        missed.append(f"criterion converged not met: {', '.join(errors)}")
+    steps = metrics["steps the controller kept or took outside"]
+    if steps:
+        worst = ", ".join(
+            f"{variable} {metrics[key]:.3g} {unit}"
+            for variable, unit in (("S", "mm"), ("theta", "deg"))
+            if metrics.get(key := f"max limit excess {variable} [{unit}]", 0) > 0
+        )
+        missed.append(
+            f"criterion within limits not met: the QP's command kept or took the arm outside the "
+            f"configuration limits on {steps} steps; farthest: {worst}"
+        )
+    return {"converged": ok, "within limits": not steps}, missed
 
 
 def arrays(outcome: TrackingOutcome) -> dict[str, np.ndarray]:
