@@ -86,6 +86,7 @@ class OSQPStepSolver:
         )
         self._solver = getattr(self.problem, "_solver", None)  # the fast path (class docstring)
         self._solved = osqp.SolverStatus.OSQP_SOLVED
+        self._interrupted = osqp.SolverStatus.OSQP_SIGINT
 
     def solve(self, data: QPData) -> Solution:
         """One warm-started solve; ``extras`` holds OSQP's primal and dual residuals."""
@@ -102,6 +103,8 @@ class OSQPStepSolver:
         extras = {"primal_residual": info.prim_res, "dual_residual": info.dual_res}
         if info.status_val == self._solved:
             return Solution(x, "ok", info.iter, seconds=info.run_time, extras=extras)
+        if info.status_val == self._interrupted:
+            raise KeyboardInterrupt  # OSQP catches SIGINT itself during a solve; honour it once it returned
         return Solution(
             np.full(self.n, np.nan), "failed", info.iter, seconds=info.run_time, message=info.status, extras=extras
         )
