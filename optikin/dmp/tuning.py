@@ -40,7 +40,7 @@ from optikin.dmp.gains import GAIN_NAMES, Gains, stable_bounds
 from optikin.dmp.imitation import design_matrix, target_forces
 from optikin.dmp.model import DMP
 from optikin.dmp.rollout import rollout_function
-from optikin.errors import SolverError
+from optikin.errors import InputDataError, SolverError
 
 Scenario = Literal["reproduction", "goal"]
 """What eq. (29) measures: the reproduction of the demonstration, or the approach to a new goal."""
@@ -231,6 +231,15 @@ def tuning_problem(
     objective = ca.Function("dmp_eq29", [log_gains], [ca.sumsqr(E) / samples], ["log_gains"], ["error"])
 
     lower, upper = bounds if bounds is not None else default_bounds(dmp, names)
+    empty = [n for n, lo, hi in zip(names, lower, upper) if not lo <= hi]
+    if empty:
+        raise InputDataError(
+            f"no admissible range for gain(s) {', '.join(empty)} with the demonstration's time step "
+            f"dt = {dmp.dt:.3g} s "
+            f"and duration tau = {dmp.tau:.3g} s (the stable upper bound falls below the lower bound): use a longer "
+            f"demonstration or fewer tuned gains",
+            field="tuning.gains",
+        )
     initial = np.clip([getattr(dmp.gains, n) for n in names], lower, upper)
     return TuningProblem(
         tuple(names), objective, np.asarray(lower, float), np.asarray(upper, float), initial, dmp.gains

@@ -144,3 +144,13 @@ def test_random_bytes_are_refused(blob, tmp_path, capsys):
     err = capsys.readouterr().err
     assert code == EXIT_BAD_INPUT, err
     assert str(path) in err
+
+
+def test_a_demonstration_too_short_to_tune_is_a_field_error(tmp_path, capsys):
+    data, _ = shipped_data("dmp-imu-dualquat")
+    data["data"]["samples"] = 8
+    data.setdefault("outputs", {})["figures"] = False
+    problem = write(tmp_path, data)
+    assert main(["solve", str(problem), "--out", str(tmp_path / "out"), "--json"]) == EXIT_BAD_INPUT
+    assert "options.tuning.gains: no admissible range for gain(s) beta" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()

@@ -287,14 +287,17 @@ def tune(
         when, p, q = goals[0]
         extra = {"new_goal": variant_data(variant, p, q, final_rpy), "switch_time": when}
     demo = learner.demo
-    problem = tuning_problem(
-        learner.dmp(variant),
-        demo.t,
-        variant_data(variant, demo.position, demo.quaternion),
-        names,
-        scenario=tuning.scenario,
-        **extra,
-    )
+    try:
+        problem = tuning_problem(
+            learner.dmp(variant),
+            demo.t,
+            variant_data(variant, demo.position, demo.quaternion),
+            names,
+            scenario=tuning.scenario,
+            **extra,
+        )
+    except InputDataError as exc:
+        raise ctx.error("options.tuning.gains", str(exc).removeprefix("tuning.gains: ")) from None
     seed = ctx.spec.data.seed
     with ctx.progress.task(f"dmp: tuning {', '.join(names)}", total=2) as advance:
         results = [
