@@ -410,6 +410,8 @@ class CBHAArm(ArmModel):
                 geometry = CBHAGeometry(**geometry)
             except ParameterError as exc:
                 raise ParameterError(f"geometry.{exc.field}", exc.message) from None
+        elif not isinstance(geometry, CBHAGeometry):
+            raise ParameterError("geometry", f"expected a mapping of CBHAGeometry fields, got {geometry!r:.40}")
         self.geometry = geometry
         names = tuple(f"{v}{k}" for k in range(1, geometry.n_platforms + 1) for v in ("Z", "theta", "psi"))
         self.leg_names = tuple(f"q{m}_{k}" for k in range(1, geometry.n_platforms + 1) for m in (1, 2, 3))

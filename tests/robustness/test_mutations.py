@@ -97,7 +97,7 @@ mutation = st.tuples(st.integers(min_value=0), st.sampled_from(REPLACEMENTS), st
 
 
 @pytest.mark.parametrize("name", SHIPPED)
-@settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=6, derandomize=True, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(change=mutation)
 def test_a_mutated_problem_is_validated_or_refused(name, change, tmp_path, capsys):
     data, _ = shipped_data(name)
@@ -118,7 +118,7 @@ def cheap_shipped() -> list[str]:
 
 
 @pytest.mark.parametrize("name", cheap_shipped())
-@settings(max_examples=3, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=3, derandomize=True, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(change=mutation)
 def test_a_mutated_cheap_problem_solves_or_is_refused_cleanly(name, change, tmp_path, capsys):
     data, _ = shipped_data(name)
@@ -135,7 +135,7 @@ def test_a_mutated_cheap_problem_solves_or_is_refused_cleanly(name, change, tmp_
     folder_is_complete_or_empty(out)
 
 
-@settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=20, derandomize=True, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(blob=st.binary(min_size=1, max_size=300))
 def test_random_bytes_are_refused(blob, tmp_path, capsys):
     path = tmp_path / "random.yaml"
@@ -154,3 +154,12 @@ def test_a_demonstration_too_short_to_tune_is_a_field_error(tmp_path, capsys):
     assert main(["solve", str(problem), "--out", str(tmp_path / "out"), "--json"]) == EXIT_BAD_INPUT
     assert "options.tuning.gains: no admissible range for gain(s) beta" in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("geometry", [float("nan"), [1, 2], "big"])
+def test_a_cbha_geometry_that_is_not_a_mapping_is_a_field_error(geometry, tmp_path, capsys):
+    data, _ = shipped_data("cbha-fk")
+    data["arm"]["params"] = {"geometry": geometry}
+    problem = write(tmp_path, data)
+    assert main(["show", str(problem)]) == EXIT_BAD_INPUT
+    assert "arm.params.geometry: expected a mapping of CBHAGeometry fields" in capsys.readouterr().err
