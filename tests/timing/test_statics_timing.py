@@ -20,7 +20,7 @@ import time
 import numpy as np
 import pytest
 
-from optikin.problems.statics.equilibrium import TipEquilibrium
+from optikin.problems.statics.equilibrium import TipEquilibrium, solve_equilibrium
 from optikin.problems.statics.run import fixed_loads, inverse_problem, shooting_solver
 from optikin.runner import prepare
 from optikin.solvers import build_preset
@@ -35,7 +35,8 @@ def setup():
     solver = shooting_solver(arm, options)
     samples = ctx.data_source.load(arm, ctx.spec.data, ctx.data_params, ctx.path)
     fixed = fixed_loads(arm, options.loads)
-    targets = np.array([solver.solve(np.concatenate([fixed, a])).tip_position for a in samples.values[:TARGETS]])
+    loads = [np.concatenate([fixed, a]) for a in samples.values[:TARGETS]]
+    targets = np.array([solve_equilibrium(solver, P).tip_position for P in loads])
     return arm, options, solver, fixed, targets
 
 
