@@ -182,11 +182,10 @@ def test_a_grid_too_large_is_refused_naming_its_points(tmp_path):
 def test_equilibria_from_zero_load_survive_the_jacobian_kept_from_other_loads():
     # Along this arm's tension trajectory, solves without a start (ramped from zero load) began
     # with the Jacobian of the previous, far-away loads and ended non-finite after a few dozen.
-    from optikin.problems.statics.equilibrium import solve_equilibrium
     from optikin.problems.statics.run import fixed_loads, shooting_solver
 
     _, ctx = prepare("cosserat-tendon-ik")
     solver = shooting_solver(ctx.arm, ctx.options)
     samples = ctx.data_source.load(ctx.arm, ctx.spec.data, ctx.data_params, ctx.path)
     fixed = fixed_loads(ctx.arm, ctx.options.loads)
-    assert all(solve_equilibrium(solver, np.concatenate([fixed, a])).ok for a in samples.values[:60])
+    assert all(solver.solve(np.concatenate([fixed, a])).ok for a in samples.values[:60])

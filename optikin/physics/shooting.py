@@ -202,24 +202,33 @@ class ShootingSolver:
         w = np.array(w0, dtype=float)
         z = np.concatenate([w, P])[None, :]
         K = self.s.size
-        previous = np.inf
+        previous, last_good, fresh = np.inf, None, False
         for it in range(self.options.max_iterations + 1):
             z[0, :6] = w
             out = self._compiled_shape.raw(z)[0]
             r = out[STATE_SIZE * K :]
             norm = float(np.linalg.norm(r))
             if not np.isfinite(norm):
-                return w, it, False
-            self._last = (z[0].copy(), out)
-            if norm <= tol / 10:
-                return w, it, True
+                if last_good is None or fresh:
+                    return w, it, False
+                # A step with a Jacobian kept from other loads overshot: step again from the last
+                # finite point with the Jacobian of that point.
+                w, r, norm = last_good
+                z[0, :6] = w
+                self._jacobian = None
+            else:
+                self._last = (z[0].copy(), out)
+                if norm <= tol / 10:
+                    return w, it, True
             if it == self.options.max_iterations:
                 break
-            if self._jacobian is None or norm > 0.1 * previous:
+            fresh = self._jacobian is None or norm > 0.1 * previous
+            if fresh or self._jacobian is None:
                 self._jacobian = self._compiled_newton.raw(z)[0, 6:].reshape(6, 6, order="F")
-            previous = norm
+            jacobian = self._jacobian
+            previous, last_good = norm, (w.copy(), r.copy(), norm)
             try:
-                w = w - np.linalg.solve(self._jacobian, r)
+                w = w - np.linalg.solve(jacobian, r)
             except np.linalg.LinAlgError:
                 return w, it, False
         return w, self.options.max_iterations, False
@@ -242,6 +251,7 @@ class ShootingSolver:
         steps, total = 1, 0
         while steps <= self.options.max_ramp_steps:
             w = np.zeros(6)
+            self._jacobian = None  # the kept Jacobian belongs to other loads
             ok = True
             for t in np.arange(1, steps + 1) / steps:
                 w, it, ok = self._newton(w, t * P)

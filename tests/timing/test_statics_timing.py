@@ -20,7 +20,7 @@ import time
 import numpy as np
 import pytest
 
-from optikin.problems.statics.equilibrium import TipEquilibrium, solve_equilibrium
+from optikin.problems.statics.equilibrium import TipEquilibrium
 from optikin.problems.statics.run import fixed_loads, inverse_problem, shooting_solver
 from optikin.runner import prepare
 from optikin.solvers import build_preset
@@ -36,7 +36,7 @@ def setup():
     samples = ctx.data_source.load(arm, ctx.spec.data, ctx.data_params, ctx.path)
     fixed = fixed_loads(arm, options.loads)
     loads = [np.concatenate([fixed, a]) for a in samples.values[:TARGETS]]
-    targets = np.array([solve_equilibrium(solver, P).tip_position for P in loads])
+    targets = np.array([solver.solve(P).tip_position for P in loads])
     return arm, options, solver, fixed, targets
 
 

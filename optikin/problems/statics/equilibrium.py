@@ -42,21 +42,6 @@ MEMORY = 256
 """Equilibria kept as warm starts (the nearest actuation's is used)."""
 
 
-def solve_equilibrium(solver: ShootingSolver, loads: np.ndarray, guess: np.ndarray | None = None) -> RodSolution:
-    """:meth:`ShootingSolver.solve`, once more with a fresh Jacobian when it fails.
-
-    The compiled Newton iteration of :class:`~optikin.physics.ShootingSolver` starts every solve
-    with the Jacobian it kept from the last one (cheap along slowly varying loads); a step with
-    a Jacobian of far-away loads can make the residual non-finite, which ends that solve and the
-    ramp after it before the Jacobian is refreshed. The retry drops the kept Jacobian first.
-    """
-    solution = solver.solve(loads, guess)
-    if not solution.ok and solver.options.compiled:
-        solver._jacobian = None
-        solution = solver.solve(loads, guess)
-    return solution
-
-
 class TipEquilibrium:
     """Tip pose ``y(a)`` of the equilibrium under actuation ``a`` and fixed loads, with ``dy/da``.
 
@@ -151,7 +136,7 @@ class TipEquilibrium:
     def equilibrium(self, a: np.ndarray) -> RodSolution:
         """The equilibrium under actuation ``a``, warm-started from the nearest one stored; stored when ``ok``."""
         a = np.asarray(a, dtype=float).ravel()
-        solution = solve_equilibrium(self.solver, self.loads(a), self.guess(a))
+        solution = self.solver.solve(self.loads(a), self.guess(a))
         self.equilibria += 1
         if solution.ok:
             self._memory.append((a.copy(), solution.base_wrench))

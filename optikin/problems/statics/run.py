@@ -25,7 +25,7 @@ from optikin.physics import (
     ShootingSolver,
 )
 from optikin.problems import ProblemContext
-from optikin.problems.statics.equilibrium import TipEquilibrium, solve_equilibrium, tip_function
+from optikin.problems.statics.equilibrium import TipEquilibrium, tip_function
 from optikin.problems.statics.options import LoadOptions, StaticsOptions
 from optikin.solvers import build_preset
 from optikin.solvers.base import SolutionBatch
@@ -140,7 +140,7 @@ def forward(ctx: ProblemContext, samples: Actuations) -> ForwardOutcome:
     solver = shooting_solver(arm, options)
     build = time.perf_counter() - began
     with ctx.progress.task(f"statics: {len(A)} equilibria", total=1 + (COLLOCATION in ctx.spec.baselines)) as advance:
-        solutions, seconds = equilibria(lambda P, w: solve_equilibrium(solver, P, w), loads, True)
+        solutions, seconds = equilibria(solver.solve, loads, True)
         advance()
         shooting = ForwardRun("shooting" + (" (compiled)" if options.compiled else ""), solutions, seconds, build)
         colloc = None
@@ -256,7 +256,7 @@ def inverse_targets(ctx: ProblemContext, samples: Actuations, solver: ShootingSo
     assert samples.values is not None
     A = checked_actuations(ctx, samples.values)
     loads = np.column_stack([np.tile(fixed_loads(arm, options.loads), (len(A), 1)), A])
-    solutions, _ = equilibria(lambda P, w: solve_equilibrium(solver, P, w), loads, True)
+    solutions, _ = equilibria(solver.solve, loads, True)
     ok = np.array([s.ok for s in solutions])
     poses = np.array([tip_pose(s) for s in solutions])[ok]
     t = None if samples.t is None else samples.t[ok]
@@ -293,7 +293,7 @@ def recheck(
         x = report.x[i]
         if not np.all(np.isfinite(x)):
             continue
-        solution = solve_equilibrium(solver, np.concatenate([fixed, x]))
+        solution = solver.solve(np.concatenate([fixed, x]))
         if not solution.ok:
             if report.status[i] == "ok":
                 report.status[i], report.messages[i] = "failed", f"recomputed equilibrium: {solution.message}"
