@@ -1011,7 +1011,7 @@ def test_jacobian_quat_log(a, n):
     q = np.r_[np.cos(a), np.sin(a) * n]
     J = J_QUAT_LOG(q)
     _check_jacobian(J, central_fd(ref_quat_log, q, LD(1e-7), LD), "quat_log vs closed form")
-    _check_jacobian(J, central_fd(quat_log, q, 1e-6), "quat_log vs its own numpy path")
+    _check_jacobian(J, central_fd(lambda x: quat_log(x, check=False), q, 1e-6), "quat_log vs its own numpy path")
 
 
 @pytest.mark.parametrize("a, n", _JAC_POINTS, ids=_JAC_IDS)

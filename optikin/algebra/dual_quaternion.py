@@ -25,6 +25,7 @@ from optikin.algebra.quaternion import (
     quat_exp,
     quat_from_matrix,
     quat_from_pure,
+    refuse_degenerate,
     quat_log,
     quat_multiply,
     quat_vector,
@@ -66,7 +67,7 @@ def dq_from_parts(real: Array, dual: Array) -> Array:
     return B.concat(real, dual)
 
 
-def dq_from_rotation_translation(q: Array, p: Array) -> Array:
+def dq_from_rotation_translation(q: Array, p: Array, check: bool = True) -> Array:
     """Pose ``Q_r + eps 0.5 (0, p) Q_r`` from a rotation and a translation (seed 000 eqs. 9-10).
 
     Parameters
@@ -75,12 +76,17 @@ def dq_from_rotation_translation(q: Array, p: Array) -> Array:
         Unit quaternions ``(w, x, y, z)`` of the rotation: numpy ``(..., 4)`` or CasADi ``4 x N``.
     p : Array
         Translations [m]: numpy ``(..., 3)`` or CasADi ``3 x N`` (batch shapes broadcast).
+    check : bool
+        Refuse a finite non-unit numpy ``q`` (:func:`~optikin.algebra.quaternion.refuse_degenerate`); False in
+        inner loops.
 
     Returns
     -------
     Array
         Unit dual quaternions ``(Q_r, Q_d)``, numpy ``(..., 8)`` or CasADi ``8 x N``.
     """
+    if check:
+        refuse_degenerate(q, "q", unit=True)
     return B.concat(q, 0.5 * quat_multiply(quat_from_pure(p), q))
 
 
@@ -327,7 +333,7 @@ def dq_log(dq: Array) -> Array:
         ``(u, v)``: numpy ``(..., 6)`` or CasADi ``6 x N``.
     """
     real, dual = dq_parts(dq)
-    u = quat_log(real)
+    u = quat_log(real, check=False)
     ux, uy, uz = B.components(u, 3)
     w, x, y, z = B.components(dual, 4)
     a2 = B.sum_squares([ux, uy, uz])

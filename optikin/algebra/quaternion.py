@@ -24,6 +24,43 @@ IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
 """The identity rotation ``(1, 0, 0, 0)``."""
 
 
+UNIT_TOLERANCE = 1e-6
+"""Largest ``| |q| - 1 |`` accepted by the functions that take unit quaternions."""
+
+
+def refuse_degenerate(q: Array, name: str = "q", unit: bool = True, tolerance: float = UNIT_TOLERANCE) -> None:
+    """Raise :class:`ValueError` for a numpy quaternion that is zero or (``unit``) not of norm 1.
+
+    The check the public functions here run on numpy inputs (CasADi symbols pass unchecked).
+    A row with a NaN passes: NaN marks a sample that has no answer (a failed solve) and
+    propagates; a finite zero or non-unit quaternion is a mistake that would return garbage
+    silently (a "rotation" matrix that is not one, a logarithm of the wrong angle).
+
+    Parameters
+    ----------
+    q : Array
+        Quaternions ``(..., 4)``; anything else (CasADi) is not checked.
+    name : str
+        The argument's name, for the message.
+    unit : bool
+        Require ``| |q| - 1 | <= tolerance``; else only a nonzero norm.
+    tolerance : float
+        See ``unit``.
+    """
+    if not isinstance(q, np.ndarray) or q.size == 0:
+        return
+    norm = np.linalg.norm(q.reshape(-1, q.shape[-1]), axis=1)
+    finite = np.isfinite(norm)
+    bad = finite & ((np.abs(norm - 1.0) > tolerance) if unit else (norm == 0.0))
+    if bad.any():
+        i = int(np.argmax(bad))
+        wanted = (
+            f"not a unit quaternion (| |q| - 1 | > {tolerance:g})" if unit else "a zero quaternion has no direction"
+        )
+        where = name if q.ndim == 1 else f"{name}[{', '.join(str(int(k)) for k in np.unravel_index(i, q.shape[:-1]))}]"
+        raise ValueError(f"{where}: norm {norm[i]:.6g}: {wanted} (pass check=False to skip this check)")
+
+
 def quat_multiply(p: Array, q: Array) -> Array:
     """Hamilton product ``p q``.
 
@@ -82,7 +119,7 @@ def quat_norm(q: Array) -> Array:
     return B.sqrt(B.sum_squares(B.components(q, 4)))
 
 
-def quat_normalize(q: Array) -> Array:
+def quat_normalize(q: Array, check: bool = True) -> Array:
     """``q / |q|``.
 
     Parameters
@@ -90,17 +127,22 @@ def quat_normalize(q: Array) -> Array:
     q : Array
         Nonzero quaternions ``(w, x, y, z)``: numpy ``(..., 4)`` or CasADi ``4 x N``.
 
+    check : bool
+        Refuse a finite zero (or non-unit) numpy quaternion (:func:`refuse_degenerate`); False in inner loops.
+
     Returns
     -------
     Array
         Unit quaternions, same layout.
     """
+    if check:
+        refuse_degenerate(q, "q", unit=False)
     w, x, y, z = B.components(q, 4)
     n = quat_norm(q)
     return B.stack([w / n, x / n, y / n, z / n])
 
 
-def quat_inverse(q: Array) -> Array:
+def quat_inverse(q: Array, check: bool = True) -> Array:
     """Inverse ``q^-1 = q* / |q|^2`` (the conjugate for a unit quaternion).
 
     Parameters
@@ -108,11 +150,16 @@ def quat_inverse(q: Array) -> Array:
     q : Array
         Nonzero quaternions ``(w, x, y, z)``: numpy ``(..., 4)`` or CasADi ``4 x N``.
 
+    check : bool
+        Refuse a finite zero (or non-unit) numpy quaternion (:func:`refuse_degenerate`); False in inner loops.
+
     Returns
     -------
     Array
         ``q^-1``, same layout.
     """
+    if check:
+        refuse_degenerate(q, "q", unit=False)
     w, x, y, z = B.components(q, 4)
     n2 = B.sum_squares([w, x, y, z])
     return B.stack([w / n2, -x / n2, -y / n2, -z / n2])
@@ -173,7 +220,7 @@ def quat_exp(v: Array) -> Array:
     return B.stack([B.cos_of_square(a2), s * x, s * y, s * z])
 
 
-def quat_log(q: Array) -> Array:
+def quat_log(q: Array, check: bool = True) -> Array:
     """Logarithm ``log q = a n`` of a unit ``q = (cos a, sin a n)``, with ``a`` in ``[0, pi]``.
 
     Ude et al. 2014; the gap ``2 log(Q_g conj(Q))`` of seed 000 eq. (19) is the rotation
@@ -186,11 +233,16 @@ def quat_log(q: Array) -> Array:
     q : Array
         Unit quaternions ``(w, x, y, z)``: numpy ``(..., 4)`` or CasADi ``4 x N``.
 
+    check : bool
+        Refuse a finite zero (or non-unit) numpy quaternion (:func:`refuse_degenerate`); False in inner loops.
+
     Returns
     -------
     Array
         Half rotation vectors [rad], numpy ``(..., 3)`` or CasADi ``3 x N``; inverse of :func:`quat_exp`.
     """
+    if check:
+        refuse_degenerate(q, "q", unit=True)
     w, x, y, z = B.components(q, 4)
     s2 = B.sum_squares([x, y, z])
     # atan2(s, w) / s with s = |(x, y, z)|; near the identity, its series in s^2.
@@ -260,7 +312,7 @@ def quat_from_axis_angle(axis: Array, angle: Array) -> Array:
     return B.stack([B.cos(h), s * x, s * y, s * z])
 
 
-def quat_rotate(q: Array, v: Array) -> Array:
+def quat_rotate(q: Array, v: Array, check: bool = True) -> Array:
     """Rotate 3-vectors by unit quaternions: ``vec(q (0, v) q*) = R(q) v``.
 
     Parameters
@@ -270,15 +322,20 @@ def quat_rotate(q: Array, v: Array) -> Array:
     v : Array
         Vectors: numpy ``(..., 3)`` or CasADi ``3 x N`` (batch shapes broadcast).
 
+    check : bool
+        Refuse a finite zero (or non-unit) numpy quaternion (:func:`refuse_degenerate`); False in inner loops.
+
     Returns
     -------
     Array
         The rotated vectors, numpy ``(..., 3)`` or CasADi ``3 x N``.
     """
+    if check:
+        refuse_degenerate(q, "q", unit=True)
     return quat_vector(quat_multiply(quat_multiply(q, quat_from_pure(v)), quat_conjugate(q)))
 
 
-def matrix_from_quat(q: Array) -> Array:
+def matrix_from_quat(q: Array, check: bool = True) -> Array:
     """Rotation matrix ``R(q)`` of a unit quaternion (seed 000 eq. 6, derived again: its diagonal is garbled).
 
     ``R(q) v = vec(q (0, v) q*)``: it maps vectors of the rotated frame to the reference frame.
@@ -287,6 +344,9 @@ def matrix_from_quat(q: Array) -> Array:
     ----------
     q : Array
         Unit quaternions ``(w, x, y, z)``: numpy ``(..., 4)``, or one CasADi ``4 x 1``.
+
+    check : bool
+        Refuse a finite zero (or non-unit) numpy quaternion (:func:`refuse_degenerate`); False in inner loops.
 
     Returns
     -------
@@ -298,6 +358,8 @@ def matrix_from_quat(q: Array) -> Array:
     ValueError
         For a CasADi input with more than one column.
     """
+    if check:
+        refuse_degenerate(q, "q", unit=True)
     w, x, y, z = B.components(q, 4)
     rows = [
         [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
@@ -397,7 +459,7 @@ def quat_from_rpy(roll: Array, pitch: Array, yaw: Array) -> Array:
     )
 
 
-def rpy_from_quat(q: Array) -> Array:
+def rpy_from_quat(q: Array, check: bool = True) -> Array:
     """Roll, pitch, yaw of a unit quaternion, seed 000 eq. (30) (its printed denominators are garbled).
 
     ``roll = atan2(2(w x + y z), 1 - 2(x^2 + y^2))``,
@@ -411,11 +473,16 @@ def rpy_from_quat(q: Array) -> Array:
     q : Array
         Unit quaternions ``(w, x, y, z)``: numpy ``(..., 4)`` or CasADi ``4 x N``.
 
+    check : bool
+        Refuse a finite zero (or non-unit) numpy quaternion (:func:`refuse_degenerate`); False in inner loops.
+
     Returns
     -------
     Array
         ``(roll, pitch, yaw)`` [rad], numpy ``(..., 3)`` or CasADi ``3 x N``.
     """
+    if check:
+        refuse_degenerate(q, "q", unit=True)
     w, x, y, z = B.components(q, 4)
     roll = B.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
     sin_pitch = B.clip(2 * (w * y - x * z), -1.0, 1.0)

@@ -180,7 +180,7 @@ class ArmModel(ABC):
 
     @cached_property
     def _section_dq_expr(self) -> list[ca.SX]:
-        return [dq_from_rotation_translation(quat, p) for quat, p in self.section_frames(self._q)]
+        return [dq_from_rotation_translation(quat, p, check=False) for quat, p in self.section_frames(self._q)]
 
     def _function(self, name: str, out: ca.SX, out_name: str) -> ca.Function:
         f = ca.Function(f"{self.name}_{name}", [self._q], [out], ["q"], [out_name], {"cse": True})

@@ -451,7 +451,7 @@ class CBHAArm(ArmModel):
         frames = [(quat, pos)]
         for k in range(self.geometry.n_platforms):
             Z, theta, psi = v[3 * k : 3 * k + 3]
-            pos = pos + quat_rotate(quat, B.stack([zero, zero, Z]))
+            pos = pos + quat_rotate(quat, B.stack([zero, zero, Z]), check=False)
             quat = quat_multiply(quat, platform_quaternion(theta, psi))
             frames.append((quat, pos))
         return frames
@@ -473,7 +473,7 @@ class CBHAArm(ArmModel):
         frames = [chain[i] for i in self.section_end_vertebrae]
         quat, pos = frames[-1]
         if self.geometry.tool_offset != 0.0:
-            pos = pos + quat_rotate(quat, np.array([0.0, 0.0, self.geometry.tool_offset]))
+            pos = pos + quat_rotate(quat, np.array([0.0, 0.0, self.geometry.tool_offset]), check=False)
         return frames[:-1] + [(quat, pos)]
 
     def backbone_points(self, q: ca.SX, points_per_section: int) -> ca.SX:
@@ -551,7 +551,7 @@ class CBHAArm(ArmModel):
     @cached_property
     def vertebra_frames(self) -> ca.Function:
         """``q -> dq (8 x N)``: poses of vertebrae 1..N as unit dual quaternions."""
-        dqs = [dq_from_rotation_translation(quat, p) for quat, p in self._chain_expr]
+        dqs = [dq_from_rotation_translation(quat, p, check=False) for quat, p in self._chain_expr]
         return self._function("vertebra_frames", ca.horzcat(*dqs), "dq")
 
     @cached_property
@@ -559,7 +559,9 @@ class CBHAArm(ArmModel):
         """``q -> points (3 x 3N)``: attachment points ``A_{m,n}`` [m]; tube 1's N points, then tube 2's, tube 3's."""
         r = self.geometry.radii
         chain = self._chain_expr
-        offsets = [ca.mtimes(matrix_from_quat(quat), r[n] * LEG_DIRECTIONS.T) for n, (quat, _) in enumerate(chain)]
+        offsets = [
+            ca.mtimes(matrix_from_quat(quat, check=False), r[n] * LEG_DIRECTIONS.T) for n, (quat, _) in enumerate(chain)
+        ]
         points = [p + offsets[n][:, m] for m in range(3) for n, (_, p) in enumerate(chain)]
         return self._function("tube_points", ca.horzcat(*points), "points")
 

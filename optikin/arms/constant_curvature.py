@@ -254,8 +254,8 @@ class ConstantCurvatureArm(ArmModel):
         frames, points = [], []
         for i in range(self.n_sections):
             S, theta, phi = variables[3 * i : 3 * i + 3]
-            points += [pos + quat_rotate(quat, section_position(f * S, f * theta, phi)) for f in fractions]
-            pos = pos + quat_rotate(quat, section_position(S, theta, phi))
+            points += [pos + quat_rotate(quat, section_position(f * S, f * theta, phi), check=False) for f in fractions]
+            pos = pos + quat_rotate(quat, section_position(S, theta, phi), check=False)
             quat = quat_multiply(quat, section_quaternion(theta, phi))
             frames.append((quat, pos))
         return frames, points

@@ -130,7 +130,7 @@ def relative_section_ends(recording: MarkerRecording, markers: list[int]) -> np.
     body's frame."""
     to_base = quat_conjugate(recording.base_orientation)
     points = np.concatenate([recording.markers[:, markers], recording.tip_position[:, None]], axis=1)
-    relative = quat_rotate(to_base[:, None], points - recording.base_position[:, None])
+    relative = quat_rotate(to_base[:, None], points - recording.base_position[:, None], check=False)
     return relative.reshape(len(recording), -1)
 
 
@@ -138,8 +138,8 @@ def relative_tip_poses(recording: MarkerRecording) -> np.ndarray:
     """Unit dual quaternions ``(N, 8)`` of the tip rigid bodies in the base rigid bodies' frames."""
     to_base = quat_conjugate(recording.base_orientation)
     rotation = quat_multiply(to_base, recording.tip_orientation)
-    translation = quat_rotate(to_base, recording.tip_position - recording.base_position)
-    return dq_from_rotation_translation(rotation, translation)
+    translation = quat_rotate(to_base, recording.tip_position - recording.base_position, check=False)
+    return dq_from_rotation_translation(rotation, translation, check=False)
 
 
 def newton_raphson_problem(arm: CBHAArm, target: str = "sections") -> LeastSquaresProblem:

@@ -275,4 +275,6 @@ def _noisy_tip(x: np.ndarray, task: str, plant: Plant, rng: np.random.Generator)
     if task == "position":
         return x + plant.tip_position_noise * rng.standard_normal(3)
     rotation = quat_multiply(quat_exp(0.5 * plant.tip_angle_noise * rng.standard_normal(3)), dq_rotation(x))
-    return dq_from_rotation_translation(rotation, dq_translation(x) + plant.tip_position_noise * rng.standard_normal(3))
+    return dq_from_rotation_translation(
+        rotation, dq_translation(x) + plant.tip_position_noise * rng.standard_normal(3), check=False
+    )

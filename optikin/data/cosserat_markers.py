@@ -390,14 +390,14 @@ def cosserat_recording(
         raise error
     s = solver.s
     backbone = np.stack([sol.positions for sol in solutions])  # (N, K, 3)
-    frames = quat_normalize(np.stack([sol.orientations for sol in solutions]))  # (N, K, 4)
+    frames = quat_normalize(np.stack([sol.orientations for sol in solutions]), check=False)  # (N, K, 4)
 
     # stations: base, intermediate, tip (node indices)
     per_section = params.segments_per_section * params.steps_per_segment
     stations = [0, *(int(round(x * per_section)) for x in params.intermediate), n_sections * per_section]
     section_end = per_section
     rho = params.tube_offset(s)  # (K,)
-    directions = quat_rotate(frames[:, :, None, :], LEG_DIRECTIONS[None, None, :, :])  # (N, K, tube, 3)
+    directions = quat_rotate(frames[:, :, None, :], LEG_DIRECTIONS[None, None, :, :], check=False)  # (N, K, tube, 3)
     tubes = backbone[:, :, None, :] + rho[None, :, None, None] * directions  # (N, K, tube, 3)
     tubes = tubes.transpose(0, 2, 1, 3)  # (N, tube, K, 3)
     tube_marker_truth = tubes[:, :, stations, :]  # (N, tube, station, 3)
@@ -411,7 +411,7 @@ def cosserat_recording(
     def pose(index: int) -> tuple[np.ndarray, np.ndarray]:
         p = backbone[:, index] + params.pose_noise * rng.standard_normal((samples, 3))
         turn = quat_exp(0.5 * params.orientation_noise * rng.standard_normal((samples, 3)))
-        return p, quat_normalize(quat_multiply(frames[:, index], turn))
+        return p, quat_normalize(quat_multiply(frames[:, index], turn), check=False)
 
     base_p, base_q = pose(0)
     tip_p, tip_q = pose(len(s) - 1)

@@ -85,7 +85,7 @@ class PoseDemonstration:
     @property
     def dual_quaternion(self) -> np.ndarray:
         """``(N, 8)``: ``Q_r + eps 0.5 (0, p) Q_r`` (Seleem et al.'s eqs. 9-10)."""
-        return dq_from_rotation_translation(self.quaternion, self.position)
+        return dq_from_rotation_translation(self.quaternion, self.position, check=False)
 
     @property
     def pose(self) -> np.ndarray:
@@ -364,7 +364,7 @@ def kinect_recording(
 
     relative = (wrist - shoulder) @ CAMERA_TO_ROBOT.T
     position = calibrate_to_cube(relative, cube_edge, np.asarray(workspace_centre, dtype=float))
-    rpy = np.unwrap(rpy_from_quat(orientation), axis=0)
+    rpy = np.unwrap(rpy_from_quat(orientation, check=False), axis=0)
     filtered_position = moving_average(position, window)
     filtered_rpy = moving_average(rpy, window)
     quaternion = quat_hemisphere_continuous(quat_from_rpy(filtered_rpy[:, 0], filtered_rpy[:, 1], filtered_rpy[:, 2]))
@@ -427,7 +427,7 @@ def read_csv(path: str | Path, unit_tolerance: float = 1e-3) -> PoseDemonstratio
     return PoseDemonstration(
         t=table.column("t"),
         position=table.stacked(CSV_COLUMNS[1:4]),
-        quaternion=quat_hemisphere_continuous(quat_normalize(quaternion)),
+        quaternion=quat_hemisphere_continuous(quat_normalize(quaternion, check=False)),
     )
 
 

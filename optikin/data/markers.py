@@ -142,22 +142,22 @@ class MarkerRecording:
     @property
     def base_direction(self) -> np.ndarray:
         """Unit start tangents ``(N, 3)``: the base z axes."""
-        return quat_rotate(self.base_orientation, np.array([0.0, 0.0, 1.0]))
+        return quat_rotate(self.base_orientation, np.array([0.0, 0.0, 1.0]), check=False)
 
     @property
     def tip_direction(self) -> np.ndarray:
         """Unit end tangents ``(N, 3)``: the tip z axes."""
-        return quat_rotate(self.tip_orientation, np.array([0.0, 0.0, 1.0]))
+        return quat_rotate(self.tip_orientation, np.array([0.0, 0.0, 1.0]), check=False)
 
     @property
     def base_normal(self) -> np.ndarray:
         """Reference normals of the tube angles ``(N, 3)``: the base x axes."""
-        return quat_rotate(self.base_orientation, np.array([1.0, 0.0, 0.0]))
+        return quat_rotate(self.base_orientation, np.array([1.0, 0.0, 0.0]), check=False)
 
     def with_fixed_base(self) -> "MarkerRecording":
         """The base pose averaged over the recording (seed 002: the base is fixed), noise reduced by sqrt(N)."""
         q = self.base_orientation * np.where(self.base_orientation @ self.base_orientation[0] < 0, -1.0, 1.0)[:, None]
-        mean_q = quat_normalize(q.mean(axis=0))
+        mean_q = quat_normalize(q.mean(axis=0), check=False)
         n = len(self)
         return replace(
             self,
@@ -402,7 +402,8 @@ def read_marker_csv(path: Path) -> MarkerRecording:
     table = read_table(path, select)
     base_q, tip_q = (
         quat_normalize(
-            table.check_unit_quaternions([f"{body}_{c}" for c in ("qw", "qx", "qy", "qz")], QUATERNION_TOLERANCE)
+            table.check_unit_quaternions([f"{body}_{c}" for c in ("qw", "qx", "qy", "qz")], QUATERNION_TOLERANCE),
+            check=False,
         )
         for body in ("base", "tip")
     )
@@ -538,7 +539,7 @@ class RopeChainRecording:
 def placed(recording: MarkerRecording, rotation: np.ndarray, translation: np.ndarray) -> MarkerRecording:
     """``recording`` seen from a world frame in which its base frame is rotated by ``rotation`` and moved by
     ``translation``."""
-    move = lambda p: quat_rotate(rotation, p) + translation  # noqa: E731
+    move = lambda p: quat_rotate(rotation, p, check=False) + translation  # noqa: E731
     truth = recording.truth
     if truth is not None:
         truth = CBHATruth(truth.configurations, move(truth.vertebrae), truth.backbone_length, move(truth.marker_truth))

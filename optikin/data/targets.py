@@ -102,9 +102,9 @@ def unreachable_targets(
     position = direction * reach_bound(arm) * rng.uniform(*margin, size=(count, 1))
     if kind == "position":
         return position
-    orientation = quat_normalize(rng.normal(size=(count, 4)))
+    orientation = quat_normalize(rng.normal(size=(count, 4)), check=False)
     orientation *= np.where(orientation[:, :1] < 0, -1.0, 1.0)
-    return dq_from_rotation_translation(orientation, position)
+    return dq_from_rotation_translation(orientation, position, check=False)
 
 
 class RandomParams(Options):
@@ -243,4 +243,4 @@ def read_target_csv(csv_path: Path, kind: str) -> tuple[np.ndarray, np.ndarray |
     if kind == "position":
         return position, t
     quaternion = table.check_unit_quaternions(("qw", "qx", "qy", "qz"), QUATERNION_TOLERANCE)
-    return dq_from_rotation_translation(quaternion, position), t
+    return dq_from_rotation_translation(quaternion, position, check=False), t

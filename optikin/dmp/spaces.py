@@ -160,7 +160,7 @@ class UnitQuaternion(Space):
     quaternion_blocks = ((0, 4),)
 
     def gap(self, target: Array, y: Array) -> Array:
-        return 2.0 * quat_log(quat_multiply(target, quat_conjugate(y)))
+        return 2.0 * quat_log(quat_multiply(target, quat_conjugate(y)), check=False)
 
     def advance(self, y: Array, v: Array) -> Array:
         return quat_multiply(quat_exp(0.5 * v), y)

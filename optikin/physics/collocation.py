@@ -122,7 +122,7 @@ class CollocationSolver:
     def _straight_guess(self) -> np.ndarray:
         """The unknowns of the straight, unloaded rod (every state at the clamp pose, moved along ``d3``)."""
         q0 = np.asarray(self.arm.base_orientation)
-        tangent = quat_rotate(q0, np.array([0.0, 0.0, 1.0]))
+        tangent = quat_rotate(q0, np.array([0.0, 0.0, 1.0]), check=False)
         n, d = self.options.intervals_per_segment, self.options.degree
         tau = np.array(ca.collocation_points(d, "legendre"))
         bounds = self.arm.boundaries

@@ -252,7 +252,7 @@ class ArmEquations:
         """
         rod = self.arm.segments[k].rod
         q, n, m = x[3:7], x[7:10], x[10:13]
-        R = matrix_from_quat(q)
+        R = matrix_from_quat(q, check=False)
         v, u = _strains(rod, R, n, m)
         f = rod.density * rod.A * P[9:12] + P[6:9]
         dp = R @ v
@@ -301,7 +301,7 @@ class ArmEquations:
     def _point_loads(self, acts: list[_Actuator], k: int, s: ca.SX, x: ca.SX, P: ca.SX) -> tuple[ca.SX, ca.SX]:
         """``sum tau R t`` and ``sum (R r) x tau R t`` of ``acts`` at the state ``x`` in segment ``k``."""
         rod = self.arm.segments[k].rod
-        R = matrix_from_quat(x[3:7])
+        R = matrix_from_quat(x[3:7], check=False)
         v, u = _strains(rod, R, x[7:10], x[10:13])
         force, moment = ca.SX.zeros(3), ca.SX.zeros(3)
         for a in acts:
@@ -326,7 +326,7 @@ class ArmEquations:
         k = len(self.arm.segments) - 1
         s = ca.SX(float(self.arm.boundaries[-1]))
         f_end, m_end = self._point_loads(self.ending[k], k, s, x, P)
-        R = matrix_from_quat(x[3:7])
+        R = matrix_from_quat(x[3:7], check=False)
         force = R @ P[0:3] if self.arm.tip_force_frame == "follower" else P[0:3]
         couple = R @ P[3:6] if self.arm.tip_couple_frame == "follower" else P[3:6]
         return ca.vertcat(x[7:10] + f_end - force, x[10:13] + m_end - couple)

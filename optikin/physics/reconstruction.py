@@ -157,7 +157,7 @@ class ShapeReconstructor:
             s_nodes += list(bounds[k] + h * np.arange(1, n + 1))
         states = ca.horzcat(*columns)
         tip_wrench = eq.tip_residual_function(x, P)  # n(L), m(L) plus the point loads ending there: the tip load
-        R = matrix_from_quat(x[3:7])
+        R = matrix_from_quat(x[3:7], check=False)
         force = R.T @ tip_wrench[0:3] if arm.tip_force_frame == "follower" else tip_wrench[0:3]
         couple = R.T @ tip_wrench[3:6] if arm.tip_couple_frame == "follower" else tip_wrench[3:6]
         loads_out = ca.vertcat(force, couple, z[6:9]) if self.options.distributed_force else ca.vertcat(force, couple)

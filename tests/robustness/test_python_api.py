@@ -8,6 +8,16 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
+from optikin.algebra import (
+    dq_from_rotation_translation,
+    matrix_from_quat,
+    quat_inverse,
+    quat_log,
+    quat_normalize,
+    quat_rotate,
+    rpy_from_quat,
+)
 from pytransform3d.transformations import transform_from_dual_quaternion
 
 from optikin.arms import CBHAArm, ConstantCurvatureArm
@@ -180,3 +190,32 @@ def test_a_nan_section_length_in_a_problem_file_is_blamed_on_the_arm(tmp_path, c
     path.write_text(yaml.safe_dump(spec))
     assert main(["solve", str(path), "--no-figures", "--out", str(tmp_path / "out")]) == 2
     assert "nan-arm.yaml: arm.params.section_lengths.0: not a finite number" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    "call",
+    [
+        lambda q: quat_normalize(q),
+        lambda q: quat_inverse(q),
+        lambda q: quat_log(q),
+        lambda q: matrix_from_quat(q),
+        lambda q: rpy_from_quat(q),
+        lambda q: quat_rotate(q, np.array([1.0, 0.0, 0.0])),
+        lambda q: dq_from_rotation_translation(q, np.zeros(3)),
+    ],
+)
+def test_a_zero_quaternion_is_refused_by_the_algebra(call):
+    with pytest.raises(ValueError, match=r"q: norm 0: .*check=False"):
+        call(np.zeros(4))
+
+
+@pytest.mark.parametrize("fn", [quat_log, matrix_from_quat, rpy_from_quat])
+def test_a_non_unit_quaternion_is_refused_where_a_rotation_is_needed(fn):
+    with pytest.raises(ValueError, match=r"q\[1\]: norm 2: not a unit quaternion"):
+        fn(np.array([[1.0, 0, 0, 0], [2.0, 0, 0, 0]]))
+    assert np.isfinite(fn(np.array([2.0, 0, 0, 0]), check=False)).all()  # the inner-loop opt-out
+
+
+def test_nan_rows_propagate_as_missing_samples():
+    out = matrix_from_quat(np.array([[1.0, 0, 0, 0], [np.nan, 0, 0, 0]]))
+    assert np.allclose(out[0], np.eye(3)) and np.isnan(out[1]).any()

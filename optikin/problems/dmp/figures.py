@@ -84,7 +84,7 @@ def _quaternion_figure(arrays: Mapping[str, np.ndarray], variant: str, name: str
         if len(y) == len(demo_t):  # the demonstration above its reproduction
             series = {"demonstration Q_r": demo_q, **series}
             if dual:
-                demo_qd = dq_from_rotation_translation(demo_q, arrays["demo_position"])[:, 4:]
+                demo_qd = dq_from_rotation_translation(demo_q, arrays["demo_position"], check=False)[:, 4:]
                 series = {"demonstration Q_d": demo_qd, **series}
         plots.time_series(path, t, series, "", f"{name}: {variant}, {scenario}", labels=("w", "x", "y", "z"))
 

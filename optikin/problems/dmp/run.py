@@ -169,7 +169,7 @@ def solve(ctx: ProblemContext) -> DmpOutcome:
         if baseline in ("lstsq", "lwr") and baseline != method:
             outcome.reproductions.append(learner.reproduce(first, baseline, "baseline")[1])
     goals = goal_switches(ctx, options, demo)
-    final_rpy = np.unwrap(rpy_from_quat(demo.quaternion), axis=0)[-1]
+    final_rpy = np.unwrap(rpy_from_quat(demo.quaternion, check=False), axis=0)[-1]
     if goals:
         outcome.goal_switches = [
             switch_goals(variant, dmp, goals, final_rpy, options) for variant, dmp in models.items()

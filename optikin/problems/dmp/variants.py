@@ -50,14 +50,14 @@ def variant_data(
     quaternions ``(..., 4)``; ``rpy`` angles [rad] are unwrapped along a sequence, or taken nearest to
     ``rpy_reference`` for a single pose."""
     if variant in ("seed", "dual-quaternion"):
-        return dq_from_rotation_translation(quaternion, position)
+        return dq_from_rotation_translation(quaternion, position, check=False)
     if variant == "cartesian":
         return np.concatenate([position, quaternion], axis=-1)
     if variant == "quaternion":
         return quaternion
     if variant == "position":
         return position
-    rpy = rpy_from_quat(quaternion)
+    rpy = rpy_from_quat(quaternion, check=False)
     if rpy.ndim == 2:
         return np.unwrap(rpy, axis=0)
     assert rpy_reference is not None, "a single rpy pose needs the angles it should be nearest to"

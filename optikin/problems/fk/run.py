@@ -77,7 +77,7 @@ def numpy_tip_dq(arm: ArmModel, Q: np.ndarray) -> np.ndarray:
     """Tip dual quaternions ``(N, 8)`` of configurations ``Q`` ``(N, n_config)`` by the arm's formulas on
     numpy arrays (the ``numpy`` baseline)."""
     quat, pos = arm.section_frames(Q)[-1]
-    return dq_from_rotation_translation(quat, pos)
+    return dq_from_rotation_translation(quat, pos, check=False)
 
 
 def unit_error(tip: np.ndarray) -> np.ndarray:
