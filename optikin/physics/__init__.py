@@ -7,6 +7,7 @@
 :mod:`.model`               segments, arms, loads; the equations as CasADi Functions
 :mod:`.shooting`            the BVP by shooting (RK4 + Newton), load derivatives (IFT)
 :mod:`.collocation`         the same BVP by Gauss-Legendre collocation and IPOPT
+:mod:`.reconstruction`      a shape from its end poses (the fitted tip wrench)
 :mod:`.solution`            :class:`RodSolution`, what both solvers return
 ==========================  ==========================================================
 
@@ -23,6 +24,7 @@ Example
 from optikin.physics.collocation import CollocationOptions, CollocationSolver
 from optikin.physics.model import LOAD_NAMES, ArmEquations, Loads, RodArm, Segment, load_vector
 from optikin.physics.pneumatic import Chamber, cbha_chambers
+from optikin.physics.reconstruction import Reconstruction, ReconstructionOptions, ShapeReconstructor, reconstruct_shape
 from optikin.physics.rod import Rod
 from optikin.physics.shooting import LoadSensitivity, ShootingOptions, ShootingSolver
 from optikin.physics.solution import RodSolution
@@ -36,13 +38,17 @@ __all__ = [
     "CollocationSolver",
     "LoadSensitivity",
     "Loads",
+    "Reconstruction",
+    "ReconstructionOptions",
     "Rod",
     "RodArm",
     "RodSolution",
     "Segment",
     "ShootingOptions",
+    "ShapeReconstructor",
     "ShootingSolver",
     "Tendon",
     "cbha_chambers",
     "load_vector",
+    "reconstruct_shape",
 ]
