@@ -28,14 +28,22 @@ Problem file::
       samples: 100
       params: {noise: 0.0003, rate: 240.0, stride: 24}
     solver: ph-newton       # any ph preset
-    baselines: [ph-ipopt, ph-ipopt-cold, ph-grid]
+    baselines: [ph-ipopt, ph-ipopt-cold, ph-grid, cosserat-wrench]
 
 Options: :class:`~optikin.problems.ph_shared.PHOptions` (``twist_weight``, ``nodes``,
-``free_speeds``, ``length``, ``fixed_base``).
+``free_speeds``, ``length``, ``fixed_base``) and ``cosserat_wrench`` (the rod of that
+baseline: ``EA``, ``EI``, ``GA``, ``GJ``, ``mass_per_length``, ``gravity``, ``steps``;
+defaults those of the ``cosserat`` source).
+
+Baseline ``cosserat-wrench`` (:mod:`optikin.problems.ph_shape.wrench`): the backbone
+is the Cosserat rod clamped at the measured base pose whose fitted tip wrench brings
+its tip to the measured tip pose, at the PH methods' backbone length.
 
 Per-sample status: the solver's (``ok``, ``not_converged``, ``failed``). The
 comparison has one row per method (solver and ``ph`` baselines): energy gap to
-the best energy found for the sample, time per sample, mean marker distance.
+the best energy found for the sample, time per sample, mean marker distance; the
+``cosserat-wrench`` row has marker (and truth-backbone) distances, time per sample
+and its failed fits instead of energies.
 Figures: shapes against markers in 3-D, distances per sample, time per sample.
 """
 
@@ -48,6 +56,7 @@ from optikin.problems.ph_shape import figures
 from optikin.problems.ph_shape.options import PHShapeOptions
 from optikin.problems.ph_shape.report import report
 from optikin.problems.ph_shape.run import ShapeOutcome, run
+from optikin.problems.ph_shape.wrench import NAME
 from optikin.results import Result
 
 __all__ = ["PHShapeOptions", "ShapeOutcome", "solve"]
@@ -65,7 +74,7 @@ register_kind(
         run=solve,
         backend_families=("ph",),
         default_solver="ph-newton",
-        baselines=(),
+        baselines=(NAME,),
         options=PHShapeOptions,
         data_family="markers",
         figures=figures.figures,

@@ -10,8 +10,9 @@ from optikin.data.configurations import skipped_rows_notes
 from optikin.data.cosserat_markers import CosseratRecording, CosseratTruth
 from optikin.problems import ProblemContext
 from optikin.problems.ph_shape.run import ShapeOutcome
+from optikin.problems.ph_shape.wrench import NAME, distances_to_polylines
 from optikin.problems.ph_shared import MM, distances_to_curves, method_rows, tube_marker_distances
-from optikin.results import Result
+from optikin.results import MethodRow, Result
 
 SEED_MEAN_DISTANCES_MM = (1.2, 3.7, 3.1)
 """Singh et al. 2018, section V.A: mean distance of the three intermediate markers over its 100 postures."""
@@ -80,6 +81,39 @@ def truth_metrics(outcome: ShapeOutcome) -> tuple[dict[str, Any], dict[str, np.n
     return metrics, {"vertebrae": truth.vertebrae, "vertebra_distance": vertebra_distance / MM}
 
 
+def wrench_row(outcome: ShapeOutcome) -> tuple[MethodRow, dict[str, np.ndarray]]:
+    """The comparison row and arrays of baseline ``cosserat-wrench`` (:mod:`optikin.problems.ph_shape.wrench`).
+
+    Marker distances like the PH rows' (NaN, so left out, where the fit did not converge),
+    the truth backbone's distance where the recording has a truth, time per sample, statuses.
+    """
+    wrench = outcome.wrench
+    assert wrench is not None
+    status = np.array(wrench.status)
+    distance = outcome.distances[NAME] * MM  # (N, K)
+    converged = status == "ok"
+    metrics: dict[str, Any] = {
+        "ok": f"{int(converged.sum())}/{len(status)}",
+        "failed fits": int((~converged).sum()),
+        "mean marker distance [mm]": float(np.nanmean(distance)) if converged.any() else float("nan"),
+        "mean distance per marker [mm]": np.nanmean(distance, axis=0) if converged.any() else float("nan"),
+        "max distance per marker [mm]": np.nanmax(distance, axis=0) if converged.any() else float("nan"),
+        "median iterations": float(np.median(wrench.iterations)),
+        "median time per sample [us]": float(np.median(wrench.seconds) * 1e6),
+        "mean time per sample [us]": float(np.mean(wrench.seconds) * 1e6),
+        "build [s]": wrench.build_seconds,
+    }
+    arrays = {f"seconds_{NAME}": wrench.seconds, f"marker_distance_{NAME}": distance / MM}
+    truth = outcome.recording.truth
+    if truth is not None:
+        backbone = distances_to_polylines(wrench.backbones, truth.vertebrae) * MM  # (N, nodes)
+        if converged.any():
+            metrics["truth backbone: mean of the largest node distance [mm]"] = float(np.nanmean(backbone.max(1)))
+            metrics["truth backbone: largest node distance [mm]"] = float(np.nanmax(backbone))
+        arrays[f"truth_backbone_distance_{NAME}"] = backbone / MM
+    return MethodRow(NAME, "baseline", metrics), arrays
+
+
 def shape_arrays(outcome: ShapeOutcome) -> dict[str, np.ndarray]:
     """The arrays of the result (the figures draw from these)."""
     recording, curves = outcome.recording, outcome.main.curves
@@ -113,6 +147,11 @@ def report(ctx: ProblemContext, outcome: ShapeOutcome) -> Result:
     truth, truth_arrays = truth_metrics(outcome)
     metrics.update(truth)
     extra = {name: {"mean marker distance [mm]": float(np.nanmean(d) * MM)} for name, d in outcome.distances.items()}
+    comparison = method_rows(outcome.runs, extra)
+    wrench_arrays: dict[str, np.ndarray] = {}
+    if outcome.wrench is not None:
+        row, wrench_arrays = wrench_row(outcome)
+        comparison.append(row)
     return Result(
         problem=spec.name,
         kind=spec.kind,
@@ -128,8 +167,8 @@ def report(ctx: ProblemContext, outcome: ShapeOutcome) -> Result:
             "build [s]": main.build_seconds,
         },
         metrics=metrics,
-        comparison=method_rows(outcome.runs, extra),
-        arrays={**shape_arrays(outcome), **truth_arrays},
+        comparison=comparison,
+        arrays={**shape_arrays(outcome), **truth_arrays, **wrench_arrays},
         notes=skipped_rows_notes(outcome.recording.skipped_rows, ctx.data_params)
         + [
             f"{len(outcome.recording)} postures from {outcome.recording.source or spec.data.source}; residual = "

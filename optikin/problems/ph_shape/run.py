@@ -10,6 +10,7 @@ from optikin.curves import ShapeData
 from optikin.data.markers import MarkerRecording
 from optikin.problems import ProblemContext
 from optikin.problems.ph_shape.options import PHShapeOptions
+from optikin.problems.ph_shape.wrench import NAME, WrenchRun, distances_to_polylines, run_wrench
 from optikin.problems.ph_shared import MethodRun, distances_to_curves, shape_samples, solve_methods, solver_name
 
 
@@ -28,7 +29,8 @@ class ShapeOutcome:
     runs:
         Every method (the solver first), by preset name.
     distances:
-        Per method, distance of each intermediate marker to its curve ``(N, K)`` [m].
+        Per method, distance of each intermediate marker to its curve ``(N, K)`` [m] (``cosserat-wrench``
+        included when listed).
     solver:
         The solver's preset name.
     options:
@@ -42,6 +44,7 @@ class ShapeOutcome:
     distances: dict[str, np.ndarray]
     solver: str
     options: PHShapeOptions
+    wrench: WrenchRun | None = None
 
     @property
     def main(self) -> MethodRun:
@@ -54,6 +57,13 @@ def run(ctx: ProblemContext) -> ShapeOutcome:
     options: PHShapeOptions = ctx.options
     source = f"{ctx.path.name}: data"
     recording, lengths, samples = shape_samples(ctx.load_data(), options, source)
-    runs = solve_methods(ctx, options.energy, options.free_speeds, samples)
+    runs = solve_methods(ctx, options.energy, options.free_speeds, samples, others=(NAME,))
     distances = {name: distances_to_curves(method.curves, recording.markers) for name, method in runs.items()}
-    return ShapeOutcome(recording, lengths, samples, runs, distances, solver_name(ctx), options)
+    wrench = None
+    if NAME in ctx.spec.baselines:
+        used = np.array([s.length for s in samples], dtype=float)  # the PH methods' lengths (raised to the chord)
+        with ctx.progress.task(f"{ctx.spec.kind}: {len(samples)} samples x {NAME}", total=1) as advance:
+            wrench = run_wrench(recording, used, options.cosserat_wrench)
+            advance()
+        distances[NAME] = distances_to_polylines(wrench.backbones, recording.markers)
+    return ShapeOutcome(recording, lengths, samples, runs, distances, solver_name(ctx), options, wrench)
