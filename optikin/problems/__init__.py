@@ -102,6 +102,16 @@ class ProblemContext:
             raise SpecError(self.path, "data.source", f"kind {self.spec.kind!r} has no data sources")
         return self.data_source.load(self.arm, self.spec.data, self.data_params, self.path)
 
+    def result(self, **fields: Any) -> Result:
+        """A :class:`~optikin.results.Result` of this problem.
+
+        ``problem``, ``kind`` and ``title`` come from the file; ``arm`` (the arm's
+        :meth:`describe`) and ``solver`` (the preset's name) unless ``fields`` give them.
+        """
+        fields.setdefault("solver", None if self.solver is None else self.solver.name)
+        fields.setdefault("arm", self.arm.describe())
+        return Result(problem=self.spec.name, kind=self.spec.kind, title=self.spec.title, **fields)
+
     def error(self, field_path: str, message: str) -> SpecError:
         return SpecError(self.path, field_path, message)
 

@@ -71,7 +71,7 @@ def tip_metrics(outcome: FkOutcome) -> dict[str, float | list[float]]:
 
 def report(ctx: ProblemContext, outcome: FkOutcome) -> Result:
     """The Result of an ``fk`` run (arrays: configurations, tip_dq, tip_position, section_dq, backbone, t)."""
-    spec, n = ctx.spec, outcome.configurations.shape[0]
+    n = outcome.configurations.shape[0]
     arrays = {
         "configurations": outcome.configurations,
         "tip_dq": outcome.tip_dq,
@@ -81,12 +81,7 @@ def report(ctx: ProblemContext, outcome: FkOutcome) -> Result:
     }
     if outcome.t is not None:
         arrays["t"] = outcome.t
-    return Result(
-        problem=spec.name,
-        kind=spec.kind,
-        solver=None if ctx.solver is None else ctx.solver.name,
-        title=spec.title,
-        arm=ctx.arm.describe(),
+    return ctx.result(
         status=sample_status(outcome),
         residuals=outcome.unit_error,
         timings={

@@ -135,7 +135,7 @@ def notes_of(outcome: IkOutcome) -> list[str]:
 
 def result_of(ctx: ProblemContext, outcome: IkOutcome) -> Result:
     """The :class:`~optikin.results.Result` of an ``ik`` run."""
-    spec, targets, main = ctx.spec, outcome.targets, outcome.main.report
+    targets, main = outcome.targets, outcome.main.report
     formulation = outcome.setup.formulation
     metrics = {
         "targets": len(targets),
@@ -146,12 +146,8 @@ def result_of(ctx: ProblemContext, outcome: IkOutcome) -> Result:
         "tolerance [m]": formulation.tolerance,
     }
     comparison = [MethodRow(run.method.name, run.method.role, method_metrics(run, targets)) for run in outcome.runs]
-    return Result(
-        problem=spec.name,
-        kind=spec.kind,
+    return ctx.result(
         solver=outcome.main.method.name,
-        title=spec.title,
-        arm=ctx.arm.describe(),
         status=list(main.status),
         iterations=main.iterations,
         residuals=main.residual,

@@ -78,16 +78,12 @@ def sample_status(outcome: ChainOutcome) -> list[str]:
 
 def report(ctx: ProblemContext, outcome: ChainOutcome) -> Result:
     """The Result of a ``ph_chain`` run."""
-    spec, main, options = ctx.spec, outcome.main, outcome.options
+    main, options = outcome.main, outcome.options
     marker_distance = {k: distances_to_curves(main[k].curves, outcome.markers[k]) * MM for k in LINKS}
     metrics = chain_metrics(outcome, marker_distance)
     rope = "free, length held" if options.rope_free_speeds else "set to its length"
-    return Result(
-        problem=spec.name,
-        kind=spec.kind,
+    return ctx.result(
         solver=outcome.solver,
-        title=spec.title,
-        arm=ctx.arm.describe(),
         status=sample_status(outcome),
         iterations=np.sum([main[k].iterations for k in LINKS], axis=0),
         residuals=np.nanmax(np.column_stack([marker_distance[k].max(axis=1) for k in LINKS]), axis=1) / MM,

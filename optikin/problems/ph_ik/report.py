@@ -129,12 +129,8 @@ def report(ctx: ProblemContext, outcome: IkOutcome) -> Result:
         f"{layout.radius_end * MM:.1f} mm (tip); backbone length: {options.length}; end speeds "
         f"{options.speeds_note()}"
     ]
-    return Result(
-        problem=spec.name,
-        kind=spec.kind,
+    return ctx.result(
         solver=outcome.solver,
-        title=spec.title,
-        arm=ctx.arm.describe(),
         status=main.status,
         iterations=main.iterations,
         residuals=np.nanmax(errors, axis=1) / MM,

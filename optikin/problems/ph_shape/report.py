@@ -152,12 +152,8 @@ def report(ctx: ProblemContext, outcome: ShapeOutcome) -> Result:
     if outcome.wrench is not None:
         row, wrench_arrays = wrench_row(outcome)
         comparison.append(row)
-    return Result(
-        problem=spec.name,
-        kind=spec.kind,
+    return ctx.result(
         solver=outcome.solver,
-        title=spec.title,
-        arm=ctx.arm.describe(),
         status=main.status,
         iterations=main.iterations,
         residuals=np.nanmax(distance, axis=1) / MM,

@@ -133,12 +133,8 @@ def forward_result(ctx: ProblemContext, outcome: ForwardOutcome) -> Result:
         notes.append(f"{len(failed)} equilibria failed; first: sample {failed[0]}: {first.message}")
     if outcome.skipped_rows:
         notes.append(f"{outcome.skipped_rows} rows of {ctx.data_params.file} skipped (data.samples)")
-    return Result(
-        problem=ctx.spec.name,
-        kind=ctx.spec.kind,
+    return ctx.result(
         solver=run.name,
-        title=ctx.spec.title,
-        arm=ctx.arm.describe(),
         status=status,
         iterations=arrays["iterations"],
         residuals=residual,
@@ -194,12 +190,8 @@ def inverse_result(ctx: ProblemContext, outcome: InverseOutcome) -> Result:
     bad = [i for i, s in enumerate(main.report.status) if s != "ok"]
     if bad:
         notes.append(f"{len(bad)} targets not solved by {main.name}; first: {bad[0]}: {main.report.messages[bad[0]]}")
-    return Result(
-        problem=ctx.spec.name,
-        kind=ctx.spec.kind,
+    return ctx.result(
         solver=main.name,
-        title=ctx.spec.title,
-        arm=ctx.arm.describe(),
         status=list(main.report.status),
         iterations=np.asarray(main.report.iterations),
         residuals=np.asarray(main.report.residual),

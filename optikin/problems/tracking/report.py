@@ -26,7 +26,7 @@ COMPARED = {
 
 def result(ctx: ProblemContext, outcome: TrackingOutcome) -> Result:
     """The Result of ``outcome``: per-step status of the QP (``ok``, or ``failed`` where its fallback acted)."""
-    spec, runs = ctx.spec, outcome.runs
+    runs = outcome.runs
     qp_run = runs["qp"]
     summaries = {name: tracking.metrics() for name, tracking in runs.items()}
     comparison = [_row(name, tracking, summaries[name], outcome.tolerance) for name, tracking in runs.items()]
@@ -39,12 +39,7 @@ def result(ctx: ProblemContext, outcome: TrackingOutcome) -> Result:
         "qp step p95 [us]": float(metrics["step time p95 [us]"]),
     }
     criteria, missed = success_criteria(summaries["qp"], outcome.tolerance)
-    return Result(
-        problem=spec.name,
-        kind=spec.kind,
-        solver=None if ctx.solver is None else ctx.solver.name,
-        title=spec.title,
-        arm=ctx.arm.describe(),
+    return ctx.result(
         status=["ok" if s == "ok" else "failed" for s in qp_run.status],
         residuals=qp_run.position_error,
         timings=timings,
