@@ -124,3 +124,44 @@ def test_gravity_direction_is_respected():
 def test_bad_ropes_are_rejected(args, field):
     with pytest.raises(InputDataError, match=field):
         catenary(*args, source="rope.yaml")
+
+
+def potential_energy(end, start, length, weight, n=20001):
+    """``w int z ds`` of the catenary between ``start`` and ``end``, by the trapezoid rule on its points."""
+    rope = catenary(start, end, length)
+    z = rope.points(np.linspace(0.0, length, n))[:, 2]
+    return weight * length / (n - 1) * (z.sum() - 0.5 * (z[0] + z[-1]))
+
+
+@pytest.mark.parametrize("start,end,length", [CASES[0], CASES[1], CASES[3]])
+def test_end_forces_are_the_gradient_of_the_potential_energy_and_carry_the_weight(start, end, length):
+    """Virtual work: moving the end support by dB changes the rope's least potential energy by -F . dB,
+    F the force on that support (central differences of the energy integrated along the rope)."""
+    weight = 0.5
+    on_start, on_end = catenary(start, end, length).end_forces(weight)
+    np.testing.assert_allclose(on_start + on_end, [0.0, 0.0, -weight * length], atol=1e-12)
+    h = 1e-5
+    for support, force in ((1, on_end), (0, on_start)):
+        gradient = np.zeros(3)
+        for k in range(3):
+            step = np.zeros(3)
+            step[k] = h
+            ends = [np.asarray(start, float), np.asarray(end, float)]
+            plus, minus = [e.copy() for e in ends], [e.copy() for e in ends]
+            plus[support] += step
+            minus[support] -= step
+            gradient[k] = (
+                potential_energy(plus[1], plus[0], length, weight)
+                - potential_energy(minus[1], minus[0], length, weight)
+            ) / (2 * h)
+        np.testing.assert_allclose(force, -gradient, atol=1e-6 * weight * length)
+
+
+def test_end_forces_of_the_limits():
+    folded = catenary([0, 0, 0], [0, 0, 0.2], 1.0)
+    on_start, on_end = folded.end_forces(2.0)
+    np.testing.assert_allclose(on_start, [0, 0, -0.8], atol=1e-15)  # 0.4 m hang from the start
+    np.testing.assert_allclose(on_end, [0, 0, -1.2], atol=1e-15)  # 0.6 m from the end
+    with pytest.raises(ValueError, match="infinite tension"):
+        catenary([0, 0, 0], [0.3, 0, 0.4], 0.5).end_forces(1.0)
+    assert np.all(catenary([0, 0, 0], [0.3, 0, 0.4], 0.5).end_forces(0.0)[0] == 0.0)

@@ -124,6 +124,42 @@ class Catenary:
         _, _, tx, tz = self._plane(s)
         return tx[..., None] * self.horizontal + tz[..., None] * self.up
 
+    def end_forces(self, weight_per_length: float) -> tuple[np.ndarray, np.ndarray]:
+        """The forces the rope exerts on its two supports, ``(on start, on end)`` [N], each ``(3,)``.
+
+        A perfectly flexible rope carries only its tension ``T(s)`` along its tangent; on a
+        catenary of weight ``w`` per length the horizontal part is ``H = w a`` everywhere and
+        ``T = H cosh((x - x0)/a)``, so the rope pulls the start along ``+T t(0)`` and the end
+        along ``-T t(l)``: the vertical parts, ``w a sinh`` at each end, add up to the weight
+        ``w l``. A folded rope hangs from each end by the weight of its piece below it.
+
+        Parameters
+        ----------
+        weight_per_length:
+            ``w = mu |g|`` [N/m], ``>= 0``.
+
+        Raises
+        ------
+        ValueError
+            For a straight rope with weight (exactly as long as its chord: the tension is infinite).
+        """
+        w = float(weight_per_length)
+        if not (math.isfinite(w) and w >= 0):
+            raise ValueError(f"weight per length must be finite and >= 0, got {w}")
+        if w == 0.0:
+            return np.zeros(3), np.zeros(3)
+        if self.kind == "straight":
+            raise ValueError("a rope as long as its chord has an infinite tension under its weight")
+        if self.kind == "folded":
+            drop = 0.5 * (self.length - self.rise)  # the piece hanging from the start
+            return -w * drop * self.up, -w * (self.length - drop) * self.up
+        H = w * self.a
+        u0 = -math.sinh(self.x0 / self.a)
+        u1 = self.length / self.a + u0
+        on_start = H * (self.horizontal + u0 * self.up)
+        on_end = -H * (self.horizontal + u1 * self.up)
+        return on_start, on_end
+
 
 def catenary(start, end, length: float, gravity=GRAVITY_DIRECTION, *, source: str = "") -> Catenary:
     """The hanging rope of ``length`` between ``start`` and ``end`` under ``gravity`` (a direction).

@@ -78,7 +78,7 @@ from pydantic import Field, field_validator
 from optikin.algebra import quat_from_axis_angle, quat_from_matrix, quat_multiply, quat_normalize, quat_rotate
 from optikin.arms.base import ArmModel
 from optikin.arms.cbha import LEG_DIRECTIONS, PLATFORM_LEG_LENGTHS, CBHAArm
-from optikin.curves.catenary import catenary
+from optikin.curves.catenary import Catenary, catenary
 from optikin.data.configurations import first_rows
 from optikin.data.csvread import missing_columns, read_table
 from optikin.data.sources import register_source
@@ -585,12 +585,46 @@ def synthetic_rope_chain(
     )
     assert arm1.truth is not None and arm2.truth is not None  # synthetic recordings
     B, C = arm1.truth.vertebrae[:, -1], arm2.truth.vertebrae[:, -1]
-    s_markers = rope_length * np.asarray(rope_marker_fractions)
-    s_truth = np.linspace(0.0, rope_length, truth_points)
     ropes = [catenary(B[i], C[i], rope_length, source=source) for i in range(samples)]
+    return recorded_rope(arm1, arm2, ropes, rope_marker_fractions, end_offset, noise, rng, truth_points)
+
+
+def recorded_rope(
+    arm1: MarkerRecording,
+    arm2: MarkerRecording,
+    ropes: list[Catenary],
+    fractions: tuple[float, ...],
+    end_offset: float,
+    noise: float,
+    rng: np.random.Generator,
+    truth_points: int = 200,
+) -> RopeChainRecording:
+    """The chain of two arm recordings and the rope of each posture as motion capture sees it.
+
+    Parameters
+    ----------
+    arm1, arm2:
+        The arms' recordings in the world frame (``N`` postures).
+    ropes:
+        The rope of each posture, from arm 1's true tip to arm 2's.
+    fractions:
+        Intermediate rope markers, fractions of the rope length from arm 1's tip.
+    end_offset:
+        Arc length [m] from each end of the markers that give the rope's end directions
+        (each the unit chord from the arm's measured tip position to that marker).
+    noise:
+        Standard deviation of each marker coordinate [m].
+    rng:
+        Draws the noise: the end markers first, then the intermediate ones.
+    truth_points:
+        Dense points of each rope kept as its truth.
+    """
+    length = ropes[0].length
+    s_markers = length * np.asarray(fractions)
+    s_truth = np.linspace(0.0, length, truth_points)
     truth = np.array([rope.points(s_truth) for rope in ropes])
     marker_truth = np.array([rope.points(s_markers) for rope in ropes])
-    near = np.array([rope.points(np.array([end_offset, rope_length - end_offset])) for rope in ropes])
+    near = np.array([rope.points(np.array([end_offset, length - end_offset])) for rope in ropes])
     near = near + noise * rng.standard_normal(near.shape)
     start = near[:, 0] - arm1.tip_position
     end = arm2.tip_position - near[:, 1]
@@ -598,7 +632,7 @@ def synthetic_rope_chain(
         [start / np.linalg.norm(start, axis=1, keepdims=True), end / np.linalg.norm(end, axis=1, keepdims=True)], axis=1
     )
     markers = marker_truth + noise * rng.standard_normal(marker_truth.shape)
-    return RopeChainRecording(arm1, arm2, float(rope_length), markers, directions, truth, marker_truth)
+    return RopeChainRecording(arm1, arm2, float(length), markers, directions, truth, marker_truth)
 
 
 class RopeChainParams(SyntheticMarkerParams):

@@ -16,6 +16,15 @@ take the options of (:class:`~optikin.problems.ph_shared.PHOptions`); the rope's
 so by default its end speeds are free and its arc length is held to it
 (``rope_free_speeds``).
 
+On source ``cosserat`` (:mod:`optikin.data.cosserat_rope`) both arms are the
+real-size pneumatic Cosserat CBHA of :mod:`optikin.data.cosserat_markers` under
+gravity, recorded like it (rigid bodies, five markers on each tube, their centroids as
+the backbone markers), and the rope's weight loads their tips (the catenary's end
+tensions, made consistent with the tips by fixed-point iteration); the arms' truth is
+the Cosserat backbone at every solver node. Params: those of the ``cosserat`` marker
+source, ``rope_length`` (0.8 m), ``base_distance`` (0.4 m), ``rope_mass_per_length``
+(0.05 kg/m), ``end_offset``, ``rope_markers``, ``coupling_tolerance``, ``coupling_iterations``.
+
 Data (family ``rope_chains``, ``data.source: synthetic``,
 :class:`~optikin.data.markers.RopeChainParams`), params: ``rope_length`` (0.65 m), ``base_distance``
 (0.25 m), ``end_offset`` (0.02 m), ``rope_markers`` (fractions of the rope length,
@@ -30,7 +39,8 @@ distance of the ground truth (vertebra centres, dense catenary) to the PH curve.
 
 from __future__ import annotations
 
-import optikin.data.markers  # noqa: F401 - registers the sources of data family "rope_chains"
+import optikin.data.markers  # noqa: F401 - registers source "synthetic" of data family "rope_chains"
+import optikin.data.cosserat_rope  # noqa: F401 - registers source "cosserat" of data family "rope_chains"
 from optikin.problems import ProblemContext, ProblemKind, register_kind
 from optikin.problems.ph_chain import figures
 from optikin.problems.ph_chain.options import PHChainOptions
