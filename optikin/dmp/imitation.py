@@ -7,7 +7,10 @@ The roll-out (:mod:`optikin.dmp.rollout`) integrates the DMP on the fixed step
     y_{k+1}   = advance(y_k, dt/tau (eta_{k+1} + alpha_s e_k))            (Seleem et al.'s eqs. 12, 18/23, 26)
 
 with ``e_k = gap(g, y_k)`` (``g - y`` per angle, ``2 log(g conj(y))`` on a
-quaternion). The target forces are this recursion solved for ``f_k`` along the
+quaternion), each on the branch continuous with the next one and the last
+nearest zero (:func:`optikin.dmp.spaces.lifted_gaps`): the gap the roll-out
+lifts the same way, so a turn past half or a full turn to the goal is learned
+and replayed alike. The target forces are this recursion solved for ``f_k`` along the
 demonstration ``y_0 .. y_{N-1}``, starting at rest (``eta_0 + alpha_s e_0 = 0``):
 
     eta_{k+1} = tau/dt gap(y_{k+1}, y_k) - alpha_s e_k
@@ -36,7 +39,7 @@ from optikin.algebra.backend import Array
 from optikin.dmp import basis
 from optikin.dmp.canonical import goal_stopping_weight, stopped_log_phase
 from optikin.dmp.smoothing import smooth_demonstration
-from optikin.dmp.spaces import Space, smooth_norm
+from optikin.dmp.spaces import Space, lifted_gaps, smooth_norm
 from optikin.errors import InputDataError
 
 UNIFORM_TOLERANCE = 1e-6
@@ -52,7 +55,7 @@ class Demonstration:
     Y: np.ndarray  # (N, size), quaternion blocks sign-continuous
     dt: float
     tau: float
-    goal_gap: np.ndarray  # (N - 1, dim): e_k = gap(g, y_k)
+    goal_gap: np.ndarray  # (N - 1, dim): e_k = gap(g, y_k), continuous along k (spaces.lifted_gaps)
     step_rate: np.ndarray  # (N - 1, dim): tau/dt gap(y_{k+1}, y_k)
 
     @property
@@ -113,7 +116,7 @@ def prepare(
         Y=Y,
         dt=dt,
         tau=tau,
-        goal_gap=np.asarray(space.gap(goal, Y[:-1])),
+        goal_gap=lifted_gaps(space, goal, Y[:-1]),
         step_rate=np.asarray(space.gap(Y[1:], Y[:-1])) * (tau / dt),
     )
 
@@ -166,15 +169,25 @@ def demonstration_log_phase(
     return stopped_log_phase(demo.dt, demo.tau, zeta, alpha_goal, smooth_norm(demo.goal_gap))
 
 
-def amplitude(space: Space, start: np.ndarray, goal: np.ndarray, scale: bool, source: str = "") -> np.ndarray:
+def amplitude(
+    space: Space,
+    start: np.ndarray,
+    goal: np.ndarray,
+    scale: bool,
+    source: str = "",
+    gap: np.ndarray | None = None,
+) -> np.ndarray:
     """Per-component factor of the forcing term: ``gap(goal, start)`` (Seleem et al.'s eqs. 11, 20) or ones.
+
+    ``gap``: the ``(dim,)`` start-goal gap on the branch the DMP uses (:meth:`~optikin.dmp.spaces.Space.lift`),
+    instead of ``gap(goal, start)``.
 
     A component with a vanishing start-goal gap cannot be scaled (eq. 16 would
     divide by zero): that raises an :class:`InputDataError` naming it.
     """
     if not scale:
         return np.ones(space.dim)
-    amp = np.asarray(space.gap(goal, start), dtype=float)
+    amp = np.asarray(space.gap(goal, start) if gap is None else gap, dtype=float)
     small = np.flatnonzero(np.abs(amp) < 1e-9)
     if small.size:
         raise InputDataError(

@@ -19,10 +19,12 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from typing import Callable, Sequence
+from typing import Any, Callable, Sequence
 
+import casadi as ca
 import numpy as np
 
+from optikin.algebra import backend as B
 from optikin.dmp import basis, regression
 from optikin.dmp.canonical import goal_stopping_weight
 from optikin.dmp.gains import Gains
@@ -66,8 +68,11 @@ class Rollout:
 class RolloutPlan:
     """Checked roll-out inputs: times, steps, time constants, start, goal, per-step inputs ``(K, nu)``.
 
-    ``start_coupling`` is ``e_0 + r_0`` (the gaps the coupling of eqs. 26-27
-    sees at the start); ``eta_0 = -alpha_s start_coupling`` starts at rest.
+    ``start_gap`` is the goal gap ``e_0`` on the branch the roll-out starts
+    from (:meth:`~optikin.dmp.spaces.Space.lift`: nearest the one learned at the
+    demonstration's start); ``start_coupling`` is ``e_0 + r_0`` (the gaps the
+    coupling of eqs. 26-27 sees at the start); ``eta_0 = -alpha_s
+    start_coupling`` starts at rest.
     """
 
     t: np.ndarray
@@ -80,6 +85,14 @@ class RolloutPlan:
     inputs: np.ndarray
     start_coupling: np.ndarray
     amplitude: np.ndarray
+    start_gap: np.ndarray
+
+    def initial_state(self, alpha_s: Any) -> Any:
+        """``x0 = (y_0, eta_0, s_0 = 1, g_0, e_0)`` of :mod:`optikin.dmp.rollout`, at rest for the coupling
+        ``alpha_s`` (a number: ``(nx,)``; a CasADi symbol: an ``nx x 1`` column)."""
+        if B.is_casadi(alpha_s):
+            return ca.vertcat(self.start, -alpha_s * ca.DM(self.start_coupling), 1.0, self.goal, self.start_gap)
+        return np.concatenate([self.start, -alpha_s * self.start_coupling, [1.0], self.goal, self.start_gap])
 
 
 @dataclass(frozen=True)
@@ -184,7 +197,7 @@ class DMP:
         demo = prepare(self.space, t, Y, source, self.smoothing)
         g = self.gains
         X, s, c, h, s_end = design_matrix(demo, self.n_basis, g.zeta, g.alpha, self.overlap, self.phase_stopping)
-        amp = amplitude(self.space, demo.start, demo.goal, self.scale_by_amplitude, source)
+        amp = amplitude(self.space, demo.start, demo.goal, self.scale_by_amplitude, source, gap=demo.goal_gap[0])
         F = target_forces(demo, g.beta, g.gamma, g.alpha_s) / amp
         return RegressionProblem(demo, X, F, s, basis.activations(s, c, h), c, h, s_end)
 
@@ -326,7 +339,7 @@ class DMP:
         )  # checks that the DMP has learned
         W = np.asarray(self.weights if weights is None else weights, dtype=float)
         space, size, dim = self.space, self.space.size, self.space.dim
-        x0 = np.concatenate([plan.start, -gains.alpha_s * plan.start_coupling, [1.0], plan.goal])
+        x0 = plan.initial_state(gains.alpha_s)
         f = rollout_function(space, self.n_basis, plan.steps)
         begin = time.perf_counter()
         c, h, s_end = self._basis()
@@ -339,7 +352,7 @@ class DMP:
             y=X[:, :size],
             eta=X[:, size : size + dim],
             phase=X[:, size + dim],
-            goal=X[:, size + dim + 1 :],
+            goal=X[:, size + dim + 1 : 2 * size + dim + 1],
             seconds=seconds,
         )
 
@@ -373,8 +386,10 @@ class DMP:
             raise ValueError(f"tau, dt and duration must be positive (got {tau}, {dt}, {duration})")
         steps = max(1, int(round(duration / dt)))
         t = np.arange(steps + 1) * dt
+        # The goal as learned (sign-continuous with the start along the demonstration); whatever the sign of a
+        # goal, its gap is taken on the branch nearest the one learned (start_gap below, Space.lift).
         y0 = demo.start if start is None else self._element(start, "start")
-        goal = space.align(demo.goal if goal is None else self._element(goal, "goal"), y0)
+        goal = demo.goal if goal is None else space.align(self._element(goal, "goal"), y0)
 
         dim, size = space.dim, space.size
         U = np.zeros((steps, input_size(space)))  # per step: (d, y_ref, m, g_new)
@@ -390,9 +405,8 @@ class DMP:
             U[:, dim : dim + size] = self._per_step(reference, t[:-1], size, "reference")
             U[:, dim + size] = 1.0
         # At rest: the velocity eta + alpha_s (e + r) of eqs. (26)-(27) vanishes at the start.
-        coupling = np.asarray(space.gap(goal, y0)) + U[0, dim + size] * np.asarray(
-            space.gap(U[0, dim : dim + size], y0)
-        )
+        start_gap = np.asarray(space.lift(space.gap(goal, y0), demo.goal_gap[0]), dtype=float)
+        coupling = start_gap + U[0, dim + size] * np.asarray(space.gap(U[0, dim : dim + size], y0))
         return RolloutPlan(
             t=t,
             steps=steps,
@@ -403,7 +417,15 @@ class DMP:
             final_goal=current,
             inputs=U,
             start_coupling=coupling,
-            amplitude=amplitude(space, y0, current, self.scale_by_amplitude, "rollout"),
+            amplitude=amplitude(
+                space,
+                y0,
+                current,
+                self.scale_by_amplitude,
+                "rollout",
+                gap=np.asarray(space.lift(space.gap(current, y0), start_gap), dtype=float),
+            ),
+            start_gap=start_gap,
         )
 
     def _element(self, x: np.ndarray, what: str) -> np.ndarray:

@@ -1,9 +1,10 @@
 """The DMP roll-out as one CasADi Function: the whole loop runs in CasADi's virtual machine.
 
 One step (Seleem et al. 2020, eqs. 11-12 / 17-18, 15, 23-28, in the gap units of
-:mod:`optikin.dmp.spaces`) on the state ``x = (y, eta, s, g)``:
+:mod:`optikin.dmp.spaces`) on the state ``x = (y, eta, s, g, e_prev)``:
 
-    e   = gap(g, y)                      goal gap (eq. 19: 2 log(g conj(y)))
+    e   = lift(gap(g, y), e_prev)        goal gap (eq. 19: 2 log(g conj(y))) on the branch nearest
+                                         the step before's (:meth:`~optikin.dmp.spaces.Space.lift`)
     r   = m gap(y_ref, y)                gap to a reference (eq. 27), m in {0, 1}
     f   = a * (W psi(s)) s / sum psi(s)  forcing term (eqs. 13, 20), a the amplitude scaling,
           for s > s_end only           (off past the demonstration's phase, :func:`optikin.dmp.basis.forcing_end`)
@@ -11,10 +12,13 @@ One step (Seleem et al. 2020, eqs. 11-12 / 17-18, 15, 23-28, in the gap units of
     y   <- advance(y, dt/tau (eta + alpha_s (e + r)))                        (eqs. 12, 23, 26, 27)
     s   <- s exp(-zeta dt / (tau (1 + alpha (w |e| + |r|))))                 (eqs. 15, 25, 28)
     g   <- advance(g, (1 - exp(-beta_g0 dt/tau)) gap(g_new, g))              (eq. 24)
+    e_prev <- e
 
 The pose update ``advance(y, v) = exp(v/2) y`` keeps a unit quaternion (or
 unit dual quaternion) unit to rounding; the goal filter and the phase are
-integrated exactly for gaps held over the step. The coupling uses the filtered
+integrated exactly for gaps held over the step. ``e_prev`` starts at the
+gap the imitation learned at the start (:mod:`optikin.dmp.imitation`), so a
+rotation past half or a full turn to the goal is one continuous gap in both. The coupling uses the filtered
 goal ``g`` (Seleem et al. write the new goal in eq. 26, which would make the
 velocity jump at a switch, what the filter is there to prevent). Phase
 stopping (:mod:`optikin.dmp.canonical`) uses the tracking error ``|r|`` alone
@@ -38,8 +42,8 @@ from optikin.dmp.spaces import Space, smooth_norm
 
 
 def state_size(space: Space) -> int:
-    """``(y, eta, s, g)``."""
-    return 2 * space.size + space.dim + 1
+    """``(y, eta, s, g, e_prev)``."""
+    return 2 * space.size + 2 * space.dim + 1
 
 
 def input_size(space: Space) -> int:
@@ -64,10 +68,11 @@ def step_function(space: Space, n_basis: int) -> ca.Function:
     w = ca.SX.sym("goal_stopping")
     beta, gamma, zeta, beta_g0, alpha_s, alpha = (gains[i] for i in range(len(GAIN_NAMES)))
 
-    y, eta, s, g = x[:size], x[size : size + dim], x[size + dim], x[size + dim + 1 :]
+    y, eta, s = x[:size], x[size : size + dim], x[size + dim]
+    g, e_prev = x[size + dim + 1 : 2 * size + dim + 1], x[2 * size + dim + 1 :]
     d, ref, m, g_new = u[:dim], u[dim : dim + size], u[dim + size], u[dim + size + 1 :]
 
-    e = space.gap(g, y)
+    e = space.lift(space.gap(g, y), e_prev)
     r = m * space.gap(ref, y)
     psi = ca.exp(-h * (s - c) ** 2)
     f = amp * ca.mtimes(W, psi) * (s / ca.sum1(psi)) * (s > s_end)
@@ -78,7 +83,7 @@ def step_function(space: Space, n_basis: int) -> ca.Function:
     return ca.Function(
         f"dmp_step_{n_basis}",
         [x, u, W, c, h, amp, gains, tau, dt, s_end, w],
-        [ca.vertcat(y_next, eta_next, s_next, g_next)],
+        [ca.vertcat(y_next, eta_next, s_next, g_next, e)],
         ["x", "u", "W", "c", "h", "amplitude", "gains", "tau", "dt", "s_end", "goal_stopping"],
         ["x_next"],
     )

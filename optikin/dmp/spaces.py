@@ -12,7 +12,20 @@ has the same structure once two operations of its space are named:
     move ``y`` by a gap-unit step ``v``: ``y + v`` for vectors,
     ``exp(v / 2) * y`` for quaternions (Seleem et al.'s eq. 23) and dual quaternions.
 
-``gap(advance(y, v), y) = v`` (for rotations below a full turn), so the DMP of
+``lift(e, previous)``
+    the gap ``e`` on the branch nearest ``previous``: a rotation vector
+    ``theta n`` stands for the same rotation as ``(theta + 2 pi k) n`` for every
+    integer ``k`` (and a screw likewise, its moment scaled with the angle), and
+    :func:`optikin.algebra.quat_log` returns one branch only (angle in
+    ``[0, 2 pi]``), which jumps where the rotation to the goal passes a full
+    turn (or, for the other sign of the goal, half a turn). The imitation
+    lifts the goal gaps along the demonstration from the goal backwards
+    (:func:`lifted_gaps`) and the roll-out lifts each gap against the one
+    before, so both see the same continuous gap, whatever the sign of the goal
+    and however far the motion turns (a heading that winds past a full turn
+    included). Vectors have a single branch.
+
+``gap(advance(y, v), y) = v`` (up to the branch), so the DMP of
 one space is written once (:mod:`optikin.dmp.rollout`) for all of them. Each
 operation accepts numpy batches (components on the last axis) and CasADi
 column vectors, like :mod:`optikin.algebra`.
@@ -99,6 +112,25 @@ class Space:
         """
         raise NotImplementedError
 
+    def lift(self, e: Array, previous: Array) -> Array:
+        """The gap ``e`` on the branch nearest ``previous`` (the module docstring).
+
+        Parameters
+        ----------
+        e:
+            ``(..., dim)`` gaps from :meth:`gap` (or a ``dim x 1`` CasADi column).
+        previous:
+            ``(..., dim)`` gaps the branch is chosen against.
+
+        Returns
+        -------
+        Array
+            ``(..., dim)``: ``e`` itself for vectors, ``(theta + 2 pi k) n`` for a
+            rotation vector ``theta n`` with ``k`` the integer nearest
+            ``(previous . n - theta) / (2 pi)``.
+        """
+        return e
+
     def align(self, x: np.ndarray, reference: np.ndarray) -> np.ndarray:
         """``x`` with the sign of each quaternion block chosen to have a non-negative dot with ``reference``."""
         x = np.array(x, dtype=float)
@@ -165,6 +197,10 @@ class UnitQuaternion(Space):
     def advance(self, y: Array, v: Array) -> Array:
         return quat_multiply(quat_exp(0.5 * v), y)
 
+    def lift(self, e: Array, previous: Array) -> Array:
+        turns, axis, _ = _turns(e, previous)
+        return e + (2.0 * np.pi) * turns * axis
+
 
 @dataclass(frozen=True, repr=False)
 class UnitDualQuaternion(Space):
@@ -190,6 +226,22 @@ class UnitDualQuaternion(Space):
 
     def advance(self, y: Array, v: Array) -> Array:
         return dq_multiply(dq_exp(0.5 * v), y)
+
+    def lift(self, e: Array, previous: Array) -> Array:
+        """The screw ``(theta n, d n + theta m)`` on the branch nearest ``previous``: ``theta + 2 pi k`` about the
+        same line (axis ``n``, moment ``m``) with the same translation ``d`` along it (parameters as
+        :meth:`Space.lift`).
+
+        Where the rotation to the goal passes a whole turn with a translation left, the screw's axis goes to
+        infinity (``(I - R) c = p`` with ``R`` near the identity) and so does the lifted moment: a motion that
+        turns past a full turn from its goal while translating is not carried by this gap (the position x
+        orientation DMP of :func:`optikin.dmp.pose.cartesian_dmp` is).
+        """
+        u, v = _slice(e, 0, 3), _slice(e, 3, 6)
+        turns, axis, angle = _turns(u, _slice(previous, 0, 3))
+        along = _dot(v, axis)
+        moment = (v - along * axis) / angle
+        return _join([u + (2.0 * np.pi) * turns * axis, v + (2.0 * np.pi) * turns * moment])
 
     def align(self, x: np.ndarray, reference: np.ndarray) -> np.ndarray:
         """Flip the whole dual quaternion (``Q`` and ``-Q`` are one pose) by the sign of its real parts' dot."""
@@ -242,6 +294,10 @@ class Product(Space):
         vs = self._split(v, [p.dim for p in self.parts])
         return _join([p.advance(a, b) for p, a, b in zip(self.parts, ys, vs)])
 
+    def lift(self, e: Array, previous: Array) -> Array:
+        dims = [p.dim for p in self.parts]
+        return _join([p.lift(a, b) for p, a, b in zip(self.parts, self._split(e, dims), self._split(previous, dims))])
+
     def align(self, x: np.ndarray, reference: np.ndarray) -> np.ndarray:
         sizes = [p.size for p in self.parts]
         xs, rs = self._split(x, sizes), self._split(reference, sizes)
@@ -249,6 +305,41 @@ class Product(Space):
 
     def continuous(self, Y: np.ndarray) -> np.ndarray:
         return _join([p.continuous(part) for p, part in zip(self.parts, self._split(Y, [p.size for p in self.parts]))])
+
+
+def _dot(a: Array, b: Array) -> Array:
+    """Dot product of 3-vectors: a ``1 x 1`` CasADi value or numpy ``(..., 1)``."""
+    if B.any_casadi(a, b):
+        return ca.dot(a, b)
+    return np.sum(np.asarray(a) * np.asarray(b), axis=-1, keepdims=True)
+
+
+def _turns(u: Array, previous: Array) -> tuple[Array, Array, Array]:
+    """``(k, n, theta)`` of a rotation vector ``u = theta n``: the whole turns ``k`` that bring it nearest
+    ``previous``, its unit axis and its angle (1 at ``u = 0``, a safe divisor). At ``u = 0`` (whole turns
+    from the goal) the axis is ``previous``'s, or 0 when that is 0 too."""
+    norm2, before2 = _dot(u, u), _dot(previous, previous)
+    zero, still = norm2 < 1e-24, before2 < 1e-24
+    angle = B.sqrt(B.where(zero, 1.0, norm2))
+    axis = B.where(zero, previous / B.sqrt(B.where(still, 1.0, before2)), u / angle)
+    shift = (_dot(previous, axis) - B.where(zero, 0.0, angle)) / (2.0 * np.pi)
+    turns = ca.floor(shift + 0.5) if B.any_casadi(shift) else np.floor(shift + 0.5)
+    return turns, axis, angle
+
+
+def lifted_gaps(space: Space, goal: np.ndarray, Y: np.ndarray) -> np.ndarray:
+    """``gap(goal, y_k)`` ``(N, dim)`` along a sequence ``Y (N, size)``, continuous from the last sample back.
+
+    The last gap is taken on the branch nearest zero (the shortest rotation to
+    the goal), each earlier one on the branch nearest the gap after it
+    (:meth:`Space.lift`): the gaps the roll-out will meet when it follows ``Y``.
+    """
+    raw = np.asarray(space.gap(goal, Y), dtype=float)
+    out = np.empty_like(raw)
+    previous = np.zeros(raw.shape[-1])
+    for k in range(raw.shape[0] - 1, -1, -1):
+        previous = out[k] = np.asarray(space.lift(raw[k], previous), dtype=float).reshape(-1)
+    return out
 
 
 def smooth_norm(e: Array, eps: float = 1e-12) -> Array:

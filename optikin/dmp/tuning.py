@@ -35,6 +35,7 @@ import casadi as ca
 import numpy as np
 from scipy.stats import qmc
 
+from optikin.algebra import backend as B
 from optikin.baselines import genetic
 from optikin.dmp.gains import GAIN_NAMES, Gains, stable_bounds
 from optikin.dmp.imitation import design_matrix, target_forces
@@ -220,7 +221,11 @@ def tuning_problem(
         plan = dmp.plan(goal_switches=[(switch_time, new_goal)])
         reference = np.broadcast_to(plan.final_goal, demo.Y.shape)
         rows = slice(int(np.searchsorted(plan.t, switch_time)), None)
-    x0 = ca.vertcat(plan.start, -value["alpha_s"] * ca.DM(plan.start_coupling), 1.0, plan.goal)
+    x0 = (
+        plan.initial_state(value["alpha_s"])
+        if B.is_casadi(value["alpha_s"])
+        else ca.DM(plan.initial_state(value["alpha_s"]))
+    )
     gains_vector = ca.vertcat(*[value[n] for n in GAIN_NAMES])
     rollout = rollout_function(space, dmp.n_basis, plan.steps)
     states = rollout(
