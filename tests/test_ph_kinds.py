@@ -11,7 +11,7 @@ import yaml
 
 from optikin.errors import SpecError
 from optikin.problems import load_kinds
-from optikin.problems.ph_shared import problem_variant
+from optikin.problems.ph_shared import problem_variant, recording_of
 from optikin.registry import PROBLEM_KINDS
 from optikin.results import read_result
 from optikin.runner import solve
@@ -145,3 +145,19 @@ def test_cosserat_wrench_baseline_reports_its_row(tmp_path):
     assert np.isfinite(row["mean marker distance [mm]"]) and row["median time per sample [us]"] > 0
     # a stretched, coiled rod under hundreds of newtons also reaches the tip pose, about 90 mm off the arm
     assert row["truth backbone: largest node distance [mm]"] < 10.0
+
+
+def test_the_base_pose_is_each_postures_own_unless_the_problem_fixes_it(tmp_path):
+    """Without ``fixed_base`` every posture keeps its measured base pose; ``fixed_base: true`` (the shipped
+    file's) uses their mean for all."""
+    path = small(tmp_path / "own", "cbha-ph-shape", samples=3)
+    raw = yaml.safe_load(path.read_text())
+    del raw["options"]["fixed_base"]
+    path.write_text(yaml.safe_dump(raw, sort_keys=False))
+    recording = recording_of("cbha-ph-shape", 3)
+    own, _ = solve(str(path))
+    np.testing.assert_array_equal(own.arrays["base_position"], recording.base_position)
+    fixed, _ = solve(str(small(tmp_path / "fixed", "cbha-ph-shape", samples=3)))
+    mean = np.tile(recording.base_position.mean(axis=0), (3, 1))
+    np.testing.assert_allclose(fixed.arrays["base_position"], mean, atol=1e-15)
+    assert np.ptp(recording.base_position, axis=0).max() > 1e-4  # the noise the mean removes

@@ -467,7 +467,9 @@ class CsvMarkerParams(Options):
     )
 
 
-def _cbha(arm: ArmModel, path: Path, source: str) -> CBHAArm:
+def _cbha(arm: ArmModel | None, path: Path, source: str) -> CBHAArm:
+    if arm is None:
+        raise SpecError(path, "arm", f"source {source!r} records a CBHA: give arm: {{type: cbha}}")
     if not isinstance(arm, CBHAArm):
         raise SpecError(path, "arm.type", f"source {source!r} records a CBHA; got arm {arm.name!r}")
     return arm

@@ -15,7 +15,8 @@ Options shared by the three kinds (:class:`PHOptions`, all optional)::
     free_speeds: false    # false: end speeds = backbone length (the seed's setting);
                           # true: speeds free, arc length held to the backbone length
     length: arc           # backbone length: arc | markers | model | a number (metres)
-    fixed_base: true      # average the base pose over the recording (the seed's base is fixed)
+    fixed_base: false     # true: average the base pose over the recording (a base known to be fixed, as
+                          # the seed's); false: each posture's own measured base pose
 
 ``length``: the seed builds the PH curve from the end poses alone, so the default
 estimates the length from them: ``arc`` is the circular arc leaving ``p0`` along
@@ -68,7 +69,11 @@ class PHOptions(Options):
         False, strict=True, description="false: end speeds = backbone length; true: free, arc length held"
     )
     length: str | float = Field("arc", description="backbone length: arc | markers | model | a length [m]")
-    fixed_base: bool = Field(True, strict=True, description="average the base pose over the recording")
+    fixed_base: bool = Field(
+        False,
+        strict=True,
+        description="true: average the base pose over the recording (a fixed base); false: each posture's own",
+    )
 
     @field_validator("length", mode="before")
     @classmethod
