@@ -158,6 +158,10 @@ class RigidBodyTrack:
     positions: np.ndarray
     quaternions: np.ndarray
 
+    def seen(self, frame: int) -> bool:
+        """Whether the body's position and orientation are both known at row ``frame``."""
+        return not (np.isnan(self.positions[frame]).any() or np.isnan(self.quaternions[frame]).any())
+
     def take(self, index: np.ndarray) -> "RigidBodyTrack":
         """The frames ``index``."""
         return RigidBodyTrack(self.positions[index], self.quaternions[index])
@@ -271,7 +275,7 @@ class Recording:
         markers:
             The markers that must be present (default: all).
         bodies:
-            The rigid bodies whose position must be present (default: all).
+            The rigid bodies whose pose (position and orientation) must be present (default: all).
         swaps:
             Also drop the frames noted ``swap`` (labels exchanged: the tracks are wrong there).
 
@@ -293,7 +297,7 @@ class Recording:
         notes = list(self.notes)
         for i in range(len(self)):
             absent = [n for n in names if np.isnan(self.markers[n][i]).any()]
-            absent += [b for b in body_names if np.isnan(self.bodies[b].positions[i]).any()]
+            absent += [b for b in body_names if not self.bodies[b].seen(i)]
             reasons = []
             if absent:
                 reasons.append("missing " + ", ".join(absent))
@@ -346,12 +350,6 @@ def to_base_frame(recording: Recording, frame: FrameOptions, units: Units) -> Re
     )
 
 
-def _tracks(recording: Recording) -> dict[str, np.ndarray]:
-    tracks = {f"marker {k}": v for k, v in recording.markers.items()}
-    tracks.update({f"body {k}": b.positions for k, b in recording.bodies.items()})
-    return tracks
-
-
 def gap_notes(recording: Recording, numbered: bool = False) -> list[FrameNote]:
     """A ``gap`` note on each frame that follows missing frames.
 
@@ -381,11 +379,11 @@ def gap_notes(recording: Recording, numbered: bool = False) -> list[FrameNote]:
 
 
 def nan_notes(recording: Recording) -> list[FrameNote]:
-    """A ``nan`` note on each frame where a marker or body position is (partly) NaN, naming them."""
+    """A ``nan`` note on each frame where a marker or a body's pose is (partly) NaN, naming them."""
     notes = []
-    tracks = _tracks(recording)
     for i in range(len(recording)):
-        absent = [name for name, v in tracks.items() if np.isnan(v[i]).any()]
+        absent = [f"marker {k}" for k, v in recording.markers.items() if np.isnan(v[i]).any()]
+        absent += [f"body {k}" for k, b in recording.bodies.items() if not b.seen(i)]
         if absent:
             notes.append(FrameNote(int(recording.frame_index[i]), "nan", ", ".join(absent) + " missing"))
     return notes
