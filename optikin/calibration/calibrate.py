@@ -1,0 +1,524 @@
+"""Calibration of a constant-curvature arm from measured marker positions: start, robust fit, outliers, refit.
+
+:func:`calibrate` runs the steps:
+
+1. **start** (:func:`initial_base`, :func:`chord_configurations`): the base axis is
+   the mean direction of the chords between consecutive disks, the base position lies
+   on that axis behind the first disk, at the distance that makes the first disks lie
+   on average one section length from it; each posture's bending vectors follow in
+   closed form from its chords: a CC section of length ``S`` and bend ``theta`` has
+   its chord at ``theta/2`` from its start tangent, of length ``S sinc(theta/2)``, in
+   the bending plane (seed 000 eq. 1). The reference base orientation ``R_ref`` has
+   its z axis on the base axis and its x axis on the measurement frame's x (or y)
+   projected across it;
+2. **configurations**: every posture fitted with the shared parameters held;
+3. **robust fit** of everything (:func:`optikin.calibration.solver.solve`), to screen for outliers;
+4. **outliers**: a posture is rejected when one of its marker errors exceeds
+   ``outlier_threshold`` times the median marker error; the reason names the marker
+   and, when exchanging two markers' labels explains the posture, the swap;
+5. **refit** without the rejected postures (robust loss still on), to convergence.
+
+Without measured orientations, the rotation of the base about its own axis (yaw) is
+not observable: a torsion-free CC arm turned about its base axis reaches the same
+points with every bending plane turned back. It stays at ``R_ref`` unless an
+orientation prior fixes it (``estimate_yaw`` with ``orientation_sigma``).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from itertools import combinations
+from typing import Sequence
+
+import numpy as np
+
+from optikin.calibration.model import Layout, MarkerModel, rotation_from_vector_np
+from optikin.calibration.solver import Fit, Loss, Problem, solve
+
+SCREENING_ITERATIONS = 30
+"""Steps of the robust fit on every posture that screens for outliers (it need not converge to the last digit:
+postures far from the model, nearly weightless, converge slowly; the final fit without them does)."""
+SCREENING_TOLERANCE = 1e-6
+"""Relative decrease of the cost that ends the screening fit."""
+
+BASE_FIELDS = ("x", "y", "z", "tilt", "yaw")
+"""Components of the base pose that ``fix`` may hold at their starting value."""
+
+
+@dataclass(eq=False)
+class Outlier:
+    """A rejected posture: its index among the postures given, and why."""
+
+    posture: int
+    reason: str
+
+
+@dataclass(eq=False)
+class Calibration:
+    """What :func:`calibrate` found.
+
+    Attributes
+    ----------
+    fit : Fit
+        The final fit, on the postures kept.
+    robust : Fit
+        The robust fit on every posture, from which the outliers were found.
+    problem : Problem
+        The problem on the postures kept.
+    kept : numpy.ndarray
+        Indices of the postures kept (the rows of ``fit.X``).
+    outliers : list of Outlier
+        The rejected postures.
+    names : list of str
+        Names of the shared parameters.
+    seconds : float
+        Wall time of the whole calibration.
+    """
+
+    fit: Fit
+    robust: Fit
+    problem: Problem
+    kept: np.ndarray
+    outliers: list[Outlier]
+    names: list[str]
+    marker_names: list[str]
+    seconds: float
+    start: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    @property
+    def layout(self) -> Layout:
+        return self.problem.model.layout
+
+    @property
+    def lengths(self) -> np.ndarray:
+        """Section lengths [m]: shared, or for an extensible arm the median over the postures."""
+        lay = self.layout
+        if lay.extensible:
+            return np.median(self.fit.X[:, 2 * lay.n_sections :], axis=0)
+        return self.fit.beta[lay.lengths]
+
+    @property
+    def length_ranges(self) -> np.ndarray:
+        """``(m, 2)`` smallest and largest length of each section over the postures [m]."""
+        lay = self.layout
+        if not lay.extensible:
+            return np.repeat(self.lengths[:, None], 2, axis=1)
+        S = self.fit.X[:, 2 * lay.n_sections :]
+        return np.stack([S.min(axis=0), S.max(axis=0)], axis=1)
+
+    @property
+    def base_position(self) -> np.ndarray:
+        return self.fit.beta[self.layout.position]
+
+    @property
+    def base_rotation(self) -> np.ndarray:
+        """``(3, 3)`` base orientation in the measurement frame."""
+        return self.problem.ref @ rotation_from_vector_np(self.fit.beta[self.layout.rotation])
+
+    @property
+    def offsets(self) -> np.ndarray:
+        """``(M, 3)`` marker offsets in their disk's frame [m]."""
+        return self.fit.beta[self.layout.offsets].reshape(-1, 3)
+
+    def std(self, name: str) -> float:
+        return float(self.fit.std[self.names.index(name)])
+
+
+def initial_base(
+    measured: np.ndarray, marker_sections: Sequence[int], first_length: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """A starting base pose from the data alone (module docstring, step 1).
+
+    Parameters
+    ----------
+    measured : numpy.ndarray
+        ``(N, M, 3)`` marker positions [m], NaN where missing.
+    marker_sections : sequence of int
+        Section end (1-based) of each marker.
+    first_length : float
+        Nominal length of the first section [m].
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        The base position ``(3,)`` [m] and the reference orientation ``R_ref (3, 3)``.
+    """
+    order = np.argsort(marker_sections, kind="stable")
+    P = measured[:, order]
+    chords = np.diff(P, axis=1).reshape(-1, 3)
+    chords = chords[np.all(np.isfinite(chords), axis=1)]
+    if len(chords) == 0:
+        raise ValueError("no posture shows two consecutive disks: cannot find the base axis")
+    axis = np.sum(chords / np.linalg.norm(chords, axis=1, keepdims=True), axis=0)
+    axis /= np.linalg.norm(axis)
+    first = P[:, 0]
+    first = first[np.all(np.isfinite(first), axis=1)]
+    centre = np.mean(first, axis=0)
+    # p0 = centre - t axis with the mean distance of the first disks to p0 equal to the first length
+    ts = np.linspace(0.0, 2.0 * first_length, 401)
+    spread = [np.mean(np.linalg.norm(first - (centre - t * axis), axis=1)) - first_length for t in ts]
+    t = ts[int(np.argmin(np.abs(spread)))]
+    return centre - t * axis, reference_orientation(axis)
+
+
+def reference_orientation(axis: np.ndarray) -> np.ndarray:
+    """``R_ref``: z along ``axis``, x along the measurement x (or y, if x is near the axis) across it."""
+    z = axis / np.linalg.norm(axis)
+    helper = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    x = helper - (helper @ z) * z
+    x /= np.linalg.norm(x)
+    return np.stack([x, np.cross(z, x), z], axis=1)
+
+
+def chord_configurations(
+    measured: np.ndarray, layout: Layout, lengths: np.ndarray, base: np.ndarray, R0: np.ndarray
+) -> np.ndarray:
+    """Each posture's bending vectors (and lengths, when extensible) from its chords (module docstring).
+
+    A section whose end disk was not measured starts straight, and the chain continues from its
+    predicted end.
+    """
+    N, m = len(measured), layout.n_sections
+    disk = {s: j for j, s in enumerate(layout.marker_sections)}
+    X = np.zeros((N, layout.n_x))
+    if layout.extensible:
+        X[:, 2 * m :] = lengths
+    for k in range(N):
+        R, p = R0.copy(), base.copy()
+        for i in range(m):
+            j = disk.get(i + 1)
+            target = measured[k, j] if j is not None else None
+            S = lengths[i]
+            if target is not None and np.all(np.isfinite(target)):
+                c = R.T @ (target - p)
+                theta = 2.0 * np.arctan2(np.hypot(c[0], c[1]), c[2])
+                phi = np.arctan2(c[1], c[0])
+                if layout.extensible:
+                    half = 0.5 * theta
+                    S = float(np.linalg.norm(c) / (np.sin(half) / half if half > 1e-8 else 1.0))
+                    X[k, 2 * m + i] = S
+            else:
+                theta, phi = 0.0, 0.0
+            u, v = theta * np.cos(phi), theta * np.sin(phi)
+            X[k, 2 * i : 2 * i + 2] = u, v
+            Rs = rotation_from_vector_np(np.array([-v, u, 0.0]))
+            t2 = theta * theta
+            c2 = 0.5 * np.sinc(theta / (2 * np.pi)) ** 2
+            local = S * np.array([u * c2, v * c2, np.sinc(theta / np.pi)]) if t2 > 0 else np.array([0, 0, S])
+            p = p + R @ local
+            R = R @ Rs
+    return X
+
+
+def calibrate(
+    measured: np.ndarray,
+    lengths: Sequence[float],
+    marker_sections: Sequence[int],
+    marker_names: Sequence[str] | None = None,
+    *,
+    base_position: Sequence[float] | None = None,
+    base_rotation: np.ndarray | None = None,
+    position_sigma: float | None = None,
+    orientation_sigma: float | None = None,
+    fix: Sequence[str] = (),
+    estimate_yaw: bool = False,
+    fix_lengths: bool = False,
+    offsets: bool = False,
+    offset_sigma: float | None = None,
+    initial_offsets: np.ndarray | None = None,
+    extensible: bool = False,
+    loss: Loss = "soft_l1",
+    loss_scale: float = 1e-3,
+    marker_noise: float = 3e-4,
+    outlier_threshold: float = 6.0,
+    max_iterations: int = 100,
+    tolerance: float = 1e-10,
+) -> Calibration:
+    """Estimate section lengths, base pose and (optionally) marker offsets from ``N`` measured postures.
+
+    Parameters
+    ----------
+    measured : numpy.ndarray
+        ``(N, M, 3)`` marker positions [m] in the measurement frame, NaN where missing.
+    lengths : sequence of float
+        Nominal section lengths [m] (the start; held with ``fix_lengths``).
+    marker_sections : sequence of int
+        For each marker, the 1-based section whose end disk carries it.
+    marker_names : sequence of str, optional
+        For the reasons of rejected postures (default ``marker1``, ...).
+    base_position : sequence of float, optional
+        Starting base position [m] (default: from the data).
+    base_rotation : numpy.ndarray, optional
+        ``(3, 3)`` starting base orientation, which becomes ``R_ref`` (default: from the data).
+    position_sigma, orientation_sigma : float, optional
+        Standard deviations [m, rad] of Gaussian priors at the starting base pose (default: none).
+    fix : sequence of str
+        Base components held at their start: among ``x``, ``y``, ``z``, ``tilt``, ``yaw``.
+    estimate_yaw : bool
+        Estimate the rotation about the base axis too (only meaningful with a prior or
+        orientation measurements; module docstring).
+    fix_lengths : bool
+        Hold the section lengths at ``lengths``.
+    offsets : bool
+        Estimate one offset per marker in its disk's frame.
+    offset_sigma : float, optional
+        Standard deviation [m] of a zero-mean prior on the offsets.
+    initial_offsets : numpy.ndarray, optional
+        ``(M, 3)`` starting (or, without ``offsets``, fixed) offsets [m].
+    extensible : bool
+        Per-posture section lengths instead of shared ones.
+    loss, loss_scale : str, float
+        Robust loss and its scale [m] (:mod:`optikin.calibration.solver`).
+    marker_noise : float
+        Expected marker noise per coordinate [m], which weighs the priors against the data.
+    outlier_threshold : float
+        A posture with a marker error above this many median marker errors is rejected.
+    max_iterations, tolerance : int, float
+        Of each Levenberg-Marquardt solve.
+
+    Returns
+    -------
+    Calibration
+        The estimates, their covariance, the rejected postures.
+    """
+    started = time.perf_counter()
+    measured = np.asarray(measured, dtype=float)
+    N, M, _ = measured.shape
+    marker_sections = tuple(int(s) for s in marker_sections)
+    lengths0 = np.asarray(lengths, dtype=float)
+    layout = Layout(len(lengths0), marker_sections, extensible)
+    names = layout.beta_names()
+    model = MarkerModel(layout)
+    unknown = set(fix) - set(BASE_FIELDS)
+    if unknown:
+        raise ValueError(f"fix: unknown base components {sorted(unknown)}; known: {', '.join(BASE_FIELDS)}")
+    if len(marker_sections) != M:
+        raise ValueError(f"{M} markers measured, {len(marker_sections)} marker sections given")
+
+    guess_p, guess_R = initial_base(measured, marker_sections, float(lengths0[0]))
+    p0 = guess_p if base_position is None else np.asarray(base_position, dtype=float)
+    ref = guess_R if base_rotation is None else np.asarray(base_rotation, dtype=float)
+
+    beta0 = np.zeros(layout.n_beta)
+    beta0[layout.lengths] = lengths0[layout.lengths]
+    beta0[layout.position] = p0
+    if initial_offsets is not None:
+        beta0[layout.offsets] = np.asarray(initial_offsets, dtype=float).ravel()
+    free = np.zeros(layout.n_beta, dtype=bool)
+    free[layout.lengths] = not fix_lengths
+    position_free = np.array([a not in fix for a in "xyz"])
+    free[layout.position] = position_free
+    rotation_free = np.array(["tilt" not in fix, "tilt" not in fix, estimate_yaw and "yaw" not in fix])
+    free[layout.rotation] = rotation_free
+    free[layout.offsets] = offsets
+    prior_mean = beta0.copy()
+    prior_sigma = np.full(layout.n_beta, np.inf)
+    if position_sigma is not None:
+        prior_sigma[layout.position] = position_sigma
+    if orientation_sigma is not None:
+        prior_sigma[layout.rotation] = orientation_sigma
+    if offset_sigma is not None:
+        prior_sigma[layout.offsets] = offset_sigma
+    problem = Problem(model, measured, ref, free, prior_mean, prior_sigma, loss, loss_scale, marker_noise)
+
+    X0 = chord_configurations(measured, layout, lengths0, p0, ref)
+    held = Problem(
+        model, measured, ref, np.zeros_like(free), prior_mean, prior_sigma, "linear", loss_scale, marker_noise
+    )
+    X0 = solve(held, X0, beta0, max_iterations, tolerance).X
+    robust = solve(problem, X0, beta0, min(max_iterations, SCREENING_ITERATIONS), SCREENING_TOLERANCE, 1e-8)
+
+    names_of_markers = list(marker_names) if marker_names is not None else [f"marker{j + 1}" for j in range(M)]
+    outliers = find_outliers(problem, robust, outlier_threshold, names_of_markers)
+    rejected = np.array([o.posture for o in outliers], dtype=int)
+    kept = np.setdiff1d(np.arange(N), rejected)
+    final_problem = problem.subset(kept)
+    fit = solve(final_problem, robust.X[kept], robust.beta, max_iterations, tolerance)
+    return Calibration(
+        fit, robust, final_problem, kept, outliers, names, names_of_markers, time.perf_counter() - started, beta0
+    )
+
+
+def find_outliers(problem: Problem, fit: Fit, threshold: float, marker_names: Sequence[str]) -> list[Outlier]:
+    """The postures with a marker error above ``threshold`` median marker errors, each with its reason.
+
+    The reason names the worst marker and its error; when refitting the posture with two
+    markers' labels exchanged brings every error under the limit, it says so.
+    """
+    errors = fit.errors
+    median = float(np.nanmedian(errors))
+    limit = threshold * median
+    bad = np.flatnonzero(np.nanmax(np.where(np.isfinite(errors), errors, 0.0), axis=1) > limit)
+    swaps = explaining_swaps(problem, fit, bad, limit)
+    outliers = []
+    for k, swap in zip(bad, swaps):
+        j = int(np.nanargmax(errors[k]))
+        reason = (
+            f"{marker_names[j]} is {errors[k, j] * 1e3:.2f} mm from the fit, "
+            f"{errors[k, j] / median:.0f} x the median marker error ({median * 1e3:.3f} mm)"
+        )
+        if swap is not None:
+            a, b, worst = swap
+            reason += f"; labels {marker_names[a]} and {marker_names[b]} exchanged (fits within {worst * 1e3:.2f} mm)"
+        outliers.append(Outlier(int(k), reason))
+    return outliers
+
+
+def explaining_swaps(
+    problem: Problem, fit: Fit, postures: np.ndarray, limit: float
+) -> list[tuple[int, int, float] | None]:
+    """For each of ``postures``, the pair of markers whose exchange makes it fit within ``limit`` (the best such
+    pair), or None; every exchanged posture is refitted with the shared parameters held, in one batch."""
+    M = problem.measured.shape[1]
+    pairs = list(combinations(range(M), 2))
+    if not pairs or len(postures) == 0:
+        return [None] * len(postures)
+    trials = np.repeat(problem.measured[postures], len(pairs), axis=0)  # posture-major, then pair
+    for n, (a, b) in enumerate(pairs):
+        rows = trials[n :: len(pairs)]
+        rows[:, [a, b]] = rows[:, [b, a]]
+    held = Problem(
+        problem.model,
+        trials,
+        problem.ref,
+        np.zeros_like(problem.free),
+        problem.prior_mean,
+        problem.prior_sigma,
+        "linear",
+        problem.loss_scale,
+        problem.noise,
+    )
+    lay = problem.model.layout
+    R0 = problem.ref @ rotation_from_vector_np(fit.beta[lay.rotation])
+    lengths = fit.beta[lay.lengths] if not lay.extensible else np.median(fit.X[:, 2 * lay.n_sections :], axis=0)
+    X0 = chord_configurations(trials, lay, lengths, fit.beta[lay.position], R0)
+    worst = np.nanmax(solve(held, X0, fit.beta, 50, 1e-12).errors, axis=1).reshape(len(postures), len(pairs))
+    found: list[tuple[int, int, float] | None] = []
+    for row in worst:
+        best = int(np.argmin(row))
+        found.append((pairs[best][0], pairs[best][1], float(row[best])) if row[best] <= limit else None)
+    return found
+
+
+def fit_postures(problem: Problem, beta: np.ndarray, X0: np.ndarray | None = None) -> Fit:
+    """Every posture's configuration with the shared parameters ``beta`` held (the inverse kinematics of the markers).
+
+    The start is :func:`chord_configurations` unless ``X0`` is given.
+    """
+    lay = problem.model.layout
+    held = Problem(
+        problem.model,
+        problem.measured,
+        problem.ref,
+        np.zeros_like(problem.free),
+        problem.prior_mean,
+        problem.prior_sigma,
+        problem.loss,
+        problem.loss_scale,
+        problem.noise,
+    )
+    if X0 is None:
+        lengths = beta[lay.lengths] if not lay.extensible else np.full(lay.n_sections, np.nan)
+        if lay.extensible:
+            raise ValueError("fit_postures on an extensible arm needs starting configurations")
+        R0 = problem.ref @ rotation_from_vector_np(beta[lay.rotation])
+        X0 = chord_configurations(problem.measured, lay, lengths, beta[lay.position], R0)
+    return solve(held, X0, beta)
+
+
+@dataclass(eq=False)
+class HeldOut:
+    """Errors on postures left out of the fit that estimated the shared parameters.
+
+    Attributes
+    ----------
+    errors : numpy.ndarray
+        ``(N, M)`` marker errors [m] of each kept posture, fitted with the shared parameters of
+        the fold that left it out (NaN where not seen).
+    fold : numpy.ndarray
+        ``(N,)`` the fold of each posture.
+    betas : numpy.ndarray
+        ``(folds, n_beta)`` the shared parameters of each fold.
+    method : str
+        ``kfold`` or ``split``.
+    """
+
+    errors: np.ndarray
+    fold: np.ndarray
+    betas: np.ndarray
+    method: str
+
+    @property
+    def median(self) -> float:
+        """Median held-out marker error [m] (over the postures that were tested)."""
+        return float(np.nanmedian(self.errors))
+
+    @property
+    def rms(self) -> float:
+        """Root-mean-square held-out marker error [m]."""
+        return float(np.sqrt(np.nanmean(self.errors**2)))
+
+
+def folds_of(n: int, method: str, folds: int, test_fraction: float, rng: np.random.Generator) -> np.ndarray:
+    """``(n,)`` the test fold of each posture: ``folds`` shuffled folds, or for ``split`` fold 0 for the test
+    share ``test_fraction`` and -1 (never tested) for the rest."""
+    order = rng.permutation(n)
+    fold = np.empty(n, dtype=int)
+    if method == "kfold":
+        fold[order] = np.arange(n) % folds
+        return fold
+    n_test = max(1, int(round(test_fraction * n)))
+    fold[order] = -1
+    fold[order[:n_test]] = 0
+    return fold
+
+
+def held_out(
+    calibration: Calibration,
+    method: str = "kfold",
+    folds: int = 5,
+    test_fraction: float = 0.2,
+    rng: np.random.Generator | None = None,
+    max_iterations: int = 100,
+    tolerance: float = 1e-10,
+) -> HeldOut:
+    """The held-out error of a calibration, by ``k``-fold cross-validation or one train/test split of the kept postures.
+
+    For each fold the shared parameters are fitted on the other postures (from the
+    calibration's solution: the same minimum, reached faster), then every posture of the
+    fold is fitted with them held (its configuration is its own; only the shared
+    parameters are learnt elsewhere), and its marker errors are the held-out errors.
+
+    Parameters
+    ----------
+    calibration : Calibration
+        The calibration on all kept postures.
+    method : str
+        ``kfold`` or ``split``.
+    folds : int
+        Folds of ``kfold``.
+    test_fraction : float
+        Share of postures tested by ``split``.
+    rng : numpy.random.Generator, optional
+        Shuffles the postures (default seeded 0).
+    max_iterations, tolerance : int, float
+        Of each fit.
+
+    Returns
+    -------
+    HeldOut
+        Per-posture held-out errors and the shared parameters of every fold.
+    """
+    rng = np.random.default_rng(0) if rng is None else rng
+    problem, fit = calibration.problem, calibration.fit
+    N = len(fit.X)
+    fold = folds_of(N, method, folds, test_fraction, rng)
+    errors = np.full(fit.errors.shape, np.nan)
+    betas = []
+    for f in range(folds if method == "kfold" else 1):
+        test, train = np.flatnonzero(fold == f), np.flatnonzero(fold != f)
+        trained = solve(problem.subset(train), fit.X[train], fit.beta, max_iterations, tolerance)
+        betas.append(trained.beta)
+        errors[test] = fit_postures(problem.subset(test), trained.beta, fit.X[test]).errors
+    return HeldOut(errors, fold, np.array(betas), method)

@@ -1,0 +1,60 @@
+"""Problem kind ``calibrate``: the geometry of an arm from measured postures, by robust nonlinear least squares.
+
+From ``N`` measured postures (marker positions at the section end disks of a
+constant-curvature arm, NaN where a marker was not seen) it estimates, over all
+postures at once, the section lengths (or, for an extensible arm, one length per
+section and posture), the base pose in the recording frame and, optionally, one
+offset per marker from its disk's centre (:mod:`optikin.calibration`). The
+solver is Levenberg-Marquardt on the Schur complement of the shared parameters
+with exact CasADi Jacobians and a robust loss (:mod:`optikin.calibration.solver`);
+postures far from the model are rejected with a reason (a label swap is recognised)
+and the fit repeated without them. The report gives the estimates with standard
+deviations from the Jacobian at the solution, the marker errors per posture and
+marker, the held-out error (k-fold or a train/test split), and the calibrated
+``arm:`` section (:mod:`optikin.calibration.export`), written to ``options.arm_file``
+when given.
+
+Problem file
+------------
+``arm``
+    a ``constant_curvature`` arm: its ``section_lengths`` are the start (or, with
+    ``lengths: fixed``, the values held).
+``data``
+    a source of family ``recordings`` (:class:`~optikin.data.recording.Recording`):
+    ``synthetic`` (:mod:`optikin.calibration.synthetic`: a CC arm of known geometry
+    recorded with noise and label swaps) or the readers of lab files.
+``options``
+    :class:`~optikin.problems.calibrate.options.CalibrateOptions`.
+"""
+
+from __future__ import annotations
+
+import optikin.calibration.synthetic  # noqa: F401 - registers source "synthetic" of data family "recordings"
+from optikin.calibration.synthetic import FAMILY
+from optikin.problems import ProblemContext, ProblemKind, register_kind
+from optikin.problems.calibrate import figures
+from optikin.problems.calibrate.options import CalibrateOptions
+from optikin.problems.calibrate.report import result_of
+from optikin.problems.calibrate.run import solve
+from optikin.results import Result
+
+__all__ = ["CalibrateOptions", "run"]
+
+
+def run(ctx: ProblemContext) -> Result:
+    """Calibrate the arm on the recording and report the estimates, the errors and the held-out test."""
+    return result_of(ctx, solve(ctx))
+
+
+register_kind(
+    ProblemKind(
+        name="calibrate",
+        summary="arm geometry (section lengths, base pose, marker offsets) from measured postures, robust fit",
+        run=run,
+        backend_families=(),
+        default_solver=None,
+        options=CalibrateOptions,
+        data_family=FAMILY,
+        figures=figures.figures,
+    )
+)

@@ -1,0 +1,76 @@
+"""The ``options`` of a ``calibrate`` problem file: what is estimated, the robust loss, outliers, the held-out test."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import Field, StrictFloat, StrictInt
+
+from optikin.options import Options
+
+BaseComponent = Literal["x", "y", "z", "tilt", "yaw"]
+
+
+class BaseOptions(Options):
+    """The base pose: its start (default: from the data), priors and components held."""
+
+    position: list[StrictFloat] | None = Field(
+        None, min_length=3, max_length=3, description="starting base position [m] in the recording frame"
+    )
+    orientation: list[StrictFloat] | None = Field(
+        None,
+        min_length=4,
+        max_length=4,
+        description="starting base orientation, unit quaternion (w, x, y, z) in the recording frame "
+        "(its z axis along the unbent backbone)",
+    )
+    position_sigma: StrictFloat | None = Field(None, gt=0, description="std of a prior at the start position [m]")
+    orientation_sigma_deg: StrictFloat | None = Field(
+        None, gt=0, description="std of a prior at the start orientation [deg]"
+    )
+    fix: list[BaseComponent] = Field(default_factory=list, description="components held at their start")
+    estimate_yaw: bool = Field(
+        False, description="estimate the rotation about the base axis (not observable from positions alone)"
+    )
+
+
+class HoldOutOptions(Options):
+    """How the held-out error is measured."""
+
+    method: Literal["kfold", "split"] = Field("kfold", description="k-fold cross-validation or one train/test split")
+    folds: StrictInt = Field(5, ge=2, le=50, description="folds of kfold")
+    test_fraction: StrictFloat = Field(0.2, gt=0, lt=1, description="share of postures tested by split")
+
+
+class CalibrateOptions(Options):
+    """Options of kind ``calibrate``."""
+
+    markers: dict[str, StrictInt] | None = Field(
+        None,
+        description="marker name -> 1-based section whose end disk carries it; "
+        "default: the recording's markers in order, one per section",
+    )
+    lengths: Literal["estimate", "fixed", "extensible"] = Field(
+        "estimate",
+        description="estimate shared section lengths (start: the arm's section_lengths), hold them, "
+        "or fit one length per section and posture (extensible arm: the ranges are reported)",
+    )
+    base: BaseOptions = Field(default_factory=BaseOptions)
+    offsets: Literal["none", "per_marker"] = Field(
+        "none", description="estimate one offset per marker from its disk's centre, in the disk's frame"
+    )
+    offset_sigma: StrictFloat | None = Field(None, gt=0, description="std of a zero-mean prior on the offsets [m]")
+    loss: Literal["soft_l1", "huber", "linear"] = Field("soft_l1", description="robust loss on marker errors")
+    loss_scale: StrictFloat = Field(1e-3, gt=0, description="scale of the robust loss [m]")
+    marker_noise: StrictFloat = Field(
+        3e-4, gt=0, description="expected marker noise per coordinate [m], weighing the priors against the data"
+    )
+    outlier_threshold: StrictFloat = Field(
+        6.0, gt=1, description="a posture with a marker error above this many median marker errors is rejected"
+    )
+    holdout: HoldOutOptions = Field(default_factory=HoldOutOptions)
+    max_iterations: StrictInt = Field(100, ge=1, description="Levenberg-Marquardt steps per fit")
+    tolerance: StrictFloat = Field(1e-10, gt=0, description="relative decrease of the cost that ends a fit")
+    arm_file: str | None = Field(
+        None, description="write the calibrated arm section to this YAML file (relative to the problem file)"
+    )

@@ -1,0 +1,162 @@
+"""Run a ``calibrate`` problem: read the recording, calibrate, measure the held-out error, compare with any truth."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from optikin.algebra import matrix_from_quat
+from optikin.arms.constant_curvature import ConstantCurvatureArm
+from optikin.calibration.calibrate import Calibration, HeldOut, calibrate, fit_postures, held_out
+from optikin.calibration.export import arm_section, calibration_facts, write_arm_file
+from optikin.calibration.model import vector_from_rotation_np
+from optikin.calibration.synthetic import CalibrationTruth
+from optikin.data.recording import Recording
+from optikin.errors import InputDataError
+from optikin.problems import ProblemContext
+from optikin.problems.calibrate.options import CalibrateOptions
+
+
+@dataclass(eq=False)
+class CalibrateOutcome:
+    """What a ``calibrate`` run produced."""
+
+    recording: Recording
+    marker_names: list[str]
+    measured: np.ndarray
+    calibration: Calibration
+    held_out: HeldOut
+    arm: dict
+    facts: dict
+    truth: CalibrationTruth | None
+    truth_held_out: np.ndarray | None
+    seconds: float
+    held_out_seconds: float
+    arm_file: Path | None
+
+
+def markers_of(ctx: ProblemContext, recording: Recording, n_sections: int) -> tuple[list[str], list[int]]:
+    """The markers used and the section end of each (``options.markers``, else the recording's, in order)."""
+    options: CalibrateOptions = ctx.options
+    if options.markers is not None:
+        names = list(options.markers)
+        sections = [options.markers[n] for n in names]
+        for name, section in zip(names, sections):
+            if name not in recording.markers:
+                raise ctx.error(
+                    f"options.markers.{name}", f"no such marker; the recording has {sorted(recording.markers)}"
+                )
+            if not 1 <= section <= n_sections:
+                raise ctx.error(f"options.markers.{name}", f"section {section} outside 1..{n_sections}")
+        return names, sections
+    names = list(recording.markers)
+    if len(names) != n_sections:
+        raise ctx.error(
+            "options.markers",
+            f"the recording has {len(names)} markers for {n_sections} sections: say which disk carries each",
+        )
+    return names, list(range(1, n_sections + 1))
+
+
+def truth_beta(calibration: Calibration, truth: CalibrationTruth) -> np.ndarray:
+    """The true geometry in the calibration's parameters (the rotation about its reference orientation)."""
+    lay = calibration.layout
+    beta = np.zeros(lay.n_beta)
+    beta[lay.lengths] = truth.section_lengths[lay.lengths]
+    beta[lay.position] = truth.base_position
+    beta[lay.rotation] = vector_from_rotation_np(calibration.problem.ref.T @ truth.base_rotation)
+    sections = np.array(lay.marker_sections) - 1
+    beta[lay.offsets] = truth.marker_offsets[sections].ravel()
+    return beta
+
+
+def solve(ctx: ProblemContext) -> CalibrateOutcome:
+    """Calibrate the arm of ``ctx`` on the recording of ``data``."""
+    options: CalibrateOptions = ctx.options
+    arm = ctx.arm
+    if not isinstance(arm, ConstantCurvatureArm):
+        raise ctx.error("arm.type", f"kind calibrate calibrates constant_curvature arms, not {ctx.spec.arm.type!r}")
+    recording: Recording = ctx.load_data()
+    names, sections = markers_of(ctx, recording, arm.n_sections)
+    measured = recording.marker_array(names)
+    seen = np.all(np.isfinite(measured), axis=2)
+    if seen.sum() * 3 <= 2 * arm.n_sections * len(measured) + arm.n_sections + 5:
+        raise InputDataError(
+            f"{int(seen.sum())} marker samples in {len(measured)} postures are too few to calibrate",
+            source=ctx.spec.data.source,
+        )
+    base = options.base
+    rotation = None
+    if base.orientation is not None:
+        q = np.array(base.orientation)
+        if abs(np.linalg.norm(q) - 1.0) > 1e-3:
+            raise ctx.error("options.base.orientation", "expected a unit quaternion (w, x, y, z)")
+        rotation = matrix_from_quat(q / np.linalg.norm(q))
+    sigma_deg = base.orientation_sigma_deg
+    started = time.perf_counter()
+    with ctx.progress.task(f"calibrate: {len(measured)} postures x {len(names)} markers", total=2) as advance:
+        calibration = calibrate(
+            measured,
+            arm.section_lengths.tolist(),
+            sections,
+            names,
+            base_position=base.position,
+            base_rotation=rotation,
+            position_sigma=base.position_sigma,
+            orientation_sigma=None if sigma_deg is None else float(np.radians(sigma_deg)),
+            fix=base.fix,
+            estimate_yaw=base.estimate_yaw,
+            fix_lengths=options.lengths == "fixed",
+            offsets=options.offsets == "per_marker",
+            offset_sigma=options.offset_sigma,
+            extensible=options.lengths == "extensible",
+            loss=options.loss,
+            loss_scale=options.loss_scale,
+            marker_noise=options.marker_noise,
+            outlier_threshold=options.outlier_threshold,
+            max_iterations=options.max_iterations,
+            tolerance=options.tolerance,
+        )
+        seconds = time.perf_counter() - started
+        advance()
+        h = options.holdout
+        started = time.perf_counter()
+        test = held_out(
+            calibration, h.method, h.folds, h.test_fraction, ctx.rng(1), options.max_iterations, options.tolerance
+        )
+        held_out_seconds = time.perf_counter() - started
+        advance()
+    truth = getattr(recording, "truth", None)
+    truth_errors = None
+    if isinstance(truth, CalibrationTruth) and not calibration.layout.extensible:
+        tested = test.fold >= 0
+        subset = calibration.problem.subset(np.flatnonzero(tested))
+        truth_errors = np.full(test.errors.shape, np.nan)
+        X0 = calibration.fit.X[tested]
+        truth_errors[tested] = fit_postures(subset, truth_beta(calibration, truth), X0).errors
+    section = arm_section(calibration, arm)
+    facts = calibration_facts(calibration, test.median)
+    arm_file = None
+    if options.arm_file is not None:
+        arm_file = (ctx.path.parent / options.arm_file).resolve()
+        try:
+            write_arm_file(arm_file, section, facts, ctx.path.name)
+        except OSError as exc:
+            raise ctx.error("options.arm_file", f"cannot write {arm_file}: {exc.strerror or exc}") from None
+    return CalibrateOutcome(
+        recording,
+        names,
+        measured,
+        calibration,
+        test,
+        section,
+        facts,
+        truth if isinstance(truth, CalibrationTruth) else None,
+        truth_errors,
+        seconds,
+        held_out_seconds,
+        arm_file,
+    )
