@@ -268,7 +268,7 @@ def test_the_script_writes_the_shipped_files(tool, tmp_path):
     pytest.importorskip("ezc3d")
     pytest.importorskip("rosbags")
     tool.main(["--out", str(tmp_path)])
-    shipped = sorted(p.relative_to(RECORDINGS) for p in RECORDINGS.rglob("*") if p.is_file())
+    shipped = sorted(p.relative_to(RECORDINGS) for p in RECORDINGS.rglob("*") if p.is_file() and p.name != "README.md")
     assert shipped == sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*") if p.is_file())
     for rel in shipped:
         assert (tmp_path / rel).read_bytes() == (RECORDINGS / rel).read_bytes(), rel
@@ -340,6 +340,10 @@ def test_malformed_motive_names_file_row_frame_and_column(tmp_path):
     bad.write_text(text.replace("\n20,", "\n19,", 1))
     with pytest.raises(InputDataError, match="bad.csv: sample 20: Frame: frame numbers must increase strictly"):
         read_motive_csv(bad, Y_UP)
+    header[3] = header[3].replace("disk3:Marker3", "Unlabeled 1003")
+    bad.write_text("\n".join(header))  # an unlabelled marker: skipped unless asked for
+    assert "Unlabeled 1003" not in read_motive_csv(bad, Y_UP).markers
+    assert "Unlabeled 1003" in read_motive_csv(bad, Y_UP, unlabeled=True).markers
     bad.write_text("t,x\n0,1\n")
     with pytest.raises(InputDataError, match="bad.csv: Format Version: not a Motive CSV export"):
         read_motive_csv(bad, Y_UP)
@@ -399,9 +403,12 @@ def test_malformed_c3d_names_file_frame_and_channel(tmp_path):
     bad = _c3d(tmp_path / "rot.c3d", points, rotations)
     with pytest.raises(InputDataError, match=r"rot.c3d: sample 2: b0: not a rotation matrix"):
         read_c3d(bad)
+    points[0, 0, 3] = np.nan  # m0 not seen in frame 3: noted, not an error
     ok = _c3d(tmp_path / "ok.c3d", points, np.tile(np.eye(4)[:, :, None, None], (1, 1, 1, 6)))
     rec = read_c3d(ok, units="m")
     np.testing.assert_allclose(rec.bodies["b0"].quaternions, np.tile([1.0, 0, 0, 0], (6, 1)))
+    assert [str(n) for n in rec.notes] == ["frame 3: nan: marker m0 missing"]
+    assert np.isnan(rec.markers["m0"][3]).all() and len(rec.drop_incomplete()) == 5
     with pytest.raises(InputDataError, match="ok.c3d: POINT:UNITS: the file declares its lengths in 'm'"):
         read_c3d(ok, units="mm")
     truncated = tmp_path / "truncated.c3d"

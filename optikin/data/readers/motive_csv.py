@@ -19,7 +19,9 @@ The layout Motive writes (its "Data Export: CSV" documentation)::
   (a ``TimeCode`` column, with an empty type, may follow the time); the row with an
   empty first and second cell gives each column's component (``Rotation``,
   ``Position``, ``Mean Marker Error``, ``Marker Quality``), the ``Frame`` row its axis;
-* ``Marker`` columns become :attr:`Recording.markers` (``Position X, Y, Z``),
+* ``Marker`` columns become :attr:`Recording.markers` (``Position X, Y, Z``); unlabelled
+  markers (Motive names them ``Unlabeled N``, a different point from one take to the
+  next) are skipped unless ``unlabeled`` is asked for,
   ``Rigid Body`` columns :attr:`Recording.bodies` (``Rotation X, Y, Z, W`` -> ``w, x, y, z``
   and ``Position X, Y, Z``); expected-marker columns (``Rigid Body Marker``, ``Bone
   Marker``), bones and quality columns are not read;
@@ -40,6 +42,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from pydantic import Field
 
 from optikin.data.csvread import _text, excerpt
 from optikin.data.readers.common import (
@@ -110,8 +113,12 @@ def _header(rows: list[tuple[int, list[str]]], source: str) -> tuple[dict[str, s
     raise InputDataError("no 'Frame,Time (Seconds),...' header row: the file ends in its header", source=source)
 
 
-def _assets(labels: dict[str, list[str]], source: str) -> tuple[list[_Asset], list[_Asset]]:
-    """Markers and rigid bodies, in column order."""
+UNLABELED = "Unlabeled "
+"""How Motive's names of unlabelled markers start."""
+
+
+def _assets(labels: dict[str, list[str]], source: str, unlabeled: bool) -> tuple[list[_Asset], list[_Asset]]:
+    """Markers (with ``unlabeled``, the unlabelled ones too) and rigid bodies, in column order."""
     width = max(len(v) for v in labels.values())
 
     def cell(row: str, j: int) -> str:
@@ -122,7 +129,7 @@ def _assets(labels: dict[str, list[str]], source: str) -> tuple[list[_Asset], li
     ids: dict[tuple[str, str], str] = {}
     for j in range(2, width):
         kind, name = cell("Type", j), cell("Name", j)
-        if kind not in ("Marker", "Rigid Body"):
+        if kind not in ("Marker", "Rigid Body") or (kind == "Marker" and name.startswith(UNLABELED) and not unlabeled):
             continue
         component, axis = cell("component", j), cell("axis", j)
         if component not in ("Position", "Rotation"):
@@ -154,7 +161,9 @@ def _assets(labels: dict[str, list[str]], source: str) -> tuple[list[_Asset], li
     return markers, bodies
 
 
-def read_motive_csv(path: str | Path, frame: FrameOptions | None = None, units: Units | None = None) -> Recording:
+def read_motive_csv(
+    path: str | Path, frame: FrameOptions | None = None, units: Units | None = None, unlabeled: bool = False
+) -> Recording:
     """Read a Motive CSV export (layout in the module docstring) into a :class:`Recording`.
 
     Parameters
@@ -166,6 +175,8 @@ def read_motive_csv(path: str | Path, frame: FrameOptions | None = None, units: 
         default z-up.
     units:
         The export's length unit; default its ``Length Units`` (refused when they differ).
+    unlabeled:
+        Also read the unlabelled markers (``Unlabeled N``).
 
     Returns
     -------
@@ -195,7 +206,7 @@ def read_motive_csv(path: str | Path, frame: FrameOptions | None = None, units: 
         raise InputDataError(f"malformed CSV on line {start}: {exc}", source=source) from None
     metadata, labels, first_data = _header(rows, source)
     unit = resolve_units(metadata.get("Length Units"), units, source, "Length Units")
-    markers, bodies = _assets(labels, source)
+    markers, bodies = _assets(labels, source, unlabeled)
     if bodies and metadata.get("Rotation Type", "Quaternion") != "Quaternion":
         raise InputDataError(
             f"rotation type {excerpt(metadata['Rotation Type'])}: export rigid bodies with Rotation Type Quaternion",
@@ -284,11 +295,17 @@ def read_motive_csv(path: str | Path, frame: FrameOptions | None = None, units: 
     return finish(raw, frame or FrameOptions(), unit, numbered=True)
 
 
-def _read(path: Path, params: RecordingParams) -> Recording:
-    return read_motive_csv(path, params.frame, params.units)
+class MotiveParams(RecordingParams):
+    """``data.params`` of source ``motive`` (family ``recordings``)."""
+
+    unlabeled: bool = Field(False, description="also read the unlabelled markers (Motive's 'Unlabeled N')")
 
 
-@register_source(FAMILY, "motive", "an OptiTrack Motive CSV export (markers and rigid bodies)", params=RecordingParams)
-def motive_source(arm: object, data: DataSpec, params: RecordingParams, path: Path) -> Recording:
+def _read(path: Path, params: MotiveParams) -> Recording:
+    return read_motive_csv(path, params.frame, params.units, params.unlabeled)
+
+
+@register_source(FAMILY, "motive", "an OptiTrack Motive CSV export (markers and rigid bodies)", params=MotiveParams)
+def motive_source(arm: object, data: DataSpec, params: MotiveParams, path: Path) -> Recording:
     """:func:`read_motive_csv` of ``params.path``, then the steps of :mod:`optikin.data.readers.common`."""
     return load_recording(_read, data, params, path)
