@@ -320,6 +320,39 @@ def test_perturbation_recovery_by_coupling_to_the_reference(demo):
     assert error[-1] < 0.02 * error.max() and out.phase[-1] > 0.2
 
 
+def test_output_disturbance_displaces_the_pose_and_the_dmp_integrates_on_from_it(demo):
+    """An output step (seed 000's "output step disturbance", Figs. 20-21): the pose is displaced by 1 and held
+    from 40% to 56% of the motion. Per angle the deviation from the undisturbed roll-out obeys the linear
+    recursion of the spring and the coupling with the displacement's jumps added to the pose, written out
+    with numpy; on the quaternion DMP the pose is turned by exactly 1 rad at the first displaced sample."""
+    tau, dt = demo.t[-1], demo.t[1]
+
+    def step(t, dim=3):
+        d = np.zeros((t.size, dim))
+        d[(t >= 0.4 * tau) & (t < 0.56 * tau), 0] = 1.0
+        return d
+
+    for alpha_s in (0.0, 5.0):
+        dmp = DMP(Euclidean(3), n_basis=30, gains=Gains(alpha_s=alpha_s))
+        dmp.imitate(demo.t, demo.position)
+        reference = demo.position if alpha_s else None
+        deviation = (dmp.rollout(offset=step, reference=reference).y - dmp.rollout(reference=reference).y)[:, 0]
+        k1, k2, ks = 25.0 * dt / tau, 25.0 * 6.25 * (dt / tau) ** 2, 2 * alpha_s * dt / tau
+        A = np.array([[1 - k1, -k2], [1 - k1, 1 - k2 - ks]])
+        jumps = np.diff(step(demo.t[1:])[:, 0], prepend=0.0)
+        state, expected = np.zeros(2), [0.0]
+        for jump in jumps:
+            state = A @ state + np.array([0.0, jump])
+            expected.append(state[1])
+        np.testing.assert_allclose(deviation, expected, atol=1e-12)
+    dmp = DMP(UnitQuaternion(), n_basis=30)
+    dmp.imitate(demo.t, demo.quaternion)
+    pushed, calm = dmp.rollout(offset=step).y, dmp.rollout().y
+    first = int(np.flatnonzero(demo.t >= 0.4 * tau)[0])
+    assert rotation_error(pushed[first], calm[first]) == pytest.approx(1.0, abs=1e-9)
+    assert rotation_error(pushed[first - 1], calm[first - 1]) < 1e-12
+
+
 def test_phase_stopping_changes_nothing_without_a_tracking_error(quaternion_dmp, demo):
     """Phase stopping on the tracking error (Ijspeert et al. 2013, Ude et al. 2014): with no reference, or a
     reference the DMP follows exactly (its own roll-out), the phase is eq. (15)'s exp(-zeta t / tau) and the

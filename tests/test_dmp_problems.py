@@ -103,6 +103,17 @@ def test_perturbation_problem(tmp_path):
     assert metrics["quaternion: perturbation coupled + phase stopping (seed eq. 28) undisturbed phase at the end"] > 0.3
 
 
+def test_perturbation_output_reading_against_the_force_reading(tmp_path):
+    """Seed 000's "output step disturbance" of amplitude 1 moves the pose by the full 1 rad (the scale of
+    Figs. 20-21); read as a force on eq. (17) (kind: force) the same amplitude moves it by under 10 mrad."""
+    key = "quaternion: perturbation plain peak orientation deviation [mrad]"
+    output = solved("dmp-perturbation", tmp_path)["metrics"][key]
+    disturbance = {"kind": "force", "start": 5.0, "stop": 7.0, "amplitude": 1.0, "component": 0}
+    force = solved("dmp-perturbation", tmp_path, disturbance=disturbance)["metrics"][key]
+    assert output >= 1000.0 - 1e-6
+    assert force < 10.0
+
+
 def test_tracking_phase_stopping_against_the_demonstration_is_refused(tmp_path):
     path = reduced("dmp-perturbation", tmp_path, couplings={"stopped": {"alpha_s": 5.0, "alpha": 5.0}})
     with pytest.raises(SpecError, match=r"options\.couplings\.stopped\.alpha.*robot's pose") as info:

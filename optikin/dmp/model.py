@@ -292,6 +292,7 @@ class DMP:
         goal_switches: Sequence[tuple[float, np.ndarray]] = (),
         disturbance: PerStep = None,
         reference: PerStep = None,
+        offset: PerStep = None,
         gains: Gains | None = None,
         weights: np.ndarray | None = None,
     ) -> Rollout:
@@ -317,6 +318,11 @@ class DMP:
         reference:
             Per-step poses ``(K, size)`` the DMP is coupled to by eqs. (27)-(28),
             or a function of the step times.
+        offset:
+            An output disturbance: the pose at ``t_1 .. t_K`` is displaced by ``offset (K, dim)``
+            (gap units: rad, m), or a function of those times; the DMP integrates on from the displaced
+            pose (it sees the displacement), and the pose jumps back as the offset goes (the start is
+            not displaced).
         gains, weights:
             Override the learned gains and weights ``(dim, n_basis)`` (tuning).
 
@@ -336,6 +342,7 @@ class DMP:
             goal_switches=goal_switches,
             disturbance=disturbance,
             reference=reference,
+            offset=offset,
         )  # checks that the DMP has learned
         W = np.asarray(self.weights if weights is None else weights, dtype=float)
         space, size, dim = self.space, self.space.size, self.space.dim
@@ -367,6 +374,7 @@ class DMP:
         goal_switches: Sequence[tuple[float, np.ndarray]] = (),
         disturbance: PerStep = None,
         reference: PerStep = None,
+        offset: PerStep = None,
     ) -> "RolloutPlan":
         """The checked inputs of a roll-out (parameters as :meth:`rollout`), before the gains and weights are chosen.
 
@@ -392,13 +400,17 @@ class DMP:
         goal = demo.goal if goal is None else space.align(self._element(goal, "goal"), y0)
 
         dim, size = space.dim, space.size
-        U = np.zeros((steps, input_size(space)))  # per step: (d, y_ref, m, g_new)
+        U = np.zeros((steps, input_size(space)))  # per step: (d, y_ref, m, g_new, o)
+        new_goal = slice(dim + size + 1, dim + 2 * size + 1)
         U[:, dim : dim + size] = y0  # a valid pose where no reference is given (m = 0)
-        U[:, dim + size + 1 :] = goal
+        U[:, new_goal] = goal
         current = goal
         for when, target in sorted(goal_switches, key=lambda pair: pair[0]):
             current = space.align(self._element(target, "goal switch"), current)
-            U[t[:-1] >= when, dim + size + 1 :] = current
+            U[t[:-1] >= when, new_goal] = current
+        if offset is not None:
+            displaced = self._per_step(offset, t[1:], dim, "offset")
+            U[:, dim + 2 * size + 1 :] = np.diff(displaced, axis=0, prepend=0.0)
         if disturbance is not None:
             U[:, :dim] = self._per_step(disturbance, t[:-1], dim, "disturbance")
         if reference is not None:

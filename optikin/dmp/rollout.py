@@ -9,7 +9,8 @@ One step (Seleem et al. 2020, eqs. 11-12 / 17-18, 15, 23-28, in the gap units of
     f   = a * (W psi(s)) s / sum psi(s)  forcing term (eqs. 13, 20), a the amplitude scaling,
           for s > s_end only           (off past the demonstration's phase, :func:`optikin.dmp.basis.forcing_end`)
     eta <- eta + dt/tau [beta (gamma e - eta) + f + d]                       (eqs. 11, 17; d a disturbance)
-    y   <- advance(y, dt/tau (eta + alpha_s (e + r)))                        (eqs. 12, 23, 26, 27)
+    y   <- advance(advance(y, dt/tau (eta + alpha_s (e + r))), o)            (eqs. 12, 23, 26, 27;
+                                                                          o an output displacement)
     s   <- s exp(-zeta dt / (tau (1 + alpha (w |e| + |r|))))                 (eqs. 15, 25, 28)
     g   <- advance(g, (1 - exp(-beta_g0 dt/tau)) gap(g_new, g))              (eq. 24)
     e_prev <- e
@@ -47,8 +48,8 @@ def state_size(space: Space) -> int:
 
 
 def input_size(space: Space) -> int:
-    """Per-step inputs ``(d, y_ref, m, g_new)``."""
-    return space.dim + 2 * space.size + 1
+    """Per-step inputs ``(d, y_ref, m, g_new, o)``: force, reference, its switch, new goal, output displacement."""
+    return 2 * space.dim + 2 * space.size + 1
 
 
 @lru_cache(maxsize=32)
@@ -70,14 +71,15 @@ def step_function(space: Space, n_basis: int) -> ca.Function:
 
     y, eta, s = x[:size], x[size : size + dim], x[size + dim]
     g, e_prev = x[size + dim + 1 : 2 * size + dim + 1], x[2 * size + dim + 1 :]
-    d, ref, m, g_new = u[:dim], u[dim : dim + size], u[dim + size], u[dim + size + 1 :]
+    d, ref, m = u[:dim], u[dim : dim + size], u[dim + size]
+    g_new, o = u[dim + size + 1 : dim + 2 * size + 1], u[dim + 2 * size + 1 :]
 
     e = space.lift(space.gap(g, y), e_prev)
     r = m * space.gap(ref, y)
     psi = ca.exp(-h * (s - c) ** 2)
     f = amp * ca.mtimes(W, psi) * (s / ca.sum1(psi)) * (s > s_end)
     eta_next = eta + dt / tau * (beta * (gamma * e - eta) + f + d)
-    y_next = space.advance(y, dt / tau * (eta_next + alpha_s * (e + r)))
+    y_next = space.advance(space.advance(y, dt / tau * (eta_next + alpha_s * (e + r))), o)
     s_next = s * ca.exp(-zeta * dt / (tau * (1.0 + alpha * (w * smooth_norm(e) + smooth_norm(r)))))
     g_next = space.advance(g, (1.0 - ca.exp(-beta_g0 * dt / tau)) * space.gap(g_new, g))
     return ca.Function(

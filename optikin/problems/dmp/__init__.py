@@ -28,7 +28,9 @@ Options (all optional; :class:`~optikin.problems.dmp.options.DmpOptions`)::
     gains: {beta: 25, gamma: 6.25, zeta: 4.6, beta_g0: .inf, alpha_s: 0, alpha: 0}
     regression: {method: cvxpy, ridge: 0.0, bound: null}   # bound: |w| <= bound (cvxpy only)
     goal_switches: [{time: 4.0, rotate: [rx, ry, rz], translate: [x, y, z]}]  # new goals relative to the last
-    disturbance: {start: 5.0, stop: 7.0, amplitude: 1.0, component: 0}       # step force in eq. (17)
+    disturbance: {kind: output, start: 5.0, stop: 7.0, amplitude: 1.0, component: 0}  # output: the pose
+                            # displaced by amplitude [rad | m] and held (seed 000's "output step disturbance",
+                            # Figs. 20-21); force: a step force in eq. (17)
     couplings: {coupled: {alpha_s: 5.0}}   # label -> {alpha_s, alpha, phase_stopping} of each DMP coupled
                                            # to the demonstration (eq. 27) and run against the plain one under
                                            # the disturbance; alpha > 0 needs phase_stopping: seed (eq. 28);

@@ -74,12 +74,26 @@ class GoalSwitch(Options):
     )
 
 
-class Disturbance(Options):
-    """A step force on one gap component of eq. (17), on during ``[start, stop)``."""
+DisturbanceKind = Literal["output", "force"]
+"""How a step disturbance acts (:class:`Disturbance`)."""
 
-    start: float = Field(5.0, description="the force starts [s]")
-    stop: float = Field(7.0, description="the force stops [s]")
-    amplitude: float = Field(1.0, description="the force (gap units per s^2, scaled by tau^2)")
+
+class Disturbance(Options):
+    """A step disturbance on one gap component, on during ``[start, stop)``.
+
+    ``output`` (default; Seleem et al. 2020 call it an "output step disturbance", sec. V): the DMP's pose is
+    displaced by ``amplitude`` gap units (rad about an axis, or m) and held there, the DMP integrating on from
+    the displaced pose, and released at ``stop``. ``force``: ``amplitude`` is a force added to eq. (17) (gap
+    units per s^2, scaled by ``tau^2``), the reading optikin used first; on the 10 s IMU demonstration its
+    effect is two orders of magnitude below what Figs. 20-21 show (about 7 mrad against a pose pushed by 1).
+    """
+
+    kind: DisturbanceKind = Field("output", description="output (the pose displaced and held) or force (eq. 17)")
+    start: float = Field(5.0, description="the disturbance starts [s]")
+    stop: float = Field(7.0, description="the disturbance stops [s]")
+    amplitude: float = Field(
+        1.0, description="the displacement (output: rad | m) or the force (force: gap units per s^2, scaled by tau^2)"
+    )
     component: int = Field(0, ge=0, description="the gap component pushed (below the DMP's dimension)")
 
 
@@ -140,7 +154,9 @@ class DmpOptions(Options):
     gains: GainOptions = Field(default_factory=GainOptions)
     regression: RegressionOptions = Field(default_factory=RegressionOptions)
     goal_switches: tuple[GoalSwitch, ...] = Field((), description="new goals, each relative to the one before")
-    disturbance: Disturbance | None = Field(None, description="a step force on eq. (17); null: no perturbation")
+    disturbance: Disturbance | None = Field(
+        None, description="a step disturbance (output displacement or force on eq. 17); null: no perturbation"
+    )
     couplings: dict[str, Coupling] = Field(
         default_factory=_default_couplings,
         min_length=1,

@@ -221,7 +221,8 @@ def switch_goals(
 
 
 def step_force(options: DmpOptions, dim: int) -> Callable[[np.ndarray], np.ndarray]:
-    """The disturbance as a function of the step times ``(K,) -> (K, dim)``."""
+    """The disturbance's step as a function of the times ``(K,) -> (K, dim)``: a force on eq. (17) or an output
+    displacement (``options.disturbance.kind``, :meth:`optikin.dmp.DMP.rollout`'s ``disturbance`` or ``offset``)."""
     d = options.disturbance
     assert d is not None
 
@@ -261,7 +262,11 @@ def perturb(
     learner.fit(dmp, variant, learner.options.regression.method)
     reference = None if coupling is None else dmp.learned.Y  # smoothed if asked
     calm = dmp.rollout(reference=reference)
-    out = dmp.rollout(disturbance=push, reference=reference)
+    assert learner.options.disturbance is not None
+    if learner.options.disturbance.kind == "output":
+        out = dmp.rollout(offset=push, reference=reference)
+    else:
+        out = dmp.rollout(disturbance=push, reference=reference)
     p_calm, q_calm = variant_pose(variant, calm.y)
     return PerturbationRun(
         variant,
