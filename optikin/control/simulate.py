@@ -7,7 +7,9 @@ Per control step ``k`` (period ``dt`` of the reference, 100 Hz to 1 kHz):
    switched on over ``[t_on, t_off)``, like the step of Seleem et al. 2020, Figs. 20-21);
 2. the plant's tip is ``fk(q_k)`` of the arm with every arc length scaled by
    ``length_scale`` (model mismatch: the controller's model keeps the nominal
-   lengths);
+   lengths), or, with a rod plant (``Plant.rod``, :mod:`optikin.control.rod_plant`),
+   the tip of the Cosserat rod whose chamber pressures the nominal map makes of
+   ``q_k``, under gravity and a payload (the controller keeps its CC model);
 3. sensors: the configuration with Gaussian noise; the tip either measured
    directly (``feedback="tip"``, e.g. motion capture: position noise in metres,
    orientation noise as a rotation angle) or computed by the controller's model
@@ -44,6 +46,7 @@ from optikin.fastcall import BufferedFunction
 from optikin.interrupt import check_interrupted
 from optikin.control.limits import limit_excess, periodic_mask, wrap_periodic
 from optikin.control.reference import Reference
+from optikin.control.rod_plant import RodPlantSimulator
 from optikin.control.task import TASK_FUNCTIONS
 
 MM, DEG = 1e3, 180.0 / np.pi
@@ -58,6 +61,7 @@ class Plant:
     (``n`` values, SI) applied over ``disturbance_window`` ``(t_on, t_off)`` seconds.
     ``configuration_noise``: standard deviation per variable (one value or ``n``).
     ``tip_position_noise`` (m) and ``tip_angle_noise`` (rad): standard deviations of the tip sensor.
+    ``rod``: the Cosserat rod plant that gives the true tip instead of the scaled forward kinematics.
     """
 
     length_scale: float | tuple[float, ...] = 1.0
@@ -67,6 +71,7 @@ class Plant:
     tip_position_noise: float = 0.0
     tip_angle_noise: float = 0.0
     feedback: Literal["tip", "model"] = "tip"
+    rod: RodPlantSimulator | None = None
 
     def length_factors(self, arm: ArmModel) -> np.ndarray:
         """Per-variable factor applied to the configuration before the plant's forward kinematics."""
@@ -76,6 +81,8 @@ class Plant:
             raise ValueError(f"{arm.name} has no length variables S* to scale")
         if scale.ndim and scale.shape != (len(lengths),):
             raise ValueError(f"length_scale needs 1 or {len(lengths)} values, got {scale.shape[0]}")
+        if self.rod is not None and np.any(scale != 1.0):
+            raise ValueError("length_scale is a mismatch of the kinematic plant; a rod plant has its own lengths")
         factors = np.ones(arm.n_config)
         factors[lengths] = scale
         return factors
@@ -103,6 +110,7 @@ class TrackingRun:
     gains: np.ndarray | None = None  # (N, m) MRAC gains
     saturated: np.ndarray | None = None  # (N, m) MRAC gain saturated
     notes: list[str] = field(default_factory=list)
+    plant_failures: int | None = None  # steps whose rod equilibrium did not converge (None: kinematic plant)
 
     @property
     def t(self) -> np.ndarray:
@@ -199,6 +207,8 @@ class TrackingRun:
         if fallbacks:
             out["first fallback"] = f"t = {self.t[fallbacks[0]]:.4g} s: {self.status[fallbacks[0]]}"
         out["max bound slip removed"] = float(self.slip.max())
+        if self.plant_failures is not None:
+            out["plant equilibrium failures"] = self.plant_failures
         if self.saturated is not None and self.gains is not None:
             steps = np.any(self.saturated, axis=1)
             out["gain saturation steps"] = int(steps.sum())
@@ -237,13 +247,18 @@ def simulate(
     gains = np.empty((N, len(controller.gain))) if adaptive else None
     saturated = np.zeros((N, len(controller.gain)), dtype=bool) if adaptive else None
 
+    if plant.rod is not None:
+        plant.rod.reset()
     z = np.array(q0, dtype=float)
     for k, t in enumerate(reference.t):
         check_interrupted()
         q = z + plant.offset(arm, t)
-        plant_fk.inputs[0][:] = q
-        plant_fk()
-        x_true = plant_fk.outputs[0].copy()
+        if plant.rod is not None:
+            x_true = plant.rod.tip(q, reference.task)
+        else:
+            plant_fk.inputs[0][:] = q
+            plant_fk()
+            x_true = plant_fk.outputs[0].copy()
         q_meas = q + config_noise * rng.standard_normal(n) if config_noise.any() else q
         if plant.feedback == "model":
             model_fk.inputs[0][:] = q_meas
@@ -263,9 +278,17 @@ def simulate(
         if gains is not None and saturated is not None:
             gains[k], saturated[k] = controller.gain, getattr(controller, "saturated")
         z = wrap_periodic(z + dt * qdot, wrapped)
-    return TrackingRun(
+    run = TrackingRun(
         controller.name, arm, reference, Q, Qdot, X, limit_excess(arm, after), step_time, status, slip, gains, saturated
     )
+    if plant.rod is not None:
+        run.plant_failures = plant.rod.failures
+        low, high = plant.rod.pressure_range
+        run.notes.append(
+            f"rod plant: {plant.rod.iterations / N:.2g} Newton iterations per step, "
+            f"pressures {low:.4g} to {high:.4g} Pa"
+        )
+    return run
 
 
 def _noisy_tip(x: np.ndarray, task: str, plant: Plant, rng: np.random.Generator) -> np.ndarray:

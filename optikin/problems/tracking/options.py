@@ -14,6 +14,37 @@ from pydantic import Field, NonNegativeFloat, PositiveFloat
 from optikin.options import Options
 
 
+class CosseratPlantOptions(Options):
+    """A CBHA-like pneumatic Cosserat rod as the plant (:mod:`optikin.control.rod_plant`).
+
+    Defaults: the two-section CBHA of ``problems/cosserat-cbha-fk.yaml`` (sizes from seed 004,
+    stiffness, density and chamber bore stated assumptions there); rest length: the CC
+    arm's shortest section length, so every command stretches the rod.
+    """
+
+    type: Literal["cosserat"] = Field("cosserat", description="the rod model (static Cosserat rod)")
+    youngs_modulus: PositiveFloat = Field(40.0e3, description="effective Young's modulus E [Pa]")
+    poisson_ratio: float = Field(0.5, gt=-1.0, le=0.5, description="nu, G = E / (2 (1 + nu))")
+    density: NonNegativeFloat = Field(150.0, description="effective density of the rod [kg/m^3]")
+    radius: list[PositiveFloat] = Field(
+        [0.045, 0.040], description="radius of each section's solid equivalent cross-section [m]"
+    )
+    chamber_offset: list[PositiveFloat] = Field(
+        [0.03725, 0.03175], description="distance of each section's three chambers from the backbone [m]"
+    )
+    chamber_area: PositiveFloat = Field(3.1416e-4, description="pressurised area of every chamber [m^2]")
+    rest_length: list[PositiveFloat] | None = Field(
+        None, description="unpressurised length of each section [m]; null: the CC arm's lower S limits"
+    )
+    gravity: bool = Field(True, description="the rod's weight and the payload's act")
+    gravity_vector: tuple[float, float, float] = Field(
+        (0.0, 0.0, -9.81), description="gravitational acceleration in the base frame (base pointing up) [m/s^2]"
+    )
+    payload: NonNegativeFloat = Field(0.0, description="mass hanging at the tip [kg]")
+    steps_per_segment: int = Field(20, ge=1, le=1000, description="RK4 steps per section of the shooting grid")
+    compiled: bool = Field(True, description="Newton on C-compiled residual and Jacobian (else the CasADi VM)")
+
+
 class PlantOptions(Options):
     """How the simulated arm differs from the controller's model, what disturbs it and how it is measured."""
 
@@ -33,6 +64,9 @@ class PlantOptions(Options):
     tip_angle_noise: float = Field(0.0, ge=0.0, description="standard deviation of the tip orientation sensor [rad]")
     feedback: Literal["tip", "model"] = Field(
         "tip", description="tip: the tip is measured; model: computed by the model from the measured configuration"
+    )
+    physics: CosseratPlantOptions | None = Field(
+        None, description="a Cosserat rod as the plant, actuated by the nominal map of the CC command; null: CC"
     )
 
 

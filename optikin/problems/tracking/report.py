@@ -140,6 +140,12 @@ def notes(runs: dict[str, TrackingRun], summaries: dict[str, dict[str, Any]]) ->
         out.append(f"QP solver failed on {len(failed)} steps; first at t = {failed[0][0]:.4g} s: {failed[0][1]}")
     for name, tracking in runs.items():
         m = summaries[name]
+        out += [f"{tracking.controller}: {note}" for note in tracking.notes]
+        if m.get("plant equilibrium failures"):
+            out.append(
+                f"{tracking.controller}: the rod plant's equilibrium did not converge on "
+                f"{m['plant equilibrium failures']} steps"
+            )
         if m["samples outside limits"]:
             worst = ", ".join(
                 f"{variable} {m[f'max limit excess {variable} [{unit}]']:.3g} {unit}"

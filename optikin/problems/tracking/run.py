@@ -7,16 +7,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from optikin.arms.constant_curvature import ConstantCurvatureArm
 from optikin.baselines.mrac import MRACController
 from optikin.baselines.pseudo_inverse import DampedLeastSquaresController, PseudoInverseController
 from optikin.control.base import Controller
 from optikin.control.qp import QPController
 from optikin.control.reference import Reference
+from optikin.control.rod_plant import PneumaticRod, RodPlantSimulator
 from optikin.control.simulate import Plant, TrackingRun, simulate
 from optikin.control.task import Task, task_dimension
 from optikin.data.references import TrackingReference
 from optikin.problems import ProblemContext
-from optikin.problems.tracking.options import PlantOptions, ToleranceOptions, TrackingOptions
+from optikin.problems.tracking.options import CosseratPlantOptions, PlantOptions, ToleranceOptions, TrackingOptions
 from optikin.solvers.base import QPBackend
 
 BASELINES: dict[str, type[Controller]] = {
@@ -102,6 +104,7 @@ def _plant(ctx: ProblemContext, options: PlantOptions) -> Plant:
     noise = tuple(_vector(ctx, options.configuration_noise, n, "options.plant.configuration_noise", allow_scalar=True))
     scale = options.length_scale
     plant = Plant(
+        rod=_rod_plant(ctx, options.physics),
         length_scale=tuple(scale) if isinstance(scale, list) else scale,
         disturbance=disturbance,
         disturbance_window=options.disturbance_window or (0.0, np.inf),
@@ -115,6 +118,42 @@ def _plant(ctx: ProblemContext, options: PlantOptions) -> Plant:
     except ValueError as exc:
         raise ctx.error("options.plant.length_scale", str(exc)) from None
     return plant
+
+
+def _rod_plant(ctx: ProblemContext, options: CosseratPlantOptions | None) -> RodPlantSimulator | None:
+    """The Cosserat rod plant of ``options.plant.physics`` (built once, shared by every controller's run)."""
+    if options is None:
+        return None
+    arm = ctx.arm
+    if not isinstance(arm, ConstantCurvatureArm):
+        raise ctx.error("options.plant.physics", "a Cosserat plant needs a constant_curvature arm as the model")
+    m = arm.n_sections
+    rest = options.rest_length
+    if rest is None:
+        rest = [float(arm.lower[3 * k]) for k in range(m)]
+    for name, value in (("radius", options.radius), ("chamber_offset", options.chamber_offset), ("rest_length", rest)):
+        if len(value) != m:
+            raise ctx.error(f"options.plant.physics.{name}", f"expected {m} values (one per section), got {value!r}")
+    for k, (radius, offset) in enumerate(zip(options.radius, options.chamber_offset)):
+        if offset >= radius:
+            raise ctx.error(
+                "options.plant.physics.chamber_offset",
+                f"section {k + 1}: {offset} m is not inside the radius {radius} m",
+            )
+    rod = PneumaticRod(
+        youngs_modulus=options.youngs_modulus,
+        poisson_ratio=options.poisson_ratio,
+        density=options.density,
+        radius=tuple(options.radius),
+        chamber_offset=tuple(options.chamber_offset),
+        chamber_area=options.chamber_area,
+        rest_length=tuple(rest),
+        gravity=options.gravity_vector if options.gravity else (0.0, 0.0, 0.0),
+        payload=options.payload,
+        steps_per_segment=options.steps_per_segment,
+        compiled=options.compiled,
+    )
+    return RodPlantSimulator(arm, rod)
 
 
 def _controllers(ctx: ProblemContext, options: TrackingOptions, dt: float, task: Task) -> dict[str, Controller]:
