@@ -31,9 +31,16 @@ Problem file::
     baselines: [ph-ipopt, ph-ipopt-cold, ph-grid, cosserat-wrench]
 
 Options: :class:`~optikin.problems.ph_shared.PHOptions` (``twist_weight``, ``nodes``,
-``free_speeds``, ``length``, ``fixed_base``) and ``cosserat_wrench`` (the rod of that
-baseline: ``EA``, ``EI``, ``GA``, ``GJ``, ``mass_per_length``, ``gravity``, ``steps``;
+``free_speeds``, ``length``, ``fixed_base``), ``c1_joint`` and ``cosserat_wrench`` (the rod of
+that baseline: ``EA``, ``EI``, ``GA``, ``GJ``, ``mass_per_length``, ``gravity``, ``steps``;
 defaults those of the ``cosserat`` source).
+
+With ``c1_joint: true`` (:mod:`optikin.problems.ph_shape.c1`, seed 002 Fig. 2, eqs. 15-18)
+every method also rebuilds each backbone as two PH quintics, section 1 and section 2,
+joined at the end of section 1 with C1 continuity, the joint pose the rigid body of the
+three tube markers there (a ``cosserat`` recording whose stations include 1.0); its marker
+and truth-backbone distances and one comparison row per method and section are reported
+next to the single curve's.
 
 Baseline ``cosserat-wrench`` (:mod:`optikin.problems.ph_shape.wrench`): the backbone
 is the Cosserat rod clamped at the measured base pose whose fitted tip wrench brings

@@ -6,7 +6,8 @@
 ``errors``  distance of each marker to the PH backbone per sample (``marker_distance``; the largest
             vertebra distance, ``vertebra_distance``, when the recording is synthetic; for a Cosserat
             recording the largest truth-backbone distance, ``truth_backbone_distance``, and the tube
-            markers' distances to the PH tube curves, ``tube_marker_distance``).
+            markers' distances to the PH tube curves, ``tube_marker_distance``; with ``c1_joint`` the
+            markers' distances to the C1 chain, ``c1_marker_distance``).
 ``times``   time per sample of every method (``seconds_<method>``).
 """
 
@@ -58,6 +59,9 @@ def figures(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -> dic
         if "truth_backbone_distance" in arrays:
             series["truth backbone"] = arrays["truth_backbone_distance"].max(axis=1) * MM
             labels["truth backbone"] = ["largest node distance"]
+        if "c1_marker_distance" in arrays:
+            series["C1 chain"] = arrays["c1_marker_distance"] * MM
+            labels["C1 chain"] = [f"marker {k + 1}" for k in range(distance.shape[1])]
         if "tube_marker_distance" in arrays:
             tubes = arrays["tube_marker_distance"] * MM  # (N, tube, station)
             series["tube markers"] = tubes.mean(axis=1)

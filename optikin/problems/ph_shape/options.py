@@ -34,8 +34,15 @@ class CosseratWrenchOptions(Options):
 
 
 class PHShapeOptions(PHOptions):
-    """Options of ``ph_shape`` (:class:`~optikin.problems.ph_shared.PHOptions`, and ``cosserat_wrench``)."""
+    """Options of ``ph_shape`` (:class:`~optikin.problems.ph_shared.PHOptions`, ``c1_joint`` and
+    ``cosserat_wrench``)."""
 
+    c1_joint: bool = Field(
+        False,
+        strict=True,
+        description="also rebuild each backbone as two PH quintics joined at the end of section 1 with C1 "
+        "continuity (seed 002 eqs. 15-18), the joint pose from the tube markers there (given speeds)",
+    )
     cosserat_wrench: CosseratWrenchOptions = Field(
         default_factory=CosseratWrenchOptions, description="the rod of baseline cosserat-wrench"
     )

@@ -9,6 +9,7 @@ import numpy as np
 from optikin.data.configurations import skipped_rows_notes
 from optikin.data.cosserat_markers import CosseratRecording, CosseratTruth
 from optikin.problems import ProblemContext
+from optikin.problems.ph_shape.c1 import SECTIONS
 from optikin.problems.ph_shape.run import ShapeOutcome
 from optikin.problems.ph_shape.wrench import NAME, distances_to_polylines
 from optikin.problems.ph_shared import MM, distances_to_curves, method_rows, tube_marker_distances
@@ -114,6 +115,43 @@ def wrench_row(outcome: ShapeOutcome) -> tuple[MethodRow, dict[str, np.ndarray]]
     return MethodRow(NAME, "baseline", metrics), arrays
 
 
+def c1_report(outcome: ShapeOutcome) -> tuple[dict[str, Any], list[MethodRow], dict[str, np.ndarray]]:
+    """Metrics, comparison rows (one per method and section) and arrays of the C1 chain
+    (:mod:`optikin.problems.ph_shape.c1`), side by side with the single curve's."""
+    chain, recording, solver = outcome.chain, outcome.recording, outcome.solver
+    assert chain is not None
+    distance = chain.distances(solver, recording.markers) * MM  # (N, K)
+    metrics: dict[str, Any] = {
+        "C1 chain: mean distance per marker [mm]": np.nanmean(distance, axis=0),
+        "C1 chain: max distance per marker [mm]": np.nanmax(distance, axis=0),
+        "C1 chain: joint marker (the joint's own centroid)": chain.joint_marker + 1,
+    }
+    arrays: dict[str, np.ndarray] = {
+        "c1_points": chain.points(solver, np.linspace(0, 1, CURVE_POINTS)),
+        "c1_marker_distance": distance / MM,
+        "c1_joint_position": chain.joint_position,
+        "c1_joint_orientation": chain.joint_orientation,
+    }
+    truth = recording.truth
+    if truth is not None:
+        backbone = chain.distances(solver, truth.vertebrae) * MM
+        name = "truth backbone" if isinstance(truth, CosseratTruth) else "model backbone"
+        metrics[f"C1 chain: {name}: mean of the largest node distance [mm]"] = float(np.nanmean(backbone.max(1)))
+        metrics[f"C1 chain: {name}: largest node distance [mm]"] = float(np.nanmax(backbone))
+        arrays["c1_truth_backbone_distance"] = backbone / MM
+    rows = []
+    for section in SECTIONS:
+        runs = chain.runs[section]
+        extra = {
+            method: {"mean marker distance [mm]": float(np.nanmean(chain.distances(method, recording.markers)) * MM)}
+            for method in runs
+        }
+        for row in method_rows(runs, extra):
+            row.method = f"{row.method} (C1 {section})"
+            rows.append(row)
+    return metrics, rows, arrays
+
+
 def shape_arrays(outcome: ShapeOutcome) -> dict[str, np.ndarray]:
     """The arrays of the result (the figures draw from these)."""
     recording, curves = outcome.recording, outcome.main.curves
@@ -152,6 +190,11 @@ def report(ctx: ProblemContext, outcome: ShapeOutcome) -> Result:
     if outcome.wrench is not None:
         row, wrench_arrays = wrench_row(outcome)
         comparison.append(row)
+    chain_arrays: dict[str, np.ndarray] = {}
+    if outcome.chain is not None:
+        chain_metrics, chain_rows, chain_arrays = c1_report(outcome)
+        metrics.update(chain_metrics)
+        comparison.extend(chain_rows)
     return ctx.result(
         solver=outcome.solver,
         status=main.status,
@@ -164,7 +207,7 @@ def report(ctx: ProblemContext, outcome: ShapeOutcome) -> Result:
         },
         metrics=metrics,
         comparison=comparison,
-        arrays={**shape_arrays(outcome), **truth_arrays, **wrench_arrays},
+        arrays={**shape_arrays(outcome), **truth_arrays, **wrench_arrays, **chain_arrays},
         notes=skipped_rows_notes(outcome.recording.skipped_rows, ctx.data_params)
         + [
             f"{len(outcome.recording)} postures from {outcome.recording.source or spec.data.source}; residual = "

@@ -9,6 +9,7 @@ import numpy as np
 from optikin.curves import ShapeData
 from optikin.data.markers import MarkerRecording
 from optikin.problems import ProblemContext
+from optikin.problems.ph_shape.c1 import SECTIONS, C1Chain, c1_chain_data, joint_poses, joint_tangents
 from optikin.problems.ph_shape.options import PHShapeOptions
 from optikin.problems.ph_shape.wrench import NAME, WrenchRun, distances_to_polylines, run_wrench
 from optikin.problems.ph_shared import MethodRun, distances_to_curves, shape_samples, solve_methods, solver_name
@@ -35,6 +36,10 @@ class ShapeOutcome:
         The solver's preset name.
     options:
         The kind's options.
+    wrench:
+        The ``cosserat-wrench`` fits, when listed.
+    chain:
+        The C1 chain of every method, with ``c1_joint``.
     """
 
     recording: MarkerRecording
@@ -45,6 +50,7 @@ class ShapeOutcome:
     solver: str
     options: PHShapeOptions
     wrench: WrenchRun | None = None
+    chain: C1Chain | None = None
 
     @property
     def main(self) -> MethodRun:
@@ -66,4 +72,21 @@ def run(ctx: ProblemContext) -> ShapeOutcome:
             wrench = run_wrench(recording, used, options.cosserat_wrench)
             advance()
         distances[NAME] = distances_to_polylines(wrench.backbones, recording.markers)
-    return ShapeOutcome(recording, lengths, samples, runs, distances, solver_name(ctx), options, wrench)
+    chain = c1_chain(ctx, recording, options, source) if options.c1_joint else None
+    return ShapeOutcome(recording, lengths, samples, runs, distances, solver_name(ctx), options, wrench, chain)
+
+
+def c1_chain(ctx: ProblemContext, recording: MarkerRecording, options: PHShapeOptions, source: str) -> C1Chain:
+    """Both sections of every posture with every ``ph`` method (:mod:`optikin.problems.ph_shape.c1`)."""
+    position, orientation, marker = joint_poses(recording, source)
+    links = c1_chain_data(
+        (recording.base_position, recording.base_direction),
+        (position, joint_tangents(orientation)),
+        (recording.tip_position, recording.tip_direction),
+        source,
+    )
+    runs = {
+        name: solve_methods(ctx, options.energy, False, links[name], f" (C1 {name})", others=(NAME,))
+        for name in SECTIONS
+    }
+    return C1Chain(position, orientation, marker, links, runs)
