@@ -37,6 +37,15 @@ in the fixed proportions of the seed's Fig. 6, and it has 3 degrees of freedom
 instead of 24. That is an assumption about the seed's data, not its text; it
 gives the networks the easy problem the low MSEs of Tables II and III suggest.
 
+``coupling="tubes"`` is the database a practitioner would build for an arm driven by its
+tubes: each row draws the elongation fractions ``f_{s,m}`` of the three tubes of every
+section uniformly on ``[0, 1]``, every leg of the section is ``q_min,k + f_{s,m} (q_max,k -
+q_min,k)`` (the percentage split of Fig. 6, :func:`split_tube_lengths`), and each platform's
+``(Z_k, theta_k, psi_k)`` is solved from its legs (Newton on eqs. 3-6,
+:func:`optikin.data.markers.configurations_from_fractions`); a row is kept when every
+platform is upright. It samples the postures the arm takes when its six tubes are driven,
+with 6 degrees of freedom, and ``candidates`` counts rows drawn, not draws per platform.
+
 The database is the data source ``fig7`` of the family ``nn_database`` (the
 ``data`` section of the ``nn_fkm`` and ``nn_ikm`` problem files): ``data.seed``
 and ``data.samples`` are :attr:`DatabaseSpec.seed` and
@@ -56,6 +65,7 @@ from pydantic import Field, field_validator
 from optikin.algebra import dq_translation
 from optikin.arms.base import ArmModel
 from optikin.arms.cbha import CBHAArm, CBHAGeometry, platform_bounds, platform_leg_vectors
+from optikin.data.markers import configurations_from_fractions
 from optikin.data.sources import register_source
 from optikin.errors import SpecError
 from optikin.options import Options
@@ -69,7 +79,7 @@ SEED_KEPT_PER_SECTION = (11_559, 18_512)
 """Seed 004 section IV-A: samples kept for section 1 and section 2 (30,071 in all)."""
 STREAM_CANDIDATES, STREAM_SPLIT = 0, 1
 SPLITS = ("train", "validation", "test")
-COUPLINGS = ("platform", "section")
+COUPLINGS = ("platform", "section", "tubes")
 
 
 @dataclass(frozen=True)
@@ -92,7 +102,8 @@ class DatabaseSpec:
         Fractions of the rows for training, validation and test.
     coupling:
         ``platform``: every platform drawn on its own (Fig. 7); ``section``: one draw per
-        section shared by its platforms (module docstring).
+        section shared by its platforms; ``tubes``: six tube elongation fractions per row,
+        split over the platforms as in Fig. 6 (module docstring).
     """
 
     candidates: int = 600_000
@@ -210,6 +221,8 @@ class LearningDatabase:
         """Candidates kept per section (the seed's 11,559 and 18,512), pooled over its platforms
         when each platform is drawn on its own."""
         kept = self.kept_table_i if table_i_only else self.kept
+        if self.spec.coupling == "tubes":
+            return tuple(int(kept[0]) for _ in self.geometry.platforms_per_section)
         if self.spec.coupling == "section":
             return tuple(int(k) for k in kept)
         bounds = np.cumsum((0,) + self.geometry.platforms_per_section)
@@ -219,6 +232,16 @@ class LearningDatabase:
     def tip(self) -> np.ndarray:
         """``(n, 3)`` tip positions [m]."""
         return self.section_ends[:, -1]
+
+    @property
+    def seed(self) -> int:
+        """The seed of every draw (:attr:`DatabaseSpec.seed`)."""
+        return self.spec.seed
+
+    @cached_property
+    def tube_lengths(self) -> np.ndarray:
+        """``(n, sections, 3)``: each tube's legs summed over each section [m] (the six potentiometers)."""
+        return section_tube_lengths(self.geometry, self.leg_lengths)
 
     def summary(self) -> dict:
         """Counts for reports, beside the seed's."""
@@ -251,10 +274,96 @@ def draw_units(geometry: CBHAGeometry, spec: DatabaseSpec) -> list[range]:
     return [range(a, b) for a, b in zip(bounds[:-1], bounds[1:])]
 
 
+def section_limits(geometry: CBHAGeometry) -> tuple[np.ndarray, np.ndarray]:
+    """``(sum_k q_min,k, sum_k q_max,k)`` over each section's platforms [m], ``(sections,)`` each:
+    the range of a tube's length over a section (Table I)."""
+    bounds = np.cumsum((0,) + geometry.platforms_per_section)
+    lo, hi = np.asarray(geometry.leg_min), np.asarray(geometry.leg_max)
+    return (
+        np.array([lo[a:b].sum() for a, b in zip(bounds[:-1], bounds[1:])]),
+        np.array([hi[a:b].sum() for a, b in zip(bounds[:-1], bounds[1:])]),
+    )
+
+
+def tube_fractions_of_lengths(geometry: CBHAGeometry, tube_lengths: np.ndarray) -> np.ndarray:
+    """Elongation fractions ``f_{s,m} = (L_{s,m} - sum q_min) / (sum q_max - sum q_min)`` of tube lengths.
+
+    Parameters
+    ----------
+    geometry:
+        The CBHA (Table I, sections).
+    tube_lengths:
+        ``(n, sections, 3)``: length of tube ``m`` over section ``s`` [m] (section 1's
+        potentiometer, and the whole tube's minus it).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(n, sections, 3)``; 0 and 1 at the Table I totals, outside ``[0, 1]`` beyond them.
+    """
+    L = np.asarray(tube_lengths, dtype=float)
+    lo, hi = section_limits(geometry)
+    if L.ndim != 3 or L.shape[1:] != (len(lo), 3):
+        raise ValueError(f"tube lengths must be (n, {len(lo)}, 3), got {L.shape}")
+    return (L - lo[None, :, None]) / (hi - lo)[None, :, None]
+
+
+def split_tube_lengths(geometry: CBHAGeometry, tube_lengths: np.ndarray) -> np.ndarray:
+    """Fig. 9: the 48 leg lengths of six tube-length readings, by the percentage split of Fig. 6.
+
+    Every leg ``m`` of section ``s`` takes the same fraction of its Table I range,
+    ``q_{m,k} = q_min,k + f_{s,m} (q_max,k - q_min,k)`` (:func:`tube_fractions_of_lengths`),
+    so the legs of a tube add up to its length over the section. Seed 004 section IV-A:
+    "the elongation of each inter-vertebra at any time represents a percentage of the total
+    length of the tube ... obtained by considering the minimum and the maximum elongations".
+
+    Parameters
+    ----------
+    geometry:
+        The CBHA.
+    tube_lengths:
+        ``(n, sections, 3)`` [m].
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(n, 3 (N - 1))``: ``(q_{1,1}, q_{2,1}, q_{3,1}, ..., q_{3,16})`` [m], the order of
+        :attr:`LearningDatabase.leg_lengths`.
+    """
+    f = tube_fractions_of_lengths(geometry, tube_lengths)
+    section_of = np.repeat(np.arange(len(geometry.platforms_per_section)), geometry.platforms_per_section)
+    lo, hi = np.asarray(geometry.leg_min), np.asarray(geometry.leg_max)
+    legs = lo[None, :, None] + f[:, section_of, :] * (hi - lo)[None, :, None]  # (n, platform, tube)
+    return legs.reshape(len(f), -1)
+
+
+def section_tube_lengths(geometry: CBHAGeometry, leg_lengths: np.ndarray) -> np.ndarray:
+    """``(n, sections, 3)``: each tube's legs summed over each section [m], from ``(n, 48)`` leg lengths."""
+    legs = np.asarray(leg_lengths, dtype=float).reshape(len(leg_lengths), -1, 3)
+    bounds = np.cumsum((0,) + geometry.platforms_per_section)
+    return np.stack([legs[:, a:b].sum(axis=1) for a, b in zip(bounds[:-1], bounds[1:])], axis=1)
+
+
+def _tube_driven_rows(geometry: CBHAGeometry, spec: DatabaseSpec) -> tuple[np.ndarray, int]:
+    """Configurations of the upright rows of ``coupling="tubes"`` and the rows drawn (module docstring)."""
+    arm = CBHAArm(geometry)
+    rng = np.random.default_rng([spec.seed, STREAM_CANDIDATES, 0])
+    fractions = rng.uniform(0.0, 1.0, size=(spec.candidates, len(geometry.platforms_per_section), 3))
+    configurations = configurations_from_fractions(arm, fractions)
+    ok = np.ones(len(configurations), dtype=bool)
+    for k in range(geometry.n_platforms):
+        if spec.require_upright:
+            ok &= admissible(configurations[:, 3 * k : 3 * k + 3], geometry, k, True)[1]
+    return configurations[ok], spec.candidates
+
+
 def build_database(geometry: CBHAGeometry | None = None, spec: DatabaseSpec | None = None) -> LearningDatabase:
     """Draw the learning database of Fig. 7 (see the module docstring). Deterministic given ``spec.seed``."""
     geometry = geometry or CBHAGeometry()
     spec = spec or DatabaseSpec()
+    if spec.coupling == "tubes":
+        configurations, drawn = _tube_driven_rows(geometry, spec)
+        return _database(geometry, spec, configurations, np.array([len(configurations)]), np.array([drawn]))
     lower, upper = platform_bounds(geometry)
     box_lo, box_hi = spec.box()
     if np.any(lower < box_lo) or np.any(upper > box_hi):
@@ -277,9 +386,17 @@ def build_database(geometry: CBHAGeometry | None = None, spec: DatabaseSpec | No
         kept.append(int(upright.sum()))
         kept_table_i.append(len(alive))
     n = min(kept)
+    configurations = np.concatenate([np.tile(d[:n], len(platforms)) for d, platforms in zip(kept_draws, units)], axis=1)
+    return _database(geometry, spec, configurations, np.array(kept), np.array(kept_table_i))
+
+
+def _database(
+    geometry: CBHAGeometry, spec: DatabaseSpec, configurations: np.ndarray, kept: np.ndarray, kept_table_i: np.ndarray
+) -> LearningDatabase:
+    """The database of the whole-arm rows ``configurations`` ``(n, 48)``: legs, section ends, split."""
+    n = len(configurations)
     if n < 10:
         raise ValueError(f"only {n} whole-arm rows from {spec.candidates} candidates per {spec.coupling}; draw more")
-    configurations = np.concatenate([np.tile(d[:n], len(platforms)) for d, platforms in zip(kept_draws, units)], axis=1)
     arm = CBHAArm(geometry)
     leg_lengths = arm.evaluate("leg_lengths", configurations).reshape(n, -1)
     section_ends = dq_translation(arm.evaluate("section_dq", configurations).transpose(0, 2, 1))
@@ -290,8 +407,8 @@ def build_database(geometry: CBHAGeometry | None = None, spec: DatabaseSpec | No
         configurations=configurations,
         leg_lengths=leg_lengths,
         section_ends=section_ends,
-        kept=np.array(kept),
-        kept_table_i=np.array(kept_table_i),
+        kept=kept,
+        kept_table_i=kept_table_i,
         train=train,
         validation=validation,
         test=test,
@@ -309,10 +426,11 @@ class Fig7Params(Options):
     require_upright: bool = Field(
         True, description="keep only draws whose upper attachment points lie above the lower vertebra"
     )
-    coupling: Literal["platform", "section"] = Field(
+    coupling: Literal["platform", "section", "tubes"] = Field(
         "platform",
         description="platform: every platform drawn on its own (Fig. 7); section: one draw per section "
-        "shared by its platforms",
+        "shared by its platforms; tubes: six tube elongation fractions per row split over the platforms "
+        "as in Fig. 6 (the postures the arm takes when driven by its tubes; samples counts rows)",
     )
     split: tuple[float, float, float] = Field(
         (0.70, 0.15, 0.15), description="fractions of the rows for training, validation and test"

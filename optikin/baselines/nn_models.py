@@ -21,8 +21,13 @@ criterion has not improved for ``patience`` epochs, keeping the weights of its
 best epoch. Settings (:data:`SETTINGS`):
 
 ``seed``       back-propagation (stochastic gradient descent) with a momentum term, as the
-               seed describes it, on the raw SI values (metres, radians): the seed states no
-               pre-processing;
+               seed describes it, with the pre-processing MATLAB's Neural Network Toolbox applies
+               by default (``mapminmax``: every input and output mapped affinely from its range on
+               the training split to ``[-1, 1]``); the seed states no pre-processing, and its tool
+               does this unless told otherwise;
+``seed-raw``   as ``seed`` on the raw SI values (metres, radians), no pre-processing: leg lengths
+               of about 10 mm and ``Z_k`` of a few millimetres give gradients too small for the
+               seed's learning rate;
 ``adam``       Adam on standardised inputs and outputs (zero mean, unit variance on the
                training split), same width search;
 ``adam-wide``  as ``adam`` with wider layers (32 and 64 neurons), to separate what the
@@ -50,7 +55,7 @@ from __future__ import annotations
 import copy
 import time
 from dataclasses import dataclass, field, replace
-from typing import Callable
+from typing import Callable, Literal
 
 import numpy as np
 from scipy.special import expit
@@ -58,6 +63,10 @@ from sklearn.neural_network import MLPRegressor
 from threadpoolctl import threadpool_limits
 
 from optikin.baselines.nn_database import LearningDatabase
+from optikin.data.cosserat_nn import CosseratDatabase
+
+Database = LearningDatabase | CosseratDatabase
+"""Where a :class:`Task` reads its rows and its train / validation / test split."""
 
 VARIABLES = ("Z", "theta", "psi")
 ACTIVATIONS: dict[str, Callable[[np.ndarray], np.ndarray]] = {
@@ -85,7 +94,9 @@ class Task:
     """What one network maps: columns of one database table to columns of another.
 
     Tables (:func:`table`): ``legs`` (48 leg lengths), ``configurations`` (48 platform
-    variables) and ``ends`` (tip x, y, z, then end of section 1 x, y, z).
+    variables), ``ends`` (tip x, y, z, then end of section 1 x, y, z), ``tubes`` (the six
+    tube lengths, section 1's three then section 2's), and, of a
+    :class:`~optikin.data.cosserat_nn.CosseratDatabase`, ``pressures`` (its six tube pressures).
     """
 
     key: str
@@ -94,7 +105,7 @@ class Task:
     outputs: tuple[str, tuple[int, ...]]
     penalised: bool = False
 
-    def arrays(self, db: LearningDatabase, rows: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def arrays(self, db: Database, rows: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """``(X, Y)`` of the given rows (all when ``None``)."""
         X = table(db, self.inputs[0])[:, list(self.inputs[1])]
         Y = table(db, self.outputs[0])[:, list(self.outputs[1])]
@@ -106,15 +117,37 @@ class Task:
         return {**SEED_TABLE_II, **SEED_TABLE_III}.get(self.key)
 
 
-def table(db: LearningDatabase, name: str) -> np.ndarray:
+def table(db: Database, name: str) -> np.ndarray:
     """One of the database tables a :class:`Task` reads."""
-    if name == "legs":
-        return db.leg_lengths
-    if name == "configurations":
-        return db.configurations
+    if name == "tubes":
+        return db.tube_lengths.reshape(len(db), -1)
     if name == "ends":
         return np.concatenate([db.tip, db.section_ends[:, 0]], axis=1)
+    if isinstance(db, CosseratDatabase):
+        if name == "pressures":
+            return db.pressures.reshape(len(db), -1)
+    elif name == "legs":
+        return db.leg_lengths
+    elif name == "configurations":
+        return db.configurations
     raise KeyError(f"unknown table {name!r}")
+
+
+def direct_tasks() -> list[Task]:
+    """Seed 004 Table IV's qualitative models (Melingui et al.): one MLP from the six tube lengths to the
+    tip (``direct_fkm``), one back (``direct_ikm``), and the length-pressure controller of section VI
+    (``controller``: six tube lengths -> six pressures; a :class:`~optikin.data.cosserat_nn.CosseratDatabase`)."""
+    six, three = tuple(range(6)), (0, 1, 2)
+    return [
+        Task("direct_fkm", "direct FKM: six tube lengths -> tip", ("tubes", six), ("ends", three)),
+        Task("direct_ikm", "direct IKM: tip -> six tube lengths", ("ends", three), ("tubes", six)),
+        Task(
+            "controller",
+            "length-pressure controller: six tube lengths -> six pressures",
+            ("tubes", six),
+            ("pressures", six),
+        ),
+    ]
 
 
 def forward_tasks(db: LearningDatabase) -> list[Task]:
@@ -150,14 +183,16 @@ def inverse_tasks(db: LearningDatabase) -> list[Task]:
 class TrainingSetting:
     """How a network is trained and which widths are searched.
 
-    ``solver`` is ``sgd`` (with classical momentum) or ``adam``; ``batch_size`` samples per
-    update; an epoch is one pass over the training split; training stops after ``patience``
+    ``solver`` is ``sgd`` (with classical momentum) or ``adam``; ``scaling`` maps every input and
+    output column of the training split before training: ``True`` to zero mean and unit variance,
+    ``"minmax"`` from its range to ``[-1, 1]`` (MATLAB's ``mapminmax``), ``False`` not at all;
+    ``batch_size`` samples per update; an epoch is one pass over the training split; training stops after ``patience``
     epochs without a better validation criterion, or at ``max_epochs``.
     """
 
     name: str
     solver: str
-    scaling: bool
+    scaling: bool | Literal["minmax"]
     neurons: tuple[int, ...] = tuple(range(2, 21, 2))
     learning_rate: float = 0.01
     momentum: float = 0.9
@@ -179,22 +214,33 @@ class TrainingSetting:
             raise ValueError("learning_rate must be positive and momentum within [0, 1)")
         if self.activation not in ACTIVATIONS:
             raise ValueError(f"activation must be one of {', '.join(ACTIVATIONS)}, got {self.activation!r}")
+        if self.scaling not in (True, False, "minmax"):
+            raise ValueError(f"scaling must be true, false or 'minmax', got {self.scaling!r}")
 
     @property
     def description(self) -> str:
         opt = f"SGD + momentum {self.momentum:g}" if self.solver == "sgd" else "Adam"
-        scaled = "standardised" if self.scaling else "raw SI units"
+        scaled = {True: "standardised", False: "raw SI units", "minmax": "mapminmax to [-1, 1]"}[self.scaling]
         return f"{opt}, lr {self.learning_rate:g}, {scaled}, widths {list(self.neurons)}"
 
     def small(self) -> "TrainingSetting":
         """A quick version for tests and notebooks: two widths, at most 15 epochs."""
+        if self.name == "direct":
+            return replace(self, max_epochs=60, patience=10)
         return replace(
             self, neurons=self.neurons[-2:] if self.name == "adam-wide" else (4, 8), max_epochs=15, patience=4
         )
 
 
+DIRECT_SETTING = TrainingSetting(
+    "direct", "adam", scaling=True, learning_rate=0.01, batch_size=32, max_epochs=200, patience=30, neurons=(16,)
+)
+"""Training of the direct models (:func:`direct_tasks`): a few hundred postures, so small batches and a
+larger step than :data:`SETTINGS` ``adam``."""
+
 SETTINGS = {
-    "seed": TrainingSetting("seed", "sgd", scaling=False, learning_rate=0.01, momentum=0.9),
+    "seed": TrainingSetting("seed", "sgd", scaling="minmax", learning_rate=0.01, momentum=0.9),
+    "seed-raw": TrainingSetting("seed-raw", "sgd", scaling=False, learning_rate=0.01, momentum=0.9),
     "adam": TrainingSetting("adam", "adam", scaling=True, learning_rate=0.001),
     "adam-wide": TrainingSetting("adam-wide", "adam", scaling=True, learning_rate=0.001, neurons=(32, 64)),
 }
@@ -283,18 +329,21 @@ def forward_pass(network: Network, A: np.ndarray) -> np.ndarray:
     return A @ network.coefs[-1] + network.intercepts[-1]
 
 
-def split_mse(model: TrainedModel, db: LearningDatabase, split: str = "test") -> float:
+def split_mse(model: TrainedModel, db: Database, split: str = "test") -> float:
     """Mean squared error over the outputs and the rows of ``split`` only (SI units, no penalty)."""
     X, Y = model.task.arrays(db, db.rows(split))
     return float(np.mean((model.predict(X) - Y) ** 2))
 
 
-def split_rmse_by_variable(model: TrainedModel, db: LearningDatabase, split: str = "test") -> dict[str, float]:
-    """RMSE of ``Z`` [mm] and of the angles [deg] (or of positions [mm]) over the rows of ``split``."""
+def split_rmse_by_variable(model: TrainedModel, db: Database, split: str = "test") -> dict[str, float]:
+    """RMSE of ``Z`` [mm] and of the angles [deg] (or of positions, tube lengths [mm], pressures [kPa])
+    over the rows of ``split``."""
     X, Y = model.task.arrays(db, db.rows(split))
     err = model.predict(X) - Y
-    if model.task.outputs[0] == "ends":
-        return {"position [mm]": float(1e3 * np.sqrt(np.mean(err**2)))}
+    single = {"ends": ("position [mm]", 1e3), "tubes": ("tube length [mm]", 1e3), "pressures": ("pressure [kPa]", 1e-3)}
+    if model.task.outputs[0] in single:
+        label, scale = single[model.task.outputs[0]]
+        return {label: float(scale * np.sqrt(np.mean(err**2)))}
     cols = np.array(model.task.outputs[1]) % 3
     out = {}
     for v, variable in enumerate(VARIABLES):
@@ -304,14 +353,34 @@ def split_rmse_by_variable(model: TrainedModel, db: LearningDatabase, split: str
     return out
 
 
-def _random_state(db: LearningDatabase, task: Task, neurons: int) -> int:
-    key = [db.spec.seed, *task.key.encode(), neurons]
+def _random_state(db: Database, task: Task, neurons: int) -> int:
+    key = [db.seed, *task.key.encode(), neurons]
     return int(np.random.SeedSequence(key).generate_state(1)[0] % (2**31))
 
 
-def _affine(A: np.ndarray, scaling: bool) -> tuple[np.ndarray, np.ndarray]:
-    if not scaling:
+def affine_map(A: np.ndarray, scaling: bool | str) -> tuple[np.ndarray, np.ndarray]:
+    """``(offset, scale)`` with which ``(A - offset) / scale`` is the network's view of the columns of ``A``.
+
+    Parameters
+    ----------
+    A:
+        ``(n, columns)`` training inputs or outputs, SI units.
+    scaling:
+        ``True``: mean and standard deviation; ``"minmax"``: the mid-range and the half range, so
+        that the training columns span ``[-1, 1]`` (MATLAB's ``mapminmax``); ``False``: ``(0, 1)``.
+        A constant column keeps the scale 1.
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        ``(columns,)`` each.
+    """
+    if scaling is False:
         return np.zeros(A.shape[1]), np.ones(A.shape[1])
+    if scaling == "minmax":
+        lo, hi = A.min(axis=0), A.max(axis=0)
+        half = (hi - lo) / 2
+        return (hi + lo) / 2, np.where(half > 0, half, 1.0)
     scale = A.std(axis=0)
     return A.mean(axis=0), np.where(scale > 0, scale, 1.0)
 
@@ -336,7 +405,7 @@ def _fit_width(
 
 def train_model(
     task: Task,
-    db: LearningDatabase,
+    db: Database,
     setting: TrainingSetting,
     penalty: float = 0.0,
     on_width: Callable[[int, float], None] | None = None,
@@ -353,8 +422,8 @@ def train_model(
     X_train, Y_train = task.arrays(db, db.train)
     X_val, Y_val = task.arrays(db, db.validation)
     target = Y_train / (1.0 + penalty)
-    x_off, x_sc = _affine(X_train, setting.scaling)
-    y_off, y_sc = _affine(target, setting.scaling)
+    x_off, x_sc = affine_map(X_train, setting.scaling)
+    y_off, y_sc = affine_map(target, setting.scaling)
     Xs, Ys = (X_train - x_off) / x_sc, (target - y_off) / y_sc
     Xv = (X_val - x_off) / x_sc
     results: dict[int, tuple[float, int, MLPRegressor]] = {}

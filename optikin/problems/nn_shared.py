@@ -26,19 +26,23 @@ from typing import Any, Callable, Literal, Mapping, Sequence
 
 import numpy as np
 from pydantic import Field
+from scipy.spatial import cKDTree
 
 from optikin.arms.cbha import CBHAArm
 from optikin.baselines.nn_database import DatabaseSpec, Fig7Params, LearningDatabase
 from optikin.baselines.nn_models import (
+    DIRECT_SETTING,
     SETTINGS,
     Task,
     TrainedModel,
     TrainingSetting,
+    direct_tasks,
     split_mse,
     split_rmse_by_variable,
     train_model,
 )
 from optikin.baselines.nn_store import load_models, save_models
+from optikin.data.cosserat_nn import CosseratDatabase
 from optikin.options import Options, validate_options
 from optikin.problems import ProblemContext
 from optikin.progress import Progress
@@ -57,7 +61,7 @@ REALISER = "newton"
 """The solver preset that finds the pose commanded leg lengths produce
 (:func:`optikin.ik.platform.realise`)."""
 
-SettingName = Literal["seed", "adam", "adam-wide"]
+SettingName = Literal["seed", "seed-raw", "adam", "adam-wide"]
 """A training setting of :data:`optikin.baselines.nn_models.SETTINGS`."""
 
 
@@ -79,6 +83,17 @@ class NNOptions(Options):
         "loaded when it matches the problem, otherwise trained and written",
     )
     exact_samples: int = Field(200, ge=1, description="test samples given to the exact solvers (the first ones)")
+    tube_sensors: bool = Field(
+        True,
+        description="nn_fkm: also give every method the legs its test arms' six tube lengths give by the "
+        "percentage split of Fig. 6 (the pipeline of Fig. 9), rows <method>-fig9; the only input on the "
+        "cosserat source",
+    )
+    direct: bool = Field(
+        True,
+        description="cosserat source: also train seed 004 Table IV's qualitative models (Melingui et al.) on "
+        "the Cosserat training postures, tube lengths -> tip (nn_fkm) and tip -> tube lengths (nn_ikm)",
+    )
     latency_repeats: int = Field(50, ge=1, description="one-sample calls timed for the latency")
 
     def settings(self) -> list[TrainingSetting]:
@@ -115,7 +130,10 @@ class Prepared:
     spec, arm, options:
         The problem file, its CBHA and its validated options.
     db, seconds:
-        The learning database of ``data`` and the seconds it took to build.
+        The learning database of the hybrid networks and the seconds ``data`` took to build.
+    truth:
+        With the ``cosserat`` source, its postures (``db`` is then its vertebra-model database);
+        otherwise ``None`` and the test split of ``db`` is the truth.
     """
 
     spec: ProblemSpec
@@ -123,6 +141,7 @@ class Prepared:
     options: NNOptions
     db: LearningDatabase
     seconds: float
+    truth: CosseratDatabase | None = None
 
 
 def prepare(ctx: ProblemContext) -> Prepared:
@@ -140,8 +159,37 @@ def prepare(ctx: ProblemContext) -> Prepared:
             "presets to compare with under baselines",
         )
     o = options(ctx)
-    db, seconds = timed(ctx.load_data)
-    return Prepared(ctx.spec, ctx.arm, o, db, seconds)
+    data, seconds = timed(ctx.load_data)
+    if isinstance(data, CosseratDatabase):
+        return Prepared(ctx.spec, ctx.arm, o, data.model, seconds, data)
+    return Prepared(ctx.spec, ctx.arm, o, data, seconds)
+
+
+def nearest_distances(reference: np.ndarray, queries: np.ndarray) -> np.ndarray:
+    """``(n,)`` distance of each of ``queries`` ``(n, 3)`` to the nearest of ``reference`` ``(m, 3)`` [m]."""
+    return cKDTree(reference).query(queries)[0]
+
+
+def coverage_metrics(prep: Prepared, test_tips: np.ndarray) -> dict[str, Any]:
+    """How far the test tips ``(n, 3)`` [m] lie from the training tips of the hybrid networks' database:
+    the median and 95th percentile of the distance to the nearest one [mm]."""
+    db = prep.db
+    distances = nearest_distances(db.tip[db.train], test_tips) * MM
+    return {
+        "test tips: median distance to the nearest training tip [mm]": float(np.median(distances)),
+        "test tips: 95th percentile distance to the nearest training tip [mm]": float(np.percentile(distances, 95)),
+    }
+
+
+def direct_model(prep: Prepared, key: str) -> TrainedModel:
+    """The direct model ``key`` (:func:`~optikin.baselines.nn_models.direct_tasks`) trained on the Cosserat
+    postures with :data:`~optikin.baselines.nn_models.DIRECT_SETTING`: its quick version with ``setting:
+    small``, except for the ``controller``, which belongs to the arm rather than to a method under test."""
+    assert prep.truth is not None
+    task = {t.key: t for t in direct_tasks()}[key]
+    quick = prep.options.setting == "small" and key != "controller"
+    setting = DIRECT_SETTING.small() if quick else DIRECT_SETTING
+    return train_model(task, prep.truth, setting)
 
 
 # ---------------------------------------------------------------------------------------- running
@@ -210,6 +258,8 @@ class NetworkRun:
         Median seconds of one call on the whole test split, and of a one-sample call.
     arrays:
         The variant's arrays of the result.
+    suffix:
+        Of its label: ``""``, or ``-fig9`` when given the legs split from the six tube lengths.
     """
 
     setting: TrainingSetting
@@ -219,11 +269,12 @@ class NetworkRun:
     batch_seconds: float
     latency: float
     arrays: dict[str, np.ndarray]
+    suffix: str
 
     @property
     def label(self) -> str:
-        """The variant's method name, ``mlp-<setting>``."""
-        return f"mlp-{self.setting.name}"
+        """The variant's method name, ``mlp-<setting><suffix>`` (``-fig9``: from the six tube lengths)."""
+        return f"mlp-{self.setting.name}{self.suffix}"
 
 
 def time_network(hybrid: Callable[[np.ndarray], Any], inputs: np.ndarray, repeats: int) -> tuple[float, float]:

@@ -1,4 +1,4 @@
-"""``nn_fkm``: the outcome as a Result (model metrics beside Table II, one row per variant and solver)."""
+"""``nn_fkm``: the outcome as a Result (model metrics beside Table II, one row per variant, input and solver)."""
 
 from __future__ import annotations
 
@@ -7,20 +7,27 @@ from typing import Any
 import numpy as np
 
 from optikin.problems.nn_fkm.run import FKMOutcome
-from optikin.problems.nn_shared import comparison_result, network_row, solver_row
+from optikin.problems.nn_shared import comparison_result, coverage_metrics, error_stats, network_row, solver_row
 from optikin.results import MethodRow, Result
 
 
 def report(outcome: FKMOutcome) -> Result:
-    """The result of ``nn_fkm``: the first variant is the method, every variant and solver a row.
+    """The result of ``nn_fkm``: the first variant is the method, every variant, input and solver a row.
 
-    Arrays: per variant ``tip_<setting>`` and ``configurations_<setting>``, per solver
-    ``tip_<preset>``, the test split's ``test_rows``, ``leg_lengths``, ``configurations``,
-    ``tip``, and the figures' ``search_<setting>_<task>`` and ``tip_errors_<method>``.
+    Arrays: per variant and input ``tip_<setting>[-fig9]`` and ``configurations_<setting>[-fig9]``,
+    per solver ``tip_<preset>[-fig9]``, the test postures' ``test_rows``, ``leg_lengths`` (those given,
+    first input), ``tip`` (true), ``configurations`` (true, vertebra-model truth only), ``tip_direct``
+    (qualitative FKM), and the figures' ``search_<setting>_<task>`` and ``tip_errors_<method>``.
     """
     prep, test, k = outcome.prep, outcome.test, outcome.exact_samples
-    db = prep.db
-    metrics: dict[str, Any] = {"database": db.summary(), "database time [s]": prep.seconds, "test samples": len(test)}
+    db, truth = prep.db, prep.truth
+    first = outcome.inputs[0]
+    metrics: dict[str, Any] = {
+        "database": db.summary() if truth is None else truth.summary(),
+        "database time [s]": prep.seconds,
+        "test samples": len(test),
+        **coverage_metrics(prep, first.tip),
+    }
     comparison: list[MethodRow] = []
     errors: dict[str, np.ndarray] = {}
     arrays: dict[str, np.ndarray] = {}
@@ -29,28 +36,45 @@ def report(outcome: FKMOutcome) -> Result:
         errors[net.label] = net.errors
         arrays |= net.arrays
     for solver in outcome.solvers:
-        comparison.append(
-            solver_row(
-                solver,
-                {
-                    "max |platform variables - truth|": float(
-                        np.max(np.abs(solver.report.x - db.configurations[test[:k]]))
-                    ),
-                    "max leg residual [m]": float(np.max(solver.report.residual)),
-                    "latency, one sample [us]": solver.latency * 1e6,
-                },
+        extra: dict[str, Any] = {"max leg residual [m]": float(np.max(solver.report.residual))}
+        if solver.truth_configurations is not None:
+            extra["max |platform variables - truth|"] = float(
+                np.max(np.abs(solver.report.x - solver.truth_configurations))
             )
-        )
+        extra["latency, one sample [us]"] = solver.latency * 1e6
+        comparison.append(solver_row(solver, extra))
         errors[solver.name] = solver.errors
         arrays |= solver.arrays
-    arrays |= {
-        "test_rows": test,
-        "leg_lengths": db.leg_lengths[test],
-        "configurations": db.configurations[test],
-        "tip": db.tip[test],
-    }
+    if outcome.direct is not None:
+        d = outcome.direct
+        metrics["direct setting"] = d.model.setting.description
+        row = {
+            "samples": len(d.errors),
+            **error_stats(d.errors),
+            "neurons": d.model.neurons,
+            "Cosserat postures trained on": len(prep.truth.train) if prep.truth is not None else 0,
+            "time per sample [us]": d.seconds / len(d.errors) * 1e6,
+            "training time [s]": d.model.training_time,
+        }
+        comparison.append(MethodRow("direct-mlp", "baseline", row))
+        errors["direct-mlp"] = d.errors
+        arrays["tip_direct"] = d.tip
+    arrays |= {"test_rows": test, "leg_lengths": first.legs, "tip": first.tip}
+    if first.configurations is not None:
+        arrays["configurations"] = first.configurations
+    given = "the six tube lengths of the Cosserat postures, split over the legs as in Fig. 6 (Fig. 9)"
+    if truth is None:
+        given = "the true legs of the test arms" + (
+            ", and (-fig9 rows) the legs split from their six tube lengths" if len(outcome.inputs) > 1 else ""
+        )
     note = (
-        "Every MSE is on the test split; tip errors through the exact chain of eq. (5); "
-        f"exact solvers on the first {k} test arms, every platform from eqs. (7)-(9) linearised."
+        f"Every MSE is on the test split of the vertebra-model database; methods given {given}; tip errors "
+        f"through the exact chain of eq. (5); exact solvers on the first {k} test postures, every platform from "
+        "eqs. (7)-(9) linearised."
     )
+    if outcome.direct is not None:
+        note += (
+            " direct-mlp: seed 004 Table IV's qualitative FKM, an MLP from the six tube lengths to the tip "
+            "trained on the Cosserat training postures."
+        )
     return comparison_result(prep, outcome.networks, comparison, errors, metrics, arrays, note)

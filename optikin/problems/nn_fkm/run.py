@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from optikin.baselines.nn_models import TrainingSetting, forward_tasks, hybrid_forward_configurations
+from optikin.baselines.nn_database import split_tube_lengths
+from optikin.baselines.nn_models import TrainedModel, TrainingSetting, forward_tasks, hybrid_forward_configurations
 from optikin.ik.platform import linearised_start, platform_problems, solve_platforms
 from optikin.problems import ProblemContext
 from optikin.problems.nn_shared import (
@@ -14,6 +15,7 @@ from optikin.problems.nn_shared import (
     NetworkRun,
     Prepared,
     SolverRun,
+    direct_model,
     latency,
     obtain_models,
     prepare,
@@ -24,68 +26,127 @@ from optikin.solvers import build_preset
 from optikin.solvers.base import SolutionBatch
 from optikin.solvers.nonlinear import LeastSquaresProblem
 
+FIG9 = "-fig9"
+"""Suffix of the rows whose legs come from the six tube lengths by the percentage split of Fig. 6."""
+
 
 @dataclass
 class PlatformSolverRun(SolverRun):
-    """A solver preset on eqs. (7)-(9) of every platform, with its one-sample latency [s]."""
+    """A solver preset on eqs. (7)-(9) of every platform, with its one-sample latency [s] and the
+    platform variables of the database's arms it was given (``None`` when it was given split legs)."""
 
     latency: float
+    truth_configurations: np.ndarray | None = None
+
+
+@dataclass
+class DirectRun:
+    """Seed 004 Table IV's qualitative FKM (Melingui et al.): an MLP from the six tube lengths to the tip,
+    trained on the Cosserat training postures; its model, test tips [m] and tip errors [m]."""
+
+    model: TrainedModel
+    tip: np.ndarray
+    errors: np.ndarray
+    seconds: float
+
+
+@dataclass
+class Inputs:
+    """What every method is given on the test postures, and the truth it is scored on.
+
+    Attributes
+    ----------
+    legs:
+        ``(n, 48)`` leg lengths [m] (true, or split from the six tube lengths).
+    tip:
+        ``(n, 3)`` true tips [m].
+    suffix:
+        ``""`` for the true legs, :data:`FIG9` for split ones.
+    configurations:
+        ``(n, 48)`` true platform variables when the truth is the vertebra model and the legs are its own.
+    """
+
+    legs: np.ndarray
+    tip: np.ndarray
+    suffix: str
+    configurations: np.ndarray | None = None
 
 
 @dataclass
 class FKMOutcome:
-    """The networks and the exact solvers of ``nn_fkm`` on the test split.
+    """The networks and the exact solvers of ``nn_fkm`` on the test postures.
 
     Attributes
     ----------
     prep:
         The checked inputs and the database.
     networks, solvers:
-        One run per variant, and per baseline (on the first ``exact_samples`` test arms).
+        One run per variant and input, and per baseline and input (on the first ``exact_samples``
+        test postures).
     exact_samples:
-        Test arms given to the exact solvers.
+        Test postures given to the exact solvers.
+    inputs:
+        The inputs of the rows (true legs and / or Fig. 9's split legs).
+    direct:
+        The qualitative FKM of the Cosserat source, when asked for.
     """
 
     prep: Prepared
     networks: list[NetworkRun]
     solvers: list[PlatformSolverRun]
     exact_samples: int
+    inputs: list[Inputs]
+    direct: DirectRun | None = field(default=None)
 
     @property
     def test(self) -> np.ndarray:
-        """Row indices of the test split."""
-        return self.prep.db.test
+        """Indices of the test postures (of the Cosserat postures with the ``cosserat`` source)."""
+        return self.prep.truth.test if self.prep.truth is not None else self.prep.db.test
 
 
-def run_network(ctx: ProblemContext, prep: Prepared, setting: TrainingSetting) -> NetworkRun:
-    """The forward networks of ``setting`` (Fig. 9): configurations from the test arms' legs, tips by eq. (5)."""
-    arm, db = prep.arm, prep.db
-    legs, truth_tip = db.leg_lengths[db.test], db.tip[db.test]
-    models, trained = obtain_models(
-        ctx.progress, db, forward_tasks(db), setting, 0.0, prep.options.store, f"fkm-{setting.name}"
-    )
+def test_inputs(prep: Prepared) -> list[Inputs]:
+    """The inputs of the rows: the true legs of the database's test arms, and (``tube_sensors``) the legs
+    Fig. 9 gets from their six tube lengths; only the latter on the Cosserat postures."""
+    db, truth = prep.db, prep.truth
+    if truth is not None:
+        return [Inputs(split_tube_lengths(db.geometry, truth.tube_lengths[truth.test]), truth.tip[truth.test], FIG9)]
+    out = [Inputs(db.leg_lengths[db.test], db.tip[db.test], "", db.configurations[db.test])]
+    if prep.options.tube_sensors:
+        out.append(Inputs(split_tube_lengths(db.geometry, db.tube_lengths[db.test]), db.tip[db.test], FIG9))
+    return out
+
+
+def run_network(
+    prep: Prepared, setting: TrainingSetting, models: list[TrainedModel], trained: bool, given: Inputs
+) -> NetworkRun:
+    """The forward networks of ``setting`` (Fig. 9): configurations from the given legs, tips by eq. (5)."""
+    arm = prep.arm
 
     def hybrid(L: np.ndarray) -> np.ndarray:
         return arm.evaluate("fk_position", hybrid_forward_configurations(models, L))
 
-    Q = hybrid_forward_configurations(models, legs)
+    Q = hybrid_forward_configurations(models, given.legs)
     tip = arm.evaluate("fk_position", Q)
-    batch, one = time_network(hybrid, legs, prep.options.latency_repeats)
+    batch, one = time_network(hybrid, given.legs, prep.options.latency_repeats)
+    label = f"{setting.name}{given.suffix}"
     return NetworkRun(
         setting,
         models,
         trained,
-        np.linalg.norm(tip - truth_tip, axis=1),
+        np.linalg.norm(tip - given.tip, axis=1),
         batch,
         one,
-        {f"tip_{setting.name}": tip, f"configurations_{setting.name}": Q},
+        {f"tip_{label}": tip, f"configurations_{label}": Q},
+        given.suffix,
     )
 
 
-def run_solver(prep: Prepared, name: str, problems: list[LeastSquaresProblem], k: int) -> PlatformSolverRun:
-    """Solver preset ``name`` on every platform of the first ``k`` test arms, from the linearised start."""
-    arm, db = prep.arm, prep.db
-    legs, truth_tip = db.leg_lengths[db.test], db.tip[db.test]
+def run_solver(
+    prep: Prepared, name: str, problems: list[LeastSquaresProblem], k: int, given: Inputs
+) -> PlatformSolverRun:
+    """Solver preset ``name`` on every platform of the first ``k`` given legs, from the linearised start."""
+    arm = prep.arm
+    legs = given.legs
     adapter = build_preset(name)
 
     def solve(L: np.ndarray) -> SolutionBatch:
@@ -94,21 +155,41 @@ def run_solver(prep: Prepared, name: str, problems: list[LeastSquaresProblem], k
     solve(legs[:1])  # build (and compile) before the clock starts
     report, seconds = timed(lambda: solve(legs[:k]))
     tip = arm.evaluate("fk_position", report.x)
+    label = f"{name}{given.suffix}"
     return PlatformSolverRun(
-        name,
+        label,
         report,
-        np.linalg.norm(tip - truth_tip[:k], axis=1),
+        np.linalg.norm(tip - given.tip[:k], axis=1),
         seconds,
-        {f"tip_{name}": tip},
+        {f"tip_{label}": tip},
         latency(solve, legs, prep.options.latency_repeats),
+        None if given.configurations is None else given.configurations[:k],
     )
 
 
+def run_direct(prep: Prepared) -> DirectRun:
+    """The qualitative FKM trained on the Cosserat training postures, on the Cosserat test postures."""
+    assert prep.truth is not None
+    truth = prep.truth
+    model = direct_model(prep, "direct_fkm")
+    X = truth.tube_lengths[truth.test].reshape(len(truth.test), -1)
+    tip, seconds = timed(lambda: model.predict(X))
+    return DirectRun(model, tip, np.linalg.norm(tip - truth.tip[truth.test], axis=1), seconds)
+
+
 def run(ctx: ProblemContext) -> FKMOutcome:
-    """Every variant's networks, then every baseline, on the test split of the ``data`` database."""
+    """Every variant's networks, then every baseline, on every input of the test postures."""
     prep = prepare(ctx)
-    networks = [run_network(ctx, prep, setting) for setting in prep.options.settings()]
-    k = min(len(prep.db.test), prep.options.exact_samples)
+    db, o = prep.db, prep.options
+    inputs = test_inputs(prep)
+    networks = []
+    for setting in o.settings():
+        models, trained = obtain_models(
+            ctx.progress, db, forward_tasks(db), setting, 0.0, o.store, f"fkm-{setting.name}"
+        )
+        networks += [run_network(prep, setting, models, trained, given) for given in inputs]
+    k = min(len(inputs[0].tip), o.exact_samples)
     problems = platform_problems(prep.arm, PLATFORM_TOLERANCE)
-    solvers = [run_solver(prep, name, problems, k) for name in ctx.spec.baselines]
-    return FKMOutcome(prep, networks, solvers, k)
+    solvers = [run_solver(prep, name, problems, k, given) for name in ctx.spec.baselines for given in inputs]
+    direct = run_direct(prep) if prep.truth is not None and o.direct else None
+    return FKMOutcome(prep, networks, solvers, k, inputs, direct)
