@@ -16,7 +16,9 @@
 4. **outliers**: a posture is rejected when one of its marker errors exceeds
    ``outlier_threshold`` times the median marker error; the reason names the marker
    and, when exchanging two markers' labels explains the posture, the swap;
-5. **refit** without the rejected postures (robust loss still on), to convergence.
+5. **refit** without the rejected postures (robust loss still on), to convergence, screened
+   again the same way (a posture the first screen missed is rejected and the fit repeated, up
+   to :data:`SCREENING_ROUNDS` times).
 
 Without measured orientations, the rotation of the base about its own axis (yaw) is
 not observable: a torsion-free CC arm turned about its base axis reaches the same
@@ -28,6 +30,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from functools import lru_cache
 from itertools import combinations
 from typing import Sequence
 
@@ -36,11 +39,13 @@ import numpy as np
 from optikin.calibration.model import Layout, MarkerModel, rotation_from_vector_np
 from optikin.calibration.solver import Fit, Loss, Problem, solve
 
-SCREENING_ITERATIONS = 30
+SCREENING_ITERATIONS = 10
 """Steps of the robust fit on every posture that screens for outliers (it need not converge to the last digit:
 postures far from the model, nearly weightless, converge slowly; the final fit without them does)."""
 SCREENING_TOLERANCE = 1e-6
 """Relative decrease of the cost that ends the screening fit."""
+SCREENING_ROUNDS = 3
+"""Fits without the rejected postures, each screened again, at most."""
 
 BASE_FIELDS = ("x", "y", "z", "tilt", "yaw")
 """Components of the base pose that ``fix`` may hold at their starting value."""
@@ -125,6 +130,12 @@ class Calibration:
         return float(self.fit.std[self.names.index(name)])
 
 
+@lru_cache(maxsize=16)
+def marker_model(layout: Layout) -> MarkerModel:
+    """The :class:`MarkerModel` of ``layout``, built once (its CasADi functions are cached on it)."""
+    return MarkerModel(layout)
+
+
 def initial_base(
     measured: np.ndarray, marker_sections: Sequence[int], first_length: float
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -182,32 +193,29 @@ def chord_configurations(
     N, m = len(measured), layout.n_sections
     disk = {s: j for j, s in enumerate(layout.marker_sections)}
     X = np.zeros((N, layout.n_x))
-    if layout.extensible:
-        X[:, 2 * m :] = lengths
-    for k in range(N):
-        R, p = R0.copy(), base.copy()
-        for i in range(m):
-            j = disk.get(i + 1)
-            target = measured[k, j] if j is not None else None
-            S = lengths[i]
-            if target is not None and np.all(np.isfinite(target)):
-                c = R.T @ (target - p)
-                theta = 2.0 * np.arctan2(np.hypot(c[0], c[1]), c[2])
-                phi = np.arctan2(c[1], c[0])
-                if layout.extensible:
-                    half = 0.5 * theta
-                    S = float(np.linalg.norm(c) / (np.sin(half) / half if half > 1e-8 else 1.0))
-                    X[k, 2 * m + i] = S
-            else:
-                theta, phi = 0.0, 0.0
-            u, v = theta * np.cos(phi), theta * np.sin(phi)
-            X[k, 2 * i : 2 * i + 2] = u, v
-            Rs = rotation_from_vector_np(np.array([-v, u, 0.0]))
-            t2 = theta * theta
-            c2 = 0.5 * np.sinc(theta / (2 * np.pi)) ** 2
-            local = S * np.array([u * c2, v * c2, np.sinc(theta / np.pi)]) if t2 > 0 else np.array([0, 0, S])
-            p = p + R @ local
-            R = R @ Rs
+    R = np.broadcast_to(R0, (N, 3, 3)).copy()
+    p = np.broadcast_to(base, (N, 3)).copy()
+    for i in range(m):
+        j = disk.get(i + 1)
+        S = np.full(N, float(lengths[i]))
+        theta, phi = np.zeros(N), np.zeros(N)
+        if j is not None:
+            target = measured[:, j]
+            seen = np.all(np.isfinite(target), axis=1)
+            c = np.einsum("nji,nj->ni", R, np.where(seen[:, None], target - p, 0.0))
+            theta = np.where(seen, 2.0 * np.arctan2(np.hypot(c[:, 0], c[:, 1]), c[:, 2]), 0.0)
+            phi = np.where(seen, np.arctan2(c[:, 1], c[:, 0]), 0.0)
+            if layout.extensible:
+                chord = np.sinc(theta / (2.0 * np.pi))  # sin(theta/2) / (theta/2)
+                S = np.where(seen, np.linalg.norm(c, axis=1) / chord, S)
+        if layout.extensible:
+            X[:, 2 * m + i] = S
+        u, v = theta * np.cos(phi), theta * np.sin(phi)
+        X[:, 2 * i], X[:, 2 * i + 1] = u, v
+        half = 0.5 * np.sinc(theta / (2.0 * np.pi)) ** 2  # (1 - cos theta) / theta^2
+        local = S[:, None] * np.stack([u * half, v * half, np.sinc(theta / np.pi)], axis=1)
+        p = p + np.einsum("nij,nj->ni", R, local)
+        R = R @ rotation_from_vector_np(np.stack([-v, u, np.zeros(N)], axis=1))
     return X
 
 
@@ -289,7 +297,7 @@ def calibrate(
     lengths0 = np.asarray(lengths, dtype=float)
     layout = Layout(len(lengths0), marker_sections, extensible)
     names = layout.beta_names()
-    model = MarkerModel(layout)
+    model = marker_model(layout)
     unknown = set(fix) - set(BASE_FIELDS)
     if unknown:
         raise ValueError(f"fix: unknown base components {sorted(unknown)}; known: {', '.join(BASE_FIELDS)}")
@@ -326,15 +334,26 @@ def calibrate(
     held = Problem(
         model, measured, ref, np.zeros_like(free), prior_mean, prior_sigma, "linear", loss_scale, marker_noise
     )
-    X0 = solve(held, X0, beta0, max_iterations, tolerance).X
+    X0 = solve(held, X0, beta0, min(max_iterations, SCREENING_ITERATIONS), SCREENING_TOLERANCE, 1e-8).X
     robust = solve(problem, X0, beta0, min(max_iterations, SCREENING_ITERATIONS), SCREENING_TOLERANCE, 1e-8)
 
     names_of_markers = list(marker_names) if marker_names is not None else [f"marker{j + 1}" for j in range(M)]
     outliers = find_outliers(problem, robust, outlier_threshold, names_of_markers)
-    rejected = np.array([o.posture for o in outliers], dtype=int)
-    kept = np.setdiff1d(np.arange(N), rejected)
-    final_problem = problem.subset(kept)
-    fit = solve(final_problem, robust.X[kept], robust.beta, max_iterations, tolerance)
+    X_all, beta = robust.X.copy(), robust.beta
+    for _ in range(SCREENING_ROUNDS):
+        kept = np.setdiff1d(np.arange(N), [o.posture for o in outliers])
+        final_problem = problem.subset(kept)
+        fit = solve(final_problem, X_all[kept], beta, max_iterations, tolerance)
+        X_all[kept], beta = fit.X, fit.beta
+        more = find_outliers(final_problem, fit, outlier_threshold, names_of_markers)
+        if not more:
+            break
+        outliers += [Outlier(int(kept[o.posture]), o.reason) for o in more]
+    else:
+        kept = np.setdiff1d(np.arange(N), [o.posture for o in outliers])
+        final_problem = problem.subset(kept)
+        fit = solve(final_problem, X_all[kept], beta, max_iterations, tolerance)
+    outliers.sort(key=lambda o: o.posture)
     return Calibration(
         fit, robust, final_problem, kept, outliers, names, names_of_markers, time.perf_counter() - started, beta0
     )

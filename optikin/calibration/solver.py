@@ -184,8 +184,8 @@ class _State:
         prior = np.isfinite(problem.prior_sigma)
         scaled = problem.noise * (beta - problem.prior_mean) / np.where(prior, problem.prior_sigma, 1.0)
         self.prior = np.where(prior, scaled, 0.0)
-        data = 0.5 * c2 * float(np.sum(np.where(seen, loss_value(s, problem.loss), 0.0)))
-        self.cost = data + 0.5 * float(self.prior @ self.prior)
+        self.posture_cost = 0.5 * c2 * np.sum(np.where(seen, loss_value(s, problem.loss), 0.0), axis=1)
+        self.cost = float(np.sum(self.posture_cost)) + 0.5 * float(self.prior @ self.prior)
         self.finite = bool(np.isfinite(self.cost))
 
 
@@ -265,6 +265,8 @@ def solve(
     import time
 
     started = time.perf_counter()
+    if not problem.free.any():
+        return solve_postures(problem, X0, beta0, max_iterations, tolerance, step_tolerance)
     X, beta = np.array(X0, dtype=float), np.array(beta0, dtype=float)
     free = problem.free
     state = _State(problem, X, beta, True)
@@ -282,7 +284,7 @@ def solve(
             X_new = X + dx
             beta_new = beta.copy()
             beta_new[free] += db
-            trial = _State(problem, X_new, beta_new, False)
+            trial = _State(problem, X_new, beta_new, True)  # Jacobians too: most trials are accepted
             if trial.finite and trial.cost <= state.cost:
                 accepted = True
                 break
@@ -296,7 +298,7 @@ def solve(
         decrease = state.cost - trial.cost
         X, beta = X_new, beta_new
         previous = state.cost
-        state = _State(problem, X, beta, True)
+        state = trial
         history.append(state.cost)
         iterations += 1
         lam = max(lam * 0.3, 1e-9)
@@ -318,6 +320,85 @@ def solve(
         converged,
         time.perf_counter() - started,
         history,
+    )
+
+
+def solve_postures(
+    problem: Problem,
+    X0: np.ndarray,
+    beta: np.ndarray,
+    max_iterations: int = 100,
+    tolerance: float = 1e-10,
+    step_tolerance: float = 1e-10,
+) -> Fit:
+    """Every posture's configuration with all shared parameters held: ``N`` independent Levenberg-Marquardt
+    solves, batched, each with its own damping and its own stop (a posture far from the model does not hold
+    the others back).
+
+    Parameters and returns as :func:`solve` (the covariance is zero: nothing shared is estimated); a posture
+    stops when a step lowers its cost by less than ``tolerance`` times it or moves none of its variables by
+    more than ``step_tolerance``.
+    """
+    import time
+
+    started = time.perf_counter()
+    X = np.array(X0, dtype=float)
+    beta = np.asarray(beta, dtype=float)
+    N = len(X)
+    lam = np.full(N, 1e-3)
+    active = np.ones(N, dtype=bool)
+    iterations = np.zeros(N, dtype=int)
+    state = _State(problem, X, beta, True)
+    if not state.finite:
+        raise ValueError("the starting point gives a non-finite cost")
+    cost = state.posture_cost.copy()
+    Jx, r, w = state.Jx, state.r, state.w
+    assert Jx is not None
+    eye = np.eye(X.shape[1])
+    while active.any() and iterations.max() < max_iterations:
+        idx = np.flatnonzero(active)
+        W = np.repeat(w[idx], 3, axis=1)
+        WJ = W[:, :, None] * Jx[idx]
+        A = np.einsum("nki,nkj->nij", WJ, Jx[idx])
+        g = np.einsum("nki,nk->ni", WJ, r[idx].reshape(len(idx), -1))
+        damped = A + lam[idx, None, None] * (np.diagonal(A, axis1=1, axis2=2)[:, :, None] * eye + 1e-12 * eye)
+        dx = -np.linalg.solve(damped, g[:, :, None])[:, :, 0]
+        largest = np.max(np.abs(dx), axis=1, keepdims=True)
+        dx = dx * np.minimum(1.0, MAX_POSTURE_STEP / np.maximum(largest, 1e-300))
+        X_trial = X.copy()
+        X_trial[idx] += dx  # every posture evaluated: one batch size, one cached map
+        trial = _State(problem, X_trial, beta, True)
+        new_cost = np.where(np.isfinite(trial.posture_cost[idx]), trial.posture_cost[idx], np.inf)
+        better = new_cost <= cost[idx]
+        stalled = ~better & (new_cost - cost[idx] <= tolerance * cost[idx])
+        small = np.max(np.abs(dx), axis=1) <= step_tolerance
+        done = (better & ((cost[idx] - new_cost <= tolerance * cost[idx]) | small)) | stalled | (lam[idx] >= 1e12)
+        take = idx[better]
+        X[take] = X_trial[take]
+        cost[take] = new_cost[better]
+        assert trial.Jx is not None and Jx is not None
+        Jx[take], r[take], w[take] = trial.Jx[take], trial.r[take], trial.w[take]
+        iterations[take] += 1
+        lam[take] = np.maximum(lam[take] * 0.3, 1e-9)
+        lam[idx[~better]] *= 10.0
+        active[idx[done]] = False
+    seen = problem.seen
+    errors = np.where(seen, np.linalg.norm(r, axis=2), np.nan)
+    dof = 3 * int(seen.sum()) - N * problem.model.layout.n_x
+    weighted = float(np.sum(w * np.sum(r * r, axis=2)))
+    sigma = float(np.sqrt(weighted / dof)) if dof > 0 else float("nan")
+    n_beta = len(beta)
+    return Fit(
+        X,
+        beta.copy(),
+        errors,
+        w,
+        np.zeros((n_beta, n_beta)),
+        sigma,
+        float(np.sum(cost)),
+        int(iterations.max()) if N else 0,
+        not active.any(),
+        time.perf_counter() - started,
     )
 
 
