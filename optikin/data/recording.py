@@ -158,9 +158,9 @@ class RigidBodyTrack:
     positions: np.ndarray
     quaternions: np.ndarray
 
-    def seen(self, frame: int) -> bool:
-        """Whether the body's position and orientation are both known at row ``frame``."""
-        return not (np.isnan(self.positions[frame]).any() or np.isnan(self.quaternions[frame]).any())
+    def seen_all(self) -> np.ndarray:
+        """``(T,)`` whether the body's position and orientation are both known at each frame."""
+        return ~(np.isnan(self.positions).any(axis=1) | np.isnan(self.quaternions).any(axis=1))
 
     def take(self, index: np.ndarray) -> "RigidBodyTrack":
         """The frames ``index``."""
@@ -265,6 +265,12 @@ class Recording:
             notes=list(self.notes),
         )
 
+    def missing(self, markers: Sequence[str], bodies: Sequence[str]) -> np.ndarray:
+        """``(T, len(markers) + len(bodies))``: where each marker (any NaN coordinate) or body pose is missing."""
+        columns = [np.isnan(self.markers[n]).any(axis=1) for n in markers]
+        columns += [~self.bodies[b].seen_all() for b in bodies]
+        return np.stack(columns, axis=1) if columns else np.zeros((len(self), 0), dtype=bool)
+
     def drop_incomplete(
         self, markers: Sequence[str] | None = None, bodies: Sequence[str] | None = None, swaps: bool = True
     ) -> "Recording":
@@ -293,19 +299,18 @@ class Recording:
             raise KeyError(f"no rigid body {missing_bodies[0]!r} in {self.source or 'the recording'}")
         frames = self.frame_index
         swapped = {n.frame for n in self.notes if n.what == "swap"} if swaps else set()
-        keep = np.ones(len(self), dtype=bool)
+        missing = self.missing(names, body_names)
+        keep = ~missing.any(axis=1) & ~np.isin(frames, list(swapped))
         notes = list(self.notes)
-        for i in range(len(self)):
-            absent = [n for n in names if np.isnan(self.markers[n][i]).any()]
-            absent += [b for b in body_names if not self.bodies[b].seen(i)]
+        every = names + body_names
+        for i in np.flatnonzero(~keep):
+            absent = [every[k] for k in np.flatnonzero(missing[i])]
             reasons = []
             if absent:
                 reasons.append("missing " + ", ".join(absent))
             if int(frames[i]) in swapped:
                 reasons.append("labels swapped")
-            if reasons:
-                keep[i] = False
-                notes.append(FrameNote(int(frames[i]), "dropped", "; ".join(reasons)))
+            notes.append(FrameNote(int(frames[i]), "dropped", "; ".join(reasons)))
         kept = self.take(np.flatnonzero(keep))
         return replace(kept, notes=sorted(notes, key=lambda n: n.frame))
 
@@ -380,13 +385,14 @@ def gap_notes(recording: Recording, numbered: bool = False) -> list[FrameNote]:
 
 def nan_notes(recording: Recording) -> list[FrameNote]:
     """A ``nan`` note on each frame where a marker or a body's pose is (partly) NaN, naming them."""
-    notes = []
-    for i in range(len(recording)):
-        absent = [f"marker {k}" for k, v in recording.markers.items() if np.isnan(v[i]).any()]
-        absent += [f"body {k}" for k, b in recording.bodies.items() if not b.seen(i)]
-        if absent:
-            notes.append(FrameNote(int(recording.frame_index[i]), "nan", ", ".join(absent) + " missing"))
-    return notes
+    labels = [f"marker {k}" for k in recording.markers] + [f"body {k}" for k in recording.bodies]
+    missing = recording.missing(list(recording.markers), list(recording.bodies))
+    return [
+        FrameNote(
+            int(recording.frame_index[i]), "nan", ", ".join(labels[k] for k in np.flatnonzero(missing[i])) + " missing"
+        )
+        for i in np.flatnonzero(missing.any(axis=1))
+    ]
 
 
 def swap_notes(tracks: Mapping[str, np.ndarray], frames: np.ndarray) -> list[FrameNote]:
@@ -402,19 +408,15 @@ def swap_notes(tracks: Mapping[str, np.ndarray], frames: np.ndarray) -> list[Fra
     for u in range(len(names)):
         for w in range(u + 1, len(names)):
             a, b = tracks[names[u]], tracks[names[w]]
-            ref_a = ref_b = None
-            swapped = False
-            for i in range(len(frames)):
-                if np.isnan(a[i]).any() or np.isnan(b[i]).any():
-                    continue
-                if ref_a is not None and ref_b is not None:
-                    straight = np.linalg.norm(a[i] - ref_a) + np.linalg.norm(b[i] - ref_b)
-                    crossed = np.linalg.norm(a[i] - ref_b) + np.linalg.norm(b[i] - ref_a)
-                    if crossed < 0.5 * straight:
-                        swapped = not swapped
-                if swapped:
-                    notes.append(FrameNote(int(frames[i]), "swap", f"{names[u]} and {names[w]} exchanged"))
-                ref_a, ref_b = a[i], b[i]
+            seen = np.flatnonzero(~(np.isnan(a).any(axis=1) | np.isnan(b).any(axis=1)))
+            if len(seen) < 2:
+                continue
+            pa, pb = a[seen], b[seen]
+            straight = np.linalg.norm(pa[1:] - pa[:-1], axis=1) + np.linalg.norm(pb[1:] - pb[:-1], axis=1)
+            crossed = np.linalg.norm(pa[1:] - pb[:-1], axis=1) + np.linalg.norm(pb[1:] - pa[:-1], axis=1)
+            swapped = np.cumsum(crossed < 0.5 * straight) % 2 == 1
+            detail = f"{names[u]} and {names[w]} exchanged"
+            notes += [FrameNote(int(frames[i]), "swap", detail) for i in seen[1:][swapped]]
     return notes
 
 

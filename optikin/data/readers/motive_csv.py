@@ -25,7 +25,7 @@ The layout Motive writes (its "Data Export: CSV" documentation)::
   ``Rigid Body`` columns :attr:`Recording.bodies` (``Rotation X, Y, Z, W`` -> ``w, x, y, z``
   and ``Position X, Y, Z``); expected-marker columns (``Rigid Body Marker``, ``Bone
   Marker``), bones and quality columns are not read;
-* an empty cell is a marker or body Motive did not see in that frame (NaN, noted);
+* an empty (or ``nan``) cell is a marker or body Motive did not see in that frame (NaN, noted);
   frame numbers must increase strictly (a jump is noted as a gap), times too.
 
 Errors (:class:`~optikin.errors.InputDataError`) name the file, the data row (``sample``,
@@ -161,6 +161,26 @@ def _assets(labels: dict[str, list[str]], source: str, unlabeled: bool) -> tuple
     return markers, bodies
 
 
+def _cell_error(row: list[str], cells: list[tuple[str, int]], source: str, i: int, at: str) -> InputDataError:
+    """The error on the first cell of ``row`` that is missing, not a number, or infinite (or an empty time)."""
+    for k, (name, j) in enumerate(cells):
+        if j >= len(row):
+            return InputDataError(
+                f"a missing cell: the row has {len(row)} cells {at}", source=source, sample=i, field=name
+            )
+        text = row[j].strip()
+        if not text and k > 0:
+            continue
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
+        if math.isinf(value) or (math.isnan(value) and (k == 0 or text.lower() != "nan")):
+            shown = excerpt(text) if text else "an empty cell"
+            return InputDataError(f"{shown} is not a finite number {at}", source=source, sample=i, field=name)
+    raise AssertionError("no bad cell in a row that failed to parse")
+
+
 def read_motive_csv(
     path: str | Path, frame: FrameOptions | None = None, units: Units | None = None, unlabeled: bool = False
 ) -> Recording:
@@ -199,7 +219,7 @@ def read_motive_csv(
     start = 1
     try:
         for row in reader:
-            if row and any(c.strip() for c in row):
+            if "".join(row).strip():
                 rows.append((start, row))
             start = reader.line_num + 1
     except csv.Error as exc:
@@ -220,6 +240,8 @@ def read_motive_csv(
     values = np.full((len(data), len(columns)), np.nan)
     frames = np.zeros(len(data), dtype=np.int64)
     time = np.zeros(len(data))
+    cells = [("Time (Seconds)", 1)] + columns
+    picked = [j for _, j in cells]
     for i, (line, row) in enumerate(data):
         at = f"(line {line}, frame {row[0].strip()[:12]})"
         try:
@@ -231,30 +253,15 @@ def read_motive_csv(
                 sample=i,
                 field="Frame",
             ) from None
-        cells = [("Time (Seconds)", 1)] + columns
-        for k, (name, j) in enumerate(cells):
-            if j >= len(row):
-                raise InputDataError(
-                    f"a missing cell: the row has {len(row)} cells {at}", source=source, sample=i, field=name
-                )
-            text = row[j].strip()
-            if not text and k > 0:
-                continue
-            try:
-                value = float(text)
-            except ValueError:
-                value = math.nan
-            if not math.isfinite(value):
-                raise InputDataError(
-                    f"{excerpt(text) if text else 'an empty cell'} is not a finite number {at}",
-                    source=source,
-                    sample=i,
-                    field=name,
-                )
-            if k == 0:
-                time[i] = value
-            else:
-                values[i, k - 1] = value
+        try:
+            parsed = [float(row[j]) if row[j].strip() else math.nan for j in picked]
+            bad = not math.isfinite(parsed[0]) or any(map(math.isinf, parsed))
+        except (ValueError, IndexError):
+            bad = True
+        if bad:
+            raise _cell_error(row, cells, source, i, at)
+        time[i] = parsed[0]
+        values[i] = parsed[1:]
         if i and not frames[i] > frames[i - 1]:
             raise InputDataError(
                 f"frame numbers must increase strictly, got {frames[i]} after {frames[i - 1]} (line {line})",
