@@ -222,6 +222,8 @@ def test_motive_gaps_are_noted_per_frame_and_dropped_not_filled():
     ]
     expected = [f for f in range(40) if f not in (5, 12, 13, 20, 21)]
     np.testing.assert_array_equal(kept.frame_index, expected)
+    markers_only = rec.drop_incomplete(bodies=["disk3"])  # the swapped bodies are not asked for
+    np.testing.assert_array_equal(markers_only.frame_index, [f for f in range(40) if f not in (5, 12, 13)])
     assert not np.isnan(kept.marker_array(sorted(kept.markers))).any()
 
 

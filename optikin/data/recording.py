@@ -138,11 +138,14 @@ class FrameNote:
         ``swap`` (two labels exchanged their tracks), ``nan`` (a NaN or empty cell).
     detail:
         Which markers, bodies or channels, in words.
+    tracks:
+        The markers or bodies concerned, where the note is about some (a ``swap``: the two).
     """
 
     frame: int
     what: NoteKind
     detail: str
+    tracks: tuple[str, ...] = ()
 
     def __str__(self) -> str:
         return f"frame {self.frame}: {self.what}: {self.detail}"
@@ -283,7 +286,8 @@ class Recording:
         bodies:
             The rigid bodies whose pose (position and orientation) must be present (default: all).
         swaps:
-            Also drop the frames noted ``swap`` (labels exchanged: the tracks are wrong there).
+            Also drop the frames noted ``swap`` between two of the markers or bodies asked for
+            (labels exchanged: the tracks are wrong there).
 
         Returns
         -------
@@ -298,11 +302,11 @@ class Recording:
         if missing_bodies:
             raise KeyError(f"no rigid body {missing_bodies[0]!r} in {self.source or 'the recording'}")
         frames = self.frame_index
-        swapped = {n.frame for n in self.notes if n.what == "swap"} if swaps else set()
+        every = names + body_names
+        swapped = {n.frame for n in self.notes if n.what == "swap" and set(n.tracks) & set(every)} if swaps else set()
         missing = self.missing(names, body_names)
         keep = ~missing.any(axis=1) & ~np.isin(frames, list(swapped))
         notes = list(self.notes)
-        every = names + body_names
         for i in np.flatnonzero(~keep):
             absent = [every[k] for k in np.flatnonzero(missing[i])]
             reasons = []
@@ -415,8 +419,8 @@ def swap_notes(tracks: Mapping[str, np.ndarray], frames: np.ndarray) -> list[Fra
             straight = np.linalg.norm(pa[1:] - pa[:-1], axis=1) + np.linalg.norm(pb[1:] - pb[:-1], axis=1)
             crossed = np.linalg.norm(pa[1:] - pb[:-1], axis=1) + np.linalg.norm(pb[1:] - pa[:-1], axis=1)
             swapped = np.cumsum(crossed < 0.5 * straight) % 2 == 1
-            detail = f"{names[u]} and {names[w]} exchanged"
-            notes += [FrameNote(int(frames[i]), "swap", detail) for i in seen[1:][swapped]]
+            detail, pair = f"{names[u]} and {names[w]} exchanged", (names[u], names[w])
+            notes += [FrameNote(int(frames[i]), "swap", detail, pair) for i in seen[1:][swapped]]
     return notes
 
 
