@@ -48,8 +48,12 @@ import numpy as np
 from optikin import __version__
 from optikin.errors import OptikinError
 
-STATUSES = ("ok", "unreachable", "failed", "not_converged", "timeout")
-"""Per-sample statuses a problem kind may report."""
+STATUSES = ("ok", "fit", "unreachable", "failed", "not_converged", "timeout")
+"""Per-sample statuses a problem kind may report: ``ok`` (solved exactly, to the tolerance), ``fit`` (a
+least-squares minimum whose residual lies within the stated measurement noise), ``unreachable`` (a
+minimum beyond it), ``failed``, ``not_converged``, ``timeout``."""
+SOLVED = ("ok", "fit")
+"""The statuses that count as solved."""
 
 Drawer = Callable[[Path], None]
 """Draws one figure into the PNG file it is given."""
@@ -101,12 +105,12 @@ class Result:
 
     @property
     def succeeded(self) -> bool:
-        """Every sample ``ok`` and every criterion met."""
-        return all(s == "ok" for s in self.status) and all(self.criteria.values())
+        """Every sample solved (:data:`SOLVED`) and every criterion met."""
+        return all(s in SOLVED for s in self.status) and all(self.criteria.values())
 
     def summary(self) -> dict[str, Any]:
         """Everything but the arrays and figures, as JSON-ready data."""
-        failed = [i for i, s in enumerate(self.status) if s != "ok"]
+        failed = [i for i, s in enumerate(self.status) if s not in SOLVED]
         out = {
             "optikin": __version__,
             "created": datetime.now(timezone.utc).isoformat(timespec="seconds"),

@@ -56,7 +56,7 @@ def test_options_defaults_are_the_documented_ones():
         None,
         None,
         "rest",
-        2,
+        6,
         1e-10,
     )
     assert (o.orientation_length, o.penalty, o.penalty_on, o.elongation, o.variants) == (

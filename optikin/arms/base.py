@@ -156,6 +156,35 @@ class ArmModel(ABC):
             numpy ``(..., 4)`` and ``(..., 3)``.
         """
 
+    def frame_at(self, q: Array, section: int, fraction: float = 1.0) -> tuple[Array, Array]:
+        """Pose of the backbone frame at a fraction of one section's arc length, in the base frame.
+
+        Parameters
+        ----------
+        q : Array
+            Configuration, as for :meth:`section_frames`.
+        section : int
+            Section index from 0 (base section).
+        fraction : float
+            Fraction of the section's arc length in ``(0, 1]``; arms whose sections are not
+            continua (this base implementation) offer the section ends only, ``fraction = 1``.
+
+        Returns
+        -------
+        (Array, Array)
+            ``(quaternion, position [m])``.
+
+        Raises
+        ------
+        ValueError
+            ``section`` out of range, or a fraction the arm does not offer.
+        """
+        if not 0 <= section < self.n_sections:
+            raise ValueError(f"section {section + 1} out of range: {self.name} has {self.n_sections} sections")
+        if fraction != 1.0:
+            raise ValueError(f"{self.name} offers points at section ends only (fraction 1), not {fraction:g}")
+        return self.section_frames(q)[section]
+
     @abstractmethod
     def backbone_points(self, q: ca.SX, points_per_section: int) -> ca.SX:
         """Points along the backbone from base to tip, in the base frame.

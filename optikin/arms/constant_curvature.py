@@ -227,6 +227,39 @@ class ConstantCurvatureArm(ArmModel):
         """
         return self._chain(q, fractions=())[0]
 
+    def frame_at(self, q: Array, section: int, fraction: float = 1.0) -> tuple[Array, Array]:
+        """Pose of the backbone frame at ``fraction`` of section ``section``'s arc (from 0), base frame.
+
+        A part ``f S`` of a constant-curvature section bends by ``f theta`` in the same plane
+        ``phi``: the frame is the end frame of section ``section - 1`` composed with
+        :func:`section_quaternion` ``(f theta, phi)`` at :func:`section_position` ``(f S, f theta, phi)``.
+
+        Parameters
+        ----------
+        q : Array
+            Configuration ``3m`` (CasADi column or numpy batch ``(..., 3m)``).
+        section : int
+            Section index from 0.
+        fraction : float
+            Fraction of the section's arc length, in ``(0, 1]``.
+
+        Returns
+        -------
+        (Array, Array)
+            ``(quaternion, position [m])`` in the base frame.
+        """
+        if not 0 <= section < self.n_sections:
+            raise ValueError(f"section {section + 1} out of range: {self.name} has {self.n_sections} sections")
+        if not 0.0 < fraction <= 1.0:
+            raise ValueError(f"fraction must lie in (0, 1], got {fraction:g}")
+        if section == 0:
+            quat, pos = np.array([1.0, 0.0, 0.0, 0.0]), np.zeros(3)
+        else:
+            quat, pos = self.section_frames(q)[section - 1]
+        S, theta, phi = B.components(q, self.n_config)[3 * section : 3 * section + 3]
+        position = pos + quat_rotate(quat, section_position(fraction * S, fraction * theta, phi), check=False)
+        return quat_multiply(quat, section_quaternion(fraction * theta, phi)), position
+
     def backbone_points(self, q: ca.SX, points_per_section: int) -> ca.SX:
         """Points at equal arc-length fractions along every section, base point first.
 

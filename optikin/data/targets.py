@@ -30,19 +30,29 @@ from typing import Literal, get_args
 import numpy as np
 from pydantic import Field, StrictBool, StrictFloat, StrictInt, field_validator
 
-from optikin.algebra import dq_from_rotation_translation, dq_translation, quat_normalize
+from optikin.algebra import (
+    dq_from_rotation_translation,
+    dq_rotation,
+    dq_translation,
+    quat_conjugate,
+    quat_multiply,
+    quat_normalize,
+    quat_rotate,
+)
 from optikin.arms.base import ArmModel
 from optikin.arms.constant_curvature import ConstantCurvatureArm
 from optikin.data.configurations import TrajectoryParams, first_rows, smooth_motion
 from optikin.data.csvread import columns_of, read_table
 from optikin.data.sources import register_source
 from optikin.errors import SpecError
+from optikin.ik.points import PointSet
 from optikin.options import Options
 from optikin.spec import DataSpec
 
-TargetKind = Literal["position", "pose", "legs"]
+TargetKind = Literal["position", "pose", "points", "legs"]
 TARGET_KINDS: tuple[str, ...] = get_args(TargetKind)
-"""Tip position (3), tip pose as a unit dual quaternion (8), or the leg lengths of a CBHA (48)."""
+"""Tip position (3), tip pose as a unit dual quaternion (8), measured points (:mod:`optikin.ik.points`),
+or the leg lengths of a CBHA (48)."""
 FAMILY = "targets"
 """The data family of the ``ik`` kind."""
 
@@ -51,10 +61,12 @@ FAMILY = "targets"
 class Targets:
     """``values`` are ``(N, 3)`` positions, ``(N, 8)`` unit dual quaternions or ``(N, 48)`` CBHA leg lengths.
 
-    ``configurations`` holds the configuration each target was made from (NaN rows when
-    unknown), ``reachable`` whether the target is known to be reachable (True), known to be
-    outside the workspace (False); ``t`` the sample times of a trajectory (else None);
-    ``skipped_rows`` the rows of a file source left out because ``data.samples`` asked for fewer.
+    For ``points`` targets, ``values`` are ``(N, D)`` stacked point measurements laid out by
+    ``points`` (:class:`~optikin.ik.points.PointSet`). ``configurations`` holds the configuration
+    each target was made from (NaN rows when unknown), ``reachable`` whether the target is known to
+    be reachable (True), known to be outside the workspace (False); ``t`` the sample times of a
+    trajectory (else None); ``skipped_rows`` the rows of a file source left out because
+    ``data.samples`` asked for fewer.
     """
 
     kind: str
@@ -64,12 +76,23 @@ class Targets:
     t: np.ndarray | None = None
     trajectory: bool = False
     skipped_rows: int = 0
+    points: PointSet | None = None
 
     def __len__(self) -> int:
         return len(self.values)
 
+    def subset(self, rows: np.ndarray) -> Targets:
+        """The targets of ``rows`` only (as independent targets)."""
+        return Targets(
+            self.kind, self.values[rows], self.configurations[rows], self.reachable[rows], points=self.points
+        )
+
     @property
     def positions(self) -> np.ndarray:
+        """Tip positions ``(N, 3)`` [m]; for ``points``, the position of the last point that has one."""
+        if self.kind == "points" and self.points is not None:
+            where = [w["position"] for w in self.points.slices() if "position" in w]
+            return self.values[:, where[-1]] if where else np.full((len(self), 3), np.nan)
         return self.values if self.kind == "position" else dq_translation(self.values)
 
 
@@ -86,11 +109,35 @@ def reach_bound(arm: ArmModel) -> float:
     return 2.0 * float(np.linalg.norm(arm.evaluate("fk_position", Q), axis=1).max())
 
 
-def forward_targets(arm: ArmModel, Q: np.ndarray, kind: str) -> np.ndarray:
-    """Tip positions ``(N, 3)``, tip dual quaternions ``(N, 8)`` or leg lengths of configurations ``Q``."""
+def forward_targets(arm: ArmModel, Q: np.ndarray, kind: str, points: PointSet | None = None) -> np.ndarray:
+    """Tip positions ``(N, 3)``, tip dual quaternions ``(N, 8)``, measured points ``(N, D)`` or leg lengths
+    of configurations ``Q``."""
+    if kind == "points":
+        if points is None:
+            raise ValueError("points targets need their PointSet")
+        return points.forward(arm, Q)
     if kind == "legs":
         return arm.evaluate("leg_lengths", Q).reshape(len(Q), -1)
     return arm.evaluate("fk_position" if kind == "position" else "fk_dq", Q)
+
+
+def with_position_noise(
+    values: np.ndarray, kind: str, points: PointSet | None, sigma: float, rng: np.random.Generator
+) -> np.ndarray:
+    """``values`` with Gaussian noise of standard deviation ``sigma`` [m] on every position coordinate
+    (the tip position, a pose's translation, or each point's position); orientations untouched."""
+    if kind == "position":
+        return values + rng.normal(0.0, sigma, values.shape)
+    if kind == "pose":
+        position = dq_translation(values) + rng.normal(0.0, sigma, (len(values), 3))
+        return dq_from_rotation_translation(dq_rotation(values), position, check=False)
+    assert points is not None
+    out = values.copy()
+    for where in points.slices():
+        if "position" in where:
+            s = where["position"]
+            out[:, s] += rng.normal(0.0, sigma, out[:, s].shape)
+    return out
 
 
 def unreachable_targets(
@@ -111,6 +158,12 @@ class RandomParams(Options):
     """``data.params`` of source ``random``."""
 
     unreachable: StrictInt = Field(0, ge=0, description="targets added outside the workspace (count)")
+    noise: StrictFloat = Field(
+        0.0,
+        ge=0.0,
+        description="standard deviation of Gaussian noise added to every measured position coordinate [m] "
+        "(position, pose and points targets; seeded by data.seed)",
+    )
     margin: tuple[StrictFloat, StrictFloat] = Field(
         (1.1, 1.5),
         description="[low, high]: an unreachable target's distance from the base, as a factor of the "
@@ -125,12 +178,40 @@ class RandomParams(Options):
         return margin
 
 
+class BasePose(Options):
+    """Where the arm's base frame lies in the file's frame (after the unit conversion)."""
+
+    position: tuple[StrictFloat, StrictFloat, StrictFloat] = Field(
+        (0.0, 0.0, 0.0), description="origin of the base frame in the file's frame [m]"
+    )
+    quaternion: tuple[StrictFloat, StrictFloat, StrictFloat, StrictFloat] = Field(
+        (1.0, 0.0, 0.0, 0.0), description="orientation of the base frame in the file's frame, unit (w, x, y, z)"
+    )
+
+    @field_validator("quaternion")
+    @classmethod
+    def _unit(cls, q: tuple[float, float, float, float]) -> tuple[float, float, float, float]:
+        if abs(float(np.linalg.norm(q)) - 1.0) > QUATERNION_TOLERANCE:
+            raise ValueError(f"not a unit quaternion (norm {float(np.linalg.norm(q)):.9g})")
+        return q
+
+
+UNITS = {"m": 1.0, "cm": 1e-2, "mm": 1e-3}
+"""Length units a target file may be written in, as metres."""
+
+
 class CsvParams(Options):
     """``data.params`` of source ``csv``."""
 
     file: str = Field(min_length=1, description="CSV file with a header row, relative to the problem file")
     trajectory: StrictBool = Field(
         False, description="solve the rows in order, each warm-started from the previous solution"
+    )
+    units: Literal["m", "cm", "mm"] = Field("m", description="length unit of the file's positions")
+    base: BasePose | None = Field(
+        None,
+        description="the arm's base pose in the file's frame (e.g. from a calibration); "
+        "null: the file is in the base frame",
     )
 
 
@@ -140,21 +221,32 @@ class CsvParams(Options):
     "forward kinematics of uniform random configurations, optionally with targets outside the workspace",
     params=RandomParams,
 )
-def random_targets(arm: ArmModel, data: DataSpec, params: RandomParams, path: Path, kind: str = "position") -> Targets:
+def random_targets(
+    arm: ArmModel,
+    data: DataSpec,
+    params: RandomParams,
+    path: Path,
+    kind: str = "position",
+    points: PointSet | None = None,
+) -> Targets:
     """Forward kinematics of ``data.samples`` uniform random configurations, plus ``params.unreachable``
     targets outside the workspace (module docstring); every draw from ``data.seed``."""
     extra = params.unreachable
     rng = np.random.default_rng(data.seed)
     Q = arm.sample_configurations(data.samples, rng)
-    values = forward_targets(arm, Q, kind)
+    values = forward_targets(arm, Q, kind, points)
     reachable = np.ones(len(Q), dtype=bool)
-    if extra and kind == "legs":
-        raise SpecError(str(path), "data.params.unreachable", "leg-length targets have no unreachable variant")
+    if extra and kind in ("legs", "points"):
+        raise SpecError(str(path), "data.params.unreachable", f"{kind} targets have no unreachable variant")
+    if params.noise and kind == "legs":
+        raise SpecError(str(path), "data.params.noise", "leg-length targets take no position noise")
+    if params.noise:
+        values = with_position_noise(values, kind, points, params.noise, np.random.default_rng([data.seed, 1]))
     if extra:
         values = np.concatenate([values, unreachable_targets(arm, extra, kind, rng, params.margin)])
         Q = np.concatenate([Q, np.full((extra, arm.n_config), np.nan)])
         reachable = np.concatenate([reachable, np.zeros(extra, dtype=bool)])
-    return Targets(kind, values, Q, reachable)
+    return Targets(kind, values, Q, reachable, points=points)
 
 
 @register_source(
@@ -164,21 +256,31 @@ def random_targets(arm: ArmModel, data: DataSpec, params: RandomParams, path: Pa
     params=TrajectoryParams,
 )
 def trajectory_targets(
-    arm: ArmModel, data: DataSpec, params: TrajectoryParams, path: Path, kind: str = "position"
+    arm: ArmModel,
+    data: DataSpec,
+    params: TrajectoryParams,
+    path: Path,
+    kind: str = "position",
+    points: PointSet | None = None,
 ) -> Targets:
     """Forward kinematics of :func:`smooth_motion`, flagged as a trajectory (warm-started solves)."""
     Q, t = smooth_motion(arm, data.samples, data.seed, params)
-    values = forward_targets(arm, Q, kind)
-    return Targets(kind, values, Q, np.ones(len(Q), dtype=bool), t=t, trajectory=True)
+    values = forward_targets(arm, Q, kind, points)
+    return Targets(kind, values, Q, np.ones(len(Q), dtype=bool), t=t, trajectory=True, points=points)
 
 
 @register_source(FAMILY, "csv", "targets read from a CSV file (x, y, z [, qw, qx, qy, qz] [, t])", params=CsvParams)
-def csv_targets(arm: ArmModel, data: DataSpec, params: CsvParams, path: Path, kind: str = "position") -> Targets:
+def csv_targets(
+    arm: ArmModel, data: DataSpec, params: CsvParams, path: Path, kind: str = "position", points: PointSet | None = None
+) -> Targets:
     """Targets from a CSV file with a header row (module docstring): every row, or the first ``data.samples``
-    when the problem file gives it; reachability unknown (treated as reachable)."""
+    when the problem file gives it, converted to metres and to the base frame (``params.units``,
+    ``params.base``); reachability unknown (treated as reachable)."""
     if kind == "legs":
         raise SpecError(str(path), "data.source", "leg-length targets cannot be read from a CSV file")
-    values, t = read_target_csv((Path(path).parent / params.file).resolve(), kind)
+    values, t = read_target_csv((Path(path).parent / params.file).resolve(), kind, points, UNITS[params.units])
+    if params.base is not None:
+        values = to_base_frame(values, kind, points, params.base)
     keep, skipped = first_rows(data, len(values))
     values, t = values[:keep], (None if t is None else t[:keep])
     configurations = np.full((len(values), arm.n_config), np.nan)
@@ -190,15 +292,47 @@ def csv_targets(arm: ArmModel, data: DataSpec, params: CsvParams, path: Path, ki
         t=t,
         trajectory=params.trajectory,
         skipped_rows=skipped,
+        points=points,
     )
+
+
+def to_base_frame(values: np.ndarray, kind: str, points: PointSet | None, base: BasePose) -> np.ndarray:
+    """Targets given in a file's frame, expressed in the arm's base frame.
+
+    With the base at position ``t`` and orientation ``q_b`` in the file's frame, a position
+    ``p`` becomes ``q_b^-1 (p - t)``, a direction ``d`` becomes ``q_b^-1 d`` and an orientation
+    ``q`` becomes ``q_b^-1 q``.
+    """
+    qb = np.asarray(base.quaternion, dtype=float) / np.linalg.norm(base.quaternion)
+    inverse = quat_conjugate(qb)
+    t = np.asarray(base.position, dtype=float)
+    out = values.copy()
+    if kind == "position":
+        return quat_rotate(inverse, values - t, check=False)
+    if kind == "pose":
+        rotation = quat_multiply(inverse, dq_rotation(values))
+        translation = quat_rotate(inverse, dq_translation(values) - t, check=False)
+        return dq_from_rotation_translation(rotation, translation, check=False)
+    assert points is not None
+    for where in points.slices():
+        for component, s in where.items():
+            if component == "position":
+                out[:, s] = quat_rotate(inverse, values[:, s] - t, check=False)
+            elif component == "direction":
+                out[:, s] = quat_rotate(inverse, values[:, s], check=False)
+            else:
+                out[:, s] = quat_multiply(inverse, values[:, s])
+    return out
 
 
 QUATERNION_TOLERANCE = 1e-6
 """| |q| - 1 | accepted for a pose target read from a file."""
 
 
-def read_target_csv(csv_path: Path, kind: str) -> tuple[np.ndarray, np.ndarray | None]:
-    """Position or pose targets from a CSV file with a header row.
+def read_target_csv(
+    csv_path: Path, kind: str, points: PointSet | None = None, scale: float = 1.0
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """Position, pose or measured-point targets from a CSV file with a header row.
 
     The format (:mod:`optikin.data.csvread` for what every reader refuses); every cell
     read must be a finite number:
@@ -208,6 +342,9 @@ def read_target_csv(csv_path: Path, kind: str) -> tuple[np.ndarray, np.ndarray |
     ``qw, qx, qy, qz``      poses only: tip orientation, a unit quaternion ``(w, x, y, z)``
                             (norm within :data:`QUATERNION_TOLERANCE` of 1)
     ``t``                   optional: time in seconds, strictly increasing
+    ``<point>_x, ...``      ``points`` only: the columns of :meth:`~optikin.ik.points.PointSet.columns`
+                            (positions, unit directions ``_dx, _dy, _dz``, unit quaternions
+                            ``_qw, _qx, _qy, _qz``)
     other columns           ignored
     ======================  ================================================================
 
@@ -216,7 +353,11 @@ def read_target_csv(csv_path: Path, kind: str) -> tuple[np.ndarray, np.ndarray |
     csv_path:
         The file.
     kind:
-        ``position`` or ``pose``.
+        ``position``, ``pose`` or ``points``.
+    points:
+        The measured points (``points`` targets only).
+    scale:
+        Metres per unit of the file's positions.
 
     Returns
     -------
@@ -233,13 +374,28 @@ def read_target_csv(csv_path: Path, kind: str) -> tuple[np.ndarray, np.ndarray |
         finite number (``nan``, ``inf``); ``t`` does not increase strictly; a quaternion's
         norm is not 1 to within :data:`QUATERNION_TOLERANCE`.
     """
-    names = ("x", "y", "z") if kind == "position" else ("x", "y", "z", "qw", "qx", "qy", "qz")
+    if kind == "points":
+        if points is None:
+            raise ValueError("points targets need their PointSet")
+        names = points.columns()
+    else:
+        names = ("x", "y", "z") if kind == "position" else ("x", "y", "z", "qw", "qx", "qy", "qz")
     table = read_table(csv_path, columns_of(str(csv_path), names, optional=("t",), finite=(*names, "t")))
     t = None
     if "t" in table.columns:
         table.check_increasing("t")
         t = table.column("t")
-    position = table.stacked(("x", "y", "z"))
+    if kind == "points":
+        assert points is not None
+        values = table.stacked(names)
+        for where in points.slices():
+            for component, s in where.items():
+                if component == "position":
+                    values[:, s] *= scale
+                else:  # unit directions and quaternions: the norm check
+                    values[:, s] = table.check_unit_quaternions(names[s], QUATERNION_TOLERANCE)
+        return values, t
+    position = table.stacked(("x", "y", "z")) * scale
     if kind == "position":
         return position, t
     quaternion = table.check_unit_quaternions(("qw", "qx", "qy", "qz"), QUATERNION_TOLERANCE)

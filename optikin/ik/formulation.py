@@ -5,7 +5,8 @@ stacks these rows, all in metres:
 
 tip
     ``p(q) - p*``; for poses also ``2 L vec(q*^-1 q(q))`` (:func:`tip_residual`,
-    described in :mod:`optikin.problems.ik`). Target ``sections`` (not an ``ik``
+    described in :mod:`optikin.problems.ik`). Target ``points``: the rows of the measured
+    points along the arm (:meth:`optikin.ik.points.PointSet.residual`). Target ``sections`` (not an ``ik``
     target; the Newton-Raphson comparator of :mod:`optikin.baselines.ph_comparators`): the end
     position of every section, ``p_s(q) - p_s*``, the inputs of seed 004's inverse
     model (section V: the tip and the end of the first section).
@@ -55,6 +56,7 @@ from optikin.arms.base import ArmModel
 from optikin.arms.cbha import CBHAArm
 from optikin.ik.cbha import DISTRIBUTIONS, distribution_rows
 from optikin.ik.platform import platform_problems
+from optikin.ik.points import PointSet
 from optikin.solvers.nonlinear import LeastSquaresProblem
 
 REDUNDANCY_CHOICES = ("rest", "previous", "minimum_norm", "penalty")
@@ -62,6 +64,9 @@ PENALTY_READINGS = ("configuration", "position")
 ELONGATIONS = ("free",) + DISTRIBUTIONS
 PENALTY_STATIONARITY = 1e-9
 """``||J^T r|| / (||J||_F ||r||)`` at which a penalised (not exact) problem counts as solved."""
+FIT_STATIONARITY = 1e-6
+"""The same for a fit to noisy targets (``noise`` given): the minimiser then moves by about this share
+of the residual, far below the noise it is compared with."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -77,11 +82,14 @@ class Formulation:
     penalty: float = 0.0
     penalty_on: str = "configuration"
     elongation: str = "free"
+    points: PointSet | None = None
+    noise: float | None = None
 
     @property
     def exact(self) -> bool:
-        """Whether solutions reach ``r = 0`` (every choice but the penalty)."""
-        return self.redundancy != "penalty"
+        """Whether solutions reach ``r = 0``: every choice but the penalty, for noise-free targets. With a
+        stated measurement ``noise`` the targets are fitted: the problem is the minimisation of ``||r||``."""
+        return self.redundancy != "penalty" and self.noise is None
 
     def label(self) -> str:
         """A short description, e.g. ``penalty on configuration, lambda=1e-06; distributed``."""
@@ -173,7 +181,12 @@ def build_problem(arm: ArmModel, formulation: Formulation) -> LeastSquaresProble
         )
     if formulation.target == "legs" and isinstance(arm, CBHAArm):
         return platform_problems(arm, formulation.tolerance)
-    tip = tip_residual(arm, formulation.target, formulation.orientation_length)
+    if formulation.target == "points":
+        if formulation.points is None:
+            raise ValueError("points targets need their PointSet")
+        tip = formulation.points.residual(arm, formulation.orientation_length)
+    else:
+        tip = tip_residual(arm, formulation.target, formulation.orientation_length)
     q, p = ca.SX.sym("q", arm.n_config), ca.SX.sym("p", tip.size1_in(1))
     rows = [tip(q, p)]
     if formulation.elongation != "free" and isinstance(arm, CBHAArm):
@@ -192,7 +205,7 @@ def build_problem(arm: ArmModel, formulation: Formulation) -> LeastSquaresProble
             "constraint_names": arm.leg_names,
         }
     if not formulation.exact:
-        limits["stationarity_tolerance"] = PENALTY_STATIONARITY
+        limits["stationarity_tolerance"] = PENALTY_STATIONARITY if formulation.noise is None else FIT_STATIONARITY
     return LeastSquaresProblem(
         residual,
         arm.lower,

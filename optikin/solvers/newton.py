@@ -85,6 +85,20 @@ class Newton(NonlinearAdapter):
 
     options: NewtonOptions
 
+    def not_applicable(self, problem: LeastSquaresProblem, X: np.ndarray, P: np.ndarray) -> str | None:
+        """An exact problem whose residual Jacobian is rank-deficient at every sample point: its Newton
+        system (``r = 0``, or the optimality system with ``J^T y``) is singular."""
+        m = problem.m
+        if not problem.exact or m > problem.reduced.n:
+            return None
+        rank = problem.jacobian_rank(X, P)
+        if rank >= m:
+            return None
+        return (
+            f"the {m} residuals have a rank-{rank} Jacobian at all {len(X)} sampled points: "
+            "Newton's system is singular for this formulation"
+        )
+
     def rootfinder_function(self, problem: LeastSquaresProblem) -> ca.Function:
         """``(z0, [p; x_ref]) -> z``: CasADi's rootfinder on the system of :func:`optimality_system`."""
         key = ("rootfinder", self)

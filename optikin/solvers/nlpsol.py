@@ -247,6 +247,19 @@ class Sqpmethod(NlpsolAdapter):
 
     plugin = "sqpmethod"
 
+    def not_applicable(self, problem: LeastSquaresProblem, X: np.ndarray, P: np.ndarray) -> str | None:
+        """An exact problem whose equality constraints ``r = 0`` have a rank-deficient Jacobian at every
+        sample point: LICQ fails, and the SQP's QP subproblems are degenerate."""
+        if not problem.exact or problem.m > problem.reduced.n:
+            return None
+        rank = problem.jacobian_rank(X, P)
+        if rank >= problem.m:
+            return None
+        return (
+            f"the {problem.m} equality constraints r = 0 have a rank-{rank} Jacobian at all {len(X)} "
+            "sampled points: LICQ fails for this formulation"
+        )
+
 
 register_backend("ipopt", "nonlinear", "interior point (IPOPT) through CasADi nlpsol", options=IpoptOptions)(Ipopt)
 register_backend("sqpmethod", "nonlinear", "CasADi's SQP method (qrqp QPs) through nlpsol", options=SqpmethodOptions)(

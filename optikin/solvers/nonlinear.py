@@ -225,6 +225,23 @@ class LeastSquaresProblem:
         x, p, r, J = self.symbols
         return ca.Function(f"{self.name}_rJ", [x, p], [r, ca.densify(J)], ["x", "p"], ["r", "J"])
 
+    def jacobian_rank(self, X: np.ndarray, P: np.ndarray) -> int:
+        """The largest numerical rank of ``dr/dx`` (free variables) over the points ``(X[k], P[k])``.
+
+        Rank counted as the singular values above ``1e-9`` times the largest; a problem whose rank stays
+        below its number of residuals at every point has rank-deficient equality constraints ``r = 0``
+        (Newton's system singular, LICQ violated), whatever the target.
+        """
+        reduced = self.reduced
+        X = np.atleast_2d(X)
+        rank = 0
+        for x, p in zip(X, np.atleast_2d(P)):
+            J = np.asarray(reduced.residual_jacobian(self.free_part(x), p)[1])
+            if J.size:
+                singular = np.linalg.svd(J, compute_uv=False)
+                rank = max(rank, int(np.sum(singular > 1e-9 * singular[0])) if singular[0] > 0 else 0)
+        return rank
+
     @cached_property
     def check(self) -> ca.Function:
         """``(x, p) -> [||r||, stationarity, bound violation]`` (see the class docstring)."""
@@ -381,6 +398,12 @@ class NonlinearAdapter:
         self.preset = preset
         self.limits = preset.limits
         self.options = options
+
+    def not_applicable(self, problem: LeastSquaresProblem, X: np.ndarray, P: np.ndarray) -> str | None:
+        """Why this backend cannot solve ``problem``'s formulation at all, judged at sample points
+        ``(X[k], P[k])`` (:meth:`LeastSquaresProblem.jacobian_rank`); None when it can. Least-squares
+        backends solve every formulation; those that impose ``r = 0`` exactly say otherwise."""
+        return None
 
     def solve(
         self, problem: LeastSquaresProblem, x0: np.ndarray, p: np.ndarray, x_ref: np.ndarray | None = None

@@ -21,6 +21,35 @@ Redundancy = Literal["rest", "previous", "minimum_norm", "penalty"]
 PenaltyReading = Literal["configuration", "position"]
 Elongation = Literal["free", "distributed", "affine"]
 Positive = Annotated[StrictFloat, Field(gt=0)]
+PointComponent = Literal["position", "direction", "orientation"]
+
+
+class PointOptions(Options):
+    """One measured point of ``target: points`` (:mod:`optikin.ik.points`)."""
+
+    section: StrictInt = Field(ge=1, description="the section it lies on, from 1 at the base")
+    at: StrictFloat = Field(
+        1.0, gt=0.0, le=1.0, description="fraction of that section's arc length (1: the section's end)"
+    )
+    offset: tuple[StrictFloat, StrictFloat, StrictFloat] = Field(
+        (0.0, 0.0, 0.0), description="offset from the backbone in the backbone frame there [m] (a marker on a disk)"
+    )
+    measure: list[PointComponent] = Field(
+        ["position"],
+        min_length=1,
+        description="what is measured there: position (x, y, z), direction (the frame's z axis, no twist), "
+        "orientation (a unit quaternion)",
+    )
+    weight: Positive = Field(1.0, description="weight of its residual rows (a pure number)")
+
+    @field_validator("measure")
+    @classmethod
+    def _one_rotation(cls, measure: list[str]) -> list[str]:
+        if len(set(measure)) != len(measure):
+            raise ValueError(f"each component once, got {measure}")
+        if "direction" in measure and "orientation" in measure:
+            raise ValueError("direction or orientation, not both: the orientation includes the direction")
+        return measure
 
 
 class FormulationOptions(Options):
@@ -62,7 +91,18 @@ class IkOptions(FormulationOptions):
     """``options`` of kind ``ik`` (module docstring of :mod:`optikin.problems.ik`)."""
 
     target: TargetKind = Field(
-        "position", description="tip position, tip pose (unit dual quaternion) or, on a CBHA, the 48 leg lengths"
+        "position",
+        description="tip position, tip pose (unit dual quaternion), measured points along the arm (points) "
+        "or, on a CBHA, the 48 leg lengths",
+    )
+    points: dict[str, PointOptions] | None = Field(
+        None, description="target points only: name -> the measured point (its section, where, offset, components)"
+    )
+    noise: StrictFloat | None = Field(
+        None,
+        gt=0.0,
+        description="measurement noise level [m]: a least-squares minimum whose RMS point distance is at most "
+        "this is a fit, beyond it unreachable; null: targets are exact (noise-free)",
     )
     start: Literal["rest"] | list[StrictFloat] = Field(
         "rest",
@@ -70,7 +110,7 @@ class IkOptions(FormulationOptions):
         "'rest' or a configuration (units of the arm's variables)",
     )
     restarts: StrictInt = Field(
-        2,
+        6,
         ge=0,
         description="retries of a target not solved (count): from the nearest "
         "solved target's solution, then from random configurations",

@@ -21,7 +21,7 @@ from optikin.data.targets import Targets
 from optikin.ik.formulation import Formulation
 from optikin.problems import ProblemContext
 from optikin.problems.ik.run import IkOutcome, MethodRun
-from optikin.results import MethodRow, Result
+from optikin.results import SOLVED, MethodRow, Result
 from optikin.solvers.base import SolutionBatch
 
 
@@ -58,19 +58,36 @@ def tip_metrics(
     return metrics
 
 
+def point_metrics(checks: dict[str, np.ndarray], solved: np.ndarray) -> dict[str, Any]:
+    """Metrics of measured-point targets: the RMS point distance of solved samples (median, 95th
+    percentile, max) [mm], the median distance of each point [mm] and its median angle error [deg]."""
+    rms = checks["rms_distance"][solved] * 1e3
+    metrics: dict[str, Any] = {
+        "median RMS point distance [mm]": _stat(np.median, rms),
+        "95th percentile RMS point distance [mm]": _stat(lambda v: np.percentile(v, 95), rms),
+        "max RMS point distance [mm]": _stat(np.max, rms),
+    }
+    return metrics
+
+
 def method_metrics(run: MethodRun, targets: Targets) -> dict[str, Any]:
     """The comparison row of one method (module docstring)."""
     report, formulation, checks = run.report, run.method.formulation, run.checks
     status = np.array(report.status)
     ok = status == "ok"
+    solved = np.isin(status, SOLVED)
     reachable = targets.reachable
     metrics: dict[str, Any] = {
         "formulation": formulation.label(),
-        "success [%]": 100.0 * ok[reachable].mean() if reachable.any() else float("nan"),
-        "median residual": _stat(np.median, report.residual[ok]),
-        "max residual": _stat(np.max, report.residual[ok]),
+        "success [%]": 100.0 * solved[reachable].mean() if reachable.any() else float("nan"),
+        "median residual": _stat(np.median, report.residual[solved]),
+        "max residual": _stat(np.max, report.residual[solved]),
     }
-    if targets.kind == "legs":
+    if formulation.noise is not None:
+        metrics["fit (within the noise)"] = int((status == "fit").sum())
+    if targets.kind == "points":
+        metrics.update(point_metrics(checks, solved))
+    elif targets.kind == "legs":
         metrics["max leg error ok, eqs. (7)-(9) [m]"] = _stat(np.max, checks["leg_error"][ok])
         metrics["ok within Table I"] = f"{int(checks['within_table_i'][ok].sum())}/{int(ok.sum())}"
     else:
@@ -94,7 +111,7 @@ def arrays_of(outcome: IkOutcome) -> dict[str, np.ndarray]:
     """The result's arrays (module docstring), plus what the figures draw: ``t`` along a trajectory and
     ``solution_tips`` for leg targets."""
     targets, main = outcome.targets, outcome.main
-    error = main.checks["leg_error" if targets.kind == "legs" else "tip_error"]
+    error = main.checks[{"legs": "leg_error", "points": "rms_distance"}.get(targets.kind, "tip_error")]
     arrays = {
         "targets": targets.values,
         "reachable": targets.reachable,
@@ -145,7 +162,15 @@ def result_of(ctx: ProblemContext, outcome: IkOutcome) -> Result:
         "trajectory (warm-started)": targets.trajectory,
         "tolerance [m]": formulation.tolerance,
     }
+    if formulation.noise is not None:
+        metrics["noise [m]"] = formulation.noise
+    if targets.points is not None:
+        metrics["points"] = ", ".join(f"{p.name} ({'+'.join(p.components)})" for p in targets.points.points)
     comparison = [MethodRow(run.method.name, run.method.role, method_metrics(run, targets)) for run in outcome.runs]
+    comparison += [
+        MethodRow(m.name, m.role, {"formulation": m.formulation.label(), "not applicable": m.not_applicable})
+        for m in outcome.not_applicable
+    ]
     return ctx.result(
         solver=outcome.main.method.name,
         status=list(main.status),

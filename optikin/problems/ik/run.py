@@ -8,8 +8,9 @@ independently of the solver (:func:`answer_checks`).
 
 from __future__ import annotations
 
+import inspect
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
@@ -21,9 +22,11 @@ from optikin.data.targets import Targets, reach_bound
 from optikin.ik.cbha import distribution_deviation, leg_checks, leg_margins
 from optikin.ik.formulation import Formulation, build_problem, rest_configuration
 from optikin.ik.platform import solve_platforms
+from optikin.ik.points import COMPONENTS, MeasuredPoint, PointSet
 from optikin.problems import ProblemContext
 from optikin.problems.ik.options import FormulationOptions, IkOptions
 from optikin.solvers import build_preset
+from optikin.results import SOLVED
 from optikin.solvers.base import SolutionBatch
 from optikin.solvers.nonlinear import LeastSquaresProblem, NonlinearAdapter
 
@@ -41,6 +44,7 @@ class IkSetup:
     start: np.ndarray
     restarts: int
     variants: dict[str, Formulation]
+    noise: float | None = None
 
 
 def setup_of(ctx: ProblemContext) -> IkSetup:
@@ -49,7 +53,8 @@ def setup_of(ctx: ProblemContext) -> IkSetup:
     options: IkOptions = ctx.options
     if options.target == "legs" and not isinstance(ctx.arm, CBHAArm):
         raise ctx.error("options.target", f"leg-length targets need a cbha arm, not {ctx.spec.arm.type!r}")
-    formulation = formulation_of(ctx, options.target, options, lambda key: f"options.{key}")
+    points = point_set_of(ctx, options)
+    formulation = formulation_of(ctx, options.target, options, lambda key: f"options.{key}", points, options.noise)
     start = formulation.rest if options.start == "rest" else configuration(ctx, "options.start", options.start)
     variants = {}
     for label, variant in options.variants.items():
@@ -63,11 +68,48 @@ def setup_of(ctx: ProblemContext) -> IkSetup:
         def where(key: str, label: str = label, variant: FormulationOptions = variant) -> str:
             return f"options.variants.{label}.{key}" if key in variant.model_fields_set else f"options.{key}"
 
-        variants[label] = formulation_of(ctx, options.target, merged, where)
-    return IkSetup(options.target, formulation, start, options.restarts, variants)
+        variants[label] = formulation_of(ctx, options.target, merged, where, points, options.noise)
+    return IkSetup(options.target, formulation, start, options.restarts, variants, options.noise)
 
 
-def formulation_of(ctx: ProblemContext, target: str, o: FormulationOptions, where: Callable[[str], str]) -> Formulation:
+def point_set_of(ctx: ProblemContext, options: IkOptions) -> PointSet | None:
+    """The measured points of ``target: points`` (None for other targets), checked against ``ctx.arm``."""
+    if options.target != "points":
+        if options.points is not None:
+            raise ctx.error("options.points", f"points are the targets of target: points, not {options.target}")
+        return None
+    if not options.points:
+        raise ctx.error("options.points", "target points needs the points: name -> {section, at, offset, measure}")
+    points = []
+    for name, p in options.points.items():
+        if p.section > ctx.arm.n_sections:
+            raise ctx.error(
+                f"options.points.{name}.section", f"{ctx.arm.name} has {ctx.arm.n_sections} sections, not {p.section}"
+            )
+        point = MeasuredPoint(
+            name=name,
+            section=p.section - 1,
+            fraction=p.at,
+            offset=p.offset,
+            components=tuple(c for c in COMPONENTS if c in p.measure),
+            weight=p.weight,
+        )
+        try:
+            PointSet((point,)).check(ctx.arm)
+        except ValueError as error:
+            raise ctx.error(f"options.points.{name}.at", str(error)) from None
+        points.append(point)
+    return PointSet(tuple(points))
+
+
+def formulation_of(
+    ctx: ProblemContext,
+    target: str,
+    o: FormulationOptions,
+    where: Callable[[str], str],
+    points: PointSet | None = None,
+    noise: float | None = None,
+) -> Formulation:
     """A :class:`Formulation` of ``target`` from options ``o`` on ``ctx.arm``; ``where(field)`` names an error."""
     arm = ctx.arm
     if o.elongation != "free" and not isinstance(arm, CBHAArm):
@@ -78,7 +120,7 @@ def formulation_of(ctx: ProblemContext, target: str, o: FormulationOptions, wher
     rest = rest_configuration(arm) if o.rest is None else configuration(ctx, where("rest"), o.rest)
     weights = vector(ctx, where("weights"), default_weights(arm) if o.weights is None else o.weights)
     orientation_length = 1.0
-    if target == "pose":
+    if target in ("pose", "points"):
         orientation_length = reach_bound(arm) if o.orientation_length is None else o.orientation_length
     return Formulation(
         target=target,
@@ -90,6 +132,8 @@ def formulation_of(ctx: ProblemContext, target: str, o: FormulationOptions, wher
         penalty=o.penalty,
         penalty_on=o.penalty_on,
         elongation=o.elongation,
+        points=points,
+        noise=noise,
     )
 
 
@@ -133,10 +177,16 @@ class Method:
     adapter: NonlinearAdapter
     formulation: Formulation
     problem: Problem
+    not_applicable: str | None = None
 
 
-def methods_of(ctx: ProblemContext, setup: IkSetup) -> list[Method]:
-    """The problem's solver, each baseline preset not already listed, then the solver on each variant."""
+APPLICABILITY_SAMPLES = 8
+"""Random configurations (with the first targets) at which a backend's applicability is judged."""
+
+
+def methods_of(ctx: ProblemContext, setup: IkSetup, targets: Targets | None = None) -> list[Method]:
+    """The problem's solver, each baseline preset not already listed, then the solver on each variant;
+    with ``targets``, each method's :attr:`Method.not_applicable` (:func:`applicability`)."""
     assert ctx.solver is not None
     problem = build_problem(ctx.arm, setup.formulation)
     adapter = ctx.backend(NonlinearAdapter)
@@ -150,7 +200,21 @@ def methods_of(ctx: ProblemContext, setup: IkSetup) -> list[Method]:
         methods.append(
             Method(f"{ctx.solver.name} [{label}]", "variant", adapter, formulation, build_problem(ctx.arm, formulation))
         )
+    if targets is not None:
+        for method in methods:
+            method.not_applicable = applicability(ctx, method, targets)
     return methods
+
+
+def applicability(ctx: ProblemContext, method: Method, targets: Targets) -> str | None:
+    """Why ``method``'s backend cannot solve its formulation (None when it can), judged at
+    :data:`APPLICABILITY_SAMPLES` random admissible configurations with the first targets
+    (:meth:`~optikin.solvers.nonlinear.NonlinearAdapter.not_applicable`)."""
+    if isinstance(method.problem, list):
+        return None
+    k = min(APPLICABILITY_SAMPLES, len(targets))
+    X = ctx.arm.sample_configurations(k, ctx.rng(99))
+    return method.adapter.not_applicable(method.problem, X, targets.values[:k])
 
 
 Solve = Callable[[np.ndarray, np.ndarray, bool, "np.ndarray | None"], SolutionBatch]
@@ -171,21 +235,61 @@ def solve_targets(
     """Solve every target: warm-started along a trajectory; else batched, then the samples not solved retried
     ``setup.restarts`` times, first from the solution of the nearest solved target, then from random
     admissible configurations (seeded), keeping the better point; a sample's time and iterations include
-    its retries."""
+    its retries. With ``setup.noise``, minima within the noise are fits (:func:`mark_fits`)."""
     x_ref = formulation.rest if formulation.redundancy == "rest" else None
     if targets.trajectory:
-        return solve(setup.start, targets.values, True, x_ref)
-    report = solve(setup.start, targets.values, False, x_ref)
+        return mark_fits(solve(setup.start, targets.values, True, x_ref), ctx.arm, targets, formulation, setup.noise)
+    report = mark_fits(solve(setup.start, targets.values, False, x_ref), ctx.arm, targets, formulation, setup.noise)
     for attempt in range(setup.restarts):
         status = np.array(report.status)
-        retry = np.flatnonzero(status != "ok")
+        solved = np.isin(status, SOLVED)
+        retry = np.flatnonzero(~solved)
         if retry.size == 0:
             break
-        if attempt == 0 and (status == "ok").any():
-            starts = nearest_solutions(targets.values, report.x, status == "ok", retry)
+        if attempt == 0 and solved.any():
+            starts = nearest_solutions(targets.values, report.x, solved, retry, targets.kind == "pose")
         else:
             starts = ctx.arm.sample_configurations(retry.size, ctx.rng(100 + attempt))
-        keep_better(report, retry, solve(starts, targets.values[retry], False, x_ref))
+        again = solve(starts, targets.values[retry], False, x_ref)
+        keep_better(report, retry, mark_fits(again, ctx.arm, targets.subset(retry), formulation, setup.noise))
+    return report
+
+
+def rms_distances(arm: ArmModel, targets: Targets, formulation: Formulation, X: np.ndarray) -> np.ndarray:
+    """``(N,)`` RMS of the unweighted distances [m] of solutions ``X`` to their targets: the tip distance
+    (position), the RMS of the tip distance and ``L`` times the angle error (pose), or
+    :meth:`~optikin.ik.points.PointSet.rms_distance` (points)."""
+    if targets.kind == "points":
+        assert formulation.points is not None
+        return formulation.points.rms_distance(arm, X, targets.values, formulation.orientation_length)
+    position_error, angle_error = tip_errors(arm, targets, X)
+    if angle_error is None:
+        return position_error
+    return np.sqrt(0.5 * (position_error**2 + (formulation.orientation_length * angle_error) ** 2))
+
+
+def mark_fits(
+    report: SolutionBatch, arm: ArmModel, targets: Targets, formulation: Formulation, noise: float | None
+) -> SolutionBatch:
+    """Without ``noise``, ``report`` unchanged. With it the problem is a minimisation of ``||r||``
+    (:attr:`~optikin.ik.formulation.Formulation.exact` is False), and a sample at a minimum (``ok``) is
+    ``ok`` when ``||r|| <= tolerance``, ``fit`` when its :func:`rms_distances` is at most ``noise``, and
+    ``unreachable`` beyond, its message stating the distance."""
+    if noise is None or targets.kind == "legs":
+        return report
+    minima = np.flatnonzero((np.array(report.status) == "ok") & (report.residual > formulation.tolerance))
+    if minima.size == 0:
+        return report
+    rms = rms_distances(arm, targets.subset(minima), formulation, report.x[minima])
+    for i, distance in zip(minima, rms):
+        if distance <= noise:
+            report.status[i] = "fit"
+            report.messages[i] = f"least-squares fit: RMS distance {distance * 1e3:.3g} mm, within the noise"
+        else:
+            report.status[i] = "unreachable"
+            report.messages[i] = (
+                f"RMS distance {distance * 1e3:.3g} mm at the minimum exceeds the noise {noise * 1e3:.3g} mm"
+            )
     return report
 
 
@@ -193,7 +297,7 @@ def keep_better(report: SolutionBatch, retry: np.ndarray, again: SolutionBatch) 
     """Fold the retries ``again`` of samples ``retry`` into ``report``: iterations and time add up, the point
     is replaced when the retry is ``ok`` or has a residual no larger."""
     for j, i in enumerate(retry):
-        better = again.status[j] == "ok" or (
+        better = again.status[j] in SOLVED or (
             np.isfinite(again.residual[j]) and not again.residual[j] >= report.residual[i]
         )
         report.iterations[i] += again.iterations[j]
@@ -203,15 +307,18 @@ def keep_better(report: SolutionBatch, retry: np.ndarray, again: SolutionBatch) 
             report.residual[i], report.messages[i] = again.residual[j], again.messages[j]
 
 
-def nearest_solutions(values: np.ndarray, X: np.ndarray, solved: np.ndarray, retry: np.ndarray) -> np.ndarray:
+def nearest_solutions(
+    values: np.ndarray, X: np.ndarray, solved: np.ndarray, retry: np.ndarray, dual_quaternions: bool = False
+) -> np.ndarray:
     """For each sample in ``retry``, the solution of the solved target nearest to its own target.
 
-    Dual quaternions ``Q`` and ``-Q`` are the same pose: the distance takes the nearer sign.
+    With ``dual_quaternions`` (pose targets), ``Q`` and ``-Q`` are the same pose: the distance takes the
+    nearer sign.
     """
     candidates = np.flatnonzero(solved)
     a, b = values[retry][:, None, :], values[candidates][None, :, :]
     distance = np.linalg.norm(a - b, axis=2)
-    if values.shape[1] == 8:
+    if dual_quaternions:
         distance = np.minimum(distance, np.linalg.norm(a + b, axis=2))
     return X[candidates[np.argmin(distance, axis=1)]]
 
@@ -243,9 +350,12 @@ def answer_checks(arm: ArmModel, targets: Targets, formulation: Formulation, X: 
     """Per-sample checks of solutions ``X (N, n_config)``, independent of the solver's own residual.
 
     Leg targets: the largest leg error [m] (seed 004 eqs. (7)-(9) as printed) and whether every leg
-    lies within Table I. Tip targets: the tip error [m] (and angle error [rad] for poses) by ``fk_dq``,
-    the weighted distance from rest; on a CBHA also the smallest leg margin to Table I [m], the
-    deviation from the elongation distribution [m] and the six tube lengths [m] (section, tube), the
+    lies within Table I. Point targets: the distance of every point ``(N, k)`` [m], the angle errors of
+    directions and orientations ``(N, k)`` [rad] where measured, the RMS distance of
+    :func:`rms_distances` and the weighted distance from rest. Tip targets: the tip error [m] (and
+    angle error [rad] for poses) by ``fk_dq``, the weighted distance from rest; on a CBHA also the
+    smallest leg margin to Table I [m], the deviation from the elongation distribution [m] and the six
+    tube lengths [m] (section, tube), the
     output of seed 004's inverse model.
     """
     if targets.kind == "legs":
@@ -253,6 +363,17 @@ def answer_checks(arm: ArmModel, targets: Targets, formulation: Formulation, X: 
             raise ValueError(f"leg-length targets need a CBHA arm, not {arm.name}")
         leg_error, within = leg_checks(arm, targets.values, X)
         return {"leg_error": leg_error, "within_table_i": within}
+    if targets.kind == "points":
+        assert formulation.points is not None
+        errors = formulation.points.errors(arm, X, targets.values)
+        checks = {
+            "point_error": errors["position"],
+            "rms_distance": rms_distances(arm, targets, formulation, X),
+            "rest_distance": rest_distances(arm, formulation, X),
+        }
+        if np.isfinite(errors["angle"]).any():
+            checks["point_angle_error"] = errors["angle"]
+        return checks
     position_error, angle_error = tip_errors(arm, targets, X)
     checks = {"tip_error": position_error, "rest_distance": rest_distances(arm, formulation, X)}
     if angle_error is not None:
@@ -268,6 +389,17 @@ def answer_checks(arm: ArmModel, targets: Targets, formulation: Formulation, X: 
 
 
 # --------------------------------------------------------------------------------------- the run
+def load_targets(ctx: ProblemContext, setup: IkSetup) -> Targets:
+    """The targets of ``ctx``'s data source for ``setup.target`` (with the measured points for ``points``)."""
+    assert ctx.data_source is not None
+    load = ctx.data_source.load
+    if setup.target != "points":
+        return load(ctx.arm, ctx.spec.data, ctx.data_params, ctx.path, kind=setup.target)
+    if "points" not in inspect.signature(load).parameters:
+        raise ctx.error("data.source", f"source {ctx.spec.data.source!r} does not provide measured-point targets")
+    return load(ctx.arm, ctx.spec.data, ctx.data_params, ctx.path, kind="points", points=setup.formulation.points)
+
+
 @dataclass(eq=False)
 class MethodRun:
     """One method's answers: the batch, the checks of :func:`answer_checks`, the wall time of all solves [s]."""
@@ -281,12 +413,14 @@ class MethodRun:
 @dataclass(eq=False)
 class IkOutcome:
     """What an ``ik`` run produced; ``runs[0]`` is the problem's solver. ``solution_tips`` (leg targets only):
-    the tip positions ``(N, 3)`` [m] of the solver's configurations (the start where one is not finite)."""
+    the tip positions ``(N, 3)`` [m] of the solver's configurations (the start where one is not finite).
+    ``not_applicable``: the methods that cannot solve the formulation (not run, listed with the reason)."""
 
     setup: IkSetup
     targets: Targets
     runs: list[MethodRun]
     solution_tips: np.ndarray | None = None
+    not_applicable: list[Method] = field(default_factory=list)
 
     @property
     def main(self) -> MethodRun:
@@ -297,9 +431,13 @@ def solve(ctx: ProblemContext) -> IkOutcome:
     """Check the options, load the targets, and solve them with every method (module docstring)."""
     setup = setup_of(ctx)
     assert ctx.data_source is not None
-    targets: Targets = ctx.data_source.load(ctx.arm, ctx.spec.data, ctx.data_params, ctx.path, kind=setup.target)
-    methods = methods_of(ctx, setup)
+    targets = load_targets(ctx, setup)
+    methods = methods_of(ctx, setup, targets)
+    if methods[0].not_applicable:
+        raise ctx.error("solver", f"{methods[0].name} cannot solve this formulation: {methods[0].not_applicable}")
     runs = []
+    skipped = [m for m in methods if m.not_applicable]
+    methods = [m for m in methods if not m.not_applicable]
     with ctx.progress.task(f"ik: {len(targets)} targets x {len(methods)} methods", total=len(methods)) as advance:
         for method in methods:
             solve_batch = solver_of(method.adapter, method.problem)
@@ -309,7 +447,7 @@ def solve(ctx: ProblemContext) -> IkOutcome:
             wall = time.perf_counter() - started
             runs.append(MethodRun(method, report, answer_checks(ctx.arm, targets, method.formulation, report.x), wall))
             advance()
-    outcome = IkOutcome(setup, targets, runs)
+    outcome = IkOutcome(setup, targets, runs, not_applicable=skipped)
     if targets.kind == "legs":
         X = outcome.main.report.x
         outcome.solution_tips = ctx.arm.evaluate("fk_position", np.where(np.isfinite(X), X, setup.start))
