@@ -14,6 +14,7 @@ from optikin.arms.constant_curvature import ConstantCurvatureArm
 from optikin.calibration.calibrate import calibrate, fit_postures, held_out
 from optikin.calibration.model import Layout, MarkerModel, vector_from_rotation_np
 from optikin.calibration.synthetic import rpy_matrix, synthetic_recording
+from optikin.data.markers import read_marker_csv
 from optikin.runner import solve
 
 TRUE_LENGTHS = np.array([0.1058, 0.0949, 0.1144])
@@ -141,6 +142,8 @@ def test_the_kind_writes_an_arm_section_other_problems_can_use(tmp_path: Path):
     data = yaml.safe_load(source.read_text())
     data["data"]["samples"] = 120
     data["options"]["arm_file"] = "trunk-arm.yaml"
+    data["options"]["targets_file"] = "targets.csv"
+    data["options"]["markers_file"] = "markers.csv"
     data["options"]["holdout"] = {"method": "split", "test_fraction": 0.25}
     problem = tmp_path / "trunk-calibrate.yaml"
     problem.write_text(yaml.safe_dump(data))
@@ -155,4 +158,28 @@ def test_the_kind_writes_an_arm_section_other_problems_can_use(tmp_path: Path):
     arm = build_arm(saved["arm"]["type"], saved["arm"]["params"])
     assert isinstance(arm, ConstantCurvatureArm)
     assert np.abs(arm.section_lengths - TRUE_LENGTHS).max() < 0.5e-3
-    assert len(saved["calibration"]["base_position"]) == 3
+    base = np.array(saved["calibration"]["base_position"])
+    assert np.linalg.norm(base - BASE) < 1e-3
+    # targets in the calibrated base frame: the same distances from the base as the measured tip disks
+    rec = np.load(written / "arrays.npz")
+    kept = ~rec["outlier"]
+    targets = np.loadtxt(tmp_path / "targets.csv", delimiter=",", skiprows=1)
+    assert len(targets) == kept.sum()
+    distance = np.linalg.norm(rec["measured"][kept, 2] - base, axis=1)
+    assert np.abs(np.linalg.norm(targets[:, 1:], axis=1) - distance).max() < 1e-6
+    # end poses of the calibrated arm, readable by the ph_shape kind's csv source
+    markers = read_marker_csv(tmp_path / "markers.csv")
+    assert len(markers) == kept.sum()
+    assert np.abs(markers.markers - rec["measured"][kept, :2]).max() == 0.0
+    assert np.abs(markers.tip_position - rec["measured"][kept, 2]).max() < 2e-3
+
+
+@pytest.mark.parametrize("name", ["trunk-calibrate", "trunk-ik", "trunk-ph-shape"])
+def test_the_trunk_workflow_problems_run(name, tmp_path: Path):
+    result, _ = solve(name, out=tmp_path)
+    assert result.succeeded
+    if name == "trunk-calibrate":
+        m = result.metrics
+        assert m["max section length error [mm]"] < 0.5 and m["base position error [mm]"] < 1.0
+        assert m["corrupted postures rejected"] == "20/20" and m["clean postures rejected"] == 0
+        assert m["held-out RMS / true geometry's"] < 1.2

@@ -126,6 +126,15 @@ class Calibration:
         """``(M, 3)`` marker offsets in their disk's frame [m]."""
         return self.fit.beta[self.layout.offsets].reshape(-1, 3)
 
+    def configurations(self, X: np.ndarray | None = None) -> np.ndarray:
+        """``(N, 3 m)`` ``(S, theta, phi)`` per section of the kept postures (or of the per-posture variables ``X``),
+        in the arm's convention (:mod:`optikin.arms.constant_curvature`)."""
+        X = self.fit.X if X is None else X
+        m = self.layout.n_sections
+        u, v = X[:, 0 : 2 * m : 2], X[:, 1 : 2 * m : 2]
+        S = X[:, 2 * m :] if self.layout.extensible else np.broadcast_to(self.lengths, u.shape)
+        return np.stack([S, np.hypot(u, v), np.arctan2(v, u)], axis=-1).reshape(len(X), 3 * m)
+
     def std(self, name: str) -> float:
         return float(self.fit.std[self.names.index(name)])
 

@@ -1,4 +1,5 @@
-"""The calibrated arm as a problem-file ``arm:`` section, and the calibration facts that go with it.
+"""The calibrated arm as a problem-file ``arm:`` section, the calibration facts that go with it, and the
+recording re-expressed for the next steps of a workflow (inverse kinematics, PH backbones).
 
 :func:`arm_section` gives ``{"type": "constant_curvature", "params": {...}}`` with the
 estimated section lengths (an extensible arm: the median lengths, with the
@@ -7,6 +8,15 @@ of other problem files. :func:`write_arm_file` writes it as YAML under the key
 ``arm``, next to a ``calibration`` mapping holding what an arm section cannot carry:
 the base pose in the recording frame, the marker offsets, the standard deviations
 and the held-out error.
+
+:func:`write_target_csv` writes the measured points of one marker in the calibrated
+arm's base frame, in the columns of the ``csv`` source of family ``targets``
+(:mod:`optikin.data.targets`: ``t, x, y, z``): tip-position targets of the ``ik`` kind
+on the calibrated arm. :func:`marker_recording` gives, for the kept postures, the end
+poses of the calibrated arm (the base pose, and the tip pose of each posture's fitted
+configuration) with the measured intermediate disks, the
+:class:`~optikin.data.markers.MarkerRecording` of the ``ph_shape`` kind
+(:func:`optikin.data.markers.write_marker_csv` writes it).
 """
 
 from __future__ import annotations
@@ -17,9 +27,11 @@ from typing import Any
 import numpy as np
 import yaml
 
-from optikin.algebra import quat_from_matrix
+from optikin.algebra import matrix_from_quat, quat_from_matrix
 from optikin.arms.constant_curvature import ConstantCurvatureArm
 from optikin.calibration.calibrate import Calibration
+from optikin.data.markers import MarkerRecording
+from optikin.data.recording import Recording
 
 
 def arm_section(calibration: Calibration, nominal: ConstantCurvatureArm) -> dict[str, Any]:
@@ -30,8 +42,9 @@ def arm_section(calibration: Calibration, nominal: ConstantCurvatureArm) -> dict
     calibration : Calibration
         The calibration.
     nominal : ConstantCurvatureArm
-        The arm the calibration started from (its bounds on ``theta`` and its ``length_range``
-        are kept, widened to every posture's length for an extensible arm).
+        The arm the calibration started from (its bound on ``theta`` is kept). The lengths of a
+        calibrated arm are fixed (``length_range: [1, 1]``); an extensible arm's range covers every
+        posture's fitted length.
 
     Returns
     -------
@@ -39,17 +52,17 @@ def arm_section(calibration: Calibration, nominal: ConstantCurvatureArm) -> dict
         ``{"type": "constant_curvature", "params": {section_lengths, length_range, theta_max, name}}``.
     """
     lengths = calibration.lengths
-    lo, hi = nominal.length_range
+    lo, hi = 1.0, 1.0
     if calibration.layout.extensible:
         ranges = calibration.length_ranges / lengths[:, None]
-        lo, hi = min(lo, float(ranges[:, 0].min())), max(hi, float(ranges[:, 1].max()))
+        lo, hi = float(ranges[:, 0].min()), float(ranges[:, 1].max())
     return {
         "type": "constant_curvature",
         "params": {
             "section_lengths": [round(float(v), 7) for v in lengths],
             "length_range": [round(float(lo), 6), round(float(hi), 6)],
             "theta_max": float(nominal.theta_max),
-            "name": f"{nominal.name}-calibrated",
+            "name": f"{nominal.name}_calibrated",
         },
     }
 
@@ -80,3 +93,53 @@ def write_arm_file(path: Path, section: dict[str, Any], facts: dict[str, Any], o
     text = yaml.safe_dump({"arm": section, "calibration": facts}, sort_keys=False)
     header = f"# calibrated arm written by optikin (kind calibrate) from {origin}; lengths in metres\n"
     Path(path).write_text(header + text)
+
+
+def base_frame_points(calibration: Calibration, points: np.ndarray) -> np.ndarray:
+    """Points ``(..., 3)`` [m] of the recording frame in the calibrated base frame: ``R0^T (p - p0)``."""
+    return (np.asarray(points, dtype=float) - calibration.base_position) @ calibration.base_rotation
+
+
+def write_target_csv(path: Path, t: np.ndarray, points: np.ndarray) -> Path:
+    """Write tip-position targets ``points (N, 3)`` [m] at times ``t (N,)`` [s] as columns ``t, x, y, z``."""
+    table = np.column_stack([t, points])
+    lines = ["t,x,y,z"] + [",".join(repr(float(v)) for v in row) for row in table]
+    Path(path).write_text("\n".join(lines) + "\n")
+    return Path(path)
+
+
+def marker_recording(calibration: Calibration, recording: Recording, intermediate: list[str]) -> MarkerRecording:
+    """The kept postures as end poses of the calibrated arm and measured intermediate markers (module docstring).
+
+    Parameters
+    ----------
+    calibration : Calibration
+        The calibration.
+    recording : Recording
+        The recording it was made from (time stamps, markers).
+    intermediate : list of str
+        The markers kept as intermediate points (``(N, K, 3)`` in the recording frame).
+
+    Returns
+    -------
+    MarkerRecording
+        Base pose (constant), tip pose of each kept posture's fitted configuration, in the recording frame.
+    """
+    kept = calibration.kept
+    n = len(kept)
+    lengths = calibration.lengths
+    arm = ConstantCurvatureArm(tuple(float(v) for v in lengths), (0.5, 2.0), np.pi, "calibrated")
+    quat, position = arm.section_frames(calibration.configurations())[-1]
+    R0, p0 = calibration.base_rotation, calibration.base_position
+    tip_position = p0 + position @ R0.T
+    tip_rotation = np.einsum("ij,njk->nik", R0, matrix_from_quat(quat, check=False))
+    q0 = quat_from_matrix(R0)
+    return MarkerRecording(
+        t=np.asarray(recording.time, dtype=float)[kept],
+        base_position=np.repeat(p0[None], n, axis=0),
+        base_orientation=np.repeat(q0[None], n, axis=0),
+        tip_position=tip_position,
+        tip_orientation=quat_from_matrix(tip_rotation),
+        markers=recording.marker_array(intermediate)[kept],
+        source=f"{recording.source or 'recording'} (end poses of the calibrated arm)",
+    )

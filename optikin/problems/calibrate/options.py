@@ -74,3 +74,13 @@ class CalibrateOptions(Options):
     arm_file: str | None = Field(
         None, description="write the calibrated arm section to this YAML file (relative to the problem file)"
     )
+    targets_file: str | None = Field(
+        None,
+        description="write the kept postures' tip marker in the calibrated base frame to this CSV file "
+        "(t, x, y, z: targets of kind ik, source csv), relative to the problem file",
+    )
+    markers_file: str | None = Field(
+        None,
+        description="write the kept postures as end poses of the calibrated arm with the other markers "
+        "to this CSV file (kind ph_shape, source csv), relative to the problem file",
+    )

@@ -41,15 +41,6 @@ def all_configurations(outcome: CalibrateOutcome) -> np.ndarray:
     return X
 
 
-def cc_configurations(outcome: CalibrateOutcome, X: np.ndarray) -> np.ndarray:
-    """``(N, 3 m)`` ``(S, theta, phi)`` per section from the bending vectors (and lengths)."""
-    lay = outcome.calibration.layout
-    m = lay.n_sections
-    u, v = X[:, 0 : 2 * m : 2], X[:, 1 : 2 * m : 2]
-    S = X[:, 2 * m :] if lay.extensible else np.broadcast_to(outcome.calibration.lengths, u.shape)
-    return np.stack([S, np.hypot(u, v), np.arctan2(v, u)], axis=-1).reshape(len(X), 3 * m)
-
-
 def backbones(outcome: CalibrateOutcome, Q: np.ndarray) -> np.ndarray:
     """``(N, 3, K)`` backbone points [m] of the calibrated arm in the recording frame."""
     cal = outcome.calibration
@@ -122,7 +113,7 @@ def result_of(ctx: ProblemContext, outcome: CalibrateOutcome) -> Result:
     outlier = np.zeros(N, dtype=bool)
     outlier[[o.posture for o in cal.outliers]] = True
     X = all_configurations(outcome)
-    Q = cc_configurations(outcome, X)
+    Q = cal.configurations(X)
     fitted = cal.problem.model.evaluate(X, cal.fit.beta, cal.problem.ref, False)[0].reshape(N, -1, 3)
     metrics: dict[str, Any] = {
         "postures": N,
@@ -141,8 +132,8 @@ def result_of(ctx: ProblemContext, outcome: CalibrateOutcome) -> Result:
         "calibrated arm": outcome.arm,
         "calibration": outcome.facts,
     }
-    if outcome.arm_file is not None:
-        metrics["arm file"] = str(outcome.arm_file)
+    for option, file in outcome.written.items():
+        metrics[option.replace("_", " ")] = str(file)
     notes = [f"posture {o.posture} rejected: {o.reason}" for o in cal.outliers[:MAX_OUTLIER_NOTES]]
     if len(cal.outliers) > MAX_OUTLIER_NOTES:
         notes.append(f"... and {len(cal.outliers) - MAX_OUTLIER_NOTES} more rejected postures (array outlier)")

@@ -11,7 +11,15 @@ import numpy as np
 from optikin.algebra import matrix_from_quat
 from optikin.arms.constant_curvature import ConstantCurvatureArm
 from optikin.calibration.calibrate import Calibration, HeldOut, calibrate, fit_postures, held_out
-from optikin.calibration.export import arm_section, calibration_facts, write_arm_file
+from optikin.calibration.export import (
+    arm_section,
+    base_frame_points,
+    calibration_facts,
+    marker_recording,
+    write_arm_file,
+    write_target_csv,
+)
+from optikin.data.markers import write_marker_csv
 from optikin.calibration.model import vector_from_rotation_np
 from optikin.calibration.synthetic import CalibrationTruth
 from optikin.data.recording import Recording
@@ -35,7 +43,7 @@ class CalibrateOutcome:
     truth_held_out: np.ndarray | None
     seconds: float
     held_out_seconds: float
-    arm_file: Path | None
+    written: dict[str, Path]
 
 
 def markers_of(ctx: ProblemContext, recording: Recording, n_sections: int) -> tuple[list[str], list[int]]:
@@ -139,13 +147,26 @@ def solve(ctx: ProblemContext) -> CalibrateOutcome:
         truth_errors[tested] = fit_postures(subset, truth_beta(calibration, truth), X0).errors
     section = arm_section(calibration, arm)
     facts = calibration_facts(calibration, test.median)
-    arm_file = None
-    if options.arm_file is not None:
-        arm_file = (ctx.path.parent / options.arm_file).resolve()
-        try:
-            write_arm_file(arm_file, section, facts, ctx.path.name)
-        except OSError as exc:
-            raise ctx.error("options.arm_file", f"cannot write {arm_file}: {exc.strerror or exc}") from None
+    written: dict[str, Path] = {}
+    try:
+        if options.arm_file is not None:
+            written["arm_file"] = (ctx.path.parent / options.arm_file).resolve()
+            write_arm_file(written["arm_file"], section, facts, ctx.path.name)
+        if options.targets_file is not None:
+            written["targets_file"] = (ctx.path.parent / options.targets_file).resolve()
+            tip = names[int(np.argmax(sections))]
+            points = base_frame_points(calibration, recording.marker_array([tip])[calibration.kept, 0])
+            write_target_csv(written["targets_file"], recording.time[calibration.kept], points)
+        if options.markers_file is not None:
+            written["markers_file"] = (ctx.path.parent / options.markers_file).resolve()
+            tip = names[int(np.argmax(sections))]
+            others = [n for n in names if n != tip]
+            if not others:
+                raise ctx.error("options.markers_file", "needs a marker besides the tip's to check the backbone")
+            write_marker_csv(marker_recording(calibration, recording, others), written["markers_file"])
+    except OSError as exc:
+        field = next(reversed(written))
+        raise ctx.error(f"options.{field}", f"cannot write {written[field]}: {exc.strerror or exc}") from None
     return CalibrateOutcome(
         recording,
         names,
@@ -158,5 +179,5 @@ def solve(ctx: ProblemContext) -> CalibrateOutcome:
         truth_errors,
         seconds,
         held_out_seconds,
-        arm_file,
+        written,
     )
