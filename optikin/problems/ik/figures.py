@@ -23,7 +23,7 @@ import numpy as np
 from optikin import plots
 from optikin.algebra import dq_translation
 from optikin.problems.ik.report import array_key
-from optikin.results import Drawer
+from optikin.results import SOLVED, Drawer
 
 FLOOR = 1e-17
 """Tip errors are drawn on a log scale; exact zeros sit at this floor [m]."""
@@ -38,6 +38,10 @@ def figures(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -> dic
         tips: np.ndarray | None
         if "solution_tips" in arrays:
             tips, title = arrays["solution_tips"], f"{name}: tips of the solved configurations ({solver})"
+        elif "measured_points" in arrays:
+            measured = arrays["measured_points"].reshape(-1, 3)
+            tips, title = measured, f"{name}: measured points ({solver})"
+            residual = np.repeat(residual, arrays["measured_points"].shape[1])
         else:
             tips, title = target_positions(arrays["targets"]), f"{name}: targets ({solver})"
         if tips is not None:
@@ -50,9 +54,10 @@ def figures(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -> dic
             error=arrays["error"],
             title=f"{name}: along the trajectory",
         )
-    methods = [row["method"] for row in summary.get("comparison", [])]
+    methods = [row["method"] for row in summary.get("comparison", []) if f"status_{array_key(row['method'])}" in arrays]
     keys = [array_key(m) for m in methods]
-    if methods and all(f"{what}_{k}" in arrays for k in keys for what in ("tip_error", "time", "status")):
+    error = "rms_distance" if all(f"rms_distance_{k}" in arrays for k in keys) else "tip_error"
+    if methods and all(f"{what}_{k}" in arrays for k in keys for what in (error, "time", "status")):
         margins = (
             {m: arrays[f"leg_margin_{k}"] for m, k in zip(methods, keys)}
             if all(f"leg_margin_{k}" in arrays for k in keys)
@@ -61,7 +66,8 @@ def figures(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -> dic
         drawers["comparison"] = partial(
             draw_comparison,
             title=name,
-            errors={m: arrays[f"tip_error_{k}"] for m, k in zip(methods, keys)},
+            errors={m: arrays[f"{error}_{k}"] for m, k in zip(methods, keys)},
+            error_label="RMS point distance [m]" if error == "rms_distance" else "tip error [m] (fk_dq of the answer)",
             seconds={m: arrays[f"time_{k}"] for m, k in zip(methods, keys)},
             status={m: arrays[f"status_{k}"] for m, k in zip(methods, keys)},
             margins=margins,
@@ -97,9 +103,11 @@ def draw_comparison(
     seconds: Mapping[str, np.ndarray],
     status: Mapping[str, np.ndarray],
     margins: Mapping[str, np.ndarray] | None = None,
+    error_label: str = "tip error [m] (fk_dq of the answer)",
 ) -> None:
-    """Per method: the distribution of tip errors [m], the median time per solve [us] with the share of
-    ``ok`` samples and, when ``margins`` are given, the smallest leg margins to Table I [mm]."""
+    """Per method: the distribution of tip errors (or RMS point distances) [m], the median time per solve
+    [us] with the share of solved samples and, when ``margins`` are given, the smallest leg margins to
+    Table I [mm]. Methods that were not applicable have no arrays and are left out."""
     names = list(errors)
     panels = 3 if margins is not None else 2
     fig, axes = plt.subplots(1, panels, figsize=(4.6 * panels, 0.45 * len(names) + 2.2), sharey=True)
@@ -110,15 +118,17 @@ def draw_comparison(
         finite, positions=y, orientation="horizontal", widths=0.6, manage_ticks=False, flierprops={"markersize": 2}
     )
     axes[0].set_xscale("log")
-    axes[0].set_xlabel("tip error [m] (fk_dq of the answer)")
+    axes[0].set_xlabel(error_label)
 
     median_us = [np.median(seconds[n]) * 1e6 for n in names]
-    ok = [100.0 * np.mean(np.asarray(status[n]) == "ok") for n in names]
+    ok = [100.0 * np.mean(np.isin(np.asarray(status[n]), SOLVED)) for n in names]
     bars = axes[1].barh(y, median_us, color="tab:blue")
     axes[1].set_xscale("log")
     axes[1].set_xlabel("median time per solve [us]")
     for bar, share in zip(bars, ok):
-        axes[1].text(bar.get_width(), bar.get_y() + bar.get_height() / 2, f" {share:.0f}% ok", va="center", fontsize=8)
+        axes[1].text(
+            bar.get_width(), bar.get_y() + bar.get_height() / 2, f" {share:.0f}% solved", va="center", fontsize=8
+        )
 
     if margins is not None:
         values = [margins[n][np.isfinite(margins[n])] * 1e3 for n in names]

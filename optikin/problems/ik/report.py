@@ -129,11 +129,23 @@ def arrays_of(outcome: IkOutcome) -> dict[str, np.ndarray]:
             f"iterations_{key}": r.iterations,
         }
         arrays |= {f"{check}_{key}": values for check, values in run.checks.items()}
+    if targets.points is not None:
+        arrays["measured_points"] = measured_points(targets)
     if targets.t is not None:
         arrays["t"] = targets.t
     if outcome.solution_tips is not None:
         arrays["solution_tips"] = outcome.solution_tips
     return arrays
+
+
+def measured_points(targets: Targets) -> np.ndarray:
+    """``(N, k, 3)`` measured positions of the ``k`` points [m] (NaN for a point without a position)."""
+    assert targets.points is not None
+    out = np.full((len(targets), len(targets.points), 3), np.nan)
+    for k, where in enumerate(targets.points.slices()):
+        if "position" in where:
+            out[:, k] = targets.values[:, where["position"]]
+    return out
 
 
 def notes_of(outcome: IkOutcome) -> list[str]:
