@@ -189,3 +189,33 @@ def test_equilibria_from_zero_load_survive_the_jacobian_kept_from_other_loads():
     samples = ctx.data_source.load(ctx.arm, ctx.spec.data, ctx.data_params, ctx.path)
     fixed = fixed_loads(ctx.arm, ctx.options.loads)
     assert all(solver.solve(np.concatenate([fixed, a])).ok for a in samples.values[:60])
+
+
+def test_the_continued_equilibrium_and_its_ift_jacobian_match_cold_solves_and_finite_differences(tmp_path):
+    # TipEquilibrium reaches a new actuation by an IFT predictor and a simplified-Newton corrector from the
+    # stored equilibrium nearest it; the pose must be the one solved from zero load, and dy/da the central
+    # differences of such cold solves.
+    from optikin.problems.statics.equilibrium import TipEquilibrium
+    from optikin.problems.statics.run import fixed_loads, shooting_solver
+
+    path = problem(tmp_path, options={"mode": "inverse", "loads": {"gravity": False}, "target_tolerance": 1e-10})
+    _, ctx = prepare(str(path))
+    solver = shooting_solver(ctx.arm, ctx.options)
+    fixed = fixed_loads(ctx.arm, ctx.options.loads)
+    equilibrium = TipEquilibrium(solver, fixed, ctx.options.flags)
+
+    def cold(a: np.ndarray) -> np.ndarray:
+        s = solver.solve(np.concatenate([fixed, a]))
+        assert s.ok
+        return np.concatenate([s.positions[-1], s.orientations[-1]])
+
+    a = np.array([1.0, 0.5])
+    equilibrium.evaluate(a)
+    for step in (np.array([0.05, -0.02]), np.array([0.1, 0.08])):
+        a = a + step
+        y, dy = equilibrium.evaluate(a)
+        assert np.abs(y - cold(a)).max() < 1e-10  # both roots within the tolerance 1e-10 N of the residual
+        h = 1e-4
+        fd = np.column_stack([(cold(a + h * e) - cold(a - h * e)) / (2 * h) for e in np.eye(2)])
+        assert np.abs(dy - fd).max() < 1e-7 * np.abs(fd).max()
+    assert equilibrium.equilibria == 3

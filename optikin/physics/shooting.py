@@ -274,6 +274,16 @@ class ShootingSolver:
             raise ValueError(f"expected a load vector of {self.n_loads} entries, got {P.size}")
         return P
 
+    def residual_at(self, w: np.ndarray, P: np.ndarray) -> np.ndarray:
+        """The tip residual ``(N(L) - F_tip, M(L) - C_tip)`` (6) from base wrench ``w`` (6) under loads ``P``.
+
+        One integration (compiled when the solver is), for callers that iterate on ``w``
+        themselves, e.g. a continuation corrector.
+        """
+        if self._compiled_shape is None:
+            return np.asarray(self.residual(w, P)).ravel()
+        return self._compiled_shape.raw(np.concatenate([w, P])[None, :])[0, STATE_SIZE * self.s.size :]
+
     def solve(self, loads: Loads | np.ndarray, guess: np.ndarray | None = None) -> RodSolution:
         """One equilibrium.
 
