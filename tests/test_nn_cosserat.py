@@ -14,12 +14,14 @@ import dataclasses
 import numpy as np
 import pytest
 import yaml
+from scipy.spatial.transform import Rotation
 
 from optikin.arms.cbha import CBHAGeometry, printed_leg_lengths
 from optikin.baselines.nn_database import DatabaseSpec, build_database, section_tube_lengths, split_tube_lengths
 from optikin.baselines.nn_models import SETTINGS, affine_map, forward_tasks, split_mse, train_model
 from optikin.data.cosserat_markers import CosseratMarkerParams
 from optikin.data.cosserat_nn import cosserat_postures
+from optikin.problems.nn_shared import constant_curvature_lengths, constant_curvature_tips
 from optikin.runner import solve
 from optikin.spec import load_problem, project_root
 from tests.test_nn_problems import Q_MAX_MM, Q_MIN_MM, RADII, chain_tips
@@ -116,7 +118,7 @@ def fkm_cosserat(tmp_path_factory):
 
 def test_cosserat_fkm_feeds_fig9_legs_and_scores_on_the_cosserat_tips(fkm_cosserat):
     a, rows = fkm_cosserat.arrays, {r.method: r.metrics for r in fkm_cosserat.comparison}
-    assert set(rows) == {"mlp-seed-fig9", "newton-fig9", "direct-mlp"}
+    assert set(rows) == {"mlp-seed-fig9", "newton-fig9", "constant-curvature", "direct-mlp"}
     spec, _ = load_problem("cbha-nn-fkm-cosserat")
     g = CBHAGeometry(**spec.arm.params["geometry"])
     f = (a["leg_lengths"].reshape(-1, 16, 3) - np.array(g.leg_min)[None, :, None]) / (
@@ -136,8 +138,41 @@ def test_cosserat_fkm_feeds_fig9_legs_and_scores_on_the_cosserat_tips(fkm_cosser
 def test_cosserat_ikm_drives_the_lengths_on_the_arm(tmp_path):
     result, _ = solve(small_cosserat(tmp_path, "ikm", direct=False), out=tmp_path / "out")
     rows = {r.method: r.metrics for r in result.comparison}
-    assert set(rows) == {"mlp-seed", "ipopt", "true-lengths"}
+    assert set(rows) == {"mlp-seed", "ipopt", "constant-curvature", "true-lengths"}
     assert rows["true-lengths"]["tube length error RMS, median [mm]"] == 0.0
     errors = np.linalg.norm(result.arrays["tip_seed"] - result.arrays["targets"], axis=1) * 1e3
     assert rows["mlp-seed"]["tip error median [mm]"] == pytest.approx(np.median(errors), rel=1e-12)
     assert rows["ipopt"]["samples"] == 3
+
+
+def arc_tube_lengths_and_tip(L, theta, phi, r):
+    """Independent geometry of a bent section: the tubes at ``r u_m`` (u_1 at 180 deg, u_2 at 60, u_3 at -60)
+    are concentric arcs about the bending axis, at ``1 / kappa - r cos(angle_m - phi)`` from it."""
+    kappa = theta / L
+    angles = np.radians([180.0, 60.0, -60.0])
+    lengths = theta * (1 / kappa - r * np.cos(angles - phi))
+    tip = np.array(
+        [np.cos(phi) * (1 - np.cos(theta)) / kappa, np.sin(phi) * (1 - np.cos(theta)) / kappa, np.sin(theta) / kappa]
+    )
+    axis = np.array([-np.sin(phi), np.cos(phi), 0.0])
+    return lengths, tip, Rotation.from_rotvec(theta * axis)
+
+
+def test_constant_curvature_rows_invert_arcs_built_by_hand():
+    radii = np.array([0.037, 0.032])
+    (l1, p1, R1), (l2, p2, _) = (
+        arc_tube_lengths_and_tip(0.2, 1.1, 0.4, radii[0]),
+        arc_tube_lengths_and_tip(0.22, 0.7, -2.0, radii[1]),
+    )
+    tip = constant_curvature_tips(np.array([[l1, l2]]), radii)[0]
+    np.testing.assert_allclose(tip, p1 + R1.apply(p2), atol=1e-12)
+    lower, upper = np.array([0.12, 0.10]), np.array([0.27, 0.26])
+    lengths = constant_curvature_lengths(np.array([p1 + R1.apply(p2)]), radii, lower, upper)[0]
+    assert np.all(lengths >= lower[:, None] - 1e-12) and np.all(lengths <= upper[:, None] + 1e-12)
+    reached = []
+    for s in (0, 1):  # the lengths found, turned back into arcs by hand
+        L = lengths[s].mean()
+        k = 2 / (3 * radii[s] * L) * ((L - lengths[s]) @ np.array([[-1, 0], [0.5, 3**0.5 / 2], [0.5, -(3**0.5) / 2]]))
+        reached.append(arc_tube_lengths_and_tip(L, np.linalg.norm(k) * L, np.arctan2(k[1], k[0]), radii[s]))
+    np.testing.assert_allclose(reached[0][0], lengths[0], atol=1e-12)
+    np.testing.assert_allclose(reached[0][1] + reached[0][2].apply(reached[1][1]), p1 + R1.apply(p2), atol=1e-6)

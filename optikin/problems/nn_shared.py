@@ -26,9 +26,13 @@ from typing import Any, Callable, Literal, Mapping, Sequence
 
 import numpy as np
 from pydantic import Field
+from scipy.sparse import block_diag
+from scipy.optimize import least_squares
 from scipy.spatial import cKDTree
 
-from optikin.arms.cbha import CBHAArm
+from optikin.algebra import quat_multiply, quat_rotate
+from optikin.arms.cbha import LEG_DIRECTIONS, CBHAArm
+from optikin.arms.constant_curvature import section_position, section_quaternion
 from optikin.baselines.nn_database import DatabaseSpec, Fig7Params, LearningDatabase
 from optikin.baselines.nn_models import (
     DIRECT_SETTING,
@@ -190,6 +194,92 @@ def direct_model(prep: Prepared, key: str) -> TrainedModel:
     quick = prep.options.setting == "small" and key != "controller"
     setting = DIRECT_SETTING.small() if quick else DIRECT_SETTING
     return train_model(task, prep.truth, setting)
+
+
+# ---------------------------------------------------------------------------------------- geometric rows
+def section_tube_radii(arm: CBHAArm) -> np.ndarray:
+    """``(sections,)`` mean tube offset [m] over each section's vertebrae (eq. 2): the constant-curvature
+    model's radius."""
+    g = arm.geometry
+    bounds = np.cumsum((0,) + g.platforms_per_section)
+    return np.array([g.radii[a : b + 1].mean() for a, b in zip(bounds[:-1], bounds[1:])])
+
+
+def constant_curvature_tips(tube_lengths: np.ndarray, radii: np.ndarray) -> np.ndarray:
+    """Seed 004 Table IV's quantitative FKM (Escande et al.): every section a constant-curvature arc.
+
+    A section of backbone length ``L`` bent with curvature ``kappa`` towards the direction ``d`` of its
+    base plane puts a tube at ``r u_m`` (:data:`~optikin.arms.cbha.LEG_DIRECTIONS`) at length
+    ``l_m = L (1 - kappa r u_m . d)``. The three ``u_m`` add up to zero and ``sum_m u_m u_m^T = 3/2``
+    in the plane, so ``L = mean(l_m)`` and ``kappa d = 2 / (3 r L) sum_m (L - l_m) u_m``; the arc's
+    tip and rotation (bending angle ``kappa L`` about ``(-d_y, d_x, 0)``) follow
+    (:func:`optikin.arms.constant_curvature.section_position`, ``section_quaternion``), and the
+    sections chain.
+
+    Parameters
+    ----------
+    tube_lengths:
+        ``(n, sections, 3)`` [m].
+    radii:
+        ``(sections,)`` tube offset of each section [m].
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(n, 3)`` tip positions [m] in the base frame.
+    """
+    lengths = np.asarray(tube_lengths, dtype=float)
+    n = len(lengths)
+    tip = np.zeros((n, 3))
+    frame = np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))
+    for s in range(lengths.shape[1]):
+        L = lengths[:, s].mean(axis=1)
+        k = 2.0 / (3.0 * radii[s] * L)[:, None] * ((L[:, None] - lengths[:, s]) @ LEG_DIRECTIONS[:, :2])
+        theta, phi = np.linalg.norm(k, axis=1) * L, np.arctan2(k[:, 1], k[:, 0])
+        tip = tip + quat_rotate(frame, section_position(L, theta, phi), check=False)
+        frame = quat_multiply(frame, section_quaternion(theta, phi))
+    return tip
+
+
+def constant_curvature_lengths(
+    targets: np.ndarray, radii: np.ndarray, lower: np.ndarray, upper: np.ndarray, weight: float = 1e-3
+) -> np.ndarray:
+    """Seed 004 Table IV's quantitative IKM (Mahl et al.): the tube lengths whose constant-curvature tip
+    (:func:`constant_curvature_tips`) is each target, nearest the mid lengths.
+
+    All targets in one ``least_squares`` on ``(tip(l_i) - target_i, weight (l_i - l_mid))`` [m] within the
+    bounds; the targets are independent, so the Jacobian is block diagonal and its finite differences
+    perturb every target at once.
+
+    Parameters
+    ----------
+    targets:
+        ``(n, 3)`` tips [m].
+    radii:
+        ``(sections,)`` tube offsets [m].
+    lower, upper:
+        ``(sections,)`` bounds of a tube's length over each section [m] (Table I totals).
+    weight:
+        Of the pull towards the mid lengths (the redundancy: 6 lengths for 3 coordinates).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(n, sections, 3)`` [m].
+    """
+    targets = np.asarray(targets, dtype=float)
+    n, S = len(targets), len(radii)
+    lo, hi = np.tile(np.repeat(lower, 3), n), np.tile(np.repeat(upper, 3), n)
+    mid = 0.5 * (lo + hi)
+
+    def residual(x: np.ndarray) -> np.ndarray:
+        tips = constant_curvature_tips(x.reshape(n, S, 3), radii) - targets
+        return np.concatenate([tips, weight * (x - mid).reshape(n, -1)], axis=1).ravel()
+
+    block = np.ones((3 + 3 * S, 3 * S))
+    sparsity = block_diag([block] * n, format="csr")
+    x = least_squares(residual, mid, bounds=(lo, hi), jac_sparsity=sparsity, xtol=1e-12, ftol=1e-12).x
+    return x.reshape(n, S, 3)
 
 
 # ---------------------------------------------------------------------------------------- running

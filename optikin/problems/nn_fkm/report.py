@@ -15,9 +15,10 @@ def report(outcome: FKMOutcome) -> Result:
     """The result of ``nn_fkm``: the first variant is the method, every variant, input and solver a row.
 
     Arrays: per variant and input ``tip_<setting>[-fig9]`` and ``configurations_<setting>[-fig9]``,
-    per solver ``tip_<preset>[-fig9]``, the test postures' ``test_rows``, ``leg_lengths`` (those given,
-    first input), ``tip`` (true), ``configurations`` (true, vertebra-model truth only), ``tip_direct``
-    (qualitative FKM), and the figures' ``search_<setting>_<task>`` and ``tip_errors_<method>``.
+    per solver ``tip_<preset>[-fig9]``, per Table IV row ``tip_constant-curvature`` and
+    ``tip_direct-mlp``, the test postures' ``test_rows``, ``leg_lengths`` (those given, first input),
+    ``tip`` (true), ``configurations`` (true, vertebra-model truth only), and the figures'
+    ``search_<setting>_<task>`` and ``tip_errors_<method>``.
     """
     prep, test, k = outcome.prep, outcome.test, outcome.exact_samples
     db, truth = prep.db, prep.truth
@@ -45,20 +46,16 @@ def report(outcome: FKMOutcome) -> Result:
         comparison.append(solver_row(solver, extra))
         errors[solver.name] = solver.errors
         arrays |= solver.arrays
-    if outcome.direct is not None:
-        d = outcome.direct
-        metrics["direct setting"] = d.model.setting.description
+    for extra_row in outcome.table_iv:
         row = {
-            "samples": len(d.errors),
-            **error_stats(d.errors),
-            "neurons": d.model.neurons,
-            "Cosserat postures trained on": len(prep.truth.train) if prep.truth is not None else 0,
-            "time per sample [us]": d.seconds / len(d.errors) * 1e6,
-            "training time [s]": d.model.training_time,
+            "samples": len(extra_row.errors),
+            **error_stats(extra_row.errors),
+            **extra_row.columns,
+            "time per sample [us]": extra_row.seconds / len(extra_row.errors) * 1e6,
         }
-        comparison.append(MethodRow("direct-mlp", "baseline", row))
-        errors["direct-mlp"] = d.errors
-        arrays["tip_direct"] = d.tip
+        comparison.append(MethodRow(extra_row.name, "baseline", row))
+        errors[extra_row.name] = extra_row.errors
+        arrays[f"tip_{extra_row.name}"] = extra_row.tip
     arrays |= {"test_rows": test, "leg_lengths": first.legs, "tip": first.tip}
     if first.configurations is not None:
         arrays["configurations"] = first.configurations
@@ -72,9 +69,15 @@ def report(outcome: FKMOutcome) -> Result:
         f"through the exact chain of eq. (5); exact solvers on the first {k} test postures, every platform from "
         "eqs. (7)-(9) linearised."
     )
-    if outcome.direct is not None:
+    names = [r.name for r in outcome.table_iv]
+    if "constant-curvature" in names:
         note += (
-            " direct-mlp: seed 004 Table IV's qualitative FKM, an MLP from the six tube lengths to the tip "
-            "trained on the Cosserat training postures."
+            " constant-curvature: seed 004 Table IV's quantitative FKM (Escande et al.), each section an arc "
+            "from its three tube lengths."
+        )
+    if "direct-mlp" in names:
+        note += (
+            " direct-mlp: seed 004 Table IV's qualitative FKM (Melingui et al.), an MLP from the six tube "
+            "lengths to the tip trained on the Cosserat training postures."
         )
     return comparison_result(prep, outcome.networks, comparison, errors, metrics, arrays, note)

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -15,10 +16,12 @@ from optikin.problems.nn_shared import (
     NetworkRun,
     Prepared,
     SolverRun,
+    constant_curvature_tips,
     direct_model,
     latency,
     obtain_models,
     prepare,
+    section_tube_radii,
     time_network,
     timed,
 )
@@ -40,14 +43,29 @@ class PlatformSolverRun(SolverRun):
 
 
 @dataclass
-class DirectRun:
-    """Seed 004 Table IV's qualitative FKM (Melingui et al.): an MLP from the six tube lengths to the tip,
-    trained on the Cosserat training postures; its model, test tips [m] and tip errors [m]."""
+class TableIVRun:
+    """One of seed 004 Table IV's other FKM rows on the test postures: ``direct-mlp`` (the qualitative
+    models of Melingui et al., an MLP from the six tube lengths to the tip trained on the Cosserat training
+    postures) or ``constant-curvature`` (the quantitative model of Escande et al.,
+    :func:`~optikin.problems.nn_shared.constant_curvature_tips`).
 
-    model: TrainedModel
+    Attributes
+    ----------
+    name:
+        The row's method.
+    tip, errors:
+        ``(n, 3)`` tips and ``(n,)`` tip errors [m].
+    seconds:
+        Wall time of the whole test set [s].
+    columns:
+        The row's own columns.
+    """
+
+    name: str
     tip: np.ndarray
     errors: np.ndarray
     seconds: float
+    columns: dict[str, Any]
 
 
 @dataclass
@@ -87,8 +105,8 @@ class FKMOutcome:
         Test postures given to the exact solvers.
     inputs:
         The inputs of the rows (true legs and / or Fig. 9's split legs).
-    direct:
-        The qualitative FKM of the Cosserat source, when asked for.
+    table_iv:
+        Seed 004 Table IV's other FKM rows, from the six tube lengths.
     """
 
     prep: Prepared
@@ -96,7 +114,7 @@ class FKMOutcome:
     solvers: list[PlatformSolverRun]
     exact_samples: int
     inputs: list[Inputs]
-    direct: DirectRun | None = field(default=None)
+    table_iv: list[TableIVRun]
 
     @property
     def test(self) -> np.ndarray:
@@ -167,14 +185,35 @@ def run_solver(
     )
 
 
-def run_direct(prep: Prepared) -> DirectRun:
-    """The qualitative FKM trained on the Cosserat training postures, on the Cosserat test postures."""
-    assert prep.truth is not None
-    truth = prep.truth
-    model = direct_model(prep, "direct_fkm")
-    X = truth.tube_lengths[truth.test].reshape(len(truth.test), -1)
-    tip, seconds = timed(lambda: model.predict(X))
-    return DirectRun(model, tip, np.linalg.norm(tip - truth.tip[truth.test], axis=1), seconds)
+def table_iv_rows(prep: Prepared) -> list[TableIVRun]:
+    """``constant-curvature`` on the six tube lengths of the test postures (when they are given,
+    ``tube_sensors`` or the Cosserat postures), and ``direct-mlp`` on the Cosserat postures (``direct``)."""
+    truth, db, o = prep.truth, prep.db, prep.options
+    if truth is None and not o.tube_sensors:
+        return []
+    tubes = truth.tube_lengths[truth.test] if truth is not None else db.tube_lengths[db.test]
+    tips = truth.tip[truth.test] if truth is not None else db.tip[db.test]
+    radii = section_tube_radii(prep.arm)
+    cc, seconds = timed(lambda: constant_curvature_tips(tubes, radii))
+    rows = [
+        TableIVRun(
+            "constant-curvature",
+            cc,
+            np.linalg.norm(cc - tips, axis=1),
+            seconds,
+            {"tube offsets [mm]": (radii * 1e3).round(3).tolist()},
+        )
+    ]
+    if truth is not None and o.direct:
+        model = direct_model(prep, "direct_fkm")
+        tip, seconds = timed(lambda: model.predict(tubes.reshape(len(tubes), -1)))
+        columns = {
+            "neurons": model.neurons,
+            "Cosserat postures trained on": len(truth.train),
+            "training time [s]": model.training_time,
+        }
+        rows.append(TableIVRun("direct-mlp", tip, np.linalg.norm(tip - tips, axis=1), seconds, columns))
+    return rows
 
 
 def run(ctx: ProblemContext) -> FKMOutcome:
@@ -191,5 +230,4 @@ def run(ctx: ProblemContext) -> FKMOutcome:
     k = min(len(inputs[0].tip), o.exact_samples)
     problems = platform_problems(prep.arm, PLATFORM_TOLERANCE)
     solvers = [run_solver(prep, name, problems, k, given) for name in ctx.spec.baselines for given in inputs]
-    direct = run_direct(prep) if prep.truth is not None and o.direct else None
-    return FKMOutcome(prep, networks, solvers, k, inputs, direct)
+    return FKMOutcome(prep, networks, solvers, k, inputs, table_iv_rows(prep))

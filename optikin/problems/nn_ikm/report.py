@@ -34,8 +34,10 @@ def report(outcome: IKMOutcome) -> Result:
     Arrays: per variant ``tip_<setting>`` (the Cosserat arm's, on the ``cosserat`` source),
     ``leg_lengths_<setting>`` (commanded, before the clip), ``predicted_<setting>`` and
     ``configurations_<setting>`` (realised on the vertebra model), per solver ``tip_<preset>`` and
-    ``configurations_<preset>``, the test postures' ``test_rows``, ``targets``, ``configurations``
-    (vertebra-model truth only), and the figures' ``search_<setting>_<task>`` and ``tip_errors_<method>``.
+    ``configurations_<preset>``, on the ``cosserat`` source ``tip_direct-mlp`` and
+    ``tip_constant-curvature`` (Table IV's other rows), the test postures' ``test_rows``, ``targets``,
+    ``configurations`` (vertebra-model truth only), and the figures' ``search_<setting>_<task>`` and
+    ``tip_errors_<method>``.
     """
     prep, test, k = outcome.prep, outcome.test, outcome.exact_samples
     db, truth = prep.db, prep.truth
@@ -83,7 +85,11 @@ def report(outcome: IKMOutcome) -> Result:
             )
         )
         errors["direct-mlp"] = outcome.direct.errors
-        arrays["tip_direct"] = outcome.direct.tip
+        arrays["tip_direct-mlp"] = outcome.direct.tip
+    if outcome.geometric is not None:
+        comparison.append(driven_row("constant-curvature", outcome.geometric, {}))
+        errors["constant-curvature"] = outcome.geometric.errors
+        arrays["tip_constant-curvature"] = outcome.geometric.tip
     if outcome.floor is not None and outcome.controller is not None:
         comparison.append(driven_row("true-lengths", outcome.floor, {"controller neurons": outcome.controller.neurons}))
         errors["true-lengths"] = outcome.floor.errors
@@ -103,7 +109,9 @@ def report(outcome: IKMOutcome) -> Result:
             "and driven on the Cosserat arm through a length-pressure controller (an MLP trained on the Cosserat "
             "training postures, pressures clipped to the arm's range) as in seed 004 Fig. 14; the tip error is "
             "the arm's. true-lengths drives the postures' own tube lengths: the controller's share of every "
-            "error. direct-mlp: seed 004 Table IV's qualitative IKM, tip -> six tube lengths, trained on the "
-            f"Cosserat training postures. Exact solvers on the first {k} test tips ({outcome.formulation.label()})."
+            "error. Seed 004 Table IV's other rows: direct-mlp, the qualitative IKM (Melingui et al.), tip -> six "
+            "tube lengths, trained on the Cosserat training postures; constant-curvature, the quantitative IKM "
+            "(Mahl et al.), the lengths of constant-curvature sections reaching the tip nearest the mid lengths. "
+            f"Exact solvers on the first {k} test tips ({outcome.formulation.label()})."
         )
     return comparison_result(prep, outcome.networks, comparison, errors, metrics, arrays, note)

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from optikin.baselines.nn_database import section_tube_lengths
+from optikin.baselines.nn_database import section_limits, section_tube_lengths
 from optikin.baselines.nn_models import TrainedModel, TrainingSetting, hybrid_inverse_configurations, inverse_tasks
 from optikin.data.cosserat_nn import cosserat_postures
 from optikin.ik.formulation import Formulation, build_problem, rest_configuration
@@ -26,9 +26,11 @@ from optikin.problems.nn_shared import (
     NetworkRun,
     Prepared,
     SolverRun,
+    constant_curvature_lengths,
     direct_model,
     obtain_models,
     prepare,
+    section_tube_radii,
     time_network,
     timed,
 )
@@ -101,6 +103,9 @@ class IKMOutcome:
     direct, direct_model:
         Seed 004 Table IV's qualitative IKM (Melingui et al.; tip -> six tube lengths, trained on the
         Cosserat training postures) driven on the arm, and its model.
+    geometric:
+        Seed 004 Table IV's quantitative IKM (Mahl et al.; constant-curvature sections,
+        :func:`~optikin.problems.nn_shared.constant_curvature_lengths`) driven on the arm.
     """
 
     prep: Prepared
@@ -112,6 +117,7 @@ class IKMOutcome:
     floor: Driven | None = None
     direct: Driven | None = None
     direct_model: TrainedModel | None = None
+    geometric: Driven | None = None
 
     @property
     def test(self) -> np.ndarray:
@@ -254,6 +260,9 @@ def run(ctx: ProblemContext) -> IKMOutcome:
     outcome = IKMOutcome(prep, networks, solvers, k, formulation, controller)
     if truth is not None:
         outcome.floor = drive(prep, controller, truth.tube_lengths[truth.test])
+        lower, upper = section_limits(prep.arm.geometry)
+        lengths = constant_curvature_lengths(target_tips(prep), section_tube_radii(prep.arm), lower, upper)
+        outcome.geometric = drive(prep, controller, lengths)
         if o.direct:
             model = direct_model(prep, "direct_ikm")
             lengths = model.predict(target_tips(prep)).reshape(len(truth.test), -1, 3)
