@@ -47,6 +47,7 @@ The Result is described in :mod:`optikin.problems.statics.report`, the figures i
 
 from __future__ import annotations
 
+import optikin.data.cosserat_sensors  # noqa: F401 - registers source "cosserat" of data family "targets"
 from optikin.data.actuations import FAMILY as ACTUATIONS
 from optikin.problems import ProblemContext, ProblemKind, register_kind
 from optikin.problems.statics import figures
