@@ -34,6 +34,7 @@ A solver preset::
 from __future__ import annotations
 
 import os
+from importlib import resources
 from pathlib import Path
 from typing import Any, Literal
 
@@ -106,7 +107,15 @@ def project_root() -> Path:
 
 
 def shipped_dir(kind: Literal["problems", "solvers"]) -> Path:
-    """The folder of the named files that come with optikin."""
+    """The folder of the named files that come with optikin.
+
+    An installed wheel carries them as ``optikin/catalog/<kind>`` (copied there by the build, found
+    through :mod:`importlib.resources`); a checkout or an editable install reads the top-level
+    ``problems/`` and ``solvers/`` beside the package.
+    """
+    catalog = resources.files("optikin") / "catalog" / kind
+    if catalog.is_dir():
+        return Path(str(catalog))
     return project_root() / kind
 
 

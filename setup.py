@@ -1,0 +1,30 @@
+"""Build hook: the named problem files and solver presets go into the wheel as ``optikin/catalog``.
+
+The top-level ``problems/`` and ``solvers/`` folders are the source; a checkout (or an editable
+install) reads them in place, an installed wheel reads its copy through ``importlib.resources``
+(:func:`optikin.spec.shipped_dir`).
+"""
+
+import shutil
+from pathlib import Path
+
+from setuptools import setup
+from setuptools.command.build_py import build_py
+
+CATALOG = ("problems", "solvers")
+
+
+class BuildWithCatalog(build_py):
+    """``build_py`` that also copies the catalog folders into ``optikin/catalog/`` of the build."""
+
+    def run(self) -> None:
+        super().run()
+        if getattr(self, "editable_mode", False):
+            return
+        root = Path(__file__).resolve().parent
+        for kind in CATALOG:
+            target = Path(self.build_lib) / "optikin" / "catalog" / kind
+            shutil.copytree(root / kind, target, dirs_exist_ok=True, ignore=shutil.ignore_patterns("__pycache__"))
+
+
+setup(cmdclass={"build_py": BuildWithCatalog})

@@ -1,0 +1,83 @@
+"""The wheel works on its own: built from the checkout, installed outside it, run from an unrelated folder.
+
+The wheel is installed with ``pip install --no-deps --target`` and put first on ``PYTHONPATH``, so
+the interpreter of the test environment supplies the dependencies while optikin itself comes from
+the wheel alone (the test checks that it does).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+@pytest.fixture(scope="module")
+def installed(tmp_path_factory) -> Path:
+    work = tmp_path_factory.mktemp("wheel")
+    build = subprocess.run(
+        [sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(work / "dist"), str(ROOT)],
+        capture_output=True,
+        text=True,
+    )
+    assert build.returncode == 0, build.stderr
+    (wheel,) = (work / "dist").glob("optikin-*.whl")
+    target = work / "site"
+    install = subprocess.run(
+        [sys.executable, "-m", "pip", "install", "--no-deps", "-q", "--target", str(target), str(wheel)],
+        capture_output=True,
+        text=True,
+    )
+    assert install.returncode == 0, install.stderr
+    return target
+
+
+def run(site: Path, folder: Path, *args: str) -> subprocess.CompletedProcess:
+    env = os.environ | {"PYTHONPATH": str(site), "MPLBACKEND": "Agg"}
+    env.pop("OPTIKIN_PATH", None)
+    code = "import sys; from optikin.cli import main; sys.exit(main(sys.argv[1:]))"
+    return subprocess.run([sys.executable, "-c", code, *args], cwd=folder, env=env, capture_output=True, text=True)
+
+
+def test_the_wheel_carries_the_catalog_licence_and_types(installed):
+    package = installed / "optikin"
+    assert (package / "catalog" / "problems" / "cc-two-section-fk.yaml").is_file()
+    assert (package / "catalog" / "solvers" / "casadi-map.yaml").is_file()
+    assert (package / "py.typed").is_file()
+    (info,) = installed.glob("optikin-*.dist-info")
+    assert "BSD 3-Clause" in (info / "licenses" / "LICENSE").read_text()
+    shipped = {p.name for p in (ROOT / "problems").iterdir() if p.is_file()}
+    assert {p.name for p in (package / "catalog" / "problems").iterdir()} == shipped
+
+
+def test_an_installed_wheel_lists_and_solves_from_an_unrelated_folder(installed, tmp_path):
+    where = run(installed, tmp_path, "--version")
+    assert where.returncode == 0 and where.stdout.startswith("optikin "), where.stderr
+    listed = run(installed, tmp_path, "list")
+    assert listed.returncode == 0, listed.stderr
+    assert all(name in listed.stdout for name in ("cc-two-section-fk", "cc-ik-pose", "track-dmp"))
+    solved = run(installed, tmp_path, "solve", "cc-two-section-fk", "--out", "out", "--no-figures", "--json")
+    assert solved.returncode == 0, solved.stderr
+    assert json.loads(solved.stdout)["problem"] == "cc-two-section-fk"
+    assert (tmp_path / "out" / "cc-two-section-fk" / "result.json").is_file()
+    origin = run(installed, tmp_path, "show", "--solver", "casadi-map")
+    assert origin.returncode == 0, origin.stderr
+
+
+def test_the_installed_package_is_the_wheel_not_the_checkout(installed, tmp_path):
+    env = os.environ | {"PYTHONPATH": str(installed)}
+    out = subprocess.run(
+        [sys.executable, "-c", "import optikin, optikin.spec as s; print(optikin.__file__, s.shipped_dir('problems'))"],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+    )
+    module, problems = out.stdout.split()
+    assert Path(module).is_relative_to(installed) and Path(problems).is_relative_to(installed)
