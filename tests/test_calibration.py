@@ -174,7 +174,7 @@ def test_the_kind_writes_an_arm_section_other_problems_can_use(tmp_path: Path):
     assert np.abs(markers.tip_position - rec["measured"][kept, 2]).max() < 2e-3
 
 
-@pytest.mark.parametrize("name", ["trunk-calibrate", "trunk-ik", "trunk-ph-shape"])
+@pytest.mark.parametrize("name", ["trunk-calibrate", "trunk-calibrate-motive", "trunk-ik", "trunk-ph-shape"])
 def test_the_trunk_workflow_problems_run(name, tmp_path: Path):
     result, _ = solve(name, out=tmp_path)
     assert result.succeeded
@@ -183,3 +183,10 @@ def test_the_trunk_workflow_problems_run(name, tmp_path: Path):
         assert m["max section length error [mm]"] < 0.5 and m["base position error [mm]"] < 1.0
         assert m["corrupted postures rejected"] == "20/20" and m["clean postures rejected"] == 0
         assert m["held-out RMS / true geometry's"] < 1.2
+    if name == "trunk-calibrate-motive":
+        # tools/make_recordings.py: 0.1 m sections, mount 1.2 m above the floor, base axis down; noise-free file
+        m = result.metrics
+        assert np.allclose(m["section lengths [mm]"], [100.0, 100.0, 100.0], atol=1e-6)
+        assert np.allclose(m["base position [mm]"], [0.0, 0.0, 1200.0], atol=1e-6)
+        assert np.allclose(m["base axis (z) in the recording frame"], [0.0, 0.0, -1.0], atol=1e-6)
+        assert any("swap" in n for n in result.notes)

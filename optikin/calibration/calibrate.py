@@ -47,6 +47,9 @@ SCREENING_TOLERANCE = 1e-6
 SCREENING_ROUNDS = 3
 """Fits without the rejected postures, each screened again, at most."""
 
+MIN_OUTLIER_ERROR = 1e-6
+"""A marker error below this [m] never makes an outlier (noise-free recordings: the median is rounding)."""
+
 BASE_FIELDS = ("x", "y", "z", "tilt", "yaw")
 """Components of the base pose that ``fix`` may hold at their starting value."""
 
@@ -369,14 +372,15 @@ def calibrate(
 
 
 def find_outliers(problem: Problem, fit: Fit, threshold: float, marker_names: Sequence[str]) -> list[Outlier]:
-    """The postures with a marker error above ``threshold`` median marker errors, each with its reason.
+    """The postures with a marker error above ``threshold`` median marker errors (and above
+    :data:`MIN_OUTLIER_ERROR`), each with its reason.
 
     The reason names the worst marker and its error; when refitting the posture with two
     markers' labels exchanged brings every error under the limit, it says so.
     """
     errors = fit.errors
     median = float(np.nanmedian(errors))
-    limit = threshold * median
+    limit = max(threshold * median, MIN_OUTLIER_ERROR)
     bad = np.flatnonzero(np.nanmax(np.where(np.isfinite(errors), errors, 0.0), axis=1) > limit)
     swaps = explaining_swaps(problem, fit, bad, limit)
     outliers = []

@@ -108,7 +108,7 @@ def write_target_csv(path: Path, t: np.ndarray, points: np.ndarray) -> Path:
     return Path(path)
 
 
-def marker_recording(calibration: Calibration, recording: Recording, intermediate: list[str]) -> MarkerRecording:
+def marker_recording(calibration: Calibration, recording: Recording, intermediate: np.ndarray) -> MarkerRecording:
     """The kept postures as end poses of the calibrated arm and measured intermediate markers (module docstring).
 
     Parameters
@@ -117,8 +117,8 @@ def marker_recording(calibration: Calibration, recording: Recording, intermediat
         The calibration.
     recording : Recording
         The recording it was made from (time stamps, markers).
-    intermediate : list of str
-        The markers kept as intermediate points (``(N, K, 3)`` in the recording frame).
+    intermediate : numpy.ndarray
+        ``(N, K, 3)`` the points kept as intermediate markers, in the recording frame [m].
 
     Returns
     -------
@@ -140,6 +140,6 @@ def marker_recording(calibration: Calibration, recording: Recording, intermediat
         base_orientation=np.repeat(q0[None], n, axis=0),
         tip_position=tip_position,
         tip_orientation=quat_from_matrix(tip_rotation),
-        markers=recording.marker_array(intermediate)[kept],
+        markers=np.asarray(intermediate, dtype=float)[kept],
         source=f"{recording.source or 'recording'} (end poses of the calibrated arm)",
     )

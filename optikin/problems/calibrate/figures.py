@@ -19,6 +19,8 @@ import numpy as np
 
 from optikin.results import Drawer
 
+FLOOR = 1e-15
+"""Marker errors are drawn on a log scale; exact zeros sit at this floor [m]."""
 BACKBONES_DRAWN = 12
 """Postures whose backbone the ``markers`` figure draws."""
 
@@ -56,10 +58,10 @@ def draw_residuals(
     fig, axes = plt.subplots(M, 1, figsize=(8, 1.9 * M + 0.8), sharex=True, squeeze=False)
     k = np.arange(len(errors))
     for j, ax in enumerate(axes[:, 0]):
-        ax.semilogy(k, np.maximum(errors[:, j], 1e-7) * 1e3, ".", ms=3, label="fit")
-        ax.semilogy(k, np.maximum(held_out[:, j], 1e-7) * 1e3, ".", ms=3, alpha=0.6, label="held out")
+        ax.semilogy(k, np.maximum(errors[:, j], FLOOR) * 1e3, ".", ms=3, label="fit")
+        ax.semilogy(k, np.maximum(held_out[:, j], FLOOR) * 1e3, ".", ms=3, alpha=0.6, label="held out")
         if outlier.any():
-            ax.semilogy(k[outlier], np.maximum(errors[outlier, j], 1e-7) * 1e3, "rx", ms=6, label="rejected")
+            ax.semilogy(k[outlier], np.maximum(errors[outlier, j], FLOOR) * 1e3, "rx", ms=6, label="rejected")
         ax.set_ylabel(f"{names[j] if j < len(names) else j} [mm]", fontsize=8)
         ax.grid(alpha=0.3)
     axes[0, 0].legend(fontsize=7, loc="upper right")

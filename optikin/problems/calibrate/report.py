@@ -15,7 +15,8 @@ fit's for rejected postures) and ``held_out_errors`` ``(N, M)`` [m], ``weights``
 synthetic recording.
 
 Every posture's status is ``ok`` when the final fit converged (``not_converged``
-otherwise); a rejected posture is counted, flagged in ``outlier`` and its reason is a note.
+otherwise); a rejected posture is counted, flagged in ``outlier`` and its reason is a note, after
+the reader's notes on the recording (dropped frames, gaps, swapped labels).
 """
 
 from __future__ import annotations
@@ -134,7 +135,11 @@ def result_of(ctx: ProblemContext, outcome: CalibrateOutcome) -> Result:
     }
     for option, file in outcome.written.items():
         metrics[option.replace("_", " ")] = str(file)
-    notes = [f"posture {o.posture} rejected: {o.reason}" for o in cal.outliers[:MAX_OUTLIER_NOTES]]
+    reader = outcome.recording.notes
+    notes = [f"reader: {n}" for n in reader[:MAX_OUTLIER_NOTES]]
+    if len(reader) > MAX_OUTLIER_NOTES:
+        notes.append(f"reader: ... and {len(reader) - MAX_OUTLIER_NOTES} more notes")
+    notes += [f"posture {o.posture} rejected: {o.reason}" for o in cal.outliers[:MAX_OUTLIER_NOTES]]
     if len(cal.outliers) > MAX_OUTLIER_NOTES:
         notes.append(f"... and {len(cal.outliers) - MAX_OUTLIER_NOTES} more rejected postures (array outlier)")
     if not cal.problem.free[cal.layout.rotation][2]:

@@ -46,27 +46,40 @@ class CalibrateOutcome:
     written: dict[str, Path]
 
 
-def markers_of(ctx: ProblemContext, recording: Recording, n_sections: int) -> tuple[list[str], list[int]]:
-    """The markers used and the section end of each (``options.markers``, else the recording's, in order)."""
+def tracks_of(recording: Recording) -> dict[str, np.ndarray]:
+    """Every tracked point of a recording by name: its markers, then the positions of its rigid bodies."""
+    tracks = dict(recording.markers)
+    for name, body in recording.bodies.items():
+        tracks.setdefault(name, body.positions)
+    return tracks
+
+
+def markers_of(ctx: ProblemContext, recording: Recording, n_sections: int) -> tuple[list[str], list[int], np.ndarray]:
+    """The points used, the section end of each and their positions ``(N, M, 3)``: ``options.markers`` (markers
+    or rigid bodies by name), else the recording's markers, else its rigid bodies, when one per section."""
     options: CalibrateOptions = ctx.options
+    tracks = tracks_of(recording)
     if options.markers is not None:
         names = list(options.markers)
         sections = [options.markers[n] for n in names]
         for name, section in zip(names, sections):
-            if name not in recording.markers:
+            if name not in tracks:
                 raise ctx.error(
-                    f"options.markers.{name}", f"no such marker; the recording has {sorted(recording.markers)}"
+                    f"options.markers.{name}", f"no such marker or rigid body; the recording has {sorted(tracks)}"
                 )
             if not 1 <= section <= n_sections:
                 raise ctx.error(f"options.markers.{name}", f"section {section} outside 1..{n_sections}")
-        return names, sections
-    names = list(recording.markers)
-    if len(names) != n_sections:
+    elif len(recording.markers) == n_sections:
+        names, sections = list(recording.markers), list(range(1, n_sections + 1))
+    elif len(recording.bodies) == n_sections:
+        names, sections = list(recording.bodies), list(range(1, n_sections + 1))
+    else:
         raise ctx.error(
             "options.markers",
-            f"the recording has {len(names)} markers for {n_sections} sections: say which disk carries each",
+            f"the recording has {len(recording.markers)} markers and {len(recording.bodies)} rigid bodies for "
+            f"{n_sections} sections: say which disk carries each",
         )
-    return names, list(range(1, n_sections + 1))
+    return names, sections, np.stack([tracks[n] for n in names], axis=1)
 
 
 def truth_beta(calibration: Calibration, truth: CalibrationTruth) -> np.ndarray:
@@ -88,8 +101,7 @@ def solve(ctx: ProblemContext) -> CalibrateOutcome:
     if not isinstance(arm, ConstantCurvatureArm):
         raise ctx.error("arm.type", f"kind calibrate calibrates constant_curvature arms, not {ctx.spec.arm.type!r}")
     recording: Recording = ctx.load_data()
-    names, sections = markers_of(ctx, recording, arm.n_sections)
-    measured = recording.marker_array(names)
+    names, sections, measured = markers_of(ctx, recording, arm.n_sections)
     seen = np.all(np.isfinite(measured), axis=2)
     if seen.sum() * 3 <= 2 * arm.n_sections * len(measured) + arm.n_sections + 5:
         raise InputDataError(
@@ -155,7 +167,7 @@ def solve(ctx: ProblemContext) -> CalibrateOutcome:
         if options.targets_file is not None:
             written["targets_file"] = (ctx.path.parent / options.targets_file).resolve()
             tip = names[int(np.argmax(sections))]
-            points = base_frame_points(calibration, recording.marker_array([tip])[calibration.kept, 0])
+            points = base_frame_points(calibration, measured[calibration.kept, int(np.argmax(sections))])
             write_target_csv(written["targets_file"], recording.time[calibration.kept], points)
         if options.markers_file is not None:
             written["markers_file"] = (ctx.path.parent / options.markers_file).resolve()
@@ -163,7 +175,8 @@ def solve(ctx: ProblemContext) -> CalibrateOutcome:
             others = [n for n in names if n != tip]
             if not others:
                 raise ctx.error("options.markers_file", "needs a marker besides the tip's to check the backbone")
-            write_marker_csv(marker_recording(calibration, recording, others), written["markers_file"])
+            intermediate = measured[:, [names.index(n) for n in others]]
+            write_marker_csv(marker_recording(calibration, recording, intermediate), written["markers_file"])
     except OSError as exc:
         field = next(reversed(written))
         raise ctx.error(f"options.{field}", f"cannot write {written[field]}: {exc.strerror or exc}") from None
