@@ -55,8 +55,9 @@ class ChainOutcome:
 
     @property
     def truths(self) -> dict[str, np.ndarray]:
-        """Per link, the ground truth ``(N, M, 3)`` [m]: vertebra centres, dense catenary points."""
-        assert self.arm1.truth is not None and self.arm2.truth is not None, "a synthetic chain has its ground truth"
+        """Per link, the ground truth ``(N, M, 3)`` [m]: the arms' backbones (vertebra centres, or the Cosserat
+        backbone at every solver node), dense catenary points."""
+        assert self.arm1.truth is not None and self.arm2.truth is not None, "a simulated chain has its ground truth"
         return {"CBHA 1": self.arm1.truth.vertebrae, "rope": self.chain.rope_truth, "CBHA 2": self.arm2.truth.vertebrae}
 
 
