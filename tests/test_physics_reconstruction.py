@@ -128,3 +128,25 @@ def test_pyelastica_continuum_shapes_from_their_end_poses(case):
     )
     assert status == "ok"
     assert np.linalg.norm(solution.positions - shape, axis=1).max() < 0.5e-3
+
+
+def test_a_sequence_starts_each_fit_where_start_says():
+    arm = RodArm.single(ROD)
+    forces = [(0.01 * t, -0.005, 0.002 * t) for t in np.linspace(0.2, 1.0, 4)]
+    known = [truth(arm, Loads(tip_force=f)) for f in forces]
+    bases, tips = [ends(k)[0] for k in known], [ends(k)[1] for k in known]
+    reconstructor = ShapeReconstructor(arm)
+    seen = []
+
+    def at_the_truth(i, previous):
+        seen.append(None if previous is None else previous.copy())
+        return known[i].base_wrench  # the shooting's root: the fit starts at its minimiser
+
+    exact = reconstructor.reconstruct_sequence(bases, tips, start=at_the_truth)
+    assert all(r.status == "ok" and r.iterations <= 1 for r in exact)
+    assert seen[0] is None and all(np.abs(p - k.base_wrench).max() < 1e-9 for p, k in zip(seen[1:], known))
+    cold = reconstructor.reconstruct_sequence(bases, tips, start=lambda i, previous: None)
+    alone = [reconstructor.reconstruct(b, t)[0] for b, t in zip(bases, tips)]
+    assert [r.iterations for r in cold] == [r.iterations for r in alone]
+    for r, k in zip(cold, known):
+        assert r.status == "ok" and np.abs(r.solution.positions - k.positions).max() < 1e-8

@@ -44,7 +44,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from typing import Literal, Sequence
+from typing import Callable, Literal, Sequence
 
 import casadi as ca
 import numpy as np
@@ -57,6 +57,8 @@ from optikin.physics.solution import RodSolution
 
 Pose = tuple[np.ndarray, np.ndarray]
 """``(position (3,) [m], unit quaternion (4,) (w, x, y, z))``."""
+Start = Callable[[int, np.ndarray | None], np.ndarray | None]
+"""``start(i, previous) -> guess`` of :meth:`ShapeReconstructor.reconstruct_sequence`."""
 
 
 class ReconstructionOptions(Options):
@@ -256,8 +258,9 @@ class ShapeReconstructor:
         base_poses: Sequence[Pose],
         tip_poses: Sequence[Pose],
         lengths: Sequence[float] | np.ndarray | None = None,
+        start: Start | None = None,
     ) -> list[Reconstruction]:
-        """Shapes along a recording, each fit started from the previous sample's solution.
+        """Shapes along a recording, each fit started from ``start`` (default: the previous sample's solution).
 
         Parameters
         ----------
@@ -265,13 +268,20 @@ class ShapeReconstructor:
             One per sample.
         lengths : sequence of float, optional
             Reference length per sample [m]; None: the arm's own.
+        start : callable, optional
+            ``start(i, previous) -> guess``: the start of sample ``i``'s fit from ``previous``,
+            the unknowns ``(6,)`` or ``(9,)`` (base wrench, then distributed force) the fit of
+            sample ``i - 1`` ended at (None for the first sample and after a non-finite one);
+            a None guess starts from the unknowns zero by continuation (:meth:`reconstruct`).
+            Default: ``previous`` itself.
         """
         out: list[Reconstruction] = []
-        guess: np.ndarray | None = None
+        previous: np.ndarray | None = None
         for i, (base, tip) in enumerate(zip(base_poses, tip_poses)):
+            guess = previous if start is None else start(i, previous)
             result, z = self.reconstruct(base, tip, None if lengths is None else float(lengths[i]), guess)
             out.append(result)
-            guess = z if np.all(np.isfinite(z)) else None
+            previous = z if np.all(np.isfinite(z)) else None
         return out
 
 
