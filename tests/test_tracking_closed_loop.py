@@ -170,3 +170,17 @@ def test_qp_rejects_a_step_disturbance_without_leaving_the_limits():
     assert metrics["position error max [mm]"] > 20.0  # the disturbance was felt
     assert metrics["position error final [mm]"] < 0.1
     assert metrics["steps the controller kept or took outside"] == 0
+
+
+def test_settling_time_of_a_first_order_decay_is_the_logarithm_of_the_error_ratio_over_the_gain():
+    """Position task, exact model, static reference: ``e_k = (1 - K dt)^k e_0`` to first order in ``e_0``,
+    so the error enters the band ``tol`` after ``ln(tol / e_0) / ln(1 - K dt)`` steps."""
+    ref = reference([INSIDE, INSIDE], "position", duration=0.5, hold=1.5)
+    run = simulate(PseudoInverseController(ARM, DT, "position", gain=10.0), ref, INSIDE + [1e-4, 1e-3, 0, 0, 0, 0])
+    e0 = run.position_error[0]
+    tolerance = 1e-3 * e0
+    expected = np.log(tolerance / e0) / np.log(1 - 10.0 * DT) * DT
+    assert run.settling_time(0.0, tolerance) == pytest.approx(expected, abs=1.5 * DT)
+    assert run.settling_time(0.0, 1e-30) is None  # not settled by the end: the time-out
+    assert run.settling_time(1.0, tolerance) == 0.0  # inside from about 0.68 s on
+    assert run.settling_time(0.5, tolerance) == pytest.approx(expected - 0.5, abs=1.5 * DT)

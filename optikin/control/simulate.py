@@ -146,6 +146,36 @@ class TrackingRun:
             return None
         return quat_angle(quat_multiply(quat_conjugate(self.reference.orientation), dq_rotation(self.x)))
 
+    def settling_time(self, after: float, position: float, orientation: float | None = None) -> float | None:
+        """Seconds from ``after`` until the errors enter a band they keep to the end of the run.
+
+        Parameters
+        ----------
+        after:
+            Start of the count [s], e.g. the end of a disturbance.
+        position:
+            Half-width of the band on the position error [m].
+        orientation:
+            Half-width on the orientation error [rad] (pose task; ``None``: position only).
+
+        Returns
+        -------
+        float or None
+            ``t_s - after`` with ``t_s`` the first sample at or after ``after`` from which every
+            error stays in the band; ``None`` when the last sample is outside it (not settled
+            by the end of the run, the time-out).
+        """
+        inside = self.position_error <= position
+        angle = self.orientation_error
+        if angle is not None and orientation is not None:
+            inside &= angle <= orientation
+        first = int(np.searchsorted(self.t, after - 1e-9 * self.reference.dt))
+        if first >= len(self.t) or not inside[-1]:
+            return None
+        outside = np.flatnonzero(~inside[first:])
+        k = first if outside.size == 0 else first + int(outside[-1]) + 1
+        return float(self.t[k] - after)
+
     @property
     def excess(self) -> np.ndarray:
         """How far each sample's configuration lies outside the limits, ``(N, n)``."""

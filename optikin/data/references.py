@@ -12,6 +12,19 @@
     (:mod:`optikin.dmp.pose`) and its roll-out, differentiated by central
     differences, is the reference; the run starts from the interface's first
     configuration.
+``kinect-dmp``
+    The chain of Seleem et al. 2020 section IV and Figs. 26-27: a Kinect v2
+    right-wrist recording at 30 frames per second
+    (:func:`optikin.data.demonstrations.kinect_recording`, seeded by
+    ``data.seed``), calibrated into a workspace cube and smoothed by the
+    moving-average filter of eq. (31) there, learned by a translation DMP
+    (:class:`optikin.dmp.DMP` on :class:`optikin.dmp.Euclidean` ``(3)``) whose
+    roll-out at the control rate, differentiated by central differences, is
+    the tip-position reference. The seed's 36 cm cube does not fit in the
+    reachable shell of two 18 cm CC sections, so the cube's edge and centre are
+    parameters (default: 10 cm about (0.18, 0, 0.26) m, inside it). The run
+    starts from a configuration whose tip is the reference's first point
+    (bounded least squares from a fixed set of starts).
 
 Each loader returns a :class:`TrackingReference`: the reference at the control
 rate and the configuration the run starts from (before ``options.start`` and
@@ -26,13 +39,16 @@ from typing import Literal
 
 import numpy as np
 from pydantic import Field, PositiveFloat
+from scipy.optimize import least_squares
 
 from optikin.algebra import dq_from_rotation_translation, quat_hemisphere_continuous
 from optikin.arms.base import ArmModel
 from optikin.arms.constant_curvature import ConstantCurvatureArm
+from optikin.control.limits import wrap_periodic
 from optikin.control.reference import Reference, minimum_jerk_path, reference_from_configurations
-from optikin.data.demonstrations import imu_interface_recording
+from optikin.data.demonstrations import imu_interface_recording, kinect_recording
 from optikin.data.sources import register_source
+from optikin.dmp import DMP, Euclidean
 from optikin.dmp.pose import PoseVariant, from_variant, pose_dmp, to_variant
 from optikin.errors import SpecError
 from optikin.options import Options
@@ -77,6 +93,27 @@ class DmpParams(ReferenceParams):
     hold: float = Field(1.0, ge=0.0, description="seconds rolled out after the demonstration's duration [s]")
     smoothing: PositiveFloat | None = Field(
         2.5, description="cut-off of the demonstration smoother [Hz]; null for none"
+    )
+
+
+class KinectDmpParams(Options):
+    """A translation DMP learned from the filtered Kinect wrist recording, rolled out at the control rate."""
+
+    task: Literal["position"] = Field("position", description="the tip position (3 rows): the wrist gives no pose")
+    rate: float = Field(100.0, ge=100.0, le=1000.0, description="control rate [Hz]")
+    demonstration_samples: int = Field(300, ge=10, description="Kinect frames recorded")
+    frame_rate: PositiveFloat = Field(30.0, description="Kinect frame rate [frames/s]")
+    via_points: int = Field(3, ge=0, description="random via points of the wrist path")
+    position_noise: float = Field(0.008, ge=0.0, description="skeleton jitter of the wrist per axis [m]")
+    window: int = Field(5, ge=1, description="samples M of the moving average of eq. (31)")
+    cube_edge: PositiveFloat = Field(0.10, description="edge of the cube the wrist is scaled into [m]")
+    workspace_centre: tuple[float, float, float] = Field(
+        (0.18, 0.0, 0.26), description="centre of that cube in the arm's base frame [m]"
+    )
+    basis: int = Field(30, ge=2, description="basis functions of the DMP")
+    hold: float = Field(1.0, ge=0.0, description="seconds rolled out after the demonstration's duration [s]")
+    smoothing: PositiveFloat | None = Field(
+        None, description="cut-off of the DMP's own demonstration smoother [Hz]; null: the moving average only"
     )
 
 
@@ -132,3 +169,79 @@ def dmp_reference(arm: ArmModel, data: DataSpec, params: DmpParams, path: Path) 
     )
     reference = Reference(rollout.t, value, np.gradient(value, rollout.t, axis=0), params.task)
     return TrackingReference(reference, recording.configuration[0])
+
+
+@register_source(
+    "references",
+    "kinect-dmp",
+    "roll-out of a translation DMP learned from the filtered Kinect wrist recording",
+    params=KinectDmpParams,
+)
+def kinect_dmp_reference(arm: ArmModel, data: DataSpec, params: KinectDmpParams, path: Path) -> TrackingReference:
+    """Kinect wrist -> moving average (eq. 31) -> DMP -> tip-position reference; the start reaches its first point.
+
+    Raises
+    ------
+    SpecError
+        Naming ``data.params.workspace_centre`` when no configuration within the limits reaches
+        the reference's first point to 0.1 mm (the cube lies outside the arm's workspace there).
+    """
+    recording = kinect_recording(
+        samples=params.demonstration_samples,
+        rate=params.frame_rate,
+        seed=data.seed,
+        via_points=params.via_points,
+        position_noise=params.position_noise,
+        window=params.window,
+        cube_edge=params.cube_edge,
+        workspace_centre=params.workspace_centre,
+    )
+    dmp = DMP(Euclidean(3), params.basis, smoothing=params.smoothing)
+    dmp.imitate(recording.t, recording.filtered_position, source="filtered Kinect wrist")
+    rollout = dmp.rollout(dmp.tau + params.hold, dt=1.0 / params.rate)
+    value = np.asarray(rollout.y, dtype=float)
+    reference = Reference(rollout.t, value, np.gradient(value, rollout.t, axis=0), "position")
+    start, miss = configuration_reaching(arm, value[0])
+    if miss > 1e-4:
+        raise SpecError(
+            str(path),
+            "data.params.workspace_centre",
+            f"no configuration within the limits reaches the first reference point {np.round(value[0], 4).tolist()} m "
+            f"(closest {miss * 1e3:.3g} mm off): move the cube into the arm's workspace or make it smaller",
+        )
+    return TrackingReference(reference, start)
+
+
+def configuration_reaching(arm: ArmModel, position: np.ndarray, starts: int = 20) -> tuple[np.ndarray, float]:
+    """A configuration within the limits whose tip is closest to ``position`` (bounded least squares).
+
+    Parameters
+    ----------
+    arm:
+        The arm (its ``fk_position`` Function and bounds; periodic variables unbounded).
+    position:
+        ``(3,)`` target tip position [m].
+    starts:
+        Starting configurations, drawn once from a fixed seed (``arm.sample_configurations``).
+
+    Returns
+    -------
+    tuple
+        The configuration ``(n,)`` and its tip's distance from ``position`` [m].
+    """
+    lower, upper = arm.lower.copy(), arm.upper.copy()
+    lower[arm.periodic], upper[arm.periodic] = -np.inf, np.inf
+
+    def residual(q: np.ndarray) -> np.ndarray:
+        return arm.evaluate("fk_position", q[None])[0] - position
+
+    best: tuple[np.ndarray, float] | None = None
+    for q0 in arm.sample_configurations(starts, np.random.default_rng(0)):
+        fit = least_squares(residual, q0, bounds=(lower, upper))
+        miss = float(np.linalg.norm(fit.fun))
+        if best is None or miss < best[1]:
+            best = (fit.x, miss)
+        if miss < 1e-9:
+            break
+    assert best is not None
+    return wrap_periodic(best[0], arm.periodic), best[1]

@@ -3,8 +3,10 @@
 The solver under study is the constrained QP per control step
 (:mod:`optikin.control.qp`, any ``qp`` backend preset of :mod:`optikin.solvers.qp`);
 the baselines, run on the same reference, plant and noise draws, are the paper's
-MRAC (``mrac``, :mod:`optikin.baselines.mrac`), the plain pseudo-inverse
-(``pseudo_inverse``) and damped least squares (``damped_least_squares``).
+MRAC (``mrac``, :mod:`optikin.baselines.mrac`) started from the same task gain as
+every other controller, the same MRAC started from the paper's optimised gains
+(``mrac_seed``), the plain pseudo-inverse (``pseudo_inverse``) and damped least
+squares (``damped_least_squares``).
 
 The reference (``data``, family ``references`` of :mod:`optikin.data.references`)
 is either the forward kinematics of a minimum-jerk configuration path (source
@@ -27,7 +29,7 @@ Options (all optional; :class:`~optikin.problems.tracking.options.TrackingOption
 
     start: [..]                  # initial configuration (default: where the reference starts)
     start_offset: [..]           # added to the start
-    gain: 10.0                   # K of the QP, pseudo-inverse and DLS (scalar or one per task row) [1/s]
+    gain: 10.0                   # K of the QP, pseudo-inverse, DLS and (initially) mrac (scalar or per task row) [1/s]
     damping: 1.0e-4              # lambda of the QP and DLS
     rate_limits: {S: 0.1, theta: 3.14159, phi: 6.28319}   # by name or prefix [m/s, rad/s]
     limit_margin: 1.0e-9         # kept from the configuration limits by the QP (scalar or per variable)
@@ -35,7 +37,8 @@ Options (all optional; :class:`~optikin.problems.tracking.options.TrackingOption
     fallback: hold               # hold | damped_least_squares, when the QP solver fails
     compiled: false              # compile the per-step CasADi Function with gcc
     plant: {length_scale: 1.05, disturbance: [..], disturbance_window: [t_on, t_off],
-            configuration_noise: [..], tip_position_noise: 0.0005, tip_angle_noise: 0.005, feedback: tip}
+            configuration_noise: [..], tip_position_noise: 0.0005, tip_angle_noise: 0.005, feedback: tip,
+            physics: {type: cosserat, gravity: true, payload: 0.05, ...}}   # a Cosserat rod plant
     mrac: {gain: [..], adaptation: [..], gain_limit: 100, natural_frequency: 10, damping_ratio: 1}
     tolerance: {position_mm: 0.05, orientation_deg: 0.05}   # convergence check on the last 10 % of the run
 

@@ -71,10 +71,12 @@ class PlantOptions(Options):
 
 
 class MracOptions(Options):
-    """The MRAC baseline (Seleem et al. 2020, eqs. 32-35); null gains take the paper's values for the task."""
+    """The MRAC baselines (Seleem et al. 2020, eqs. 32-35): ``mrac`` from ``gain``, ``mrac_seed`` from the paper's K."""
 
     gain: NonNegativeFloat | list[NonNegativeFloat] | None = Field(
-        None, description="initial K, one value or one per task row [1/s]; null: the paper's optimised K"
+        None,
+        description="initial K of mrac, one value or one per task row [1/s]; null: options.gain, the task gain of "
+        "every controller (baseline mrac_seed starts from the paper's optimised K)",
     )
     adaptation: NonNegativeFloat | list[NonNegativeFloat] | None = Field(
         None,

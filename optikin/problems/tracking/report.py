@@ -6,7 +6,7 @@ from typing import Any
 
 import numpy as np
 
-from optikin.control.simulate import TrackingRun
+from optikin.control.simulate import DEG, MM, TrackingRun
 from optikin.problems import ProblemContext
 from optikin.problems.tracking.options import ToleranceOptions
 from optikin.problems.tracking.run import TrackingOutcome
@@ -20,6 +20,7 @@ COMPARED = {
     "excess S [mm]": "max limit excess S [mm]",
     "excess theta [deg]": "max limit excess theta [deg]",
     "step [us]": "step time median [us]",
+    "settle [s]": "settling time [s]",
 }
 """Columns of the comparison table: short name -> metric of :meth:`TrackingRun.metrics`."""
 
@@ -29,6 +30,9 @@ def result(ctx: ProblemContext, outcome: TrackingOutcome) -> Result:
     runs = outcome.runs
     qp_run = runs["qp"]
     summaries = {name: tracking.metrics() for name, tracking in runs.items()}
+    if outcome.settle_after is not None:
+        for name, tracking in runs.items():
+            summaries[name]["settling time [s]"] = settling_time(tracking, outcome.settle_after, outcome.tolerance)
     comparison = [_row(name, tracking, summaries[name], outcome.tolerance) for name, tracking in runs.items()]
     metrics = summaries["qp"] | {"converged": comparison[0].metrics["converged"]}
     for name, tracking in runs.items():
@@ -46,7 +50,7 @@ def result(ctx: ProblemContext, outcome: TrackingOutcome) -> Result:
         metrics=metrics,
         comparison=comparison,
         arrays=arrays(outcome),
-        notes=missed + notes(runs, summaries),
+        notes=missed + notes(runs, summaries, outcome.settle_after),
         criteria=criteria,
     )
 
@@ -55,6 +59,11 @@ def _row(name: str, tracking: TrackingRun, full: dict[str, Any], tolerance: Tole
     row = {short: full[key] for short, key in COMPARED.items() if key in full}
     row["converged"] = converged(full, tolerance)
     return MethodRow(tracking.controller, "solver" if name == "qp" else "baseline", row)
+
+
+def settling_time(tracking: TrackingRun, after: float, tolerance: ToleranceOptions) -> float | None:
+    """Seconds from ``after`` until the errors stay within ``options.tolerance`` to the end; ``None``: never."""
+    return tracking.settling_time(after, tolerance.position_mm / MM, tolerance.orientation_deg / DEG)
 
 
 def converged(metrics: dict[str, Any], tolerance: ToleranceOptions) -> bool:
@@ -131,8 +140,10 @@ def arrays(outcome: TrackingOutcome) -> dict[str, np.ndarray]:
     return out
 
 
-def notes(runs: dict[str, TrackingRun], summaries: dict[str, dict[str, Any]]) -> list[str]:
-    """QP failures, excursions outside the limits, and MRAC gain saturation, in words."""
+def notes(
+    runs: dict[str, TrackingRun], summaries: dict[str, dict[str, Any]], settle_after: float | None = None
+) -> list[str]:
+    """QP failures, rod-plant notes, excursions outside the limits, MRAC gain saturation, settling, in words."""
     out = []
     qp_run = runs["qp"]
     failed = [(t, s) for t, s in zip(qp_run.t, qp_run.status) if s != "ok"]
@@ -156,6 +167,11 @@ def notes(runs: dict[str, TrackingRun], summaries: dict[str, dict[str, Any]]) ->
                 f"{tracking.controller}: outside the configuration limits on {m['samples outside limits']} "
                 f"steps ({m['steps the controller kept or took outside']} by its own command); "
                 f"farthest: {worst}"
+            )
+        if settle_after is not None and m.get("settling time [s]") is None:
+            out.append(
+                f"{tracking.controller}: not settled within the tolerance by the end of the run, "
+                f"{tracking.t[-1] - settle_after:.3g} s after the disturbance ended"
             )
         if m.get("gain saturation steps"):
             out.append(

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from optikin.arms.constant_curvature import ConstantCurvatureArm
-from optikin.baselines.mrac import MRACController
+from optikin.baselines.mrac import MRACController, SeedGainMRACController
 from optikin.baselines.pseudo_inverse import DampedLeastSquaresController, PseudoInverseController
 from optikin.control.base import Controller
 from optikin.control.qp import QPController
@@ -23,6 +23,7 @@ from optikin.solvers.base import QPBackend
 
 BASELINES: dict[str, type[Controller]] = {
     "mrac": MRACController,
+    "mrac_seed": SeedGainMRACController,
     "pseudo_inverse": PseudoInverseController,
     "damped_least_squares": DampedLeastSquaresController,
 }
@@ -43,12 +44,15 @@ class TrackingOutcome:
         Seconds each run took, per name.
     tolerance:
         The convergence check of ``options.tolerance``.
+    settle_after:
+        When the plant's disturbance ends [s] (settling times are counted from it); ``None`` without one.
     """
 
     reference: Reference
     runs: dict[str, TrackingRun]
     wall: dict[str, float]
     tolerance: ToleranceOptions
+    settle_after: float | None = None
 
 
 def run(ctx: ProblemContext) -> TrackingOutcome:
@@ -71,7 +75,9 @@ def run(ctx: ProblemContext) -> TrackingOutcome:
             runs[name] = simulate(controller, reference, q0, plant, seed=ctx.spec.data.seed)
             wall[name] = time.perf_counter() - start
             advance()
-    return TrackingOutcome(reference, runs, wall, options.tolerance)
+    off = plant.disturbance_window[1]
+    settle_after = off if plant.disturbance is not None and off <= reference.t[-1] else None
+    return TrackingOutcome(reference, runs, wall, options.tolerance, settle_after)
 
 
 def _vector(
@@ -178,7 +184,11 @@ def _controllers(ctx: ProblemContext, options: TrackingOptions, dt: float, task:
         }
         for name in ctx.spec.baselines:
             if name == "mrac":
-                controllers[name] = MRACController(arm, dt, task, **o.mrac.model_dump(), compiled=compiled)
+                mrac = o.mrac.model_dump() | {"gain": o.gain if o.mrac.gain is None else o.mrac.gain}
+                controllers[name] = MRACController(arm, dt, task, **mrac, compiled=compiled)
+            elif name == "mrac_seed":
+                seed = o.mrac.model_dump(exclude={"gain"})
+                controllers[name] = SeedGainMRACController(arm, dt, task, **seed, compiled=compiled)
             elif name == "damped_least_squares":
                 controllers[name] = DampedLeastSquaresController(arm, dt, task, o.gain, o.damping, compiled=compiled)
             else:
