@@ -138,9 +138,11 @@ def _cmd_solve(args: argparse.Namespace) -> int:
     from optikin.runner import solve
 
     from optikin.errors import SpecError
+    from optikin.spec import parse_override
 
     if not args.out.strip():
         raise SpecError("--out", "", "an empty output folder is not accepted (give a folder, e.g. results)")
+    overrides = [parse_override(text) for text in args.set or []]
     _headless_figures()
     result, written = solve(
         args.problem,
@@ -149,6 +151,7 @@ def _cmd_solve(args: argparse.Namespace) -> int:
         figures=not args.no_figures,
         progress=Progress(enabled=not args.json),
         notify=lambda line: print(f"optikin: {line}", file=sys.stderr),
+        overrides=overrides,
     )
     if args.json:
         print(json.dumps(result.summary(), indent=2))
@@ -215,6 +218,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default="results", help="output folder (default: ./results)")
     p.add_argument("--json", action="store_true", help="print the result summary as JSON")
     p.add_argument("--no-figures", action="store_true", help="skip drawing figures")
+    p.add_argument(
+        "--set",
+        action="append",
+        metavar="FIELD=VALUE",
+        help="override a field of the problem file (dotted, e.g. data.seed=3 or options.noise=0.001; "
+        "the value is YAML); validated like the file; repeatable",
+    )
     p.set_defaults(run=_cmd_solve)
 
     p = sub.add_parser("plot", help="redraw the figures of a written result from its arrays, without solving")

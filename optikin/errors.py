@@ -6,6 +6,8 @@ line prints its message and exits non-zero.
 
 from __future__ import annotations
 
+import difflib
+
 from os import PathLike
 
 
@@ -28,7 +30,10 @@ class UnknownNameError(OptikinError):
     def __init__(self, what: str, name: str, known: list[str] | tuple[str, ...]) -> None:
         self.what, self.name, self.known = what, name, sorted(known)
         choices = ", ".join(self.known) if self.known else "none registered"
-        super().__init__(f"unknown {what} {name!r}; known: {choices}")
+        close = difflib.get_close_matches(name, self.known, n=1)
+        self.suggestion = close[0] if close else None
+        hint = f"did you mean {self.suggestion!r}? " if self.suggestion else ""
+        super().__init__(f"unknown {what} {name!r}; {hint}known: {choices}")
 
 
 class InputDataError(OptikinError):

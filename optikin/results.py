@@ -90,6 +90,8 @@ class Result:
     criteria: dict[str, bool] = field(default_factory=dict)
     """Run-level success criteria the kind states (e.g. a tracking run converged), by name:
     met or not; a note says by how much one was missed."""
+    provenance: dict[str, Any] = field(default_factory=dict)
+    """What the run solved and where (:func:`optikin.provenance.provenance_of`), set by the runner."""
 
     def __post_init__(self) -> None:
         unknown = sorted(set(self.status) - set(STATUSES))
@@ -128,6 +130,7 @@ class Result:
             "metrics": self.metrics,
             "comparison": [row.__dict__ for row in self.comparison],
             "notes": self.notes,
+            "provenance": self.provenance,
         }
         if self.iterations is not None:
             out["iterations"] = _stats(self.iterations)

@@ -13,8 +13,9 @@ on ``data.samples`` too (exit 2), not a traceback.
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
-from typing import Callable
+from typing import Any, Callable, Sequence
 
 from optikin.arms import build_arm
 from optikin.data.sources import source_of
@@ -22,6 +23,7 @@ from optikin.errors import SpecError, UnknownNameError
 from optikin.options import validate_options
 from optikin.problems import ProblemContext, ProblemKind, load_kinds
 from optikin.progress import SILENT, Progress
+from optikin.provenance import now, provenance_of
 from optikin.registry import PROBLEM_KINDS
 from optikin.resources import check_memory
 from optikin.results import Result, write_result
@@ -89,15 +91,20 @@ def _check_arrays(spec: ProblemSpec, path: Path, result: Result) -> None:
 
 
 def prepare(
-    problem: str, solver: str | None = None, progress: Progress = SILENT, notify: Callable[[str], None] | None = None
+    problem: str,
+    solver: str | None = None,
+    progress: Progress = SILENT,
+    notify: Callable[[str], None] | None = None,
+    overrides: Sequence[tuple[str, Any]] = (),
 ) -> tuple[ProblemKind, ProblemContext]:
     """Everything :func:`solve` checks and builds before the run: the kind and its context.
 
     ``notify`` receives one line for each file used that is not one of optikin's own
-    (:func:`optikin.spec.provenance`).
+    (:func:`optikin.spec.provenance`); ``overrides`` are ``(dotted field, value)`` pairs set in the
+    problem file before it is validated (:func:`optikin.spec.apply_overrides`).
     """
     load_backends()
-    spec, path = load_problem(problem)
+    spec, path = load_problem(problem, overrides)
     _tell(notify, provenance(problem, path, "problems"))
     kind = kind_of(spec, path)
     _check_baselines(spec, path, kind)
@@ -137,6 +144,7 @@ def solve(
     figures: bool = True,
     progress: Progress = SILENT,
     notify: Callable[[str], None] | None = None,
+    overrides: Sequence[tuple[str, Any]] = (),
 ) -> tuple[Result, Path | None]:
     """Solve a named problem (or a path to one); returns the Result and where it was written.
 
@@ -154,10 +162,14 @@ def solve(
         Progress reporter for long runs.
     notify:
         Receives one line per file used that is not one of optikin's own.
+    overrides:
+        ``(dotted field, value)`` pairs set in the problem file before validation (``--set``).
     """
-    kind, ctx = prepare(problem, solver, progress, notify)
+    kind, ctx = prepare(problem, solver, progress, notify, overrides)
     try:
+        started, clock = now(), time.perf_counter()
         result = kind.run(ctx)
+        result.provenance = provenance_of(ctx, started, time.perf_counter() - clock)
         _check_arrays(ctx.spec, ctx.path, result)
         written = None
         if out is not None:

@@ -33,10 +33,11 @@ A solver preset::
 
 from __future__ import annotations
 
+import copy
 import os
 from importlib import resources
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Literal, Sequence
 
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
@@ -234,10 +235,47 @@ def _validate(model: type[BaseModel], data: dict[str, Any], path: Path) -> Any:
         raise spec_error(path, exc) from None
 
 
-def load_problem(name_or_path: str) -> tuple[ProblemSpec, Path]:
-    """Read and validate a problem file; returns the spec and the file it came from."""
+def parse_override(text: str) -> tuple[str, Any]:
+    """``"data.seed=3"`` -> ``("data.seed", 3)``: a dotted field and a YAML value (read safely).
+
+    Raises
+    ------
+    SpecError
+        Without ``=``, with an empty field, or with a value that is not YAML.
+    """
+    field, sep, value = text.partition("=")
+    field = field.strip()
+    if not sep or not field or any(not part for part in field.split(".")):
+        raise SpecError("--set", field, f"expected FIELD=VALUE with a dotted field, got {text!r}")
+    try:
+        return field, yaml.safe_load(value) if value.strip() else None
+    except yaml.YAMLError as exc:
+        raise SpecError("--set", field, f"value {value!r} is not YAML: {exc}") from None
+
+
+def apply_overrides(data: dict[str, Any], overrides: Sequence[tuple[str, Any]], path: Path) -> dict[str, Any]:
+    """A copy of the file's mapping ``data`` with each ``(dotted field, value)`` set, creating mappings on
+    the way; the result is validated like the file itself, so a misspelt field is reported by name."""
+    out = copy.deepcopy(data)
+    for field, value in overrides:
+        parts = field.split(".")
+        node = out
+        for depth, part in enumerate(parts[:-1]):
+            child = node.get(part)
+            if child is None:
+                child = node[part] = {}
+            if not isinstance(child, dict):
+                raise SpecError(path, ".".join(parts[: depth + 1]), f"--set {field}: not a mapping in the file")
+            node = child
+        node[parts[-1]] = value
+    return out
+
+
+def load_problem(name_or_path: str, overrides: Sequence[tuple[str, Any]] = ()) -> tuple[ProblemSpec, Path]:
+    """Read and validate a problem file, with ``overrides`` (:func:`apply_overrides`) set first; returns
+    the spec and the file it came from."""
     path = resolve(name_or_path, "problems")
-    spec = _validate(ProblemSpec, _read_yaml(path), path)
+    spec = _validate(ProblemSpec, apply_overrides(_read_yaml(path), overrides, path), path)
     if spec.name != path.stem:
         raise SpecError(path, "name", f"{spec.name!r} differs from the file name {path.stem!r}")
     return spec, path
