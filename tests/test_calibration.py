@@ -137,6 +137,22 @@ def test_missing_markers_and_per_marker_offsets():
     assert np.nanmedian(cal.fit.errors) < 0.3e-3
 
 
+def test_a_linear_map_from_tendon_lengths_predicts_held_out_postures():
+    rec = recording(200, seed=0, actuator_noise=1e-5)
+    readings = np.column_stack([rec.actuators[k] for k in sorted(rec.actuators)])
+    cal = calibrate(rec.marker_array(NAMES), [0.1, 0.1, 0.1], [1, 2, 3], NAMES, actuators=readings)
+    assert cal.fit.X.shape == (200, 0)  # no per-posture unknowns
+    assert np.abs(cal.lengths - TRUE_LENGTHS).max() < 0.5e-3
+    assert np.linalg.norm(cal.base_position - BASE) < 1e-3
+    assert tilt_error_deg(cal.base_rotation) < 0.5
+    # the bends predicted from the tendons alone match the truth (Webster & Jones 2010 eq. 20 is linear in them)
+    theta = cal.configurations()[:, 1::3]
+    assert np.abs(theta - rec.truth.configurations[:, 1::3]).max() < 0.02
+    # held out: a prediction from the readings, near the marker noise (0.3 mm per coordinate)
+    test = held_out(cal, "kfold", 5)
+    assert test.rms < 2.0 * np.sqrt(3) * 0.3e-3
+
+
 def test_the_kind_writes_an_arm_section_other_problems_can_use(tmp_path: Path):
     source = Path(__file__).resolve().parent.parent / "problems" / "trunk-calibrate.yaml"
     data = yaml.safe_load(source.read_text())
@@ -174,7 +190,9 @@ def test_the_kind_writes_an_arm_section_other_problems_can_use(tmp_path: Path):
     assert np.abs(markers.tip_position - rec["measured"][kept, 2]).max() < 2e-3
 
 
-@pytest.mark.parametrize("name", ["trunk-calibrate", "trunk-calibrate-motive", "trunk-ik", "trunk-ph-shape"])
+@pytest.mark.parametrize(
+    "name", ["trunk-calibrate", "trunk-calibrate-motive", "trunk-calibrate-tendons", "trunk-ik", "trunk-ph-shape"]
+)
 def test_the_trunk_workflow_problems_run(name, tmp_path: Path):
     result, _ = solve(name, out=tmp_path)
     assert result.succeeded
@@ -190,3 +208,7 @@ def test_the_trunk_workflow_problems_run(name, tmp_path: Path):
         assert np.allclose(m["base position [mm]"], [0.0, 0.0, 1200.0], atol=1e-6)
         assert np.allclose(m["base axis (z) in the recording frame"], [0.0, 0.0, -1.0], atol=1e-6)
         assert any("swap" in n for n in result.notes)
+    if name == "trunk-calibrate-tendons":
+        m = result.metrics
+        assert m["max section length error [mm]"] < 0.5 and m["base position error [mm]"] < 1.0
+        assert m["corrupted postures rejected"] == "6/6" and m["clean postures rejected"] == 0

@@ -82,6 +82,11 @@ class Calibration:
         Names of the shared parameters.
     seconds : float
         Wall time of the whole calibration.
+    start : numpy.ndarray
+        The shared parameters the fit started from.
+    actuators, actuator_reference : numpy.ndarray or None
+        With an actuator map: every posture's readings minus the reference ``(N, n_a)``, and the
+        reference (their mean) ``(n_a,)``.
     """
 
     fit: Fit
@@ -93,6 +98,8 @@ class Calibration:
     marker_names: list[str]
     seconds: float
     start: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    actuators: np.ndarray | None = None
+    actuator_reference: np.ndarray | None = None
 
     @property
     def layout(self) -> Layout:
@@ -103,7 +110,7 @@ class Calibration:
         """Section lengths [m]: shared, or for an extensible arm the median over the postures."""
         lay = self.layout
         if lay.extensible:
-            return np.median(self.fit.X[:, 2 * lay.n_sections :], axis=0)
+            return np.median(self.fit.X[:, -lay.n_sections :], axis=0)
         return self.fit.beta[lay.lengths]
 
     @property
@@ -112,7 +119,7 @@ class Calibration:
         lay = self.layout
         if not lay.extensible:
             return np.repeat(self.lengths[:, None], 2, axis=1)
-        S = self.fit.X[:, 2 * lay.n_sections :]
+        S = self.fit.X[:, -lay.n_sections :]
         return np.stack([S.min(axis=0), S.max(axis=0)], axis=1)
 
     @property
@@ -129,13 +136,31 @@ class Calibration:
         """``(M, 3)`` marker offsets in their disk's frame [m]."""
         return self.fit.beta[self.layout.offsets].reshape(-1, 3)
 
+    @property
+    def actuator_map(self) -> tuple[np.ndarray, np.ndarray]:
+        """``K (2 m, n_a)`` and ``k0 (2 m,)``: bending vectors ``K (a - a_ref) + k0`` [rad, rad per reading unit]."""
+        lay = self.layout
+        coefficients = self.fit.beta[lay.actuator_map]
+        rows = 2 * lay.n_sections
+        return coefficients[: rows * lay.n_actuators].reshape(rows, lay.n_actuators), coefficients[
+            rows * lay.n_actuators :
+        ]
+
     def configurations(self, X: np.ndarray | None = None) -> np.ndarray:
-        """``(N, 3 m)`` ``(S, theta, phi)`` per section of the kept postures (or of the per-posture variables ``X``),
-        in the arm's convention (:mod:`optikin.arms.constant_curvature`)."""
+        """``(N, 3 m)`` ``(S, theta, phi)`` per section of the kept postures (or of the per-posture variables ``X``
+        of the kept or of all postures), in the arm's convention (:mod:`optikin.arms.constant_curvature`)."""
         X = self.fit.X if X is None else X
-        m = self.layout.n_sections
-        u, v = X[:, 0 : 2 * m : 2], X[:, 1 : 2 * m : 2]
-        S = X[:, 2 * m :] if self.layout.extensible else np.broadcast_to(self.lengths, u.shape)
+        lay = self.layout
+        m = lay.n_sections
+        if lay.actuated:
+            a = self.problem.actuators if len(X) == len(self.kept) else self.actuators
+            assert a is not None
+            K, k0 = self.actuator_map
+            bending, lengths = a @ K.T + k0, X
+        else:
+            bending, lengths = X[:, : 2 * m], X[:, 2 * m :]
+        u, v = bending[:, 0::2], bending[:, 1::2]
+        S = lengths if lay.extensible else np.broadcast_to(self.lengths, u.shape)
         return np.stack([S, np.hypot(u, v), np.arctan2(v, u)], axis=-1).reshape(len(X), 3 * m)
 
     def std(self, name: str) -> float:
@@ -197,14 +222,15 @@ def reference_orientation(axis: np.ndarray) -> np.ndarray:
 def chord_configurations(
     measured: np.ndarray, layout: Layout, lengths: np.ndarray, base: np.ndarray, R0: np.ndarray
 ) -> np.ndarray:
-    """Each posture's bending vectors (and lengths, when extensible) from its chords (module docstring).
+    """Each posture's bending vectors (and lengths, when extensible) from its chords (module docstring):
+    ``(N, 2 m)``, or ``(N, 3 m)`` for an extensible arm (:func:`per_posture` takes a layout's unknowns).
 
     A section whose end disk was not measured starts straight, and the chain continues from its
     predicted end.
     """
     N, m = len(measured), layout.n_sections
     disk = {s: j for j, s in enumerate(layout.marker_sections)}
-    X = np.zeros((N, layout.n_x))
+    X = np.zeros((N, (3 if layout.extensible else 2) * m))
     R = np.broadcast_to(R0, (N, 3, 3)).copy()
     p = np.broadcast_to(base, (N, 3)).copy()
     for i in range(m):
@@ -231,6 +257,12 @@ def chord_configurations(
     return X
 
 
+def per_posture(layout: Layout, X: np.ndarray) -> np.ndarray:
+    """The per-posture unknowns of ``layout`` from bending vectors (and lengths) ``X (N, 2 m [+ m])``: all of
+    them, or with an actuator map only the lengths of an extensible arm."""
+    return X[:, 2 * layout.n_sections :] if layout.actuated else X
+
+
 def calibrate(
     measured: np.ndarray,
     lengths: Sequence[float],
@@ -248,6 +280,7 @@ def calibrate(
     offset_sigma: float | None = None,
     initial_offsets: np.ndarray | None = None,
     extensible: bool = False,
+    actuators: np.ndarray | None = None,
     loss: Loss = "soft_l1",
     loss_scale: float = 1e-3,
     marker_noise: float = 3e-4,
@@ -288,6 +321,10 @@ def calibrate(
         ``(M, 3)`` starting (or, without ``offsets``, fixed) offsets [m].
     extensible : bool
         Per-posture section lengths instead of shared ones.
+    actuators : numpy.ndarray, optional
+        ``(N, n_a)`` actuator readings (finite): the bending vectors become a linear map of them
+        (:mod:`optikin.calibration.model`), estimated with the geometry, started from a linear fit
+        to the postures' own bending vectors.
     loss, loss_scale : str, float
         Robust loss and its scale [m] (:mod:`optikin.calibration.solver`).
     marker_noise : float
@@ -307,7 +344,14 @@ def calibrate(
     N, M, _ = measured.shape
     marker_sections = tuple(int(s) for s in marker_sections)
     lengths0 = np.asarray(lengths, dtype=float)
-    layout = Layout(len(lengths0), marker_sections, extensible)
+    readings, reference = None, None
+    if actuators is not None:
+        readings = np.asarray(actuators, dtype=float)
+        if readings.ndim != 2 or len(readings) != N or not np.all(np.isfinite(readings)):
+            raise ValueError(f"actuators: expected finite readings of shape ({N}, n_a), got {readings.shape}")
+        reference = readings.mean(axis=0)
+        readings = readings - reference
+    layout = Layout(len(lengths0), marker_sections, extensible, 0 if readings is None else readings.shape[1])
     names = layout.beta_names()
     model = marker_model(layout)
     unknown = set(fix) - set(BASE_FIELDS)
@@ -332,6 +376,7 @@ def calibrate(
     rotation_free = np.array(["tilt" not in fix, "tilt" not in fix, estimate_yaw and "yaw" not in fix])
     free[layout.rotation] = rotation_free
     free[layout.offsets] = offsets
+    free[layout.actuator_map] = True
     prior_mean = beta0.copy()
     prior_sigma = np.full(layout.n_beta, np.inf)
     if position_sigma is not None:
@@ -340,13 +385,29 @@ def calibrate(
         prior_sigma[layout.rotation] = orientation_sigma
     if offset_sigma is not None:
         prior_sigma[layout.offsets] = offset_sigma
-    problem = Problem(model, measured, ref, free, prior_mean, prior_sigma, loss, loss_scale, marker_noise)
-
     X0 = chord_configurations(measured, layout, lengths0, p0, ref)
+    free_layout = Layout(layout.n_sections, marker_sections, extensible)
     held = Problem(
-        model, measured, ref, np.zeros_like(free), prior_mean, prior_sigma, "linear", loss_scale, marker_noise
+        marker_model(free_layout),
+        measured,
+        ref,
+        np.zeros(free_layout.n_beta, dtype=bool),
+        prior_mean[: free_layout.n_beta],
+        prior_sigma[: free_layout.n_beta],
+        "linear",
+        loss_scale,
+        marker_noise,
     )
-    X0 = solve(held, X0, beta0, min(max_iterations, SCREENING_ITERATIONS), SCREENING_TOLERANCE, 1e-8).X
+    X0 = solve(
+        held, X0, beta0[: free_layout.n_beta], min(max_iterations, SCREENING_ITERATIONS), SCREENING_TOLERANCE, 1e-8
+    ).X
+    if readings is not None:
+        design = np.column_stack([readings, np.ones(N)])
+        W = np.linalg.lstsq(design, X0[:, : 2 * layout.n_sections], rcond=None)[0]  # (n_a + 1, 2 m)
+        beta0[layout.actuator_map] = np.concatenate([W[:-1].T.ravel(), W[-1]])
+        prior_mean = beta0.copy()
+    X0 = per_posture(layout, X0)
+    problem = Problem(model, measured, ref, free, prior_mean, prior_sigma, loss, loss_scale, marker_noise, readings)
     robust = solve(problem, X0, beta0, min(max_iterations, SCREENING_ITERATIONS), SCREENING_TOLERANCE, 1e-8)
 
     names_of_markers = list(marker_names) if marker_names is not None else [f"marker{j + 1}" for j in range(M)]
@@ -367,7 +428,17 @@ def calibrate(
         fit = solve(final_problem, X_all[kept], beta, max_iterations, tolerance)
     outliers.sort(key=lambda o: o.posture)
     return Calibration(
-        fit, robust, final_problem, kept, outliers, names, names_of_markers, time.perf_counter() - started, beta0
+        fit,
+        robust,
+        final_problem,
+        kept,
+        outliers,
+        names,
+        names_of_markers,
+        time.perf_counter() - started,
+        beta0,
+        readings,
+        reference,
     )
 
 
@@ -420,11 +491,12 @@ def explaining_swaps(
         "linear",
         problem.loss_scale,
         problem.noise,
+        None if problem.actuators is None else np.repeat(problem.actuators[postures], len(pairs), axis=0),
     )
     lay = problem.model.layout
     R0 = problem.ref @ rotation_from_vector_np(fit.beta[lay.rotation])
-    lengths = fit.beta[lay.lengths] if not lay.extensible else np.median(fit.X[:, 2 * lay.n_sections :], axis=0)
-    X0 = chord_configurations(trials, lay, lengths, fit.beta[lay.position], R0)
+    lengths = fit.beta[lay.lengths] if not lay.extensible else np.median(fit.X[:, -lay.n_sections :], axis=0)
+    X0 = per_posture(lay, chord_configurations(trials, lay, lengths, fit.beta[lay.position], R0))
     worst = np.nanmax(solve(held, X0, fit.beta, 50, 1e-12).errors, axis=1).reshape(len(postures), len(pairs))
     found: list[tuple[int, int, float] | None] = []
     for row in worst:
@@ -449,13 +521,14 @@ def fit_postures(problem: Problem, beta: np.ndarray, X0: np.ndarray | None = Non
         problem.loss,
         problem.loss_scale,
         problem.noise,
+        problem.actuators,
     )
     if X0 is None:
         lengths = beta[lay.lengths] if not lay.extensible else np.full(lay.n_sections, np.nan)
         if lay.extensible:
             raise ValueError("fit_postures on an extensible arm needs starting configurations")
         R0 = problem.ref @ rotation_from_vector_np(beta[lay.rotation])
-        X0 = chord_configurations(problem.measured, lay, lengths, beta[lay.position], R0)
+        X0 = per_posture(lay, chord_configurations(problem.measured, lay, lengths, beta[lay.position], R0))
     return solve(held, X0, beta)
 
 

@@ -68,7 +68,8 @@ def arm_section(calibration: Calibration, nominal: ConstantCurvatureArm) -> dict
 
 
 def calibration_facts(calibration: Calibration, held_out_median: float | None = None) -> dict[str, Any]:
-    """The base pose [m, unit quaternion (w, x, y, z)], marker offsets [m], standard deviations and held-out error."""
+    """The base pose [m, unit quaternion (w, x, y, z)], marker offsets [m], standard deviations of the geometry
+    and the held-out error."""
     names = calibration.names
     std = calibration.fit.std
     facts: dict[str, Any] = {
@@ -78,7 +79,7 @@ def calibration_facts(calibration: Calibration, held_out_median: float | None = 
             name: [round(float(v), 7) for v in offset]
             for name, offset in zip(calibration.marker_names, calibration.offsets)
         },
-        "std": {n: float(f"{s:.3g}") for n, s in zip(names, std) if s > 0},
+        "std": {n: float(f"{s:.3g}") for n, s in zip(names, std) if s > 0 and not n.startswith("map_")},
         "postures_used": int(len(calibration.kept)),
         "postures_rejected": len(calibration.outliers),
         "median_marker_error": float(f"{np.nanmedian(calibration.fit.errors):.4g}"),

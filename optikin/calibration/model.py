@@ -27,6 +27,15 @@ Parameters shared by every posture, in this order (:class:`Layout`): the section
 lengths ``L`` (m; none when the arm is extensible, whose lengths are per posture),
 ``p0`` (3), ``omega`` (3) and the marker offsets (3 per marker). Per posture:
 ``(u_1, v_1, ..., u_m, v_m)`` and, for an extensible arm, ``(S_1, ..., S_m)``.
+
+Where actuator readings ``a`` (``n_a`` channels, e.g. tendon lengths) come with each
+posture, the bending vectors may instead be a linear map of them shared by every posture,
+``(u_1, v_1, ..., u_m, v_m) = K (a - a_ref) + k0`` (``K`` row-major and ``k0`` appended to
+the shared parameters): there are then no per-posture unknowns and every posture is
+predicted from its readings. For a tendon of section ``i`` at radius ``r`` and angle
+``alpha`` the length change is exactly linear in the bending vectors of the sections it
+runs through, ``-r sum_j (u_j cos alpha + v_j sin alpha)`` (Webster & Jones 2010 eq. 20),
+so a linear map is exact for tendons when there are at least ``2 m`` independent ones.
 """
 
 from __future__ import annotations
@@ -126,11 +135,19 @@ class Layout:
         For each marker, the 1-based section whose end disk carries it.
     extensible : bool
         Per-posture section lengths (no shared ``L``).
+    n_actuators : int
+        Actuator channels of the linear map to the bending vectors (0: the bending vectors are
+        per-posture unknowns).
     """
 
     n_sections: int
     marker_sections: tuple[int, ...]
     extensible: bool = False
+    n_actuators: int = 0
+
+    @property
+    def actuated(self) -> bool:
+        return self.n_actuators > 0
 
     @property
     def n_markers(self) -> int:
@@ -138,8 +155,9 @@ class Layout:
 
     @property
     def n_x(self) -> int:
-        """Per-posture variables: ``2 m`` bending components, ``+ m`` lengths when extensible."""
-        return (3 if self.extensible else 2) * self.n_sections
+        """Per-posture variables: ``2 m`` bending components (none with an actuator map), ``+ m`` lengths when
+        extensible."""
+        return (0 if self.actuated else 2 * self.n_sections) + (self.n_sections if self.extensible else 0)
 
     @property
     def lengths(self) -> slice:
@@ -161,18 +179,28 @@ class Layout:
         return slice(start, start + 3 * self.n_markers)
 
     @property
+    def actuator_map(self) -> slice:
+        """``K`` (``2 m x n_a``, row-major) then ``k0`` (``2 m``)."""
+        start = self.offsets.stop
+        return slice(start, start + (2 * self.n_sections * (self.n_actuators + 1) if self.actuated else 0))
+
+    @property
     def n_beta(self) -> int:
-        return self.offsets.stop
+        return self.actuator_map.stop
 
     def beta_names(self) -> list[str]:
         """One name per shared parameter (``L1``, ``base_x``, ``base_rx``, ``m1_dx``, ...)."""
         names = [] if self.extensible else [f"L{i + 1}" for i in range(self.n_sections)]
         names += ["base_x", "base_y", "base_z", "base_rx", "base_ry", "base_rz"]
         names += [f"marker{j + 1}_d{a}" for j in range(self.n_markers) for a in "xyz"]
+        if self.actuated:
+            rows = [f"{c}{i + 1}" for i in range(self.n_sections) for c in ("u", "v")]
+            names += [f"map_{row}_a{j + 1}" for row in rows for j in range(self.n_actuators)]
+            names += [f"map_{row}_0" for row in rows]
         return names
 
     def x_names(self) -> list[str]:
-        names = [f"{c}{i + 1}" for i in range(self.n_sections) for c in ("u", "v")]
+        names = [] if self.actuated else [f"{c}{i + 1}" for i in range(self.n_sections) for c in ("u", "v")]
         if self.extensible:
             names += [f"S{i + 1}" for i in range(self.n_sections)]
         return names
@@ -193,18 +221,26 @@ class MarkerModel:
         self.layout = layout
 
     @cached_property
-    def _symbols(self) -> tuple[ca.SX, ca.SX, ca.SX, ca.SX]:
+    def _symbols(self) -> tuple[ca.SX, ca.SX, ca.SX, ca.SX, ca.SX]:
         lay = self.layout
         x = ca.SX.sym("x", lay.n_x)
         beta = ca.SX.sym("beta", lay.n_beta)
         ref = ca.SX.sym("R_ref", 3, 3)
+        a = ca.SX.sym("a", lay.n_actuators)
         m = lay.n_sections
-        lengths = x[2 * m : 3 * m] if lay.extensible else beta[lay.lengths]
+        if lay.actuated:
+            coefficients = beta[lay.actuator_map]
+            K = ca.reshape(coefficients[: 2 * m * lay.n_actuators], lay.n_actuators, 2 * m).T
+            bending = K @ a + coefficients[2 * m * lay.n_actuators :]
+            lengths = x[0:m] if lay.extensible else beta[lay.lengths]
+        else:
+            bending = x[0 : 2 * m]
+            lengths = x[2 * m : 3 * m] if lay.extensible else beta[lay.lengths]
         R = ref @ rotation_from_vector(beta[lay.rotation])
         p = beta[lay.position]
         ends = []
         for i in range(m):
-            Ri, pi = section_pose(lengths[i], x[2 * i], x[2 * i + 1])
+            Ri, pi = section_pose(lengths[i], bending[2 * i], bending[2 * i + 1])
             p = p + R @ pi
             R = R @ Ri
             ends.append((R, p))
@@ -212,19 +248,13 @@ class MarkerModel:
         markers = [
             ends[s - 1][1] + ends[s - 1][0] @ offsets[3 * j : 3 * j + 3] for j, s in enumerate(lay.marker_sections)
         ]
-        return x, beta, ref, ca.vertcat(*markers)
-
-    @cached_property
-    def positions(self) -> ca.Function:
-        """``(x, beta, R_ref) -> markers (3 M x 1)`` [m] in the measurement frame, marker by marker."""
-        x, beta, ref, out = self._symbols
-        return ca.Function("calibration_markers", [x, beta, ref], [out], ["x", "beta", "R_ref"], ["markers"])
+        return x, beta, ref, a, ca.vertcat(*markers)
 
     def _stacked(self, jacobians: bool) -> ca.Function:
-        """One input ``z = (x, beta, vec R_ref)``, one dense output ``(markers, vec J_x, vec J_beta)``: the form
-        :func:`optikin.batch.batch_evaluate` runs over a batch without copies."""
-        x, beta, ref, out = self._symbols
-        z = ca.vertcat(x, beta, ca.vec(ref))
+        """One input ``z = (x, beta, a, vec R_ref)``, one dense output ``(markers, vec J_x, vec J_beta)``: the
+        form :func:`optikin.batch.batch_evaluate` runs over a batch without copies."""
+        x, beta, ref, a, out = self._symbols
+        z = ca.vertcat(x, beta, a, ca.vec(ref))
         parts = [out]
         if jacobians:
             parts += [ca.vec(ca.densify(ca.jacobian(out, x))), ca.vec(ca.densify(ca.jacobian(out, beta)))]
@@ -242,7 +272,12 @@ class MarkerModel:
         return self._stacked(False)
 
     def evaluate(
-        self, X: np.ndarray, beta: np.ndarray, ref: np.ndarray, jacobians: bool = True
+        self,
+        X: np.ndarray,
+        beta: np.ndarray,
+        ref: np.ndarray,
+        jacobians: bool = True,
+        actuators: np.ndarray | None = None,
     ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
         """Markers and Jacobians of ``N`` postures in one batched call.
 
@@ -256,6 +291,8 @@ class MarkerModel:
             ``(3, 3)`` reference base orientation.
         jacobians : bool
             Whether to compute the Jacobians.
+        actuators : numpy.ndarray, optional
+            ``(N, n_a)`` actuator readings minus their reference, for a layout with an actuator map.
 
         Returns
         -------
@@ -263,10 +300,15 @@ class MarkerModel:
             ``markers (N, 3M)``, and ``J_x (N, 3M, n_x)``, ``J_beta (N, 3M, n_beta)`` (None without jacobians).
         """
         N, lay = len(X), self.layout
-        Z = np.empty((N, lay.n_x + lay.n_beta + 9))
+        na = lay.n_actuators
+        Z = np.empty((N, lay.n_x + lay.n_beta + na + 9))
         Z[:, : lay.n_x] = X
         Z[:, lay.n_x : lay.n_x + lay.n_beta] = beta
-        Z[:, lay.n_x + lay.n_beta :] = np.asarray(ref, dtype=float).ravel(order="F")
+        if na:
+            if actuators is None or np.shape(actuators) != (N, na):
+                raise ValueError(f"the actuator map needs readings of shape ({N}, {na})")
+            Z[:, lay.n_x + lay.n_beta : lay.n_x + lay.n_beta + na] = actuators
+        Z[:, lay.n_x + lay.n_beta + na :] = np.asarray(ref, dtype=float).ravel(order="F")
         f = self.stacked_jacobians if jacobians else self.stacked_positions
         out = batch_evaluate(f, Z)[:, :, 0]
         k = 3 * lay.n_markers

@@ -89,6 +89,8 @@ class Problem:
     noise : float
         Expected marker noise per coordinate [m]: the priors are weighed against the data
         with it (their residuals are ``noise (beta - mu) / sigma``).
+    actuators : numpy.ndarray, optional
+        ``(N, n_a)`` actuator readings minus their reference, for a layout with an actuator map.
     """
 
     model: MarkerModel
@@ -100,6 +102,7 @@ class Problem:
     loss: Loss = "soft_l1"
     loss_scale: float = 1e-3
     noise: float = 3e-4
+    actuators: np.ndarray | None = None
 
     @property
     def seen(self) -> np.ndarray:
@@ -118,6 +121,7 @@ class Problem:
             self.loss,
             self.loss_scale,
             self.noise,
+            None if self.actuators is None else self.actuators[postures],
         )
 
 
@@ -172,7 +176,7 @@ class _State:
 
     def __init__(self, problem: Problem, X: np.ndarray, beta: np.ndarray, jacobians: bool) -> None:
         lay = problem.model.layout
-        markers, self.Jx, self.Jb = problem.model.evaluate(X, beta, problem.ref, jacobians)
+        markers, self.Jx, self.Jb = problem.model.evaluate(X, beta, problem.ref, jacobians, problem.actuators)
         N, M = len(X), lay.n_markers
         seen = problem.seen
         r = markers.reshape(N, M, 3) - np.where(seen[..., None], problem.measured, 0.0)
@@ -217,6 +221,9 @@ def _step(
 ) -> tuple[np.ndarray, np.ndarray]:
     """The damped Gauss-Newton step ``(d_x (N, nx), d_beta (nf,))`` through the Schur complement."""
     nx = A.shape[1]
+    if nx == 0:  # no per-posture unknowns (an actuator map): the shared step alone
+        S = C + lam * (np.diag(np.diag(C)) + 1e-12 * np.eye(len(C)))
+        return np.zeros(gx.shape), -np.linalg.solve(S, gb)
     eye = np.eye(nx)
     Ad = A + lam * (np.diagonal(A, axis1=1, axis2=2)[:, :, None] * eye + 1e-12 * eye)
     rhs = np.concatenate([gx[:, :, None], B], axis=2)
@@ -279,8 +286,9 @@ def solve(
         accepted = stalled = False
         while lam < 1e12:
             dx, db = _step(A, B, C, gx, gb, lam)
-            largest = np.max(np.abs(dx), axis=1, keepdims=True)
-            dx = dx * np.minimum(1.0, MAX_POSTURE_STEP / np.maximum(largest, 1e-300))
+            if dx.shape[1]:
+                largest = np.max(np.abs(dx), axis=1, keepdims=True)
+                dx = dx * np.minimum(1.0, MAX_POSTURE_STEP / np.maximum(largest, 1e-300))
             X_new = X + dx
             beta_new = beta.copy()
             beta_new[free] += db
@@ -355,6 +363,8 @@ def solve_postures(
     Jx, r, w = state.Jx, state.r, state.w
     assert Jx is not None
     eye = np.eye(X.shape[1])
+    if X.shape[1] == 0:
+        active[:] = False  # nothing per posture to solve for: the shared parameters predict every posture
     while active.any() and iterations.max() < max_iterations:
         idx = np.flatnonzero(active)
         W = np.repeat(w[idx], 3, axis=1)
@@ -412,8 +422,11 @@ def _covariance(problem: Problem, state: _State, N: int) -> tuple[np.ndarray, fl
     covariance = np.zeros((n_beta, n_beta))
     if free.any():
         A, B, C, _, _ = _normal_equations(problem, state)
-        Ainv_B = np.linalg.solve(A + 1e-12 * np.eye(A.shape[1]), B)
-        S = C - np.einsum("nki,nkj->ij", B, Ainv_B)
+        if A.shape[1]:
+            Ainv_B = np.linalg.solve(A + 1e-12 * np.eye(A.shape[1]), B)
+            S = C - np.einsum("nki,nkj->ij", B, Ainv_B)
+        else:
+            S = C
         try:
             inverse = np.linalg.inv(S)
         except np.linalg.LinAlgError:

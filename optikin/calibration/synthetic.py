@@ -12,6 +12,10 @@ its own forward kinematics, not the calibration's model) whose geometry is known
   (default: roll 180 degrees, the arm hanging down, tilted by a few degrees);
 * **markers**: one per section end disk, ``disk1`` ... , at ``marker_offsets`` [m] in
   the disk's frame, with isotropic Gaussian noise of ``noise`` [m] per coordinate;
+* **tendons**: three per section, at ``tendon_radius`` from the backbone and angles
+  ``2 pi k / 3``, run from the base to the section's end disk; channel ``tendon_<i><k>``
+  reads the length ``sum_j<=i (S_j - r theta_j cos(phi_j - alpha_k))`` [m] (Webster &
+  Jones 2010 eq. 20), with Gaussian noise of ``actuator_noise`` [m];
 * **glitches**: a fraction ``corrupted_fraction`` of the postures has the labels of two
   of its markers exchanged (a motion-capture label swap), a fraction
   ``missing_fraction`` of the marker samples is NaN (occlusions).
@@ -100,6 +104,8 @@ def synthetic_recording(
     corrupted_fraction: float = 0.0,
     missing_fraction: float = 0.0,
     frame_rate: float = 10.0,
+    tendon_radius: float = 0.01,
+    actuator_noise: float = 0.0,
 ) -> SyntheticRecording:
     """A recording of ``samples`` postures of ``arm`` (module docstring).
 
@@ -127,6 +133,8 @@ def synthetic_recording(
         Share of postures with two labels exchanged, of marker samples missing.
     frame_rate : float
         Postures per second of the time stamps [Hz].
+    tendon_radius, actuator_noise : float
+        Distance of the tendons from the backbone, noise of their length readings [m].
 
     Returns
     -------
@@ -158,10 +166,19 @@ def synthetic_recording(
     if missing_fraction > 0:
         gone = rng.random((samples, m)) < missing_fraction
         measured[gone] = np.nan
+    tendons = {}
+    for i in range(m):
+        for k in range(3):
+            alpha = 2.0 * np.pi * k / 3.0
+            length = np.sum(
+                lengths[: i + 1] - tendon_radius * theta[:, : i + 1] * np.cos(phi[:, : i + 1] - alpha), axis=1
+            )
+            tendons[f"tendon_{i + 1}{k + 1}"] = length + rng.normal(0.0, actuator_noise, size=samples)
     truth = CalibrationTruth(lengths.copy(), p0.copy(), R0.copy(), offsets.copy(), Q, clean, corrupted)
     return SyntheticRecording(
         time=np.arange(samples) / frame_rate,
         markers={f"disk{s + 1}": measured[:, s].copy() for s in range(m)},
+        actuators=tendons,
         source="synthetic",
         truth=truth,
     )
@@ -187,6 +204,8 @@ class SyntheticRecordingParams(Options):
     noise: StrictFloat = Field(0.3e-3, ge=0, description="marker noise per coordinate [m]")
     corrupted_fraction: StrictFloat = Field(0.0, ge=0, le=1, description="share of postures with two labels swapped")
     missing_fraction: StrictFloat = Field(0.0, ge=0, lt=1, description="share of marker samples missing (NaN)")
+    tendon_radius: StrictFloat = Field(0.01, gt=0, description="distance of the tendons from the backbone [m]")
+    actuator_noise: StrictFloat = Field(0.0, ge=0, description="noise of the tendon length readings [m]")
 
 
 @register_source(
@@ -222,4 +241,6 @@ def load_synthetic(
         noise=params.noise,
         corrupted_fraction=params.corrupted_fraction,
         missing_fraction=params.missing_fraction,
+        tendon_radius=params.tendon_radius,
+        actuator_noise=params.actuator_noise,
     )

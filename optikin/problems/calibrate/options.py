@@ -56,6 +56,14 @@ class CalibrateOptions(Options):
         "or fit one length per section and posture (extensible arm: the ranges are reported)",
     )
     base: BaseOptions = Field(default_factory=BaseOptions)
+    actuator_map: Literal["none", "linear"] = Field(
+        "none",
+        description="linear: every posture's bending vectors are a linear map of its actuator readings, estimated "
+        "with the geometry (no per-posture unknowns; the held-out error is then a prediction from the readings)",
+    )
+    actuators: list[str] | None = Field(
+        None, description="the actuator channels of the map (default: every channel of the recording)"
+    )
     offsets: Literal["none", "per_marker"] = Field(
         "none", description="estimate one offset per marker from its disk's centre, in the disk's frame"
     )

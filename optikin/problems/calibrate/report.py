@@ -1,7 +1,8 @@
 """A ``calibrate`` outcome as a :class:`~optikin.results.Result`.
 
 Metrics: the estimates with their standard deviations (section lengths [mm], base
-position [mm], base axis and tilt, marker offsets [mm]), the marker errors of the
+position [mm], base axis and tilt, marker offsets [mm], the actuator map ``K``, ``k0``
+of bending vectors ``K (a - mean a) + k0``), the marker errors of the
 fit and the held-out error (median and RMS [mm]), the rejected postures, the time of
 the calibration and of the held-out test, the calibrated ``arm:`` section and, for a
 synthetic recording, the errors of the estimates against the truth and the held-out
@@ -70,6 +71,10 @@ def estimates(outcome: CalibrateOutcome) -> dict[str, Any]:
     out["base position std [mm]"] = (std[lay.position] * 1e3).round(4).tolist()
     out["base axis (z) in the recording frame"] = cal.base_rotation[:, 2].round(6).tolist()
     out["base tilt std [deg]"] = np.degrees(std[lay.rotation][:2]).round(4).tolist()
+    if lay.actuated:
+        K, k0 = cal.actuator_map
+        out["actuator map K [rad per reading unit]"] = K.round(4).tolist()
+        out["actuator map k0 [rad]"] = k0.round(5).tolist()
     if cal.problem.free[lay.offsets].any():
         out["marker offsets [mm]"] = {n: (o * 1e3).round(3).tolist() for n, o in zip(cal.marker_names, cal.offsets)}
         out["marker offsets std [mm]"] = (std[lay.offsets].reshape(-1, 3) * 1e3).round(4).tolist()
@@ -115,7 +120,7 @@ def result_of(ctx: ProblemContext, outcome: CalibrateOutcome) -> Result:
     outlier[[o.posture for o in cal.outliers]] = True
     X = all_configurations(outcome)
     Q = cal.configurations(X)
-    fitted = cal.problem.model.evaluate(X, cal.fit.beta, cal.problem.ref, False)[0].reshape(N, -1, 3)
+    fitted = cal.problem.model.evaluate(X, cal.fit.beta, cal.problem.ref, False, cal.actuators)[0].reshape(N, -1, 3)
     metrics: dict[str, Any] = {
         "postures": N,
         "markers": ", ".join(f"{n} (section {s})" for n, s in zip(outcome.marker_names, cal.layout.marker_sections)),

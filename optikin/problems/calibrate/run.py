@@ -99,7 +99,7 @@ def solve(ctx: ProblemContext) -> CalibrateOutcome:
     options: CalibrateOptions = ctx.options
     arm = ctx.arm
     if not isinstance(arm, ConstantCurvatureArm):
-        raise ctx.error("arm.type", f"kind calibrate calibrates constant_curvature arms, not {ctx.spec.arm.type!r}")
+        raise ctx.error("arm.type", f"kind calibrate calibrates constant_curvature arms, not {ctx.arm_type!r}")
     recording: Recording = ctx.load_data()
     names, sections, measured = markers_of(ctx, recording, arm.n_sections)
     seen = np.all(np.isfinite(measured), axis=2)
@@ -108,6 +108,23 @@ def solve(ctx: ProblemContext) -> CalibrateOutcome:
             f"{int(seen.sum())} marker samples in {len(measured)} postures are too few to calibrate",
             source=ctx.spec.data.source,
         )
+    readings = None
+    if options.actuator_map == "linear":
+        channels = list(recording.actuators) if options.actuators is None else options.actuators
+        missing = [c for c in channels if c not in recording.actuators]
+        if missing or not channels:
+            raise ctx.error(
+                "options.actuators" if missing else "options.actuator_map",
+                f"no actuator channel {missing[0]!r}; the recording has {sorted(recording.actuators)}"
+                if missing
+                else "the recording has no actuator channels",
+            )
+        readings = np.column_stack([recording.actuators[c] for c in channels])
+        bad = ~np.all(np.isfinite(readings), axis=1)
+        if bad.any():
+            raise InputDataError(
+                "actuator readings must be finite", source=ctx.spec.data.source, sample=int(np.argmax(bad))
+            )
     base = options.base
     rotation = None
     if base.orientation is not None:
@@ -133,6 +150,7 @@ def solve(ctx: ProblemContext) -> CalibrateOutcome:
             offsets=options.offsets == "per_marker",
             offset_sigma=options.offset_sigma,
             extensible=options.lengths == "extensible",
+            actuators=readings,
             loss=options.loss,
             loss_scale=options.loss_scale,
             marker_noise=options.marker_noise,
@@ -151,7 +169,8 @@ def solve(ctx: ProblemContext) -> CalibrateOutcome:
         advance()
     truth = getattr(recording, "truth", None)
     truth_errors = None
-    if isinstance(truth, CalibrationTruth) and not calibration.layout.extensible:
+    lay = calibration.layout
+    if isinstance(truth, CalibrationTruth) and not lay.extensible and not lay.actuated:
         tested = test.fold >= 0
         subset = calibration.problem.subset(np.flatnonzero(tested))
         truth_errors = np.full(test.errors.shape, np.nan)
