@@ -120,3 +120,20 @@ def test_the_targets_source_gives_the_cosserat_tips_as_positions_and_unit_dual_q
     assert np.all((exact.values[:, 2] > 0.25) & (exact.values[:, 2] < 0.5))
     error = np.linalg.norm(measured.values - exact.values, axis=1)
     assert 0 < error.max() < 0.02
+
+
+def test_inverse_statics_reads_the_same_tips_as_targets_without_actuations():
+    from optikin.data.actuations import FAMILY as ACTUATIONS
+    from optikin.data.sources import DATA_SOURCES
+    from optikin.data.targets import FAMILY as TARGETS
+    from optikin.problems import load_kinds
+    from optikin.spec import DataSpec
+
+    load_kinds()
+    data = DataSpec(source="cosserat", seed=2, samples=4)
+    statics, ik = DATA_SOURCES[ACTUATIONS].get("cosserat"), DATA_SOURCES[TARGETS].get("cosserat")
+    arm = type("Arm", (), {"n_config": 6})()
+    for kind in ("position", "pose"):
+        a = statics.load(arm, data, statics.params(), "t.yaml", kind=kind)
+        t = ik.load(arm, data, ik.params(), "t.yaml", kind=kind)
+        assert a.values is None and a.trajectory and np.array_equal(a.targets, t.values)

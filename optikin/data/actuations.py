@@ -14,6 +14,8 @@ arm's bounds (a negative tension is an error naming the sample and the tendon).
 ``csv``         rows of a CSV file, one column per actuator, optional ``t`` (:class:`CsvParams`).
 ``target_csv``  inverse statics only: tip targets read from a CSV file (``x, y, z`` [m], plus
                 ``qw, qx, qy, qz`` for poses, optional ``t``; :func:`optikin.data.targets.read_target_csv`).
+``cosserat``    inverse statics only: tip targets of the Cosserat-rod CBHA along its pressure motion,
+                optionally measured by a depth camera (registered by :mod:`optikin.data.cosserat_sensors`).
 
 A file source reads every row, or the first ``data.samples`` when the problem file
 gives it (the rows left out counted in :attr:`Actuations.skipped_rows`).

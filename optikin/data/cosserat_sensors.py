@@ -36,11 +36,12 @@ What they record:
     the demonstration (a :class:`~optikin.data.demonstrations.PoseDemonstration`); the
     depth camera's tip positions and the truth are kept (:class:`CosseratSensorRecording`,
     parameters :class:`CosseratSensorParams`).
-data source ``cosserat`` of family ``targets`` (registered here; the module is imported by
-:mod:`optikin.problems.statics`, so the source exists once the kinds are loaded)
+data source ``cosserat`` of families ``targets`` and ``actuations`` (registered here; the
+module is imported by :mod:`optikin.problems.statics`, so the sources exist once the kinds are loaded)
     Tip positions or poses (unit dual quaternions) of the Cosserat CBHA along its
-    motion, for the ``ik`` kind: targets that no IK model shares; the positions
-    optionally measured by the depth camera (:class:`CosseratTargetParams`).
+    motion (:func:`cosserat_tips`), for the ``ik`` kind and for inverse ``statics``:
+    targets that no IK model shares; the positions optionally measured by the depth
+    camera (:class:`CosseratTargetParams`).
 """
 
 from __future__ import annotations
@@ -66,6 +67,8 @@ from optikin.arms.constant_curvature import (
     relative_section_quaternions,
     section_angles_from_quaternion,
 )
+from optikin.data.actuations import FAMILY as ACTUATIONS
+from optikin.data.actuations import Actuations
 from optikin.data.cosserat_markers import CosseratMarkerParams, actuation, cosserat_cbha_arm
 from optikin.data.demonstrations import PoseDemonstration
 from optikin.data.markers import tube_fractions
@@ -350,6 +353,7 @@ def cosserat_sensor_recording(
 
     relative = relative_section_quaternions(imu, source=source)
     theta, phi = section_angles_from_quaternion(relative)
+    angles = np.stack([theta, phi], axis=-1)  # (N, 2, 2)
     lengths = params.cbha.section_lengths
     phi = np.unwrap(phi, axis=0)
     q = np.column_stack([np.full(samples, lengths[0]), theta[:, 0], phi[:, 0], np.full(samples, lengths[1])])
@@ -362,7 +366,7 @@ def cosserat_sensor_recording(
         gyro=gyro,
         bias=bias,
         relative=relative,
-        angles=np.stack(section_angles_from_quaternion(relative), axis=-1),
+        angles=angles,
         camera_t=camera_t,
         camera_position=camera_position,
         truth=truth,
@@ -384,6 +388,32 @@ class CosseratTargetParams(Options):
     camera: DepthCameraModel = Field(default_factory=DepthCameraModel, description="the depth camera (measured)")
 
 
+def cosserat_tips(params: CosseratTargetParams, data: DataSpec, path: Path, kind: str) -> tuple[np.ndarray, np.ndarray]:
+    """``data.samples`` tips at ``params.rate`` along the motion: ``(values, t)``.
+
+    ``values`` ``(N, 3)`` positions [m] (measured by the depth camera when ``params.measured``)
+    for ``kind`` ``position``, or ``(N, 8)`` unit dual quaternions (the orientation exact) for
+    ``pose``; ``t`` ``(N,)`` [s].
+
+    Raises
+    ------
+    optikin.errors.SpecError
+        On ``data.source`` for another target kind, on ``data.params`` for a camera without an axis.
+    """
+    if kind not in ("position", "pose"):
+        raise SpecError(path, "data.source", f"source cosserat gives position or pose targets, not {kind}")
+    source = f"{Path(path).name}: cosserat"
+    t = np.arange(data.samples) / params.rate
+    try:
+        motion = cosserat_motion(params.cbha, t, (2.0,), np.random.default_rng([data.seed, 0]), source)
+        p = motion.tip_position
+        if params.measured:
+            p = depth_camera_readings(p, params.camera, np.random.default_rng([data.seed, 1]))
+    except ValueError as exc:
+        raise SpecError(path, "data.params", str(exc)) from None
+    return (p if kind == "position" else dq_from_rotation_translation(motion.frames[:, 0], p, check=False)), t
+
+
 @register_source(
     TARGETS,
     "cosserat",
@@ -398,23 +428,26 @@ def cosserat_targets(
     kind: str = "position",
     points: PointSet | None = None,
 ) -> Targets:
-    """``data.samples`` tip targets at ``params.rate`` along the motion, solved in order (a trajectory).
+    """:func:`cosserat_tips` as a trajectory of targets (solved in order, each from the previous answer).
 
-    ``kind`` ``position`` (3) or ``pose`` (unit dual quaternion, 8; the orientation exact). The
-    configurations that made them are unknown to the problem's arm (NaN); reachability too
-    (treated as reachable).
+    The configurations that made them are unknown to the problem's arm (NaN); reachability
+    too (treated as reachable).
     """
-    if kind not in ("position", "pose"):
-        raise SpecError(path, "data.source", f"source cosserat gives position or pose targets, not {kind}")
-    source = f"{Path(path).name}: cosserat"
-    t = np.arange(data.samples) / params.rate
-    try:
-        motion = cosserat_motion(params.cbha, t, (2.0,), np.random.default_rng([data.seed, 0]), source)
-        p = motion.tip_position
-        if params.measured:
-            p = depth_camera_readings(p, params.camera, np.random.default_rng([data.seed, 1]))
-    except ValueError as exc:
-        raise SpecError(path, "data.params", str(exc)) from None
-    values = p if kind == "position" else dq_from_rotation_translation(motion.frames[:, 0], p, check=False)
+    values, t = cosserat_tips(params, data, path, kind)
     configurations = np.full((len(t), arm.n_config), np.nan)
     return Targets(kind, values, configurations, np.ones(len(t), dtype=bool), t=t, trajectory=True, points=points)
+
+
+@register_source(
+    ACTUATIONS,
+    "cosserat",
+    "inverse statics: tips of the Cosserat-rod CBHA (real size, gravity) along a pressure motion, optionally "
+    "by a depth camera",
+    params=CosseratTargetParams,
+)
+def cosserat_statics_targets(
+    arm: ArmModel, data: DataSpec, params: CosseratTargetParams, path: Path, kind: str = "position"
+) -> Actuations:
+    """:func:`cosserat_tips` as the tip targets of inverse statics, a trajectory (no actuations)."""
+    values, t = cosserat_tips(params, data, path, kind)
+    return Actuations(None, targets=values, t=t, trajectory=True)

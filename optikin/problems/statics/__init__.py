@@ -39,15 +39,17 @@ Problem file::
     options: {mode: forward, loads: {gravity: true, payload: 0.0}}
 
 Inverse targets come from the actuation sources (the tips of their equilibria, so
-reachable; the generating actuations are kept for comparison) or from
-``target_csv``. Options: :class:`~optikin.problems.statics.options.StaticsOptions`.
+reachable; the generating actuations are kept for comparison), from
+``target_csv``, or from ``cosserat`` (tips of the Cosserat-rod CBHA of
+:mod:`optikin.data.cosserat_sensors`, a model the problem's arm need not match).
+Options: :class:`~optikin.problems.statics.options.StaticsOptions`.
 The Result is described in :mod:`optikin.problems.statics.report`, the figures in
 :mod:`optikin.problems.statics.figures`.
 """
 
 from __future__ import annotations
 
-import optikin.data.cosserat_sensors  # noqa: F401 - registers source "cosserat" of data family "targets"
+import optikin.data.cosserat_sensors  # noqa: F401 - registers source "cosserat" of data families "targets", "actuations"
 from optikin.data.actuations import FAMILY as ACTUATIONS
 from optikin.problems import ProblemContext, ProblemKind, register_kind
 from optikin.problems.statics import figures

@@ -35,6 +35,8 @@ COLLOCATION = "collocation"
 """The kind's own baseline: the same equilibria by Gauss-Legendre collocation and IPOPT (forward mode)."""
 RAMP = (0.25, 0.5, 0.75)
 """Load fractions the collocation baseline solves first when it has no previous solution to start from."""
+TARGET_SOURCES = ("target_csv", "cosserat")
+"""The ``actuations`` sources that give tip targets (inverse only), called with the target kind."""
 RECHECK_FACTOR = 10.0
 """An inverse answer counted ``ok`` by its backend is ``failed`` when its recomputed tip error exceeds
 this many times ``target_tolerance``."""
@@ -349,11 +351,11 @@ def check_baselines(ctx: ProblemContext) -> None:
 def solve(ctx: ProblemContext) -> ForwardOutcome | InverseOutcome:
     """Check the arm and the baselines, load the samples and run the mode of ``options.mode``."""
     if not isinstance(ctx.arm, CosseratArm):
-        raise ctx.error("arm.type", f"kind statics needs a cosserat arm, not {ctx.spec.arm.type!r}")
+        raise ctx.error("arm.type", f"kind statics needs a cosserat arm, not {ctx.arm_type!r}")
     check_baselines(ctx)
     options: StaticsOptions = ctx.options
     assert ctx.data_source is not None
-    extra = {"kind": options.target} if ctx.spec.data.source == "target_csv" else {}
+    extra = {"kind": options.target} if ctx.spec.data.source in TARGET_SOURCES else {}
     samples: Actuations = ctx.data_source.load(ctx.arm, ctx.spec.data, ctx.data_params, ctx.path, **extra)
     if options.mode == "forward":
         return forward(ctx, samples)
