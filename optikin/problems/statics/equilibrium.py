@@ -27,7 +27,7 @@ Each evaluation at a new actuation is a predictor-corrector continuation from th
 stored equilibrium nearest to it, ``(a_k, w_k)``: the IFT gives the predictor
 ``w = w_k + dw/da (a - a_k)``, ``dw/da = -(dr/dw)^-1 dr/dP_a`` (Allgower & Georg
 1990, ch. 2), and a simplified Newton iteration on the residual alone, with the
-``(dr/dw)^-1`` of ``a_k``, corrects it (Deuflhard 2011, sec. 2.1.4); the derivative
+``(dr/dw)^-1`` of ``a_k`` (Deuflhard 2011, ch. 2), corrects it; the derivative
 Function is then evaluated once, at the corrected root, which gives ``y``, ``dy/da``
 and the ``dr/dw`` the next predictor uses. When the corrector does not contract
 the robust path takes over (:meth:`optikin.physics.ShootingSolver.solve`: Newton
