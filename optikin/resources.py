@@ -96,19 +96,26 @@ VALUES_PER_SAMPLE: dict[str, Callable[[Sizes], int]] = {
 """Kind -> float64 values it keeps per sample of ``data.samples``."""
 
 
-def sizes(arm: ArmModel, methods: int) -> Sizes:
-    """The :class:`Sizes` of ``arm`` compared across ``methods`` methods."""
+NO_ARM = Sizes(n=6, m=3, K=61, M=1)
+"""The sizes assumed for a problem without an arm (the data carry the shapes): three sections of 20
+backbone points, as the shape kinds reconstruct."""
+
+
+def sizes(arm: ArmModel | None, methods: int) -> Sizes:
+    """The :class:`Sizes` of ``arm`` compared across ``methods`` methods (:data:`NO_ARM` without one)."""
+    if arm is None:
+        return Sizes(n=NO_ARM.n, m=NO_ARM.m, K=NO_ARM.K, M=methods)
     m = arm.n_sections
     return Sizes(n=arm.n_config, m=m, K=m * arm.backbone_points_per_section + 1, M=methods)
 
 
-def bytes_per_sample(kind: str, arm: ArmModel, methods: int) -> int:
+def bytes_per_sample(kind: str, arm: ArmModel | None, methods: int) -> int:
     """Estimated bytes a run of ``kind`` on ``arm`` comparing ``methods`` methods needs per sample."""
     values = VALUES_PER_SAMPLE.get(kind, generic_values)(sizes(arm, methods))
     return 8 * WORKING_COPIES * values
 
 
-def estimate_bytes(kind: str, arm: ArmModel, methods: int, samples: int) -> int:
+def estimate_bytes(kind: str, arm: ArmModel | None, methods: int, samples: int) -> int:
     """Estimated bytes of a run of ``samples`` samples (the module docstring gives the formula)."""
     return samples * bytes_per_sample(kind, arm, methods)
 
@@ -171,7 +178,7 @@ def format_bytes(n: float) -> str:
     return f"{n:.1f} TiB"
 
 
-def check_memory(kind: str, arm: ArmModel, methods: int, samples: int, path: str | Path) -> None:
+def check_memory(kind: str, arm: ArmModel | None, methods: int, samples: int, path: str | Path) -> None:
     """Refuse a run whose estimated memory passes :func:`memory_limit`.
 
     Parameters
@@ -179,7 +186,7 @@ def check_memory(kind: str, arm: ArmModel, methods: int, samples: int, path: str
     kind:
         The problem kind.
     arm:
-        The arm model of the problem.
+        The arm model of the problem (None when it has none).
     methods:
         The methods compared: the solver and every baseline.
     samples:

@@ -116,12 +116,14 @@ def prepare(
     if preset is not None and preset_name is not None:
         _tell(notify, provenance(preset_name, preset.path, "solvers"))
     adapter = None if preset is None else preset.build()
-    arm = build_arm(spec.arm.type, spec.arm.params, path)
+    if spec.arm is None and not kind.arm_optional:
+        raise SpecError(path, "arm", f"missing: kind {kind.name!r} needs an arm (arm: {{type: ..., params: ...}})")
+    arm = None if spec.arm is None else build_arm(spec.arm.type, spec.arm.params, path)
     check_memory(kind.name, arm, 1 + len(spec.baselines), spec.data.samples, path)
     ctx = ProblemContext(
         spec=spec,
         path=path,
-        arm=arm,
+        arm_model=arm,
         progress=progress,
         options=options,
         data_source=data_source,

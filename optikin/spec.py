@@ -73,7 +73,7 @@ class ProblemSpec(_Strict):
     name: str = Field(pattern=NAME_PATTERN)
     title: str
     kind: str
-    arm: ArmSpec
+    arm: ArmSpec | None = None
     data: DataSpec
     solver: str | None = None
     baselines: list[str] = Field(default_factory=list)

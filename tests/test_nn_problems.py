@@ -185,7 +185,7 @@ def test_bad_problem_files_name_the_field(tmp_path, changes, field):
 @pytest.mark.parametrize("name", ["cbha-nn-fkm", "cbha-nn-ikm", "cbha-nn-fkm-coupled", "cbha-nn-ikm-coupled"])
 def test_shipped_problem_files_are_valid(name):
     spec, path = load_problem(name)
-    ctx = ProblemContext(spec=spec, path=path, arm=CBHAArm(**spec.arm.params), progress=SILENT)
+    ctx = ProblemContext(spec=spec, path=path, arm_model=CBHAArm(**spec.arm.params), progress=SILENT)
     o, db_spec = options(ctx), database_spec(ctx)
     assert o.setting == "full" and db_spec.split == (0.70, 0.15, 0.15)
     assert db_spec.coupling == ("section" if name.endswith("coupled") else "platform")

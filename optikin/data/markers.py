@@ -499,7 +499,7 @@ def synthetic_source(arm: ArmModel, data: DataSpec, params: SyntheticMarkerParam
 @register_source(
     "markers", "csv", "a recorded marker CSV file (columns in optikin.data.markers)", params=CsvMarkerParams
 )
-def csv_source(arm: ArmModel, data: DataSpec, params: CsvMarkerParams, path: Path) -> MarkerRecording:
+def csv_source(arm: ArmModel | None, data: DataSpec, params: CsvMarkerParams, path: Path) -> MarkerRecording:
     """:func:`read_marker_csv` of ``params.file`` (relative to the problem file): every row, or the first
     ``data.samples`` when the problem file gives it."""
     recording = read_marker_csv((Path(path).parent / params.file).resolve())

@@ -54,8 +54,9 @@ class ProblemContext:
     ----------
     spec, path:
         The problem file and where it came from.
-    arm:
-        The arm model built from ``arm:``.
+    arm_model:
+        The arm model built from ``arm:``; None for a kind that needs no arm when the file has none
+        (:attr:`ProblemKind.arm_optional`). :attr:`arm` gives it to kinds that need one.
     options:
         ``options:`` validated against the kind's options model.
     data_source, data_params:
@@ -71,13 +72,25 @@ class ProblemContext:
 
     spec: ProblemSpec
     path: Path
-    arm: ArmModel
+    arm_model: ArmModel | None
     progress: Progress
     options: Any = None
     data_source: DataSource | None = None
     data_params: Any = None
     preset: "LoadedPreset | None" = None
     adapter: Adapter | None = None
+
+    @property
+    def arm(self) -> ArmModel:
+        """The arm; a :class:`SpecError` on ``arm`` when the file gives none."""
+        if self.arm_model is None:
+            raise SpecError(self.path, "arm", f"kind {self.spec.kind!r} needs an arm here: give arm: {{type: ...}}")
+        return self.arm_model
+
+    @property
+    def arm_type(self) -> str:
+        """The file's ``arm.type``, or ``none`` without an arm (for messages)."""
+        return "none" if self.spec.arm is None else self.spec.arm.type
 
     @property
     def solver(self) -> SolverSpec | None:
@@ -100,7 +113,7 @@ class ProblemContext:
         """The samples of ``data:``, from the kind's data source with its validated params."""
         if self.data_source is None:
             raise SpecError(self.path, "data.source", f"kind {self.spec.kind!r} has no data sources")
-        return self.data_source.load(self.arm, self.spec.data, self.data_params, self.path)
+        return self.data_source.load(self.arm_model, self.spec.data, self.data_params, self.path)
 
     def result(self, **fields: Any) -> Result:
         """A :class:`~optikin.results.Result` of this problem.
@@ -109,7 +122,7 @@ class ProblemContext:
         :meth:`describe`) and ``solver`` (the preset's name) unless ``fields`` give them.
         """
         fields.setdefault("solver", None if self.solver is None else self.solver.name)
-        fields.setdefault("arm", self.arm.describe())
+        fields.setdefault("arm", {} if self.arm_model is None else self.arm_model.describe())
         return Result(problem=self.spec.name, kind=self.spec.kind, title=self.spec.title, **fields)
 
     def error(self, field_path: str, message: str) -> SpecError:
@@ -138,6 +151,9 @@ class ProblemKind:
         The model of ``options:``.
     figures:
         Draws the result's figures from its arrays and summary.
+    arm_optional:
+        Whether a problem file may leave out ``arm:`` (the data carry everything, e.g. the end poses
+        of a shape reconstruction); the data source then receives ``arm=None``.
     """
 
     name: str
@@ -149,6 +165,7 @@ class ProblemKind:
     baselines: tuple[str, ...] = ()
     options: type[Options] = NoOptions
     figures: FigureBuilder | None = None
+    arm_optional: bool = False
 
 
 def register_kind(kind: ProblemKind) -> ProblemKind:

@@ -108,7 +108,8 @@ def recording_of(problem: str, samples: int | None = None) -> Any:
     source = source_of(family, spec.data.source, path)
     params = validate_options(source.params, spec.data.params, path, "data.params")
     data = spec.data if samples is None else spec.data.model_copy(update={"samples": int(samples)})
-    return source.load(build_arm(spec.arm.type, spec.arm.params, path), data, params, path)
+    arm = None if spec.arm is None else build_arm(spec.arm.type, spec.arm.params, path)
+    return source.load(arm, data, params, path)
 
 
 # ------------------------------------------------------------------------------ end data

@@ -52,7 +52,7 @@ def setup_of(ctx: ProblemContext) -> IkSetup:
     for a field a variant sets)."""
     options: IkOptions = ctx.options
     if options.target == "legs" and not isinstance(ctx.arm, CBHAArm):
-        raise ctx.error("options.target", f"leg-length targets need a cbha arm, not {ctx.spec.arm.type!r}")
+        raise ctx.error("options.target", f"leg-length targets need a cbha arm, not {ctx.arm_type!r}")
     points = point_set_of(ctx, options)
     formulation = formulation_of(ctx, options.target, options, lambda key: f"options.{key}", points, options.noise)
     start = formulation.rest if options.start == "rest" else configuration(ctx, "options.start", options.start)
@@ -113,7 +113,7 @@ def formulation_of(
     """A :class:`Formulation` of ``target`` from options ``o`` on ``ctx.arm``; ``where(field)`` names an error."""
     arm = ctx.arm
     if o.elongation != "free" and not isinstance(arm, CBHAArm):
-        raise ctx.error(where("elongation"), f"the elongation distribution needs a cbha arm, not {ctx.spec.arm.type!r}")
+        raise ctx.error(where("elongation"), f"the elongation distribution needs a cbha arm, not {ctx.arm_type!r}")
     if target == "legs" and (o.elongation != "free" or o.redundancy == "penalty"):
         key = "elongation" if o.elongation != "free" else "redundancy"
         raise ctx.error(where(key), "leg-length targets have a unique solution: no penalty, no distribution")

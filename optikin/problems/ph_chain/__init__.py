@@ -67,5 +67,6 @@ register_kind(
         options=PHChainOptions,
         data_family="rope_chains",
         figures=figures.figures,
+        arm_optional=True,
     )
 )

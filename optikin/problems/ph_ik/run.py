@@ -110,7 +110,7 @@ def comparators_of(ctx: ProblemContext) -> list[str]:
     names = [n for n in COMPARATORS if n in ctx.spec.baselines]
     if names and not isinstance(ctx.arm, CBHAArm):
         raise ctx.error(
-            "baselines", f"{names[0]}: needs a cbha arm (CBHA inverse kinematics), not {ctx.spec.arm.type!r}"
+            "baselines", f"{names[0]}: needs a cbha arm (CBHA inverse kinematics), not {ctx.arm_type!r}"
         )
     return names
 

@@ -85,5 +85,6 @@ register_kind(
         options=PHShapeOptions,
         data_family="markers",
         figures=figures.figures,
+        arm_optional=True,
     )
 )
