@@ -11,7 +11,12 @@ family named under ``baselines``.
 
 Every MSE is on the test split of the database; every tip error is the distance
 between the exact forward kinematics of a method's configuration and the
-held-out arm's tip. Per-sample status: ``ok`` when the first variant's tip is
+held-out arm's tip. With the data source ``cosserat`` (:mod:`optikin.data.cosserat_nn`)
+the networks still train on a vertebra-model database, but the test postures are
+equilibria of a Cosserat-rod CBHA, read through its six tube lengths and its tip, and
+seed 004 Table IV's other methods join the rows: constant-curvature sections
+(:func:`constant_curvature_tips`, :func:`constant_curvature_lengths`) and MLPs trained on the
+Cosserat postures themselves (:func:`direct_model`). Per-sample status: ``ok`` when the first variant's tip is
 finite, ``failed`` otherwise; the residual is its tip error [m]. A solver's row
 gives its share of ``ok`` samples; a sample without a finite tip is counted,
 never dropped.

@@ -21,18 +21,35 @@ every platform) before its tip error is measured. What both nn kinds share
         z_range_mm: [0, 25]     # the wide box of Fig. 7
         angle_range_deg: [-45, 45]
         require_upright: true
-        coupling: platform      # or section
+        coupling: platform      # or section, or tubes (the tube-driven database)
         split: [0.7, 0.15, 0.15]
+
+or (source ``cosserat``, :class:`~optikin.data.cosserat_nn.CosseratNNParams`) the postures of a
+Cosserat-rod CBHA, with the vertebra-model database the networks train on::
+
+    data:
+      source: cosserat
+      seed: 2016
+      samples: 400              # Cosserat postures (70 / 15 / 15)
+      params:
+        rod: {pressure_range: [0.0, 1.2e+5], payload: 0.0}   # CosseratMarkerParams
+        model_samples: 200000   # data.samples of the vertebra-model database
+        model: {z_range_mm: [0, 45], angle_range_deg: [-110, 110], coupling: platform}
 
 ``options`` (all optional, :class:`~optikin.problems.nn_shared.NNOptions`)::
 
-    variants: [seed, adam]      # training settings (optikin.baselines.nn_models.SETTINGS)
+    variants: [seed, adam]      # training settings (optikin.baselines.nn_models.SETTINGS; also seed-raw, adam-wide)
     setting: full               # or small: two widths, 15 epochs (tests, notebooks)
     penalty: 1.0e-3             # lambda of eq. (11)
     store: null                 # folder of trained models (relative to the working directory):
                                 # loaded when it matches the problem, otherwise trained and written
     exact_samples: 200          # test samples given to the exact solvers (the first ones)
     latency_repeats: 50         # one-sample calls timed for the latency
+    direct: true                # cosserat source: Table IV's direct-mlp row (tip -> tube lengths)
+
+On the ``cosserat`` source the targets are Cosserat tips and every method's lengths are
+driven on the Cosserat arm (:mod:`optikin.problems.nn_ikm.run`), beside seed 004 Table IV's
+constant-curvature and direct-mlp rows.
 """
 
 from __future__ import annotations
