@@ -26,7 +26,8 @@ from optikin.algebra import (
     quat_exp,
     quat_multiply,
 )
-from optikin.dmp import DMP, Product, UnitDualQuaternion, UnitQuaternion
+from optikin.data.demonstrations import imu_interface_recording
+from optikin.dmp import DMP, Euclidean, Gains, GoalLogQuaternion, Product, UnitDualQuaternion, UnitQuaternion
 from optikin.dmp.pose import cartesian_dmp, dual_quaternion_dmp, seed_dual_quaternion_dmp
 
 AXIS = np.array([0.3, 0.2, 0.93]) / np.linalg.norm([0.3, 0.2, 0.93])
@@ -148,3 +149,38 @@ def test_lift_changes_the_branch_not_the_rotation_or_pose():
     np.testing.assert_allclose(a, sign * b, atol=1e-10)
     product = Product(UnitQuaternion(), UnitQuaternion())
     np.testing.assert_allclose(product.lift(np.r_[v[0], v[1]], np.r_[previous[0], previous[1]]), lifted[:2].ravel())
+
+
+def test_koutras_doulgeri_dmp_is_the_linear_dmp_on_the_log_of_the_rotation_to_the_goal():
+    """Koutras & Doulgeri (CoRL 2020): the orientation DMP is the per-component DMP of eq. (11) on
+    ``y_e = log(q conj(q_g))`` driven to 0, with ``q = exp(y_e) q_g``. A Euclidean DMP learned on ``y_e``
+    (computed here with pytransform3d) and mapped back gives the roll-out of GoalLogQuaternion."""
+    t, q = turn(150.0)
+    wobble = np.array([pr.quaternion_from_axis_angle([1.0, 0.0, 0.0, a]) for a in 0.3 * np.sin(np.pi * t / t[-1])])
+    q = continuous(np.array([pr.concatenate_quaternions(a, b) for a, b in zip(wobble, q)]))
+    goal = q[-1]
+    log_to_goal = (
+        np.array([pr.compact_axis_angle_from_quaternion(pr.concatenate_quaternions(x, pr.q_conj(goal))) for x in q]) / 2
+    )
+    linear = DMP(Euclidean(3), n_basis=40)
+    linear.imitate(t, log_to_goal)
+    expected = quat_multiply(quat_exp(linear.rollout().y), goal)
+    dmp = DMP(GoalLogQuaternion(), n_basis=40)
+    dmp.imitate(t, q)
+    assert rotation_error_deg(dmp.rollout().y, expected).max() < 1e-9
+
+
+def test_seed_gains_diverge_in_udes_form_and_not_in_koutras_doulgeri():
+    """Seed 000's Q_r gains (beta, gamma = 348.348, 977.24, Fig. 15) on its IMU demonstration (10 s at
+    100 Hz, 150-180 degrees from the goal): Ude's form leaves the demonstration by more than 1 rad, where
+    its gain across the gap, (theta/2) cot(theta/2), is near 0 or negative; the log-to-goal form replays it
+    within 10 mrad."""
+    d = imu_interface_recording(samples=1000, rate=100.0, seed=2020, via_points=2).demonstration
+    gains = Gains(beta=348.348, gamma=977.24)
+    errors = {}
+    for space in (UnitQuaternion(), GoalLogQuaternion()):
+        dmp = DMP(space, n_basis=50, gains=gains, smoothing=2.5)
+        dmp.imitate(d.t, d.quaternion)
+        errors[space.name] = np.deg2rad(rotation_error_deg(dmp.rollout().y, dmp.learned.Y)).max()
+    assert errors["S3"] > 1.0
+    assert errors["S3-log"] < 0.01

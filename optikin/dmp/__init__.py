@@ -11,13 +11,15 @@ Learning-Based Pose Planning Approach for Multi-Section Continuum Robot", IEEE A
 * :mod:`~optikin.dmp.rollout` -- the roll-out as one CasADi Function (11-12, 17-18, 23-28).
 * :mod:`~optikin.dmp.model` -- :class:`DMP`: imitate, roll out, generalise.
 * :mod:`~optikin.dmp.pose` -- Seleem et al.'s dual-quaternion DMP and the sound variants.
+* :class:`~optikin.dmp.spaces.GoalLogQuaternion` -- Koutras & Doulgeri's (CoRL 2020) orientation DMP in the
+  logarithm of the rotation to the goal.
 * :mod:`~optikin.dmp.tuning` -- gains by minimising the reproduction error (eq. 29).
 """
 
 from optikin.dmp.gains import GAIN_NAMES, Gains, stable_bounds
 from optikin.dmp.model import DMP, Rollout
 from optikin.dmp.regression import Fit
-from optikin.dmp.spaces import Euclidean, Product, Space, UnitDualQuaternion, UnitQuaternion
+from optikin.dmp.spaces import Euclidean, GoalLogQuaternion, Product, Space, UnitDualQuaternion, UnitQuaternion
 
 __all__ = [
     "DMP",
@@ -25,6 +27,7 @@ __all__ = [
     "Fit",
     "GAIN_NAMES",
     "Gains",
+    "GoalLogQuaternion",
     "Product",
     "Rollout",
     "Space",

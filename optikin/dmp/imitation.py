@@ -56,7 +56,7 @@ class Demonstration:
     dt: float
     tau: float
     goal_gap: np.ndarray  # (N - 1, dim): e_k = gap(g, y_k), continuous along k (spaces.lifted_gaps)
-    step_rate: np.ndarray  # (N - 1, dim): tau/dt gap(y_{k+1}, y_k)
+    step_rate: np.ndarray  # (N - 1, dim): tau/dt gap(y_{k+1}, y_k) (Space.step_gaps)
 
     @property
     def start(self) -> np.ndarray:
@@ -109,15 +109,15 @@ def prepare(
         except ValueError as exc:
             raise InputDataError(str(exc), source=source, field="smoothing") from None
     tau = float(t[-1] - t[0])
-    goal = Y[-1]
+    gaps = lifted_gaps(space, Y[-1], Y)
     return Demonstration(
         space=space,
         t=t - t[0],
         Y=Y,
         dt=dt,
         tau=tau,
-        goal_gap=lifted_gaps(space, goal, Y[:-1]),
-        step_rate=np.asarray(space.gap(Y[1:], Y[:-1])) * (tau / dt),
+        goal_gap=gaps[:-1],
+        step_rate=space.step_gaps(Y, gaps) * (tau / dt),
     )
 
 

@@ -15,7 +15,9 @@ One step (Seleem et al. 2020, eqs. 11-12 / 17-18, 15, 23-28, in the gap units of
     g   <- advance(g, (1 - exp(-beta_g0 dt/tau)) gap(g_new, g))              (eq. 24)
     e_prev <- e
 
-The pose update ``advance(y, v) = exp(v/2) y`` keeps a unit quaternion (or
+The pose update ``advance(y, v) = exp(v/2) y`` (for Koutras & Doulgeri's DMP,
+:class:`~optikin.dmp.spaces.GoalLogQuaternion`, a step of the gap itself:
+``y <- exp(-(e - v)/2) g``) keeps a unit quaternion (or
 unit dual quaternion) unit to rounding; the goal filter and the phase are
 integrated exactly for gaps held over the step. ``e_prev`` starts at the
 gap the imitation learned at the start (:mod:`optikin.dmp.imitation`), so a
@@ -79,7 +81,7 @@ def step_function(space: Space, n_basis: int) -> ca.Function:
     psi = ca.exp(-h * (s - c) ** 2)
     f = amp * ca.mtimes(W, psi) * (s / ca.sum1(psi)) * (s > s_end)
     eta_next = eta + dt / tau * (beta * (gamma * e - eta) + f + d)
-    y_next = space.advance(space.advance(y, dt / tau * (eta_next + alpha_s * (e + r))), o)
+    y_next = space.advance(space.toward(y, dt / tau * (eta_next + alpha_s * (e + r)), g, e), o)
     s_next = s * ca.exp(-zeta * dt / (tau * (1.0 + alpha * (w * smooth_norm(e) + smooth_norm(r)))))
     g_next = space.advance(g, (1.0 - ca.exp(-beta_g0 * dt / tau)) * space.gap(g_new, g))
     return ca.Function(

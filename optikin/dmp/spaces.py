@@ -112,6 +112,31 @@ class Space:
         """
         raise NotImplementedError
 
+    def toward(self, y: Array, v: Array, goal: Array, e: Array) -> Array:
+        """One roll-out step of the pose: ``advance(y, v)`` (Seleem et al.'s eq. 23, Ude et al. 2014).
+
+        Parameters
+        ----------
+        y, goal:
+            The pose and the (filtered) goal, ``size`` components each.
+        v:
+            The step ``dt/tau (eta + coupling)`` in gap units.
+        e:
+            The goal gap ``lift(gap(goal, y))`` the step was computed from.
+
+        Returns
+        -------
+        Array
+            The next pose. :class:`GoalLogQuaternion` steps in the logarithm of the
+            rotation to the goal instead.
+        """
+        return self.advance(y, v)
+
+    def step_gaps(self, Y: np.ndarray, goal_gaps: np.ndarray) -> np.ndarray:
+        """The steps ``(N - 1, dim)`` of a demonstration ``Y (N, size)`` in the units :meth:`toward` takes:
+        ``gap(y_{k+1}, y_k)``; ``goal_gaps (N, dim)`` are its lifted goal gaps (:func:`lifted_gaps`)."""
+        return np.asarray(self.gap(Y[1:], Y[:-1]), dtype=float)
+
     def lift(self, e: Array, previous: Array) -> Array:
         """The gap ``e`` on the branch nearest ``previous`` (the module docstring).
 
@@ -200,6 +225,37 @@ class UnitQuaternion(Space):
     def lift(self, e: Array, previous: Array) -> Array:
         turns, axis, _ = _turns(e, previous)
         return e + (2.0 * np.pi) * turns * axis
+
+
+@dataclass(frozen=True, repr=False)
+class GoalLogQuaternion(UnitQuaternion):
+    """``S^3`` with the DMP in the logarithm of the rotation to the goal (Koutras & Doulgeri 2020).
+
+    L. Koutras, Z. Doulgeri, "A correct formulation for the orientation dynamic
+    movement primitives for robot control in the Cartesian space", CoRL 2020,
+    PMLR 100:293-302. Their DMP is the linear one of eq. (11) on
+    ``y_e = log(q * conj(q_g))``, driven to 0, with the orientation recovered
+    as ``q = exp(y_e) q_g``. In the gap units here ``e = 2 log(q_g conj(q)) =
+    -2 y_e``, so the state is the same quaternion, the gap the same as
+    :class:`UnitQuaternion`'s, and only the step differs: the roll-out moves
+    ``e`` itself, ``q <- exp(-(e - v)/2) q_g`` (:meth:`toward`), and the
+    imitation's velocities are differences of ``e`` (:meth:`step_gaps`), where
+    Ude et al.'s DMP turns ``q`` by the angular velocity, ``q <- exp(v/2) q``.
+    Each gap component is then exactly a linear critically damped spring plus
+    the forcing term, whatever the size of the gap; in Ude et al.'s form the
+    map from angular velocity to the gap's rate is the inverse Jacobian of
+    ``log``, whose eigenvalues across the gap, ``(theta/2) cot(theta/2)``, fall
+    to 0 at half a turn and turn negative past it, so a stiff spring there
+    pushes the motion away sideways.
+    """
+
+    name = "S3-log"
+
+    def toward(self, y: Array, v: Array, goal: Array, e: Array) -> Array:
+        return quat_multiply(quat_exp(-0.5 * (e - v)), goal)
+
+    def step_gaps(self, Y: np.ndarray, goal_gaps: np.ndarray) -> np.ndarray:
+        return goal_gaps[:-1] - goal_gaps[1:]
 
 
 @dataclass(frozen=True, repr=False)
@@ -293,6 +349,16 @@ class Product(Space):
         ys = self._split(y, [p.size for p in self.parts])
         vs = self._split(v, [p.dim for p in self.parts])
         return _join([p.advance(a, b) for p, a, b in zip(self.parts, ys, vs)])
+
+    def toward(self, y: Array, v: Array, goal: Array, e: Array) -> Array:
+        sizes, dims = [p.size for p in self.parts], [p.dim for p in self.parts]
+        ys, vs, gs, es = self._split(y, sizes), self._split(v, dims), self._split(goal, sizes), self._split(e, dims)
+        return _join([p.toward(*parts) for p, *parts in zip(self.parts, ys, vs, gs, es)])
+
+    def step_gaps(self, Y: np.ndarray, goal_gaps: np.ndarray) -> np.ndarray:
+        sizes, dims = [p.size for p in self.parts], [p.dim for p in self.parts]
+        pairs = zip(self.parts, self._split(Y, sizes), self._split(goal_gaps, dims))
+        return np.asarray(_join([p.step_gaps(a, b) for p, a, b in pairs]), dtype=float)
 
     def lift(self, e: Array, previous: Array) -> Array:
         dims = [p.dim for p in self.parts]

@@ -33,6 +33,7 @@ from typing import Any, Callable, Literal, get_args
 
 import casadi as ca
 import numpy as np
+from scipy.optimize import minimize
 from scipy.stats import qmc
 
 from optikin.algebra import backend as B
@@ -117,22 +118,40 @@ class TuningResult:
     status: str
 
 
+ELITE = 2
+"""Individuals the GA keeps unchanged (unevaluated) each generation."""
+STABLE_MARGIN = 0.9
+"""Fraction of the stability limit of ``beta dt / tau`` the tuning box allows (:func:`default_bounds`)."""
+GOAL_RATE_STEPS = 3.0
+"""``beta_g0 <= GOAL_RATE_STEPS tau/dt``: the goal filter closes ``1 - exp(-3) = 95%`` of a switch in one step."""
+
+
 def default_bounds(dmp: DMP, names: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
     """Bounds of the tuned gains.
 
-    Upper: :func:`~optikin.dmp.gains.stable_bounds` (``beta, gamma, alpha_s``),
-    ``zeta <= 15`` (phase 3e-7 at ``tau``), ``beta_g0 <= 0.5 tau/dt``.
+    Upper: :func:`~optikin.dmp.gains.stable_bounds` with a margin of
+    :data:`STABLE_MARGIN` (``beta, alpha_s <= 0.9 tau/dt``, ``gamma <= 2 tau/dt``:
+    ``k1 = beta dt/tau <= 0.9`` and ``k2 = beta gamma (dt/tau)^2 <= 1.8 < 4 - 2 k1``, inside the
+    Jury region at every corner of the box; a margin of 1 would put the corner
+    ``k1 = 1, k2 = 2`` on its edge), ``zeta <= 15`` (phase 3e-7 at ``tau``) and
+    ``beta_g0 <= 3 tau/dt`` (the goal filter is integrated exactly, so it is
+    stable at any rate; past 3 tau/dt a switch is 95% done in one step and
+    eq. (29) no longer changes). On Seleem et al.'s 100 Hz, 10 s recordings
+    (``tau/dt = 1000``) the box holds the gains they report (``beta, gamma =
+    348, 977`` for ``Q_r`` and ``723, 768`` for ``Q_d``, Figs. 15-16; ``beta_g0``
+    up to 1972, Figs. 18-19); at a lower rate those gains are outside the
+    stable region of the fixed-step roll-out altogether.
     Lower: the DMP must keep an attractor, or eq. (29) alone drives the spring
     to zero and lets the forcing term do everything (a reproduction without
     generalisation): ``beta >= 5`` (the damping settles in ``2 tau/beta <= 0.4 tau``),
     ``gamma >= 1``, ``zeta >= 1`` (the forcing term fades to ``1/e`` by ``tau``).
     """
-    stable = stable_bounds(dmp.dt, dmp.tau)
+    stable = stable_bounds(dmp.dt, dmp.tau, margin=STABLE_MARGIN)
     table = {
         "beta": (5.0, stable["beta"][1]),
         "gamma": (1.0, stable["gamma"][1]),
         "zeta": (1.0, 15.0),
-        "beta_g0": (0.1, 0.5 * dmp.tau / dmp.dt),
+        "beta_g0": (0.1, GOAL_RATE_STEPS * dmp.tau / dmp.dt),
         "alpha_s": (1e-3, stable["alpha_s"][1]),
         "alpha": (1e-3, 100.0),
     }
@@ -280,6 +299,7 @@ def tune_gradient(
     screen: int = 16,
     starts: int = 2,
     seed: int = 0,
+    budget: int | None = None,
 ) -> TuningResult:
     """Minimise eq. (29) over the log-gains: multi-start IPOPT (exact gradient, limited-memory Hessian, box bounds).
 
@@ -299,6 +319,12 @@ def tune_gradient(
         IPOPT runs, from the best screened points (>= 1).
     seed:
         Seed of the Latin hypercube.
+    budget:
+        Objective evaluations (values and gradients, the screening included) to spend: runs start from
+        the screened points in order, up to ``starts`` of them or more, until the budget is spent, each
+        limited to the iterations left (an IPOPT iteration takes at least one value and one gradient,
+        so a run may end a line search past the budget: the count reported is the true one).
+        ``None``: ``starts`` runs of ``max_iterations``.
 
     Returns
     -------
@@ -330,7 +356,7 @@ def tune_gradient(
     candidates = screening_points(problem, screen, seed)
     values = _batch(problem)(candidates)
     values = np.where(np.isfinite(values), values, np.inf)
-    order = np.argsort(values, kind="stable")[:starts]
+    order = np.argsort(values, kind="stable")[: starts if budget is None else len(candidates)]
 
     p = ca.MX.sym("p", len(problem.names))
     scale = 1.0 / max(initial_error, 1e-300)
@@ -338,14 +364,15 @@ def tune_gradient(
     history, evaluations = [best_error], len(candidates)
     for k in order:
         remaining = time_limit - (time.perf_counter() - begin)
-        if remaining <= 0:
+        iterations = max_iterations if budget is None else min(max_iterations, (budget - evaluations) // 2)
+        if remaining <= 0 or iterations < 1:
             break
         options: dict[str, Any] = {
             "print_time": False,
             "ipopt.print_level": 0,
             "ipopt.sb": "yes",
             "ipopt.hessian_approximation": "limited-memory",
-            "ipopt.max_iter": int(max_iterations),
+            "ipopt.max_iter": int(iterations),
             "ipopt.tol": float(tolerance),
             "ipopt.max_wall_time": float(remaining),
         }
@@ -375,7 +402,9 @@ def tune_gradient(
     )
 
 
-def tune_genetic(problem: TuningProblem, population: int = 20, generations: int = 15, seed: int = 0) -> TuningResult:
+def tune_genetic(
+    problem: TuningProblem, population: int = 20, generations: int = 15, seed: int = 0, budget: int | None = None
+) -> TuningResult:
     """Minimise eq. (29) with the GA baseline over the log-gains, evaluating each generation in one mapped call.
 
     Parameters
@@ -384,12 +413,18 @@ def tune_genetic(problem: TuningProblem, population: int = 20, generations: int 
         From :func:`tuning_problem`.
     population, generations, seed:
         Of :func:`optikin.baselines.genetic.minimise` (the starting gains are in the first population).
+    budget:
+        Objective evaluations: the first population, then ``population - 2`` new individuals a
+        generation (the 2 best survive unevaluated), so ``generations = (budget - population) //
+        (population - 2)`` (at least 0); ``None``: ``generations`` as given.
 
     Returns
     -------
     TuningResult
         ``method="genetic"``.
     """
+    if budget is not None:
+        generations = max((budget - population) // (population - ELITE), 0)
     initial_error = problem.error(problem.initial)
     found = genetic.minimise(
         _batch(problem),
@@ -398,6 +433,7 @@ def tune_genetic(problem: TuningProblem, population: int = 20, generations: int 
         population=population,
         generations=generations,
         seed=seed,
+        elite=ELITE,
         initial=np.log(problem.initial),
     )
     values = np.exp(found.x)
@@ -410,4 +446,86 @@ def tune_genetic(problem: TuningProblem, population: int = 20, generations: int 
         found.evaluations,
         found.history,
         "finished",
+    )
+
+
+def tune_multistart(
+    problem: TuningProblem,
+    budget: int = 400,
+    screen: int = 16,
+    seed: int = 0,
+    tolerance: float = 1e-10,
+) -> TuningResult:
+    """Minimise eq. (29) by L-BFGS-B (scipy, exact CasADi gradient) from the screened points in turn, on a budget.
+
+    Parameters
+    ----------
+    problem:
+        From :func:`tuning_problem`.
+    budget:
+        Objective evaluations, the screening included; a value with its gradient counts as two, as for
+        IPOPT in :func:`tune_gradient`.
+    screen:
+        Latin-hypercube points screened (:func:`screening_points`); the local runs start from them, best first.
+    seed:
+        Seed of the Latin hypercube.
+    tolerance:
+        ``ftol`` of L-BFGS-B on the objective scaled by its starting value.
+
+    Returns
+    -------
+    TuningResult
+        ``method="multistart"``; ``status`` the message of the best run (``screening`` if none improved).
+
+    Notes
+    -----
+    A plain box-constrained quasi-Newton method, restarted while budget is
+    left: the gradient-based counterpart of the GA's spending of evaluations
+    on the whole box, where :func:`tune_gradient` spends most of them on two
+    deep local runs.
+    """
+    begin = time.perf_counter()
+    initial_error = problem.error(problem.initial)
+    candidates = screening_points(problem, screen, seed)
+    values = _batch(problem)(candidates)
+    values = np.where(np.isfinite(values), values, np.inf)
+    order = np.argsort(values, kind="stable")
+    p = ca.MX.sym("p", len(problem.names))
+    f = problem.objective(p)
+    both = ca.Function("dmp_eq29_and_gradient", [p], [f, ca.gradient(f, p)])
+    scale = 1.0 / max(initial_error, 1e-300)
+    best_x, best_error, best_status = candidates[order[0]], float(values[order[0]]), "screening"
+    history, evaluations = [best_error], len(candidates)
+    bounds = list(zip(np.log(problem.lower), np.log(problem.upper)))
+
+    def fun(x: np.ndarray) -> tuple[float, np.ndarray]:
+        value, grad = both(x)
+        value, grad = float(value) * scale, np.asarray(grad, dtype=float).ravel() * scale
+        if not math.isfinite(value) or not np.isfinite(grad).all():
+            return math.inf, np.zeros_like(x)
+        return value, grad
+
+    for k in order:
+        left = (budget - evaluations) // 2
+        if left < 2:
+            break
+        found = minimize(
+            fun, candidates[k], jac=True, method="L-BFGS-B", bounds=bounds, options={"maxfun": left, "ftol": tolerance}
+        )
+        evaluations += 2 * int(found.nfev)
+        error = float(found.fun) / scale
+        history.append(min(history[-1], error))
+        if math.isfinite(error) and error < best_error:
+            best_x, best_error, best_status = np.asarray(found.x), error, str(found.message)
+    if not math.isfinite(best_error):
+        raise SolverError("gain tuning found no finite value of eq. (29) at any start")
+    return TuningResult(
+        "multistart",
+        problem.gains(np.exp(best_x)),
+        best_error,
+        initial_error,
+        time.perf_counter() - begin,
+        evaluations,
+        np.asarray(history),
+        best_status,
     )

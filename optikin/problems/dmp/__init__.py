@@ -21,7 +21,7 @@ Demonstrations (``data.source``, the ``demonstrations`` family of
 
 Options (all optional; :class:`~optikin.problems.dmp.options.DmpOptions`)::
 
-    variants: [cartesian]   # seed | dual-quaternion | cartesian | quaternion | rpy | position
+    variants: [cartesian]   # seed | dual-quaternion | cartesian | quaternion | koutras-doulgeri | rpy | position
     n_basis: 50
     smoothing: null         # cutoff [Hz] of the low-pass applied to the demonstration before learning
                             # (optikin.dmp.smoothing; sensor data), null: learn the samples as given

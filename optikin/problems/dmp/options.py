@@ -22,9 +22,11 @@ from optikin.dmp.regression import Method
 from optikin.dmp.tuning import Scenario
 from optikin.options import Options
 
-Variant = Literal["seed", "dual-quaternion", "cartesian", "quaternion", "rpy", "position"]
+Variant = Literal["seed", "dual-quaternion", "cartesian", "quaternion", "koutras-doulgeri", "rpy", "position"]
 """A DMP representation: the pose DMPs of :mod:`optikin.dmp.pose`, a unit-quaternion DMP on the orientation
-(Seleem et al. 2020, eqs. 17-23), per-angle DMPs on roll-pitch-yaw (eqs. 11-16) or a translation DMP on the position."""
+(Seleem et al. 2020, eqs. 17-23, Ude et al.'s form), Koutras & Doulgeri's orientation DMP in the logarithm of the
+rotation to the goal (:class:`optikin.dmp.GoalLogQuaternion`), per-angle DMPs on roll-pitch-yaw (eqs. 11-16) or a
+translation DMP on the position."""
 VARIANTS: tuple[Variant, ...] = get_args(Variant)
 
 _GAINS = Gains()
@@ -119,6 +121,10 @@ class Coupling(Options):
         return alpha
 
 
+SeedTerm = Literal["Q_r", "Q_d"]
+"""A term of the seed's dual quaternion ``Q_r + eps Q_d`` (eq. 9) with its own quaternion DMP."""
+
+
 class Tuning(Options):
     """Gain tuning by minimising eq. (29): multi-start IPOPT, and the genetic algorithm when it is a baseline."""
 
@@ -129,7 +135,23 @@ class Tuning(Options):
     screen: int = Field(16, ge=0, description="Latin-hypercube points screened for the starts")
     starts: int = Field(2, ge=1, description="IPOPT runs, from the best screened points")
     population: int = Field(20, ge=3, description="GA population (its 2 best survive each generation)")
-    generations: int = Field(15, ge=0, description="GA generations")
+    generations: int = Field(15, ge=0, description="GA generations (unless budget is set)")
+    budget: int | None = Field(
+        None,
+        ge=4,
+        description="objective evaluations for IPOPT (runs from the screened points until spent); the GA and the "
+        "multi-start L-BFGS-B then get the count IPOPT used; null: starts x max_iterations, and no multi-start",
+    )
+    seeds: int = Field(1, ge=1, description="GA and multi-start runs, seeded data.seed, data.seed + 1, ...")
+    terms: tuple[SeedTerm, ...] = Field(
+        (),
+        description="tune the seed's quaternion DMP on these terms of (Q_r, Q_d) (Figs. 5a, 5b) instead of variant",
+    )
+    reference: dict[str, dict[GainName, float]] = Field(
+        default_factory=dict,
+        description="gains evaluated on the same eq. (29), per tuned target (a term or the variant), e.g. "
+        "the seed's {Q_r: {beta: 348.348, gamma: 977.24}}",
+    )
 
 
 class Tolerance(Options):

@@ -42,8 +42,8 @@ def result(spec: ProblemSpec, outcome: DmpOutcome) -> Result:
         labels.append(f"{push.variant}: perturbation {push.label}")
         status.append(push.status)
     comparison = [_reproduction_row(r, outcome.method) for r in outcome.reproductions]
-    if outcome.tuning is not None:
-        comparison += [_tuning_row(outcome.tuning, found) for found in outcome.tuning.results]
+    for tuning in outcome.tuning:
+        comparison += _tuning_rows(tuning)
     first = outcome.reproductions[0]
     return Result(
         problem=spec.name,
@@ -96,7 +96,22 @@ def _perturbation_metrics(push: PerturbationRun) -> dict[str, float]:
     return out
 
 
-def _tuning_row(tuning: TuningOutcome, found: TuningResult) -> MethodRow:
+def _tuning_rows(tuning: TuningOutcome) -> list[MethodRow]:
+    """One row per tuner and seed (the first seed unlabelled), and one for the reference gains if given."""
+    rows, seen = [], set()
+    by_method: dict[str, int] = {}
+    for found in tuning.results:
+        k = by_method[found.method] = by_method.get(found.method, -1) + 1
+        label = found.method if found.method not in seen else f"{found.method}, seed {tuning.seeds[k]}"
+        seen.add(found.method)
+        rows.append(_tuning_row(tuning, found, label))
+    if tuning.reference_error is not None:
+        metrics: dict[str, float | int | str] = {"eq. 29 error": tuning.reference_error, **tuning.reference}
+        rows.append(MethodRow(f"tuning {tuning.variant} (reference gains)", "baseline", metrics))
+    return rows
+
+
+def _tuning_row(tuning: TuningOutcome, found: TuningResult, label: str) -> MethodRow:
     metrics: dict[str, float | int | str] = {
         "eq. 29 error": found.error,
         "eq. 29 error at start": found.initial_error,
@@ -105,9 +120,7 @@ def _tuning_row(tuning: TuningOutcome, found: TuningResult) -> MethodRow:
         "status": found.status,
         **{n: getattr(found.gains, n) for n in tuning.names},
     }
-    return MethodRow(
-        f"tuning {tuning.variant} ({found.method})", "solver" if found.method == "ipopt" else "baseline", metrics
-    )
+    return MethodRow(f"tuning {tuning.variant} ({label})", "solver" if found.method == "ipopt" else "baseline", metrics)
 
 
 def arrays(outcome: DmpOutcome) -> dict[str, np.ndarray]:

@@ -14,8 +14,8 @@ import numpy as np
 
 from optikin.algebra import quat_exp, quat_multiply, rpy_from_quat
 from optikin.data import demonstrations as sources
-from optikin.dmp import DMP, Fit, Gains, Rollout
-from optikin.dmp.tuning import TuningResult, tune_genetic, tune_gradient, tuning_problem
+from optikin.dmp import DMP, Fit, Gains, Rollout, UnitQuaternion
+from optikin.dmp.tuning import TuningProblem, TuningResult, tune_genetic, tune_gradient, tune_multistart, tuning_problem
 from optikin.errors import InputDataError, OptikinError, SpecError
 from optikin.problems import ProblemContext
 from optikin.problems.dmp.options import Coupling, DmpOptions, Tuning
@@ -80,11 +80,16 @@ class PerturbationRun:
 
 @dataclass(frozen=True)
 class TuningOutcome:
-    """The gains tuned on one variant, by IPOPT and (when a baseline) the genetic algorithm."""
+    """The gains tuned on one target (a variant, or a term ``Q_r`` / ``Q_d`` of the seed's DMP), by IPOPT, the
+    multi-start L-BFGS-B (with a budget) and (when a baseline) the genetic algorithm, one result per seed; and
+    eq. (29) at the reference gains of the options."""
 
     variant: str
     names: tuple[str, ...]
     results: list[TuningResult]
+    seeds: list[int] = field(default_factory=list)
+    reference: dict[str, float] = field(default_factory=dict)
+    reference_error: float | None = None
 
 
 @dataclass
@@ -97,7 +102,7 @@ class DmpOutcome:
     reproductions: list[Reproduction] = field(default_factory=list)
     goal_switches: list[GoalSwitchRun] = field(default_factory=list)
     perturbations: list[PerturbationRun] = field(default_factory=list)
-    tuning: TuningOutcome | None = None
+    tuning: list[TuningOutcome] = field(default_factory=list)
 
 
 @dataclass(frozen=True)
@@ -281,39 +286,84 @@ def perturb(
 
 def tune(
     ctx: ProblemContext, learner: Learner, tuning: Tuning, goals: list[Goal], final_rpy: np.ndarray
-) -> TuningOutcome:
-    """Tune the gains of ``tuning.variant`` by multi-start IPOPT, and by the GA when it is a baseline."""
+) -> list[TuningOutcome]:
+    """Tune the gains of ``tuning.variant`` (or of the seed's DMP on each of ``tuning.terms``)."""
     names = tuple(tuning.gains)
     variant = tuning.variant or learner.options.variants[0]
-    extra: dict[str, Any] = {}
-    if tuning.scenario == "goal":
-        if not goals:
-            raise ctx.error("options.tuning.scenario", "the goal scenario needs options.goal_switches")
-        when, p, q = goals[0]
-        extra = {"new_goal": variant_data(variant, p, q, final_rpy), "switch_time": when}
     demo = learner.demo
+    targets: list[tuple[str, DMP, np.ndarray, dict[str, Any]]] = []
+    if tuning.terms:
+        if tuning.scenario == "goal":
+            raise ctx.error("options.tuning.terms", "the seed's terms are tuned on the reproduction scenario only")
+        for term in tuning.terms:
+            part = slice(0, 4) if term == "Q_r" else slice(4, 8)
+            dmp = DMP(UnitQuaternion(), learner.options.n_basis, learner.gains, smoothing=learner.options.smoothing)
+            targets.append((term, dmp, demo.dual_quaternion[:, part], {}))
+    else:
+        extra: dict[str, Any] = {}
+        if tuning.scenario == "goal":
+            if not goals:
+                raise ctx.error("options.tuning.scenario", "the goal scenario needs options.goal_switches")
+            when, p, q = goals[0]
+            extra = {"new_goal": variant_data(variant, p, q, final_rpy), "switch_time": when}
+        targets.append((variant, learner.dmp(variant), variant_data(variant, demo.position, demo.quaternion), extra))
+    unknown = sorted(set(tuning.reference) - {label for label, *_ in targets})
+    if unknown:
+        raise ctx.error("options.tuning.reference", f"no tuned target {unknown[0]!r}; the targets are tuned ones")
+    return [tune_target(ctx, tuning, names, label, dmp, demo.t, Y, extra) for label, dmp, Y, extra in targets]
+
+
+def tune_target(
+    ctx: ProblemContext,
+    tuning: Tuning,
+    names: tuple[str, ...],
+    label: str,
+    dmp: DMP,
+    t: np.ndarray,
+    Y: np.ndarray,
+    extra: dict[str, Any],
+) -> TuningOutcome:
+    """IPOPT, then (with a budget) the multi-start L-BFGS-B and (as a baseline) the GA on IPOPT's evaluation count,
+    ``tuning.seeds`` times each."""
     try:
-        problem = tuning_problem(
-            learner.dmp(variant),
-            demo.t,
-            variant_data(variant, demo.position, demo.quaternion),
-            names,
-            scenario=tuning.scenario,
-            **extra,
-        )
+        problem = tuning_problem(dmp, t, Y, names, scenario=tuning.scenario, **extra)
     except InputDataError as exc:
         raise ctx.error("options.tuning.gains", str(exc).removeprefix("tuning.gains: ")) from None
     seed = ctx.spec.data.seed
-    with ctx.progress.task(f"dmp: tuning {', '.join(names)}", total=2) as advance:
-        results = [
-            tune_gradient(
-                problem, max_iterations=tuning.max_iterations, screen=tuning.screen, starts=tuning.starts, seed=seed
-            )
-        ]
+    seeds = [seed + k for k in range(tuning.seeds)]
+    genetic = "genetic" in ctx.spec.baselines
+    steps = 1 + (len(seeds) if tuning.budget is not None else 0) + (len(seeds) if genetic else 0)
+    with ctx.progress.task(f"dmp: tuning {', '.join(names)} of {label}", total=steps) as advance:
+        ipopt = tune_gradient(
+            problem,
+            max_iterations=tuning.max_iterations,
+            screen=tuning.screen,
+            starts=tuning.starts,
+            seed=seed,
+            budget=tuning.budget,
+        )
         advance()
-        if "genetic" in ctx.spec.baselines:
-            results.append(
-                tune_genetic(problem, population=tuning.population, generations=tuning.generations, seed=seed)
-            )
-        advance()
-    return TuningOutcome(variant, names, results)
+        results = [ipopt]
+        budget = None if tuning.budget is None else ipopt.evaluations
+        if budget is not None:
+            for s in seeds:
+                results.append(tune_multistart(problem, budget=budget, screen=tuning.screen, seed=s))
+                advance()
+        if genetic:
+            for s in seeds:
+                results.append(
+                    tune_genetic(
+                        problem, population=tuning.population, generations=tuning.generations, seed=s, budget=budget
+                    )
+                )
+                advance()
+    reference: dict[str, float] = {str(k): v for k, v in tuning.reference.get(label, {}).items()}
+    return TuningOutcome(label, names, results, seeds, reference, reference_error(problem, reference))
+
+
+def reference_error(problem: TuningProblem, reference: dict[str, float]) -> float | None:
+    """Eq. (29) at the tuned gains set to ``reference`` (the others at their starting values); ``None`` if empty."""
+    if not reference:
+        return None
+    values = np.array([reference.get(n, v) for n, v in zip(problem.names, problem.initial)])
+    return problem.error(values)

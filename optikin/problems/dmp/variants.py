@@ -3,7 +3,9 @@
 A variant (:data:`~optikin.problems.dmp.options.Variant`) is a DMP on one
 representation of the tip pose: ``seed``, ``dual-quaternion`` and
 ``cartesian`` are the pose DMPs of :mod:`optikin.dmp.pose`; ``quaternion`` a
-unit-quaternion DMP on the orientation (Seleem et al. 2020, eqs. 17-23); ``rpy`` three
+unit-quaternion DMP on the orientation (Seleem et al. 2020, eqs. 17-23, the form of
+Ude et al. 2014); ``koutras-doulgeri`` the orientation DMP of Koutras & Doulgeri
+(CoRL 2020) in the logarithm of the rotation to the goal; ``rpy`` three
 per-angle DMPs on roll-pitch-yaw (eqs. 11-16, angles by eq. 30); ``position``
 a translation DMP.
 """
@@ -25,11 +27,14 @@ from optikin.algebra import (
     quat_multiply,
     rpy_from_quat,
 )
-from optikin.dmp import DMP, Euclidean, Gains, UnitQuaternion
+from optikin.dmp import DMP, Euclidean, Gains, GoalLogQuaternion, Space, UnitQuaternion
 from optikin.dmp.pose import POSE_VARIANTS, pose_dmp
 
 MM, MRAD = 1e3, 1e3
 """Metres and radians to the millimetres and milliradians of the reported metrics."""
+
+ORIENTATION = ("quaternion", "koutras-doulgeri")
+"""The variants whose state is the tip's unit quaternion alone."""
 
 UNIT_TOLERANCE = 1e-9
 """Largest departure from unit norm of a roll-out's unit quaternions (or dual quaternion) counted ``ok``."""
@@ -39,8 +44,8 @@ def make_dmp(variant: str, n_basis: int, gains: Gains, **options: Any) -> DMP:
     """The DMP of a variant label; ``options``: the other keyword arguments of :class:`DMP` (smoothing, ...)."""
     if variant in POSE_VARIANTS:
         return pose_dmp(variant, n_basis=n_basis, gains=gains, **options)
-    space = UnitQuaternion() if variant == "quaternion" else Euclidean(3)
-    return DMP(space, n_basis=n_basis, gains=gains, **options)
+    spaces: dict[str, Space] = {"quaternion": UnitQuaternion(), "koutras-doulgeri": GoalLogQuaternion()}
+    return DMP(spaces.get(variant, Euclidean(3)), n_basis=n_basis, gains=gains, **options)
 
 
 def variant_data(
@@ -53,7 +58,7 @@ def variant_data(
         return dq_from_rotation_translation(quaternion, position, check=False)
     if variant == "cartesian":
         return np.concatenate([position, quaternion], axis=-1)
-    if variant == "quaternion":
+    if variant in ORIENTATION:
         return quaternion
     if variant == "position":
         return position
@@ -70,7 +75,7 @@ def variant_pose(variant: str, y: np.ndarray) -> tuple[np.ndarray | None, np.nda
         return dq_translation(y), dq_rotation(y)
     if variant == "cartesian":
         return y[..., :3], y[..., 3:]
-    if variant == "quaternion":
+    if variant in ORIENTATION:
         return None, y
     if variant == "position":
         return y, None
@@ -95,7 +100,7 @@ def unit_error(variant: str, y: np.ndarray) -> float:
     if variant == "dual-quaternion":
         n, d = dq_norm_residual(y)
         return float(max(np.abs(n).max(), np.abs(d).max()))
-    if variant in ("seed", "quaternion"):
+    if variant == "seed" or variant in ORIENTATION:
         return float(np.abs(np.linalg.norm(y[..., :4], axis=-1) - 1).max())
     if variant == "cartesian":
         return float(np.abs(np.linalg.norm(y[..., 3:], axis=-1) - 1).max())
