@@ -156,7 +156,7 @@ def _cmd_solve(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(result.summary(), indent=2))
     else:
-        print_result(result)
+        print_result(result, wide=args.wide)
         print(f"written to {written}")
     return EXIT_OK if result.succeeded else EXIT_FAILED_SAMPLES
 
@@ -218,6 +218,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default="results", help="output folder (default: ./results)")
     p.add_argument("--json", action="store_true", help="print the result summary as JSON")
     p.add_argument("--no-figures", action="store_true", help="skip drawing figures")
+    p.add_argument("--wide", action="store_true", help="print every column of the comparison")
     p.add_argument(
         "--set",
         action="append",

@@ -3,30 +3,28 @@
 from __future__ import annotations
 
 import shutil
-from typing import Any, Sequence
+from typing import Sequence
 
 from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
 from optikin.results import Result
-
-
-def _fmt(value: Any) -> str:
-    if isinstance(value, float):
-        return f"{value:.4g}"
-    if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(_fmt(v) for v in value) + "]"
-    return str(value)
+from optikin.tables import comparison_rows, compact_columns, flatten, format_value
 
 
 def wide_console() -> Console:
     """A console as wide as the terminal, or 160 columns when output is not a terminal."""
-    return Console(width=max(shutil.get_terminal_size((160, 24)).columns, 100))
+    return Console(width=shutil.get_terminal_size((160, 24)).columns)
 
 
-def print_result(result: Result, console: Console | None = None) -> None:
-    """Status counts, the run's criteria (met or not), metrics, and the comparison of methods as tables."""
+def print_result(result: Result, console: Console | None = None, wide: bool = False) -> None:
+    """Status counts, the run's criteria (met or not), metrics, and the comparison of methods as tables.
+
+    The comparison shows method, role, success, the first error and the first time (and the statuses);
+    ``wide`` shows every column (the result folder's ``comparison.csv`` and ``.md`` always hold them).
+    Metrics holding a mapping are printed as sub-rows ``name.key``.
+    """
     console = console or wide_console()
     counts = ", ".join(f"{k}: {v}" for k, v in result.status_counts().items())
     console.print(
@@ -40,19 +38,30 @@ def print_result(result: Result, console: Console | None = None) -> None:
         console.print(f"criteria: {met}")
     if result.metrics:
         table = Table(title="metrics", show_header=False)
-        for k, v in result.metrics.items():
-            table.add_row(escape(k), escape(_fmt(v)))
+        for k, v in flatten(result.metrics).items():
+            table.add_row(escape(k), escape(format_value(v)))
         console.print(table)
     if result.comparison:
-        keys = list(dict.fromkeys(k for row in result.comparison for k in row.metrics))
-        table = Table(title="comparison (same run)")
-        table.add_column("method")
-        table.add_column("role")
-        for k in keys:
-            table.add_column(escape(k), justify="right")
-        for row in result.comparison:
-            table.add_row(row.method, row.role, *(escape(_fmt(row.metrics.get(k, ""))) for k in keys))
+        columns, cells = comparison_rows(result.comparison)
+        shown = columns[2:] if wide else compact_columns(columns)
+        where = [columns.index(c) for c in ("method", "role", *shown)]
+        title = "comparison (same run)" + ("" if wide else "; every column: --wide or comparison.md")
+        table = Table(title=title)
+        for i in where:
+            table.add_column(escape(columns[i]), justify="left" if i < 2 else "right", overflow="fold")
+        reasons = {}
+        if not wide and "not applicable" in columns:
+            status, why = columns.index("statuses") if "statuses" in columns else None, columns.index("not applicable")
+            for row in cells:
+                if row[why]:
+                    reasons[row[0]] = row[why]
+                    if status is not None:
+                        row[status] = "not applicable"
+        for row in cells:
+            table.add_row(*(escape(row[i]) for i in where))
         console.print(table)
+        for method, reason in reasons.items():
+            console.print(f"not applicable: {escape(method)}: {escape(reason)}")
     for note in result.notes:
         console.print(f"note: {escape(note)}")
 

@@ -47,6 +47,7 @@ import numpy as np
 
 from optikin import __version__
 from optikin.errors import OptikinError
+from optikin.tables import write_comparison
 
 STATUSES = ("ok", "fit", "unreachable", "failed", "not_converged", "timeout")
 """Per-sample statuses a problem kind may report: ``ok`` (solved exactly, to the tolerance), ``fit`` (a
@@ -223,6 +224,7 @@ def write_result(
             for figure, draw in drawers.items():
                 draw(staging / f"{figure}.png")
                 summary["figures"].append(f"{figure}.png")
+        summary["tables"] = write_comparison(result.comparison, staging)
         (staging / "result.json").write_text(json.dumps(summary, indent=2) + "\n")
         with _locked(out_dir / f".{name}.lock"):
             _refuse_non_folder(final)
