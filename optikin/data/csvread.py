@@ -152,7 +152,7 @@ def missing_columns(source: str, header: Sequence[str], names: Sequence[str], hi
     )
 
 
-def _text(path: Path, source: str) -> str:
+def read_text(path: Path, source: str) -> str:
     """The file's text, after the checks of the module docstring."""
     try:
         info = os.stat(path)
@@ -213,7 +213,7 @@ def read_table(path: str | Path, select: Selection) -> Table:
     """
     path = Path(path)
     source = str(path)
-    reader = csv.reader(io.StringIO(_text(path, source), newline=""))
+    reader = csv.reader(io.StringIO(read_text(path, source), newline=""))
     start = 1
     try:
         header_row = next(reader, None)

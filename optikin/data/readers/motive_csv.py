@@ -44,7 +44,7 @@ from pathlib import Path
 import numpy as np
 from pydantic import Field
 
-from optikin.data.csvread import _text, excerpt
+from optikin.data.csvread import excerpt, read_text
 from optikin.data.readers.common import (
     FAMILY,
     RecordingParams,
@@ -214,7 +214,7 @@ def read_motive_csv(
     """
     path = Path(path)
     source = str(path)
-    reader = csv.reader(io.StringIO(_text(path, source), newline=""))
+    reader = csv.reader(io.StringIO(read_text(path, source), newline=""))
     rows: list[tuple[int, list[str]]] = []
     start = 1
     try:
