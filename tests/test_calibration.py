@@ -191,7 +191,15 @@ def test_the_kind_writes_an_arm_section_other_problems_can_use(tmp_path: Path):
 
 
 @pytest.mark.parametrize(
-    "name", ["trunk-calibrate", "trunk-calibrate-motive", "trunk-calibrate-tendons", "trunk-ik", "trunk-ph-shape"]
+    "name",
+    [
+        "trunk-calibrate",
+        "trunk-calibrate-motive",
+        "trunk-calibrate-tendons",
+        "trunk-ik",
+        "trunk-ph-shape",
+        "cbha-calibrate-cosserat",
+    ],
 )
 def test_the_trunk_workflow_problems_run(name, tmp_path: Path):
     result, _ = solve(name, out=tmp_path)
@@ -212,3 +220,13 @@ def test_the_trunk_workflow_problems_run(name, tmp_path: Path):
         m = result.metrics
         assert m["max section length error [mm]"] < 0.5 and m["base position error [mm]"] < 1.0
         assert m["corrupted postures rejected"] == "6/6" and m["clean postures rejected"] == 0
+    if name == "cbha-calibrate-cosserat":
+        # the tubes sit at rho(s) = 40 mm tapering linearly to 29 mm at the tip (CosseratMarkerParams.tube_offset)
+        from optikin.data.cosserat_markers import CosseratMarkerParams
+
+        rho = CosseratMarkerParams().tube_offset(np.array([0.18, 0.36]))
+        offsets = result.metrics["marker offsets [mm]"]
+        radial = {k: np.hypot(*v[:2]) for k, v in offsets.items()}
+        assert all(abs(radial[f"tube{m}_s1.0"] - rho[0] * 1e3) < 1.5 for m in (1, 2, 3))
+        assert all(abs(radial[f"tube{m}_tip"] - rho[1] * 1e3) < 3.0 for m in (1, 2, 3))
+        assert result.metrics["held-out RMS marker error (kfold) [mm]"] < 1.0

@@ -22,7 +22,8 @@ Problem file
 ``data``
     a source of family ``recordings`` (:class:`~optikin.data.recording.Recording`):
     ``synthetic`` (:mod:`optikin.calibration.synthetic`: a CC arm of known geometry
-    recorded with noise and label swaps) or a reader of lab files (:mod:`optikin.data.readers`:
+    recorded with noise and label swaps), ``cosserat`` (:mod:`optikin.calibration.cosserat_source`:
+    the Cosserat-rod CBHA with markers on its tubes) or a reader of lab files (:mod:`optikin.data.readers`:
     ``motive``, ``c3d``, ``rosbag``, ``csv``). The points fitted are the markers named in
     ``options.markers`` (markers or rigid bodies, each with the section whose end disk carries
     it), else the recording's markers, else its rigid bodies, when there is one per section.
@@ -32,6 +33,7 @@ Problem file
 
 from __future__ import annotations
 
+import optikin.calibration.cosserat_source  # noqa: F401 - registers source "cosserat" of data family "recordings"
 import optikin.calibration.synthetic  # noqa: F401 - registers source "synthetic" of data family "recordings"
 import optikin.data.readers  # noqa: F401 - registers the lab-format sources of data family "recordings"
 from optikin.calibration.synthetic import FAMILY

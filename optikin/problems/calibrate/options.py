@@ -24,6 +24,11 @@ class BaseOptions(Options):
         description="starting base orientation, unit quaternion (w, x, y, z) in the recording frame "
         "(its z axis along the unbent backbone)",
     )
+    body: str | None = Field(
+        None,
+        description="a rigid body of the recording at the base: its mean pose is the start (instead of "
+        "position and orientation); its x axis then fixes the rotation about the base axis",
+    )
     position_sigma: StrictFloat | None = Field(None, gt=0, description="std of a prior at the start position [m]")
     orientation_sigma_deg: StrictFloat | None = Field(
         None, gt=0, description="std of a prior at the start orientation [deg]"

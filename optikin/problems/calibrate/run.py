@@ -94,6 +94,13 @@ def truth_beta(calibration: Calibration, truth: CalibrationTruth) -> np.ndarray:
     return beta
 
 
+def mean_rotation(R: np.ndarray) -> np.ndarray:
+    """The rotation nearest (Frobenius) to the mean of rotations ``R (N, 3, 3)``: the polar factor by SVD."""
+    U, _, Vt = np.linalg.svd(np.mean(R, axis=0))
+    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))])
+    return U @ D @ Vt
+
+
 def solve(ctx: ProblemContext) -> CalibrateOutcome:
     """Calibrate the arm of ``ctx`` on the recording of ``data``."""
     options: CalibrateOptions = ctx.options
@@ -127,7 +134,19 @@ def solve(ctx: ProblemContext) -> CalibrateOutcome:
             )
     base = options.base
     rotation = None
-    if base.orientation is not None:
+    position = base.position
+    if base.body is not None:
+        if base.position is not None or base.orientation is not None:
+            raise ctx.error("options.base.body", "give the base as a rigid body or as position and orientation")
+        if base.body not in recording.bodies:
+            raise ctx.error("options.base.body", f"no such rigid body; the recording has {sorted(recording.bodies)}")
+        track = recording.bodies[base.body]
+        seen = np.all(np.isfinite(track.positions), axis=1) & np.all(np.isfinite(track.quaternions), axis=1)
+        if not seen.any():
+            raise InputDataError("the base body is never tracked", source=ctx.spec.data.source, field=base.body)
+        position = np.mean(track.positions[seen], axis=0).tolist()
+        rotation = mean_rotation(matrix_from_quat(track.quaternions[seen], check=False))
+    elif base.orientation is not None:
         q = np.array(base.orientation)
         if abs(np.linalg.norm(q) - 1.0) > 1e-3:
             raise ctx.error("options.base.orientation", "expected a unit quaternion (w, x, y, z)")
@@ -140,7 +159,7 @@ def solve(ctx: ProblemContext) -> CalibrateOutcome:
             arm.section_lengths.tolist(),
             sections,
             names,
-            base_position=base.position,
+            base_position=position,
             base_rotation=rotation,
             position_sigma=base.position_sigma,
             orientation_sigma=None if sigma_deg is None else float(np.radians(sigma_deg)),
