@@ -109,9 +109,7 @@ def comparators_of(ctx: ProblemContext) -> list[str]:
     """The comparators listed in ``baselines``; they need a CBHA."""
     names = [n for n in COMPARATORS if n in ctx.spec.baselines]
     if names and not isinstance(ctx.arm, CBHAArm):
-        raise ctx.error(
-            "baselines", f"{names[0]}: needs a cbha arm (CBHA inverse kinematics), not {ctx.arm_type!r}"
-        )
+        raise ctx.error("baselines", f"{names[0]}: needs a cbha arm (CBHA inverse kinematics), not {ctx.arm_type!r}")
     return names
 
 
