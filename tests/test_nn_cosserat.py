@@ -18,7 +18,7 @@ from scipy.spatial.transform import Rotation
 
 from optikin.arms.cbha import CBHAGeometry, printed_leg_lengths
 from optikin.baselines.nn_database import DatabaseSpec, build_database, section_tube_lengths, split_tube_lengths
-from optikin.baselines.nn_models import SETTINGS, affine_map, forward_tasks, split_mse, train_model
+from optikin.baselines.nn_models import SETTINGS, affine_map, forward_tasks, goal_babbling, split_mse, train_model
 from optikin.data.cosserat_markers import CosseratMarkerParams
 from optikin.data.cosserat_nn import cosserat_postures
 from optikin.problems.nn_shared import constant_curvature_lengths, constant_curvature_tips
@@ -136,9 +136,9 @@ def test_cosserat_fkm_feeds_fig9_legs_and_scores_on_the_cosserat_tips(fkm_cosser
 
 @pytest.mark.slow
 def test_cosserat_ikm_drives_the_lengths_on_the_arm(tmp_path):
-    result, _ = solve(small_cosserat(tmp_path, "ikm", direct=False), out=tmp_path / "out")
+    result, _ = solve(small_cosserat(tmp_path, "ikm", direct=False, goal_babbling=200), out=tmp_path / "out")
     rows = {r.method: r.metrics for r in result.comparison}
-    assert set(rows) == {"mlp-seed", "ipopt", "constant-curvature", "true-lengths"}
+    assert set(rows) == {"mlp-seed", "ipopt", "constant-curvature", "goal-babbling", "true-lengths"}
     assert rows["true-lengths"]["tube length error RMS, median [mm]"] == 0.0
     errors = np.linalg.norm(result.arrays["tip_seed"] - result.arrays["targets"], axis=1) * 1e3
     assert rows["mlp-seed"]["tip error median [mm]"] == pytest.approx(np.median(errors), rel=1e-12)
@@ -176,3 +176,18 @@ def test_constant_curvature_rows_invert_arcs_built_by_hand():
         reached.append(arc_tube_lengths_and_tip(L, np.linalg.norm(k) * L, np.arctan2(k[1], k[0]), radii[s]))
     np.testing.assert_allclose(reached[0][0], lengths[0], atol=1e-12)
     np.testing.assert_allclose(reached[0][1] + reached[0][2].apply(reached[1][1]), p1 + R1.apply(p2), atol=1e-6)
+
+
+def test_goal_babbling_learns_to_reach_goals_of_a_linear_arm():
+    rng = np.random.default_rng(0)
+    A = rng.normal(size=(3, 6))  # x = A q: every goal in the span has a 3-parameter family of commands
+
+    def arm(q):
+        return A @ q
+
+    goals = rng.uniform(0.5, 1.5, (200, 6)) @ A.T
+    model = goal_babbling(arm, np.ones(6), goals, np.random.default_rng(1), steps=1000, noise=0.3)
+    test = rng.uniform(0.6, 1.4, (50, 6)) @ A.T
+    errors = np.linalg.norm(model.predict(test) @ A.T - test, axis=1)
+    spread = np.linalg.norm(test - goals.mean(axis=0), axis=1)
+    assert np.median(errors) < 0.02 * np.median(spread) and model.samples == 1000

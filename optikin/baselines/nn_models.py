@@ -504,3 +504,126 @@ def hybrid_inverse_configurations(
     for i in range(3):
         Q[:, i::3] = by_key[f"ikm_nn{i + 2}"].predict(ends)
     return Q
+
+
+# ---------------------------------------------------------------------------------------- goal babbling
+@dataclass
+class GoalBabbling:
+    """An inverse model learned by goal babbling (Rolf, Steil & Gienger 2010), seed 004 Table IV's BHA row.
+
+    ``g(x) = home + W^T phi(x)``, with ``phi`` Gaussian features of the position about ``centers``
+    (width ``width``), the offset from ``center_mean`` and a constant. Learning (:func:`goal_babbling`)
+    fits ``W`` by weighted ridge regression on the samples the arm produced while trying to reach goals.
+
+    Attributes
+    ----------
+    home:
+        ``(m,)`` the command of the home posture.
+    centers, width, center_mean:
+        ``(c, d)`` feature centres, their width and ``(d,)`` mean [units of the positions].
+    weights:
+        ``(c + d + 1, m)``.
+    samples:
+        Commands executed while learning.
+    """
+
+    home: np.ndarray
+    centers: np.ndarray
+    width: float
+    center_mean: np.ndarray
+    weights: np.ndarray
+    samples: int = 0
+
+    def features(self, X: np.ndarray) -> np.ndarray:
+        """``(n, c + d + 1)`` features of positions ``(n, d)``."""
+        X = np.atleast_2d(X)
+        d2 = ((X[:, None, :] - self.centers[None]) ** 2).sum(-1)
+        return np.concatenate(
+            [np.exp(-0.5 * d2 / self.width**2), (X - self.center_mean) / self.width, np.ones((len(X), 1))], 1
+        )
+
+    def predict(self, X: np.ndarray) -> np.ndarray:
+        """``(n, m)`` commands for positions ``(n, d)``."""
+        return self.home + self.features(X) @ self.weights
+
+
+def goal_babbling(
+    execute: Callable[[np.ndarray], np.ndarray],
+    home: np.ndarray,
+    goals: np.ndarray,
+    rng: np.random.Generator,
+    steps: int = 2000,
+    path_steps: int = 25,
+    noise: float = 0.1,
+    centers: int = 40,
+    ridge: float = 1e-6,
+    refit: int = 50,
+) -> GoalBabbling:
+    """Learn an inverse model by goal babbling (Rolf, Steil & Gienger, "Goal babbling permits direct
+    learning of inverse kinematics", IEEE TAMD 2010).
+
+    Goals move along straight paths between targets drawn from ``goals`` (``path_steps`` each, back
+    home after every tenth path on average); each step executes the current inverse estimate plus a
+    slowly varying exploratory perturbation (standard deviation ``noise``, relative to the spread of
+    the commands the arm's ``home`` and range suggest), observes where the arm went, and keeps the
+    sample with the weight ``w_dir w_eff`` of the paper: ``w_dir = (1 + cos angle(goal step,
+    observed step)) / 2``, ``w_eff = |observed step| / |command step|`` (normalised by its maximum).
+    Every ``refit`` steps the model is refitted on all samples by weighted ridge regression.
+
+    Parameters
+    ----------
+    execute:
+        ``command (m,) -> position (d,)``: one posture of the arm.
+    home:
+        ``(m,)`` the home command.
+    goals:
+        ``(g, d)`` the positions to learn to reach.
+    rng:
+        Draws the targets and the perturbations.
+    steps, path_steps, noise, centers, ridge, refit:
+        The budget of executed commands, the steps per path, the exploration, the number of feature
+        centres (drawn from ``goals``), the ridge term and the refit period.
+
+    Returns
+    -------
+    GoalBabbling
+    """
+    home = np.asarray(home, dtype=float)
+    goals = np.asarray(goals, dtype=float)
+    x_home = execute(home)
+    spread = goals.std(axis=0).mean()
+    model = GoalBabbling(
+        home=home,
+        centers=goals[rng.choice(len(goals), size=min(centers, len(goals)), replace=False)],
+        width=float(spread),
+        center_mean=goals.mean(axis=0),
+        weights=np.zeros((min(centers, len(goals)) + goals.shape[1] + 1, len(home))),
+    )
+    scale = noise * np.maximum(np.abs(home), 1e-12)
+    X, Q, W = [x_home], [home], [1.0]  # positions, commands, weights
+    start, target = x_home, goals[rng.integers(len(goals))]
+    e = np.zeros_like(home)
+    x_prev, q_prev, g_prev = x_home, home, x_home
+    for t in range(1, steps + 1):
+        step = (t - 1) % path_steps + 1
+        goal = start + (target - start) * step / path_steps
+        e = 0.9 * e + np.sqrt(1 - 0.81) * scale * rng.standard_normal(len(home))
+        q = model.predict(goal[None])[0] + e
+        x = execute(q)
+        dg, dx, dq = goal - g_prev, x - x_prev, q - q_prev
+        w_dir = 0.5 * (1.0 + float(dg @ dx) / max(float(np.linalg.norm(dg) * np.linalg.norm(dx)), 1e-300))
+        w_eff = float(np.linalg.norm(dx)) / max(float(np.linalg.norm(dq / scale)), 1e-300)
+        X.append(x)
+        Q.append(q)
+        W.append(w_dir * w_eff)
+        x_prev, q_prev, g_prev = x, q, goal
+        if step == path_steps:
+            start = target
+            target = x_home if rng.random() < 0.1 else goals[rng.integers(len(goals))]
+        if t % refit == 0 or t == steps:
+            w = np.asarray(W) / np.max(W)
+            F = model.features(np.asarray(X)) * np.sqrt(w)[:, None]
+            R = (np.asarray(Q) - home) * np.sqrt(w)[:, None]
+            model.weights = np.linalg.solve(F.T @ F + ridge * len(F) * np.eye(F.shape[1]), F.T @ R)
+    model.samples = steps
+    return model

@@ -123,49 +123,64 @@ class CosseratDatabase:
         }
 
 
+class CosseratSensors:
+    """The Cosserat CBHA of ``params`` and its sensors: pressures in, equilibria's sensor readings out.
+
+    One compiled :class:`~optikin.physics.ShootingSolver` serves every call (``compiled``: Newton on
+    C-compiled functions, compiled once per arm and cached on disk; else CasADi's virtual machine).
+    """
+
+    def __init__(self, params: CosseratMarkerParams, compiled: bool = True) -> None:
+        self.params = params
+        options = ShootingOptions(steps_per_segment=params.steps_per_segment, compiled=compiled)
+        self.solver = ShootingSolver(cosserat_cbha_arm(params), options)
+        self.tip_force = tuple(float(v) for v in params.payload * np.asarray(params.gravity, dtype=float))
+
+    def __call__(self, pressures: np.ndarray, source: str = "cosserat postures") -> dict[str, np.ndarray]:
+        """Equilibria and sensors under ``pressures`` ``(n, sections, 3)`` [Pa], warm-started along them.
+
+        Returns
+        -------
+        dict
+            ``tube_lengths`` ``(n, sections, 3)`` [m], ``tip`` ``(n, 3)`` [m], ``tip_orientation``
+            ``(n, 4)``, ``section_ends`` ``(n, sections, 3)`` [m] (module docstring).
+
+        Raises
+        ------
+        optikin.errors.InputDataError
+            Naming the first posture without an equilibrium.
+        """
+        params = self.params
+        loads = [Loads(tip_force=self.tip_force, actuation=tuple(a)) for a in actuation(params, pressures)]
+        solutions = self.solver.solve_sequence(loads)
+        for i, sol in enumerate(solutions):
+            if not sol.ok:
+                raise InputDataError(f"no equilibrium of the Cosserat arm: {sol.message}", source=source, sample=i)
+        s = self.solver.s
+        backbone = np.stack([sol.positions for sol in solutions])  # (n, K, 3)
+        frames = quat_normalize(np.stack([sol.orientations for sol in solutions]), check=False)
+        per_section = params.segments_per_section * params.steps_per_segment
+        ends = [per_section * (j + 1) for j in range(len(params.section_lengths))]
+        directions = quat_rotate(frames[:, :, None, :], LEG_DIRECTIONS[None, None, :, :], check=False)
+        offsets = params.tube_offset(s)[None, :, None, None] * directions
+        tubes = (backbone[:, :, None, :] + offsets).transpose(0, 2, 1, 3)
+        cumulative = richardson_lengths(tubes, ends)  # (n, tube, section): from the base to each section's end
+        zero = np.zeros(cumulative.shape[:2] + (1,))
+        per_section_lengths = np.diff(np.concatenate([zero, cumulative], -1), axis=-1)
+        return {
+            "tube_lengths": per_section_lengths.transpose(0, 2, 1),
+            "tip": backbone[:, -1],
+            "tip_orientation": frames[:, -1],
+            "section_ends": backbone[:, ends],
+        }
+
+
 def cosserat_postures(
     params: CosseratMarkerParams, pressures: np.ndarray, source: str = "cosserat postures", compiled: bool = True
 ) -> dict[str, np.ndarray]:
-    """Equilibria and sensors of the Cosserat CBHA of ``params`` under ``pressures`` ``(n, sections, 3)`` [Pa].
-
-    ``compiled``: the shooting's Newton on C-compiled functions (compiled once per arm and cached
-    on disk), else on CasADi's virtual machine (no compiler; for a few postures).
-
-    Returns
-    -------
-    dict
-        ``tube_lengths`` ``(n, sections, 3)`` [m], ``tip`` ``(n, 3)`` [m], ``tip_orientation``
-        ``(n, 4)``, ``section_ends`` ``(n, sections, 3)`` [m] (module docstring).
-
-    Raises
-    ------
-    optikin.errors.InputDataError
-        Naming the first posture without an equilibrium.
-    """
-    arm = cosserat_cbha_arm(params)
-    solver = ShootingSolver(arm, ShootingOptions(steps_per_segment=params.steps_per_segment, compiled=compiled))
-    tip_force = tuple(float(v) for v in params.payload * np.asarray(params.gravity, dtype=float))
-    solutions = solver.solve_sequence(
-        [Loads(tip_force=tip_force, actuation=tuple(a)) for a in actuation(params, pressures)]
-    )
-    for i, sol in enumerate(solutions):
-        if not sol.ok:
-            raise InputDataError(f"no equilibrium of the Cosserat arm: {sol.message}", source=source, sample=i)
-    s = solver.s
-    backbone = np.stack([sol.positions for sol in solutions])  # (n, K, 3)
-    frames = quat_normalize(np.stack([sol.orientations for sol in solutions]), check=False)
-    per_section = params.segments_per_section * params.steps_per_segment
-    ends = [per_section * (j + 1) for j in range(len(params.section_lengths))]
-    directions = quat_rotate(frames[:, :, None, :], LEG_DIRECTIONS[None, None, :, :], check=False)
-    tubes = (backbone[:, :, None, :] + params.tube_offset(s)[None, :, None, None] * directions).transpose(0, 2, 1, 3)
-    cumulative = richardson_lengths(tubes, ends)  # (n, tube, section): from the base to each section's end
-    per_section_lengths = np.diff(np.concatenate([np.zeros(cumulative.shape[:2] + (1,)), cumulative], -1), axis=-1)
-    return {
-        "tube_lengths": per_section_lengths.transpose(0, 2, 1),
-        "tip": backbone[:, -1],
-        "tip_orientation": frames[:, -1],
-        "section_ends": backbone[:, ends],
-    }
+    """Equilibria and sensors of the Cosserat CBHA of ``params`` under ``pressures`` ``(n, sections, 3)`` [Pa]
+    (:class:`CosseratSensors`)."""
+    return CosseratSensors(params, compiled)(pressures, source)
 
 
 def build_cosserat_database(

@@ -98,6 +98,12 @@ class NNOptions(Options):
         "percentage split of Fig. 6 (the pipeline of Fig. 9), rows <method>-fig9; the only input on the "
         "cosserat source",
     )
+    goal_babbling: int = Field(
+        1500,
+        ge=0,
+        description="cosserat source, nn_ikm: pressures the Cosserat arm executes while learning an inverse model "
+        "by goal babbling (Rolf et al.; seed 004 Table IV's BHA row, a quarter with setting small); 0: no such row",
+    )
     direct: bool = Field(
         True,
         description="cosserat source: also train seed 004 Table IV's qualitative models (Melingui et al.) on "

@@ -34,10 +34,10 @@ def report(outcome: IKMOutcome) -> Result:
     Arrays: per variant ``tip_<setting>`` (the Cosserat arm's, on the ``cosserat`` source),
     ``leg_lengths_<setting>`` (commanded, before the clip), ``predicted_<setting>`` and
     ``configurations_<setting>`` (realised on the vertebra model), per solver ``tip_<preset>`` and
-    ``configurations_<preset>``, on the ``cosserat`` source ``tip_direct-mlp`` and
-    ``tip_constant-curvature`` (Table IV's other rows), the test postures' ``test_rows``, ``targets``,
-    ``configurations`` (vertebra-model truth only), and the figures' ``search_<setting>_<task>`` and
-    ``tip_errors_<method>``.
+    ``configurations_<preset>``, on the ``cosserat`` source ``tip_direct-mlp``,
+    ``tip_constant-curvature`` and ``tip_goal-babbling`` (Table IV's other rows), the test postures'
+    ``test_rows``, ``targets``, ``configurations`` (vertebra-model truth only), and the figures'
+    ``search_<setting>_<task>`` and ``tip_errors_<method>``.
     """
     prep, test, k = outcome.prep, outcome.test, outcome.exact_samples
     db, truth = prep.db, prep.truth
@@ -90,6 +90,11 @@ def report(outcome: IKMOutcome) -> Result:
         comparison.append(driven_row("constant-curvature", outcome.geometric, {}))
         errors["constant-curvature"] = outcome.geometric.errors
         arrays["tip_constant-curvature"] = outcome.geometric.tip
+    if outcome.babbling is not None and outcome.babbled is not None:
+        extra = {"commands executed while learning": outcome.babbled.samples}
+        comparison.append(driven_row("goal-babbling", outcome.babbling, extra))
+        errors["goal-babbling"] = outcome.babbling.errors
+        arrays["tip_goal-babbling"] = outcome.babbling.tip
     if outcome.floor is not None and outcome.controller is not None:
         comparison.append(driven_row("true-lengths", outcome.floor, {"controller neurons": outcome.controller.neurons}))
         errors["true-lengths"] = outcome.floor.errors
@@ -111,7 +116,9 @@ def report(outcome: IKMOutcome) -> Result:
             "the arm's. true-lengths drives the postures' own tube lengths: the controller's share of every "
             "error. Seed 004 Table IV's other rows: direct-mlp, the qualitative IKM (Melingui et al.), tip -> six "
             "tube lengths, trained on the Cosserat training postures; constant-curvature, the quantitative IKM "
-            "(Mahl et al.), the lengths of constant-curvature sections reaching the tip nearest the mid lengths. "
+            "(Mahl et al.), the lengths of constant-curvature sections reaching the tip nearest the mid lengths; "
+            "goal-babbling (Rolf et al.), pressures from an inverse model learned by goal babbling on the arm "
+            "towards its training tips (tube lengths: those the arm then has). "
             f"Exact solvers on the first {k} test tips ({outcome.formulation.label()})."
         )
     return comparison_result(prep, outcome.networks, comparison, errors, metrics, arrays, note)

@@ -14,8 +14,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from optikin.baselines.nn_database import section_limits, section_tube_lengths
-from optikin.baselines.nn_models import TrainedModel, TrainingSetting, hybrid_inverse_configurations, inverse_tasks
-from optikin.data.cosserat_nn import cosserat_postures
+from optikin.baselines.nn_models import (
+    GoalBabbling,
+    TrainedModel,
+    TrainingSetting,
+    goal_babbling,
+    hybrid_inverse_configurations,
+    inverse_tasks,
+)
+from optikin.data.cosserat_nn import CosseratSensors, cosserat_postures
 from optikin.ik.formulation import Formulation, build_problem, rest_configuration
 from optikin.ik.platform import Realised, platform_problems, realise
 from optikin.problems import ProblemContext
@@ -36,6 +43,10 @@ from optikin.problems.nn_shared import (
 )
 from optikin.solvers import build_preset
 from optikin.solvers.nonlinear import LeastSquaresProblem, NonlinearAdapter
+
+
+BABBLING_NOISE = 0.3
+"""Exploratory perturbation of goal babbling, relative to the mid-range pressure."""
 
 
 @dataclass
@@ -106,6 +117,9 @@ class IKMOutcome:
     geometric:
         Seed 004 Table IV's quantitative IKM (Mahl et al.; constant-curvature sections,
         :func:`~optikin.problems.nn_shared.constant_curvature_lengths`) driven on the arm.
+    babbling, babbled:
+        Seed 004 Table IV's goal-babbling IKM (Rolf et al.; tip -> six pressures learned on the arm,
+        :func:`~optikin.baselines.nn_models.goal_babbling`) executed on the arm, and its model.
     """
 
     prep: Prepared
@@ -118,6 +132,8 @@ class IKMOutcome:
     direct: Driven | None = None
     direct_model: TrainedModel | None = None
     geometric: Driven | None = None
+    babbling: Driven | None = None
+    babbled: GoalBabbling | None = None
 
     @property
     def test(self) -> np.ndarray:
@@ -169,6 +185,37 @@ def drive(prep: Prepared, controller: TrainedModel | None, tube_lengths: np.ndar
         tip=tip,
         errors=np.linalg.norm(tip - target_tips(prep)[:n], axis=1),
     )
+
+
+def babble(prep: Prepared) -> tuple[Driven, GoalBabbling]:
+    """Goal babbling on the Cosserat arm towards its training tips from the mid-range pressures, then its
+    pressures for the test tips executed (module docstring of :func:`~optikin.baselines.nn_models.goal_babbling`)."""
+    truth = prep.truth
+    assert truth is not None
+    rod = truth.params.rod
+    sensors = CosseratSensors(rod)
+    low, high = rod.pressure_range
+    shape = truth.pressures.shape[1:]
+
+    def execute(p: np.ndarray) -> np.ndarray:
+        return sensors(np.clip(p, low, high).reshape(1, *shape), "goal babbling")["tip"][0]
+
+    steps = prep.options.goal_babbling // (4 if prep.options.setting == "small" else 1)
+    home = np.full(int(np.prod(shape)), 0.5 * (low + high))
+    rng = np.random.default_rng([truth.seed, 3])
+    model = goal_babbling(execute, home, truth.tip[truth.train], rng, steps, noise=BABBLING_NOISE)
+    targets = target_tips(prep)
+    pressures = np.clip(model.predict(targets), low, high).reshape(len(targets), *shape)
+    reached = sensors(pressures, "goal babbling")
+    true = truth.tube_lengths[truth.test]
+    driven = Driven(
+        tube_lengths=reached["tube_lengths"],
+        tube_errors=np.sqrt(np.mean((reached["tube_lengths"] - true).reshape(len(true), -1) ** 2, axis=1)),
+        pressures=pressures,
+        tip=reached["tip"],
+        errors=np.linalg.norm(reached["tip"] - targets, axis=1),
+    )
+    return driven, model
 
 
 def run_network(
@@ -263,6 +310,8 @@ def run(ctx: ProblemContext) -> IKMOutcome:
         lower, upper = section_limits(prep.arm.geometry)
         lengths = constant_curvature_lengths(target_tips(prep), section_tube_radii(prep.arm), lower, upper)
         outcome.geometric = drive(prep, controller, lengths)
+        if o.goal_babbling:
+            outcome.babbling, outcome.babbled = babble(prep)
         if o.direct:
             model = direct_model(prep, "direct_ikm")
             lengths = model.predict(target_tips(prep)).reshape(len(truth.test), -1, 3)
