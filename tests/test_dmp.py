@@ -251,6 +251,26 @@ def test_time_scaling_replays_the_same_motion_slower(quaternion_dmp):
     np.testing.assert_allclose(slow.y, original.y, atol=1e-13)
 
 
+def test_goal_filter_with_one_rate_per_component(demo):
+    """A diagonal beta_g0 (eq. 24 with beta_g0 a diagonal matrix): per angle the goal of each component
+    follows its own exponential, g_i(t) = new_i + (old_i - new_i) exp(-beta_i (t - t_s) / tau)."""
+    rates = (2.0, 7.0, 40.0)
+    dmp = DMP(Euclidean(3), n_basis=10, gains=Gains(beta_g0=rates))
+    dmp.imitate(demo.t, demo.position)
+    old, new = demo.position[-1], demo.position[-1] + np.array([0.02, -0.03, 0.01])
+    switch = 1.0 + 0.5 * dmp.dt
+    out = dmp.rollout(goal_switches=[(switch, new)])
+    k = int(np.flatnonzero(out.t >= switch)[0])
+    elapsed = (out.t[k + 1 :] - out.t[k])[:, None]
+    expected = new + (old - new) * np.exp(-np.array(rates) * elapsed / dmp.tau)
+    np.testing.assert_allclose(out.goal[k + 1 :], expected, atol=1e-13)
+    assert Gains(beta_g0=5.0).goal_rates(3).tolist() == [5.0, 5.0, 5.0]
+    with pytest.raises(ValueError):
+        Gains(beta_g0=(1.0, -2.0, 3.0))
+    with pytest.raises(ValueError):
+        DMP(Euclidean(3), gains=Gains(beta_g0=(1.0, 2.0))).gains.goal_rates(3)
+
+
 def test_goal_filter_moves_the_goal_along_the_geodesic(quaternion_dmp):
     """Eq. (24) integrated exactly: after a switch at t_s the goal is slerp(new, old, exp(-beta_g0 (t - t_s)/tau))."""
     dmp, rng = quaternion_dmp, np.random.default_rng(2)

@@ -179,3 +179,27 @@ def test_budgets_of_the_genetic_algorithm_and_the_multistart(problem):
     assert multi.error <= multi.initial_error
     ipopt = tune_gradient(problem, max_iterations=50, screen=6, seed=1, budget=60)
     assert ipopt.error <= ipopt.initial_error
+
+
+def test_goal_rates_tuned_as_a_diagonal(demo):
+    """beta_g0 as one rate per gap component (eq. 24's diagonal, seed Figs. 18-19): the objective at a diagonal
+    equals the numpy path (a DMP with that tuple rolled out through the switch), and tuning the diagonal ends
+    at or below tuning one shared rate from the same start (it contains it)."""
+    new_goal = quat_multiply(quat_exp(np.array([0.3, -0.2, 0.1])), demo.quaternion[-1])
+    dmp = DMP(UnitQuaternion(), n_basis=8, gains=Gains(beta_g0=5.0, alpha_s=0.5))
+    names = ("beta_g0[0]", "beta_g0[1]", "beta_g0[2]")
+    extra = {"scenario": "goal", "new_goal": new_goal, "switch_time": 1.0}
+    diagonal = tuning_problem(dmp, demo.t, demo.quaternion, names, **extra)
+    rates = np.array([2.0, 9.0, 30.0])
+    learner = DMP(UnitQuaternion(), n_basis=8, gains=Gains(beta_g0=tuple(rates), alpha_s=0.5))
+    learner.imitate(demo.t, demo.quaternion)
+    out = learner.rollout(goal_switches=[(1.0, new_goal)])
+    after = out.t >= 1.0
+    expected = np.sum((out.y[after] - new_goal) ** 2) / after.sum()
+    assert diagonal.error(rates) == pytest.approx(expected, rel=1e-6)
+    assert diagonal.gains(rates).beta_g0 == tuple(rates)
+    shared = tune_gradient(tuning_problem(dmp, demo.t, demo.quaternion, ("beta_g0",), **extra), screen=8)
+    each = tune_gradient(diagonal, screen=8)
+    assert each.error <= 1.001 * shared.error
+    with pytest.raises(ValueError):
+        tuning_problem(dmp, demo.t, demo.quaternion, ("beta_g0", "beta_g0[0]"), **extra)

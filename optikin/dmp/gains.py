@@ -12,6 +12,12 @@ name                  role                                                      
 ``alpha``             phase stopping by the goal and reference gaps              25, 28
 ====================  =========================================================  ==========
 
+``beta_g0`` is a number or one rate per gap component (the diagonal matrix of
+eq. 24; Seleem et al. report four values per DMP, Figs. 18-19, for the three
+components of ``log``: on the pure quaternion ``(0, v)`` the first multiplies
+the zero scalar part and does nothing, so their ``Q_r`` diagonal
+``(991.35, 76.96, 407.93, 682.71)`` acts as ``(76.96, 407.93, 682.71)``).
+
 ``beta = 4 gamma`` is critically damped; the defaults (25, 6.25, ``-ln 0.01``)
 are movement_primitives' so the two can be compared on the same data.
 """
@@ -43,20 +49,40 @@ class Gains:
     beta: float = 25.0
     gamma: float = 6.25
     zeta: float = -math.log(0.01)
-    beta_g0: float = math.inf
+    beta_g0: float | tuple[float, ...] = math.inf
     alpha_s: float = 0.0
     alpha: float = 0.0
 
     def __post_init__(self) -> None:
+        if not isinstance(self.beta_g0, (int, float)):
+            object.__setattr__(self, "beta_g0", tuple(float(v) for v in self.beta_g0))
+            if not self.beta_g0:
+                raise ValueError("a diagonal beta_g0 needs one rate per gap component, got none")
         for name, value in asdict(self).items():
-            if not value >= 0 or (math.isinf(value) and name != "beta_g0"):
-                raise ValueError(f"DMP gain {name} must be finite and >= 0 (beta_g0 may be inf), got {value}")
+            for v in value if isinstance(value, tuple) else (value,):
+                if not v >= 0 or (math.isinf(v) and name != "beta_g0"):
+                    raise ValueError(f"DMP gain {name} must be finite and >= 0 (beta_g0 may be inf), got {value}")
         if self.beta <= 0 or self.gamma <= 0 or self.zeta <= 0:
             raise ValueError("DMP gains beta, gamma and zeta must be positive")
 
     def vector(self) -> np.ndarray:
-        """``(6,)`` gains in the order of :data:`GAIN_NAMES`."""
-        return np.array([getattr(self, n) for n in GAIN_NAMES], dtype=float)
+        """``(6,)`` gains in the order of :data:`GAIN_NAMES` (a diagonal ``beta_g0`` as its largest rate)."""
+        return np.array([max(np.atleast_1d(getattr(self, n))) for n in GAIN_NAMES], dtype=float)
+
+    def goal_rates(self, dim: int) -> np.ndarray:
+        """``(dim,)`` rates of the goal filter (eq. 24), one per gap component.
+
+        Raises
+        ------
+        ValueError
+            A diagonal ``beta_g0`` of another length.
+        """
+        rates = np.broadcast_to(np.asarray(self.beta_g0, dtype=float), (dim,)) if np.ndim(self.beta_g0) == 0 else None
+        if rates is None:
+            rates = np.asarray(self.beta_g0, dtype=float)
+            if rates.shape != (dim,):
+                raise ValueError(f"beta_g0 has {rates.size} rates for a DMP with {dim} gap components")
+        return np.array(rates)
 
     def with_values(self, **values: float) -> "Gains":
         """These gains with some replaced (checked again)."""

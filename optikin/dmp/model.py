@@ -312,7 +312,7 @@ class DMP:
             ``(size,)`` poses (default the demonstration's first and last sample).
         goal_switches:
             ``(time [s], new goal (size,))`` pairs; the goal moves to each new goal
-            through the filter of eq. (24) (rate ``gains.beta_g0``).
+            through the filter of eq. (24) (rate ``gains.beta_g0``, one per gap component if a tuple).
         disturbance:
             Per-step force ``(K, dim)`` added to eq. (17), or a function of the step times ``(K,)``.
         reference:
@@ -351,7 +351,20 @@ class DMP:
         begin = time.perf_counter()
         c, h, s_end = self._basis()
         X = np.asarray(
-            f(x0, plan.inputs.T, W, c, h, plan.amplitude, gains.vector(), plan.tau, plan.dt, s_end, self.goal_stopping)
+            f(
+                x0,
+                plan.inputs.T,
+                W,
+                c,
+                h,
+                plan.amplitude,
+                gains.vector(),
+                plan.tau,
+                plan.dt,
+                s_end,
+                self.goal_stopping,
+                np.minimum(gains.goal_rates(dim), 1e300),
+            )
         ).T
         seconds = time.perf_counter() - begin
         return Rollout(

@@ -12,7 +12,8 @@ One step (Seleem et al. 2020, eqs. 11-12 / 17-18, 15, 23-28, in the gap units of
     y   <- advance(advance(y, dt/tau (eta + alpha_s (e + r))), o)            (eqs. 12, 23, 26, 27;
                                                                           o an output displacement)
     s   <- s exp(-zeta dt / (tau (1 + alpha (w |e| + |r|))))                 (eqs. 15, 25, 28)
-    g   <- advance(g, (1 - exp(-beta_g0 dt/tau)) gap(g_new, g))              (eq. 24)
+    g   <- advance(g, (1 - exp(-beta_g0 dt/tau)) gap(g_new, g))              (eq. 24; beta_g0 one rate
+                                                                          per gap component, the diagonal)
     e_prev <- e
 
 The pose update ``advance(y, v) = exp(v/2) y`` (for Koutras & Doulgeri's DMP,
@@ -56,7 +57,11 @@ def input_size(space: Space) -> int:
 
 @lru_cache(maxsize=32)
 def step_function(space: Space, n_basis: int) -> ca.Function:
-    """One step of the roll-out, ``(x, u, W, c, h, amplitude, gains, tau, dt, s_end, w) -> x_next`` (SX)."""
+    """One step of the roll-out, ``(x, u, W, c, h, amplitude, gains, tau, dt, s_end, w, goal_rates) -> x_next`` (SX).
+
+    ``gains`` are the six of :data:`~optikin.dmp.gains.GAIN_NAMES` (its ``beta_g0`` unused) and ``goal_rates``
+    the ``(dim,)`` diagonal of eq. (24) (:meth:`~optikin.dmp.Gains.goal_rates`).
+    """
     size, dim = space.size, space.dim
     x = ca.SX.sym("x", state_size(space))
     u = ca.SX.sym("u", input_size(space))
@@ -69,7 +74,8 @@ def step_function(space: Space, n_basis: int) -> ca.Function:
     dt = ca.SX.sym("dt")
     s_end = ca.SX.sym("s_end")
     w = ca.SX.sym("goal_stopping")
-    beta, gamma, zeta, beta_g0, alpha_s, alpha = (gains[i] for i in range(len(GAIN_NAMES)))
+    beta_g0 = ca.SX.sym("goal_rates", dim)
+    beta, gamma, zeta, _, alpha_s, alpha = (gains[i] for i in range(len(GAIN_NAMES)))
 
     y, eta, s = x[:size], x[size : size + dim], x[size + dim]
     g, e_prev = x[size + dim + 1 : 2 * size + dim + 1], x[2 * size + dim + 1 :]
@@ -86,17 +92,17 @@ def step_function(space: Space, n_basis: int) -> ca.Function:
     g_next = space.advance(g, (1.0 - ca.exp(-beta_g0 * dt / tau)) * space.gap(g_new, g))
     return ca.Function(
         f"dmp_step_{n_basis}",
-        [x, u, W, c, h, amp, gains, tau, dt, s_end, w],
+        [x, u, W, c, h, amp, gains, tau, dt, s_end, w, beta_g0],
         [ca.vertcat(y_next, eta_next, s_next, g_next, e)],
-        ["x", "u", "W", "c", "h", "amplitude", "gains", "tau", "dt", "s_end", "goal_stopping"],
+        ["x", "u", "W", "c", "h", "amplitude", "gains", "tau", "dt", "s_end", "goal_stopping", "goal_rates"],
         ["x_next"],
     )
 
 
 @lru_cache(maxsize=64)
 def rollout_function(space: Space, n_basis: int, steps: int) -> ca.Function:
-    """``(x0, U, W, c, h, amplitude, gains, tau, dt, s_end, goal_stopping) -> X``: ``steps`` steps, ``X`` of
-    shape ``nx x (steps + 1)``.
+    """``(x0, U, W, c, h, amplitude, gains, tau, dt, s_end, goal_stopping, goal_rates) -> X``: ``steps`` steps,
+    ``X`` of shape ``nx x (steps + 1)``.
 
     ``U`` holds one column of per-step inputs per step; ``c``, ``h`` and
     ``s_end`` are the basis centres, widths and end phase learned with the
@@ -117,11 +123,12 @@ def rollout_function(space: Space, n_basis: int, steps: int) -> ca.Function:
     dt = ca.MX.sym("dt")
     s_end = ca.MX.sym("s_end")
     w = ca.MX.sym("goal_stopping")
-    X = loop(x0, U, W, c, h, amp, gains, tau, dt, s_end, w)
+    rates = ca.MX.sym("goal_rates", space.dim)
+    X = loop(x0, U, W, c, h, amp, gains, tau, dt, s_end, w, rates)
     return ca.Function(
         f"dmp_rollout_{n_basis}_{steps}",
-        [x0, U, W, c, h, amp, gains, tau, dt, s_end, w],
+        [x0, U, W, c, h, amp, gains, tau, dt, s_end, w, rates],
         [ca.horzcat(x0, X)],
-        ["x0", "U", "W", "c", "h", "amplitude", "gains", "tau", "dt", "s_end", "goal_stopping"],
+        ["x0", "U", "W", "c", "h", "amplitude", "gains", "tau", "dt", "s_end", "goal_stopping", "goal_rates"],
         ["X"],
     )

@@ -68,6 +68,8 @@ class TuningProblem:
         ``(n,)`` starting gains (the DMP's, clipped into the bounds).
     fixed:
         The gains not tuned.
+    dim:
+        Gap components of the DMP (the length of a diagonal ``beta_g0``).
     """
 
     names: tuple[str, ...]
@@ -76,10 +78,18 @@ class TuningProblem:
     upper: np.ndarray
     initial: np.ndarray
     fixed: Gains
+    dim: int
 
     def gains(self, values: np.ndarray) -> Gains:
-        """The fixed gains with the tuned ones set to ``values (n,)``."""
-        return self.fixed.with_values(**{n: float(v) for n, v in zip(self.names, values)})
+        """The fixed gains with the tuned ones set to ``values (n,)`` (``beta_g0[i]``: the diagonal of beta_g0)."""
+        plain = {n: float(v) for n, v in zip(self.names, values) if not n.startswith("beta_g0[")}
+        diagonal = {int(n[len("beta_g0[") : -1]): float(v) for n, v in zip(self.names, values) if n not in plain}
+        if diagonal:
+            rates = list(self.fixed.goal_rates(self.dim))
+            for i, v in diagonal.items():
+                rates[i] = v
+            plain["beta_g0"] = tuple(rates)  # type: ignore[assignment]
+        return self.fixed.with_values(**plain)
 
     def error(self, values: np.ndarray) -> float:
         """Eq. (29) at gains ``values (n,)`` (not logarithms)."""
@@ -155,7 +165,8 @@ def default_bounds(dmp: DMP, names: tuple[str, ...]) -> tuple[np.ndarray, np.nda
         "alpha_s": (1e-3, stable["alpha_s"][1]),
         "alpha": (1e-3, 100.0),
     }
-    return np.array([table[n][0] for n in names]), np.array([table[n][1] for n in names])
+    key = [n if not n.startswith("beta_g0[") else "beta_g0" for n in names]
+    return np.array([table[n][0] for n in key]), np.array([table[n][1] for n in key])
 
 
 def tuning_problem(
@@ -181,7 +192,8 @@ def tuning_problem(
     Y:
         ``(N, size)`` demonstration in the DMP's layout.
     names:
-        The gains tuned.
+        The gains tuned: of :data:`~optikin.dmp.gains.GAIN_NAMES`, or ``beta_g0[i]`` for the rates of a
+        diagonal ``beta_g0`` (eq. 24), ``i < dim``.
     scenario:
         ``reproduction`` (the roll-out against the demonstration) or ``goal``
         (the roll-out against ``new_goal`` from ``switch_time`` on).
@@ -201,9 +213,10 @@ def tuning_problem(
     ValueError
         Unknown gains or scenario, or the goal scenario without a new goal.
     """
-    unknown = [n for n in names if n not in GAIN_NAMES]
-    if unknown or not names:
-        raise ValueError(f"tunable gains are {GAIN_NAMES}, got {names}")
+    diagonal = tuple(f"beta_g0[{i}]" for i in range(dmp.space.dim))
+    unknown = [n for n in names if n not in GAIN_NAMES + diagonal]
+    if unknown or not names or ("beta_g0" in names and set(diagonal) & set(names)):
+        raise ValueError(f"tunable gains are {GAIN_NAMES} and the diagonal {diagonal} of beta_g0, got {names}")
     if scenario not in SCENARIOS:
         raise ValueError(f"unknown tuning scenario {scenario!r}; choose from {SCENARIOS}")
     if scenario == "goal" and new_goal is None:
@@ -213,10 +226,16 @@ def tuning_problem(
     space = dmp.space
 
     log_gains = ca.MX.sym("log_gains", len(names))
-    value: dict[str, Any] = {n: getattr(dmp.gains, n) for n in GAIN_NAMES}
-    value["beta_g0"] = min(value["beta_g0"], 1e12)  # exp(-beta_g0 dt / tau) = 0 without an inf in the graph
+    value: dict[str, Any] = {n: getattr(dmp.gains, n) for n in GAIN_NAMES if n != "beta_g0"}
+    # exp(-beta_g0 dt / tau) = 0 without an inf in the graph
+    rates: list[Any] = list(np.minimum(dmp.gains.goal_rates(space.dim), 1e12))
     for i, n in enumerate(names):
-        value[n] = ca.exp(log_gains[i])
+        if n == "beta_g0":
+            rates = [ca.exp(log_gains[i])] * space.dim
+        elif n.startswith("beta_g0["):
+            rates[int(n[len("beta_g0[") : -1])] = ca.exp(log_gains[i])
+        else:
+            value[n] = ca.exp(log_gains[i])
 
     X, _, c, h, s_end = design_matrix(demo, dmp.n_basis, value["zeta"], value["alpha"], dmp.overlap, dmp.phase_stopping)
     scale = dmp.plan().amplitude  # the learned demonstration's start-goal scaling (ones when not scaling)
@@ -245,10 +264,21 @@ def tuning_problem(
         if B.is_casadi(value["alpha_s"])
         else ca.DM(plan.initial_state(value["alpha_s"]))
     )
-    gains_vector = ca.vertcat(*[value[n] for n in GAIN_NAMES])
+    gains_vector = ca.vertcat(*[value.get(n, 0.0) for n in GAIN_NAMES])  # beta_g0: goal_rates below
     rollout = rollout_function(space, dmp.n_basis, plan.steps)
     states = rollout(
-        x0, plan.inputs.T, W, c, h, plan.amplitude, gains_vector, plan.tau, plan.dt, s_end, dmp.goal_stopping
+        x0,
+        plan.inputs.T,
+        W,
+        c,
+        h,
+        plan.amplitude,
+        gains_vector,
+        plan.tau,
+        plan.dt,
+        s_end,
+        dmp.goal_stopping,
+        ca.vertcat(*rates),
     )
     E = states[: space.size, rows] - ca.DM(reference[rows].T)
     samples = reference[rows].shape[0]
@@ -264,9 +294,17 @@ def tuning_problem(
             f"demonstration or fewer tuned gains",
             field="tuning.gains",
         )
-    initial = np.clip([getattr(dmp.gains, n) for n in names], lower, upper)
+    start = dmp.gains.goal_rates(space.dim)
+    initial = np.clip(
+        [
+            start[int(n[len("beta_g0[") : -1])] if n.startswith("beta_g0[") else np.max(getattr(dmp.gains, n))
+            for n in names
+        ],
+        lower,
+        upper,
+    )
     return TuningProblem(
-        tuple(names), objective, np.asarray(lower, float), np.asarray(upper, float), initial, dmp.gains
+        tuple(names), objective, np.asarray(lower, float), np.asarray(upper, float), initial, dmp.gains, space.dim
     )
 
 

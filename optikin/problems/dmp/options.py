@@ -10,7 +10,7 @@ goal scenario of the tuning needs goal switches) are made in
 
 from __future__ import annotations
 
-from typing import Literal, get_args
+from typing import Annotated, Literal, get_args
 
 from pydantic import Field, ValidationInfo, field_validator
 from pydantic_core import PydanticCustomError
@@ -30,6 +30,8 @@ translation DMP on the position."""
 VARIANTS: tuple[Variant, ...] = get_args(Variant)
 
 _GAINS = Gains()
+Rate = Annotated[float, Field(allow_inf_nan=True)]
+"""A goal-filter rate: ``inf`` allowed (the goal jumps); NaN and negative rates are refused by the model."""
 
 
 class GainOptions(Options):
@@ -38,9 +40,20 @@ class GainOptions(Options):
     beta: float = Field(_GAINS.beta, gt=0, description="damping of the transformation system (eqs. 11, 17)")
     gamma: float = Field(_GAINS.gamma, gt=0, description="spring to damping ratio (eqs. 11, 17)")
     zeta: float = Field(_GAINS.zeta, gt=0, description="decay rate of the phase (eq. 15)")
-    beta_g0: float = Field(
-        _GAINS.beta_g0, ge=0, allow_inf_nan=True, description="rate of the goal filter (eq. 24); .inf: the goal jumps"
+    beta_g0: Rate | tuple[Rate, ...] = Field(
+        _GAINS.beta_g0,
+        description="rate of the goal filter (eq. 24), or one rate per gap component (the diagonal); .inf: the "
+        "goal jumps",
     )
+
+    @field_validator("beta_g0")
+    @classmethod
+    def _rates_non_negative(cls, value: Rate | tuple[Rate, ...]) -> Rate | tuple[Rate, ...]:
+        rates = value if isinstance(value, tuple) else (value,)
+        if not rates or any(not r >= 0 for r in rates):
+            raise PydanticCustomError("negative_rate", "every rate of beta_g0 must be >= 0 (.inf: the goal jumps)")
+        return value
+
     alpha_s: float = Field(_GAINS.alpha_s, ge=0, description="coupling to the goal and reference gaps (eqs. 26-27)")
     alpha: float = Field(_GAINS.alpha, ge=0, description="phase stopping by the gaps (eqs. 25, 28)")
 
@@ -143,6 +156,11 @@ class Tuning(Options):
         "multi-start L-BFGS-B then get the count IPOPT used; null: starts x max_iterations, and no multi-start",
     )
     seeds: int = Field(1, ge=1, description="GA and multi-start runs, seeded data.seed, data.seed + 1, ...")
+    goal_diagonal: bool = Field(
+        False,
+        description="tune beta_g0 (when in gains) as one rate per gap component, the diagonal of eq. (24) that "
+        "the seed reports (Figs. 18-19), not one scalar",
+    )
     terms: tuple[SeedTerm, ...] = Field(
         (),
         description="tune the seed's quaternion DMP on these terms of (Q_r, Q_d) (Figs. 5a, 5b) instead of variant",

@@ -111,6 +111,13 @@ def _tuning_rows(tuning: TuningOutcome) -> list[MethodRow]:
     return rows
 
 
+def _gain(found: TuningResult, name: str) -> float:
+    """A tuned gain, ``beta_g0[i]`` the ``i``-th rate of a diagonal ``beta_g0``."""
+    if name.startswith("beta_g0["):
+        return float(np.atleast_1d(found.gains.beta_g0)[int(name[len("beta_g0[") : -1])])
+    return float(getattr(found.gains, name))
+
+
 def _tuning_row(tuning: TuningOutcome, found: TuningResult, label: str) -> MethodRow:
     metrics: dict[str, float | int | str] = {
         "eq. 29 error": found.error,
@@ -118,7 +125,7 @@ def _tuning_row(tuning: TuningOutcome, found: TuningResult, label: str) -> Metho
         "time [s]": found.seconds,
         "objective evaluations": found.evaluations,
         "status": found.status,
-        **{n: getattr(found.gains, n) for n in tuning.names},
+        **{n: _gain(found, n) for n in tuning.names},
     }
     return MethodRow(f"tuning {tuning.variant} ({label})", "solver" if found.method == "ipopt" else "baseline", metrics)
 

@@ -288,7 +288,6 @@ def tune(
     ctx: ProblemContext, learner: Learner, tuning: Tuning, goals: list[Goal], final_rpy: np.ndarray
 ) -> list[TuningOutcome]:
     """Tune the gains of ``tuning.variant`` (or of the seed's DMP on each of ``tuning.terms``)."""
-    names = tuple(tuning.gains)
     variant = tuning.variant or learner.options.variants[0]
     demo = learner.demo
     targets: list[tuple[str, DMP, np.ndarray, dict[str, Any]]] = []
@@ -310,13 +309,20 @@ def tune(
     unknown = sorted(set(tuning.reference) - {label for label, *_ in targets})
     if unknown:
         raise ctx.error("options.tuning.reference", f"no tuned target {unknown[0]!r}; the targets are tuned ones")
-    return [tune_target(ctx, tuning, names, label, dmp, demo.t, Y, extra) for label, dmp, Y, extra in targets]
+    return [tune_target(ctx, tuning, label, dmp, demo.t, Y, extra) for label, dmp, Y, extra in targets]
+
+
+def tuned_names(tuning: Tuning, dim: int) -> tuple[str, ...]:
+    """The gains tuned, ``beta_g0`` expanded to ``beta_g0[0] .. beta_g0[dim-1]`` with ``goal_diagonal``."""
+    names: list[str] = []
+    for n in tuning.gains:
+        names += [f"beta_g0[{i}]" for i in range(dim)] if n == "beta_g0" and tuning.goal_diagonal else [n]
+    return tuple(names)
 
 
 def tune_target(
     ctx: ProblemContext,
     tuning: Tuning,
-    names: tuple[str, ...],
     label: str,
     dmp: DMP,
     t: np.ndarray,
@@ -325,6 +331,7 @@ def tune_target(
 ) -> TuningOutcome:
     """IPOPT, then (with a budget) the multi-start L-BFGS-B and (as a baseline) the GA on IPOPT's evaluation count,
     ``tuning.seeds`` times each."""
+    names = tuned_names(tuning, dmp.space.dim)
     try:
         problem = tuning_problem(dmp, t, Y, names, scenario=tuning.scenario, **extra)
     except InputDataError as exc:
