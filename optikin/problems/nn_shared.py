@@ -255,7 +255,8 @@ def constant_curvature_tips(tube_lengths: np.ndarray, radii: np.ndarray) -> np.n
 def constant_curvature_lengths(
     targets: np.ndarray, radii: np.ndarray, lower: np.ndarray, upper: np.ndarray, weight: float = 1e-3
 ) -> np.ndarray:
-    """Seed 004 Table IV's quantitative IKM (Mahl et al.): the tube lengths whose constant-curvature tip
+    """Seed 004 Table IV's quantitative IKM, the geometric class of Mahl et al. (one arc per section: their
+    variable curvature is not modelled): the tube lengths whose constant-curvature tip
     (:func:`constant_curvature_tips`) is each target, nearest the mid lengths.
 
     All targets in one ``least_squares`` on ``(tip(l_i) - target_i, weight (l_i - l_mid))`` [m] within the
