@@ -160,6 +160,7 @@ def test_the_kind_writes_an_arm_section_other_problems_can_use(tmp_path: Path):
     data["options"]["arm_file"] = "trunk-arm.yaml"
     data["options"]["targets_file"] = "targets.csv"
     data["options"]["markers_file"] = "markers.csv"
+    data["options"]["points_file"] = "points.csv"
     data["options"]["holdout"] = {"method": "split", "test_fraction": 0.25}
     problem = tmp_path / "trunk-calibrate.yaml"
     problem.write_text(yaml.safe_dump(data))
@@ -183,6 +184,8 @@ def test_the_kind_writes_an_arm_section_other_problems_can_use(tmp_path: Path):
     assert len(targets) == kept.sum()
     distance = np.linalg.norm(rec["measured"][kept, 2] - base, axis=1)
     assert np.abs(np.linalg.norm(targets[:, 1:], axis=1) - distance).max() < 1e-6
+    points = np.loadtxt(tmp_path / "points.csv", delimiter=",", skiprows=1)
+    assert np.array_equal(points.reshape(-1, 3, 3), rec["measured"][kept])
     # end poses of the calibrated arm, readable by the ph_shape kind's csv source
     markers = read_marker_csv(tmp_path / "markers.csv")
     assert len(markers) == kept.sum()
@@ -230,3 +233,6 @@ def test_the_trunk_workflow_problems_run(name, tmp_path: Path):
         assert all(abs(radial[f"tube{m}_s1.0"] - rho[0] * 1e3) < 1.5 for m in (1, 2, 3))
         assert all(abs(radial[f"tube{m}_tip"] - rho[1] * 1e3) < 3.0 for m in (1, 2, 3))
         assert result.metrics["held-out RMS marker error (kfold) [mm]"] < 1.0
+    if name == "trunk-ik":
+        # the calibrated arm reaches every measured posture within the marker noise
+        assert set(result.status) <= {"ok", "fit"}

@@ -9,6 +9,9 @@ of other problem files. :func:`write_arm_file` writes it as YAML under the key
 the base pose in the recording frame, the marker offsets, the standard deviations
 and the held-out error.
 
+:func:`write_points_csv` writes the measured points of every marker in the recording frame,
+in the columns of the point targets of the ``ik`` kind (:mod:`optikin.ik.points`), to be
+read with the calibrated base pose as ``data.params.base``.
 :func:`write_target_csv` writes the measured points of one marker in the calibrated
 arm's base frame, in the columns of the ``csv`` source of family ``targets``
 (:mod:`optikin.data.targets`: ``t, x, y, z``): tip-position targets of the ``ik`` kind
@@ -105,6 +108,17 @@ def write_target_csv(path: Path, t: np.ndarray, points: np.ndarray) -> Path:
     """Write tip-position targets ``points (N, 3)`` [m] at times ``t (N,)`` [s] as columns ``t, x, y, z``."""
     table = np.column_stack([t, points])
     lines = ["t,x,y,z"] + [",".join(repr(float(v)) for v in row) for row in table]
+    Path(path).write_text("\n".join(lines) + "\n")
+    return Path(path)
+
+
+def write_points_csv(path: Path, names: list[str], points: np.ndarray) -> Path:
+    """Write measured points ``(N, M, 3)`` [m] named ``names`` as columns ``<name>_x, <name>_y, <name>_z, ...``:
+    the point targets of the ``ik`` kind (:mod:`optikin.ik.points`), independent postures (no time column)."""
+    n = len(points)
+    table = np.asarray(points, dtype=float).reshape(n, -1)
+    header = [f"{name}_{a}" for name in names for a in "xyz"]
+    lines = [",".join(header)] + [",".join(repr(float(v)) for v in row) for row in table]
     Path(path).write_text("\n".join(lines) + "\n")
     return Path(path)
 

@@ -92,6 +92,12 @@ class CalibrateOptions(Options):
         description="write the kept postures' tip marker in the calibrated base frame to this CSV file "
         "(t, x, y, z: targets of kind ik, source csv), relative to the problem file",
     )
+    points_file: str | None = Field(
+        None,
+        description="write the kept postures' measured points in the recording frame to this CSV file "
+        "(<marker>_x, _y, _z: point targets of kind ik, source csv, with the calibrated base pose as "
+        "data.params.base), relative to the problem file",
+    )
     markers_file: str | None = Field(
         None,
         description="write the kept postures as end poses of the calibrated arm with the other markers "

@@ -17,6 +17,7 @@ from optikin.calibration.export import (
     calibration_facts,
     marker_recording,
     write_arm_file,
+    write_points_csv,
     write_target_csv,
 )
 from optikin.data.markers import write_marker_csv
@@ -207,6 +208,9 @@ def solve(ctx: ProblemContext) -> CalibrateOutcome:
             tip = names[int(np.argmax(sections))]
             points = base_frame_points(calibration, measured[calibration.kept, int(np.argmax(sections))])
             write_target_csv(written["targets_file"], recording.time[calibration.kept], points)
+        if options.points_file is not None:
+            written["points_file"] = (ctx.path.parent / options.points_file).resolve()
+            write_points_csv(written["points_file"], names, measured[calibration.kept])
         if options.markers_file is not None:
             written["markers_file"] = (ctx.path.parent / options.markers_file).resolve()
             tip = names[int(np.argmax(sections))]
