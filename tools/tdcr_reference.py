@@ -19,11 +19,17 @@ This script
    started from the last solution), and a second time
    with the integrator's error control tightened from ``(abs 1e-6, rel 1e-3)`` to ``(1e-12, 1e-12)`` (the only
    change, a text substitution) to measure how far the published setting is from the converged ODE solution,
-3. runs every case of :data:`CASES` with both builds and writes ``tests/data/tdcr/<case>.json``.
+3. runs every case of :data:`CASES` with both builds and writes ``tests/data/tdcr/<case>.json``,
+4. runs the MATLAB implementation of the same model, ``matlab/Models/VC/VC_solver.m`` (ode45 and fsolve), in GNU
+   Octave as its ``matlab/main.m`` does, on the robot of ``matlab/Parameters/tdcr_2segments.m``, for every case of
+   :data:`MATLAB_CASES` (:data:`MATLAB_DRIVER` sets the tensions and the tip force), unmodified and with ode45's
+   tolerances tightened from 1e-6 to 1e-10, and writes ``tests/data/tdcr/matlab_vc_<case>.json``.
 
-Requires g++, the Eigen 3 headers and GSL (Debian: ``apt-get install g++ libeigen3-dev libgsl-dev``). Run
+Requires g++, the Eigen 3 headers, GSL and Octave (Debian: ``apt-get install g++ libeigen3-dev libgsl-dev
+octave``; about eight minutes, mostly Octave). Run
 ``python tools/tdcr_reference.py --source https://github.com/SvenLilge/tdcr-modeling`` (or a local clone);
-``--out DIR`` writes elsewhere. The file format is described in ``tests/data/tdcr/README.md``.
+``--out DIR`` writes elsewhere, ``--only cpp`` or ``--only matlab`` runs one of the two. The file format is
+described in ``tests/data/tdcr/README.md``.
 """
 
 from __future__ import annotations
@@ -43,6 +49,8 @@ DEFAULT_SOURCE = "https://github.com/SvenLilge/tdcr-modeling"
 DEFAULT_OUT = Path(__file__).resolve().parent.parent / "tests" / "data" / "tdcr"
 PUBLISHED_CONTROL = "gsl_odeiv2_control_y_new (1e-6, 1e-3)"
 TIGHT_CONTROL = "gsl_odeiv2_control_y_new (1e-12, 1e-12)"
+PUBLISHED_ODESET = "odeset('AbsTol',1e-6,'RelTol',1e-6,'InitialStep',0.005)"
+TIGHT_ODESET = "odeset('AbsTol',1e-10,'RelTol',1e-10,'InitialStep',0.005)"
 
 DRIVER = r"""
 #include "cosseratrodmodel.h"
@@ -123,6 +131,47 @@ int main()
 """
 
 
+MATLAB_DRIVER = """
+addpath('{models}');
+addpath('{parameters}');
+tdcr_2segments;  % the robot of the article; F and Ftex are set below
+F = [{tensions}];
+Ftex = [{tip_force}];
+param = setup_param_vc(0,0,0,0,sum(L),ro,ri,m_bb(1),E,nu,0,r_disk,m_disk(1),n_disk,L,r1(1:3),r2(1:3),r3(1:3));
+Fc = [F(1:3);F(4:6)]';
+[y, init, exitflag] = VC_solver([0;0;1;0;0;0], Fc, Ftex, L, param);
+res = boundcond(size(y,1), Fc(:,2), Ftex, 2, y, [param.tendon.r1 param.tendon.r2 param.tendon.r3], param);
+printf('robot'); printf(' %.17g', [L(1) L(2) E nu ro r_disk g]); printf('\\n');
+printf('routing'); printf(' %.17g', [r1(1:3) r2(1:3) r3(1:3)]); printf('\\n');
+printf('exitflag %d\\n', exitflag);
+printf('residual'); printf(' %.17g', res); printf('\\n');
+printf('init'); printf(' %.17g', init); printf('\\n');
+for i = 1:size(y,1)
+  printf('point'); printf(' %.17g', y(i,[19 1:12])); printf('\\n');
+end
+"""
+"""Runs the MATLAB code's ``VC_solver`` as its ``matlab/main.m`` does, on the robot of
+``matlab/Parameters/tdcr_2segments.m``, with the case's tensions and tip force, and prints its output."""
+
+
+@dataclass(frozen=True)
+class MatlabCase:
+    """One equilibrium of the MATLAB model (the robot of ``tdcr_2segments.m``; no tip moment in ``VC_solver``)."""
+
+    name: str
+    tensions: tuple[float, float, float, float, float, float]
+    tip_force: tuple[float, float, float] = (0.0, 0.0, 0.0)  # N, base frame
+    note: str = ""
+
+
+MATLAB_CASES = (
+    MatlabCase("one_tendon", (8, 0, 0, 0, 0, 0), note="the tensions of tdcr_2segments.m"),
+    MatlabCase("two_tendons", (2, 0, 0, 0, 1, 0), note="the tensions of matlab/main.m"),
+    MatlabCase("three_tendons", (3, 1, 0, 0, 0, 2), note="antagonistic pair in segment 1"),
+    MatlabCase("two_tendons_tip_force", (2, 0, 0, 0, 1, 0), tip_force=(0.05, -0.05, -0.1), note="with a tip force"),
+)
+
+
 @dataclass(frozen=True)
 class Robot:
     """The parameters ``CosseratRodModel::setRobotParameters`` takes (SI units)."""
@@ -173,20 +222,28 @@ CASES = (
         note="with a tip force and a tip moment (torsion)",
     ),
     Case("example_robot_main_cpp", EXAMPLE_ROBOT, (4, 0, 0, 0, 2, 0), note="c++/main.cpp's robot and tensions"),
+    Case(
+        "example_robot_main_m",
+        EXAMPLE_ROBOT,
+        (2, 0, 0, 0, 1, 0),
+        note="matlab/main.m's robot and tensions, as matlab_vc_two_tendons",
+    ),
 )
 
 
 def extract(source: str, work: Path) -> Path:
-    """``c++/`` of tdcr-modeling at :data:`COMMIT`, extracted under ``work``."""
+    """The folder holding ``c++/`` and ``matlab/`` of tdcr-modeling at :data:`COMMIT`, extracted under ``work``."""
     repo = Path(source)
     if not repo.exists():
         repo = work / "tdcr-modeling.git"
         subprocess.run(["git", "clone", "--bare", "--quiet", source, str(repo)], check=True)
     target = work / "tdcr-modeling"
     target.mkdir()
-    archive = subprocess.run(["git", "-C", str(repo), "archive", COMMIT, "c++"], check=True, capture_output=True)
+    archive = subprocess.run(
+        ["git", "-C", str(repo), "archive", COMMIT, "c++", "matlab"], check=True, capture_output=True
+    )
     subprocess.run(["tar", "-x", "-C", str(target)], input=archive.stdout, check=True)
-    return target / "c++"
+    return target
 
 
 def build(cpp: Path, work: Path, tight: bool) -> Path:
@@ -241,18 +298,84 @@ def run(exe: Path, cases: tuple[Case, ...]) -> dict[str, dict]:
     return results
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--source", default=DEFAULT_SOURCE, help="tdcr-modeling git repository (path or URL)")
-    parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help="output folder")
-    args = parser.parse_args()
+def run_matlab(matlab: Path, work: Path, cases: tuple[MatlabCase, ...]) -> dict[str, dict]:
+    """Run ``VC_solver`` in Octave for each case; its exit flag, residual, base strains, robot and points."""
+    results: dict[str, dict] = {}
+    for c in cases:
+        script = work / f"vc_{c.name}.m"
+        script.write_text(
+            MATLAB_DRIVER.format(
+                models=matlab / "Models" / "VC",
+                parameters=matlab / "Parameters",
+                tensions=" ".join(repr(float(x)) for x in c.tensions),
+                tip_force=";".join(repr(float(x)) for x in c.tip_force),
+            )
+        )
+        out = subprocess.run(
+            ["octave-cli", "--no-window-system", "-q", str(script)], capture_output=True, text=True, check=True
+        ).stdout
+        record: dict = {"s": [], "positions": [], "rotations": []}
+        for line in out.splitlines():
+            head, *rest = line.split() or [""]
+            if head not in ("robot", "routing", "exitflag", "residual", "init", "point"):
+                continue  # VC_solver's own messages (its tic/toc)
+            values = [float(x) for x in rest]
+            if head == "robot":
+                keys = ("length_1", "length_2", "youngs_modulus", "poisson_ratio", "backbone_radius", "pitch_radius")
+                record["robot"] = dict(zip(keys + ("gravity",), values))
+            elif head == "routing":
+                record["routing"] = [values[0:3], values[3:6], values[6:9]]
+            elif head == "exitflag":
+                record["exitflag"] = int(rest[0])
+            elif head == "residual":
+                record["residual"] = values
+            elif head == "init":
+                record["base_v"], record["base_u"] = values[:3], values[3:6]
+            elif head == "point":
+                record["s"].append(values[0])
+                record["positions"].append(values[1:4])
+                flat = values[4:13]  # reshape(R, 9, 1): column-major
+                record["rotations"].append([[flat[i + 3 * j] for j in range(3)] for i in range(3)])
+        results[c.name] = record
+    return results
+
+
+def write_matlab(matlab: Path, work: Path, out: Path) -> None:
+    """Run :data:`MATLAB_CASES` in Octave, as published and with ode45's tolerances tightened; ``matlab_vc_*.json``."""
+    octave = subprocess.run(["octave-cli", "--version"], capture_output=True, text=True, check=True)
+    solver = matlab / "Models" / "VC" / "VC_solver.m"
+    source = solver.read_text()
+    if PUBLISHED_ODESET not in source:
+        raise RuntimeError(f"{PUBLISHED_ODESET!r} not found in {solver.name}")
+    published = run_matlab(matlab, work, MATLAB_CASES)
+    solver.write_text(source.replace(PUBLISHED_ODESET, TIGHT_ODESET))
+    tight = run_matlab(matlab, work, MATLAB_CASES)
+    solver.write_text(source)
+    for case in MATLAB_CASES:
+        record = {
+            "case": case.name,
+            "note": case.note,
+            "reference": {
+                "repository": DEFAULT_SOURCE,
+                "commit": COMMIT,
+                "model": "VC_solver (matlab/Models/VC), robot of matlab/Parameters/tdcr_2segments.m",
+                "interpreter": octave.stdout.splitlines()[0],
+            },
+            "tensions": list(case.tensions),
+            "tip_force": list(case.tip_force),
+            "published": published[case.name],
+            "tight_ode_tolerance": tight[case.name],
+        }
+        path = out / f"matlab_vc_{case.name}.json"
+        path.write_text(json.dumps(record, indent=1) + "\n")
+        print(f"{path.name}: exitflag {published[case.name]['exitflag']}, tip {published[case.name]['positions'][-1]}")
+
+
+def write_cpp(cpp: Path, work: Path, out: Path) -> None:
+    """Run :data:`CASES` with both builds of the C++ model and write ``<case>.json``."""
     compiler = subprocess.run(["g++", "--version"], capture_output=True, text=True, check=True).stdout.splitlines()[0]
-    with tempfile.TemporaryDirectory() as tmp:
-        work = Path(tmp)
-        cpp = extract(args.source, work)
-        published = run(build(cpp, work, tight=False), CASES)
-        tight = run(build(cpp, work, tight=True), CASES)
-    args.out.mkdir(parents=True, exist_ok=True)
+    published = run(build(cpp, work, tight=False), CASES)
+    tight = run(build(cpp, work, tight=True), CASES)
     for case in CASES:
         robot = asdict(case.robot)
         r = case.robot
@@ -285,10 +408,26 @@ def main() -> None:
             "published": published[case.name],
             "tight_ode_tolerance": tight[case.name],
         }
-        path = args.out / f"{case.name}.json"
+        path = out / f"{case.name}.json"
         path.write_text(json.dumps(record, indent=1) + "\n")
         tip = published[case.name]["positions"][-1]
         print(f"{path.name}: success {published[case.name]['success']}, tip {tip}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--source", default=DEFAULT_SOURCE, help="tdcr-modeling git repository (path or URL)")
+    parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help="output folder")
+    parser.add_argument("--only", choices=("cpp", "matlab"), help="run only the C++ or only the MATLAB model")
+    args = parser.parse_args()
+    args.out.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory() as tmp:
+        work = Path(tmp)
+        root = extract(args.source, work)
+        if args.only != "matlab":
+            write_cpp(root / "c++", work, args.out)
+        if args.only != "cpp":
+            write_matlab(root / "matlab", work, args.out)
 
 
 if __name__ == "__main__":
