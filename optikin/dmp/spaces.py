@@ -401,6 +401,10 @@ def lifted_gaps(space: Space, goal: np.ndarray, Y: np.ndarray) -> np.ndarray:
     (:meth:`Space.lift`): the gaps the roll-out will meet when it follows ``Y``.
     """
     raw = np.asarray(space.gap(goal, Y), dtype=float)
+    if np.all(np.linalg.norm(np.diff(raw, axis=0), axis=-1) < np.pi) and np.all(
+        np.asarray(space.lift(raw[-1], np.zeros(raw.shape[-1])), dtype=float).reshape(-1) == raw[-1]
+    ):
+        return raw  # continuous and ending on the branch nearest zero: every lift keeps its branch (k = 0)
     out = np.empty_like(raw)
     previous = np.zeros(raw.shape[-1])
     for k in range(raw.shape[0] - 1, -1, -1):
