@@ -271,11 +271,38 @@ def apply_overrides(data: dict[str, Any], overrides: Sequence[tuple[str, Any]], 
     return out
 
 
+def include_arm(data: dict[str, Any], path: Path) -> dict[str, Any]:
+    """``arm: other.yaml`` (a path relative to the problem file) replaced by that file's ``arm:`` mapping,
+    e.g. the calibrated arm a ``calibrate`` run writes; a mapping is left as it is.
+
+    Raises
+    ------
+    SpecError
+        On ``arm`` when the file cannot be read or holds no ``arm:`` mapping (an included file cannot
+        include another).
+    """
+    arm = data.get("arm")
+    if not isinstance(arm, str):
+        return data
+    included = (path.parent / arm).resolve()
+    if not included.is_file():
+        raise SpecError(path, "arm", f"no such file {str(included)!r} (a path is relative to the problem file)")
+    try:
+        content = _read_yaml(included)
+    except SpecError as exc:
+        raise SpecError(path, "arm", f"{included}: {exc}") from None
+    section = content.get("arm")
+    if not isinstance(section, dict):
+        raise SpecError(path, "arm", f"{included} has no arm: mapping (type and params) to include")
+    return data | {"arm": section}
+
+
 def load_problem(name_or_path: str, overrides: Sequence[tuple[str, Any]] = ()) -> tuple[ProblemSpec, Path]:
-    """Read and validate a problem file, with ``overrides`` (:func:`apply_overrides`) set first; returns
-    the spec and the file it came from."""
+    """Read and validate a problem file, its ``arm:`` included from a file if it names one
+    (:func:`include_arm`) and ``overrides`` (:func:`apply_overrides`) set; returns the spec and the
+    file it came from."""
     path = resolve(name_or_path, "problems")
-    spec = _validate(ProblemSpec, apply_overrides(_read_yaml(path), overrides, path), path)
+    spec = _validate(ProblemSpec, apply_overrides(include_arm(_read_yaml(path), path), overrides, path), path)
     if spec.name != path.stem:
         raise SpecError(path, "name", f"{spec.name!r} differs from the file name {path.stem!r}")
     return spec, path

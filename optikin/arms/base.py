@@ -96,7 +96,7 @@ class ArmModel(ABC):
         When the bounds or the flags do not have one entry per variable, a bound is not a
         finite number, or a lower bound lies above its upper bound; an
         :class:`optikin.checks.ParameterError` for ``backbone_points_per_section`` not a
-        positive integer.
+        positive integer, or a ``name`` that is not an identifier.
     """
 
     def __init__(
@@ -108,6 +108,10 @@ class ArmModel(ABC):
         backbone_points_per_section: int = 20,
         periodic: tuple[bool, ...] | None = None,
     ) -> None:
+        if not isinstance(name, str) or not name.isidentifier():
+            raise ParameterError(
+                "name", f"{name!r} is not an identifier (letters, digits, underscores): it names Functions"
+            )
         self.name = name
         self.config_names = tuple(config_names)
         self.lower = np.asarray(lower, dtype=float)

@@ -39,13 +39,12 @@ def figures(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -> dic
         if "solution_tips" in arrays:
             tips, title = arrays["solution_tips"], f"{name}: tips of the solved configurations ({solver})"
         elif "measured_points" in arrays:
-            measured = arrays["measured_points"].reshape(-1, 3)
-            tips, title = measured, f"{name}: measured points ({solver})"
-            residual = np.repeat(residual, arrays["measured_points"].shape[1])
+            tips, title = arrays["measured_points"].reshape(-1, 3), f"{name}: measured points ({solver})"
         else:
             tips, title = target_positions(arrays["targets"]), f"{name}: targets ({solver})"
         if tips is not None:
-            drawers["targets"] = partial(draw_targets, tips=tips, residual=residual, title=title)
+            colours = np.repeat(residual, len(tips) // len(residual))  # one per measured point of a sample
+            drawers["targets"] = partial(draw_targets, tips=tips, residual=colours, title=title)
     if residual is not None and "t" in arrays and "error" in arrays:
         drawers["trajectory"] = partial(
             draw_trajectory,
