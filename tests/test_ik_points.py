@@ -190,3 +190,9 @@ def test_points_inside_a_section_need_a_continuum_arm(tmp_path):
     with pytest.raises(SpecError) as info:
         solve(str(write_problem(tmp_path, arm=cbha, options=options)), figures=False)
     assert info.value.field == "options.points.mid.at"
+
+
+def test_points_along_a_trajectory_draw_their_figures(tmp_path):
+    path = write_problem(tmp_path, data={"source": "trajectory", "samples": 20})
+    _, written = solve(str(path), out=tmp_path / "out")
+    assert {"targets.png", "trajectory.png", "comparison.png"} <= {p.name for p in written.iterdir()}
