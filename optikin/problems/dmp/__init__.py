@@ -38,7 +38,12 @@ Options (all optional; :class:`~optikin.problems.dmp.options.DmpOptions`)::
                                            # undisturbed roll-out and its phase at the end
     tuning: {gains: [beta, gamma, zeta], variant: quaternion, scenario: reproduction,
              max_iterations: 60, screen: 16, starts: 2,    # IPOPT: iterations per start; Latin-hypercube
-             population: 20, generations: 15}               # screening points; starts from the best of them
+             population: 20, generations: 15,               # screening points; starts from the best of them
+             budget: null, seeds: 1,          # budget: IPOPT's evaluations; the multi-start L-BFGS-B and the GA
+                                              # then get the count IPOPT used, each run on `seeds` seeds
+             terms: [],                       # [Q_r, Q_d]: tune the seed's quaternion DMP on these terms instead
+             goal_diagonal: false,            # beta_g0 tuned as one rate per gap component (eq. 24's diagonal)
+             reference: {}}                   # {target: {gain: value}} evaluated on the same eq. (29)
     settle: 5.0     # goal-switch roll-outs last settle x tau; the final errors measure convergence
     tolerance: {position_mm: 0.01, orientation_mrad: 0.01}
 
