@@ -24,7 +24,8 @@ class BuildWithCatalog(build_py):
         root = Path(__file__).resolve().parent
         for kind in CATALOG:
             target = Path(self.build_lib) / "optikin" / "catalog" / kind
-            shutil.copytree(root / kind, target, dirs_exist_ok=True, ignore=shutil.ignore_patterns("__pycache__"))
+            shutil.rmtree(target, ignore_errors=True)  # no stale file from an earlier build
+            shutil.copytree(root / kind, target, ignore=shutil.ignore_patterns("__pycache__"))
 
 
 setup(cmdclass={"build_py": BuildWithCatalog})

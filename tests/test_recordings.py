@@ -133,7 +133,7 @@ def test_gap_by_time_without_frame_numbers():
 
 # ------------------------------------------------------------------------------ the shipped recordings
 ROOT = Path(__file__).resolve().parents[1]
-RECORDINGS = ROOT / "tests" / "data" / "recordings"
+RECORDINGS = ROOT / "problems" / "data" / "recordings"
 Y_UP = FrameOptions(up="y")
 METRE = 1e-9
 """Round-trip tolerance on lengths [m]."""

@@ -52,8 +52,9 @@ def test_the_wheel_carries_the_catalog_licence_and_types(installed):
     assert (package / "py.typed").is_file()
     (info,) = installed.glob("optikin-*.dist-info")
     assert "BSD 3-Clause" in (info / "licenses" / "LICENSE").read_text()
-    shipped = {p.name for p in (ROOT / "problems").iterdir() if p.is_file()}
-    assert {p.name for p in (package / "catalog" / "problems").iterdir()} == shipped
+    shipped = {p.relative_to(ROOT / "problems") for p in (ROOT / "problems").rglob("*") if p.is_file()}
+    catalog = package / "catalog" / "problems"
+    assert {p.relative_to(catalog) for p in catalog.rglob("*") if p.is_file()} == shipped
 
 
 def test_an_installed_wheel_lists_and_solves_from_an_unrelated_folder(installed, tmp_path):

@@ -12,7 +12,7 @@ alpha_k))``, Webster & Jones 2010, IJRR 29(13), eq. 20).
 The lab frame of every file is a motion-capture frame: y up, right-handed, lengths in millimetres
 (:func:`file_frame`); IMU rates and accelerations and the tendon lengths stay SI, except in the plain CSV
 where the tendons are written in mm (its mapping scales them by 0.001). Files written under ``--out``
-(default ``tests/data/recordings``):
+(default ``problems/data/recordings``, where the problem files and the tests read them):
 
 =============================  ==================================================================
 ``trunk_motive.csv``           OptiTrack Motive CSV export (format 1.25, full header), rigid bodies,
@@ -390,7 +390,7 @@ def write_plain_csv(path: Path) -> None:
 def main(argv: list[str] | None = None) -> None:
     """Write every recording under ``--out``."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, default=ROOT / "tests" / "data" / "recordings")
+    parser.add_argument("--out", type=Path, default=ROOT / "problems" / "data" / "recordings")
     args = parser.parse_args(argv)
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)
