@@ -9,6 +9,8 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
+from optikin.problems import load_kinds
+from optikin.registry import PROBLEM_KINDS
 from optikin.results import Result
 from optikin.tables import comparison_rows, compact_columns, flatten, format_value
 
@@ -43,7 +45,7 @@ def print_result(result: Result, console: Console | None = None, wide: bool = Fa
         console.print(table)
     if result.comparison:
         columns, cells = comparison_rows(result.comparison)
-        shown = columns[2:] if wide else compact_columns(columns)
+        shown = columns[2:] if wide else compact_columns(columns, headline_of(result.kind))
         where = [columns.index(c) for c in ("method", "role", *shown)]
         title = "comparison (same run)" + ("" if wide else "; every column: --wide or comparison.md")
         table = Table(title=title)
@@ -64,6 +66,12 @@ def print_result(result: Result, console: Console | None = None, wide: bool = Fa
             console.print(f"not applicable: {escape(method)}: {escape(reason)}")
     for note in result.notes:
         console.print(f"note: {escape(note)}")
+
+
+def headline_of(kind: str) -> tuple[str, ...]:
+    """The :attr:`~optikin.problems.ProblemKind.headline` columns of a registered kind (none if unknown)."""
+    load_kinds()
+    return PROBLEM_KINDS.get(kind).headline if kind in PROBLEM_KINDS else ()
 
 
 def print_listing(

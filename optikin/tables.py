@@ -54,11 +54,19 @@ def comparison_rows(rows: Sequence["MethodRow"]) -> tuple[list[str], list[list[s
     return ["method", "role", *keys], cells
 
 
-def compact_columns(columns: Sequence[str]) -> list[str]:
-    """The metric columns of a compact table (module docstring), in the order found."""
+def compact_columns(columns: Sequence[str], headline: Sequence[str] = ()) -> list[str]:
+    """The metric columns of a compact table: the kind's ``headline`` columns that are present, else
+    those of the module docstring; then the statuses."""
+    present = [c for c in headline if c in columns]
+    if present:
+        return present + (["statuses"] if "statuses" in columns and "statuses" not in present else [])
     picked: list[str] = []
     for words in (SUCCESS_WORDS, ERROR_WORDS, TIME_WORDS):
-        match = next((c for c in columns[2:] if any(w in c.lower() for w in words) and c not in picked), None)
+        # the first column holding the first word that any column holds (words in order of preference)
+        match = next(
+            (c for w in words for c in columns[2:] if w in c.lower() and c not in picked),
+            None,
+        )
         if match is not None:
             picked.append(match)
     if "statuses" in columns and "statuses" not in picked:

@@ -232,7 +232,7 @@ def source_params(source: str, tmp_path: Path) -> dict:
     return csv_params(tmp_path) if source == "csv" else {}
 
 
-DEMONSTRATION_SOURCES = ("imu", "kinect", "smooth", "gimbal", "csv")
+DEMONSTRATION_SOURCES = ("imu", "kinect", "smooth", "gimbal", "csv", "cosserat-imu")
 
 
 def test_every_demonstration_source_is_registered():

@@ -431,8 +431,11 @@ def cosserat_targets(
     """:func:`cosserat_tips` as a trajectory of targets (solved in order, each from the previous answer).
 
     The configurations that made them are unknown to the problem's arm (NaN); reachability
-    too (treated as reachable).
+    too (treated as reachable). Tip positions or poses only: measured points along the arm are
+    refused naming ``options.target``.
     """
+    if kind not in ("position", "pose"):
+        raise SpecError(path, "options.target", f"source cosserat gives tip positions or poses, not {kind} targets")
     values, t = cosserat_tips(params, data, path, kind)
     configurations = np.full((len(t), arm.n_config), np.nan)
     return Targets(kind, values, configurations, np.ones(len(t), dtype=bool), t=t, trajectory=True, points=points)
@@ -451,3 +454,22 @@ def cosserat_statics_targets(
     """:func:`cosserat_tips` as the tip targets of inverse statics, a trajectory (no actuations)."""
     values, t = cosserat_tips(params, data, path, kind)
     return Actuations(None, targets=values, t=t, trajectory=True)
+
+
+@register_source(
+    "demonstrations",
+    "cosserat-imu",
+    "seed 000's IMU interface on the Cosserat-rod CBHA: gyro-integrated IMUs (noise, bias drift), a depth camera",
+    params=CosseratSensorParams,
+)
+def cosserat_imu_demonstration(
+    arm: ArmModel | None, data: DataSpec, params: CosseratSensorParams, path: Path
+) -> CosseratSensorRecording:
+    """:func:`cosserat_sensor_recording` of ``data.samples`` IMU samples, seeded by ``data.seed``; the
+    ``dmp`` kind learns from its :attr:`~CosseratSensorRecording.demonstration`."""
+    try:
+        return cosserat_sensor_recording(
+            params, data.samples, np.random.default_rng([data.seed, 0]), source=f"{Path(path).name}: cosserat-imu"
+        )
+    except ValueError as exc:
+        raise SpecError(path, "data.params", str(exc)) from None

@@ -151,6 +151,9 @@ class ProblemKind:
         The model of ``options:``.
     figures:
         Draws the result's figures from its arrays and summary.
+    headline:
+        The comparison columns a compact table shows (``optikin solve`` without ``--wide``); empty:
+        chosen by :func:`optikin.tables.compact_columns`.
     arm_optional:
         Whether a problem file may leave out ``arm:`` (the data carry everything, e.g. the end poses
         of a shape reconstruction); the data source then receives ``arm=None``.
@@ -165,6 +168,7 @@ class ProblemKind:
     baselines: tuple[str, ...] = ()
     options: type[Options] = NoOptions
     figures: FigureBuilder | None = None
+    headline: tuple[str, ...] = ()
     arm_optional: bool = False
 
 

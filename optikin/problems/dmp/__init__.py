@@ -84,5 +84,6 @@ register_kind(
         options=DmpOptions,
         data_family="demonstrations",
         figures=figures.figures,
+        headline=("reproduction position max [mm]", "reproduction orientation max [mrad]", "fit time [ms]"),
     )
 )
