@@ -26,7 +26,7 @@ This script
    tolerances tightened from 1e-6 to 1e-10, and writes ``tests/data/tdcr/matlab_vc_<case>.json``.
 
 Requires g++, the Eigen 3 headers, GSL and Octave (Debian: ``apt-get install g++ libeigen3-dev libgsl-dev
-octave``; about eight minutes, mostly Octave). Run
+octave``; about five minutes, mostly Octave). Run
 ``python tools/tdcr_reference.py --source https://github.com/SvenLilge/tdcr-modeling`` (or a local clone);
 ``--out DIR`` writes elsewhere, ``--only cpp`` or ``--only matlab`` runs one of the two. The file format is
 described in ``tests/data/tdcr/README.md``.
