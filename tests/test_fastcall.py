@@ -80,3 +80,21 @@ def test_a_single_sparse_output_is_densified():
     fast = BufferedFunction(f)
     (d,) = fast(np.array([1.0, 2.0, 4.0]))
     np.testing.assert_array_equal(d.reshape(3, 3, order="F"), np.diag([3.0, 6.0, 12.0]))
+
+
+def test_an_arm_jacobian_with_one_sparse_output_matches_finite_differences():
+    from optikin.arms.constant_curvature import ConstantCurvatureArm
+
+    arm = ConstantCurvatureArm()
+    q = 0.5 * (arm.lower + arm.upper) + 0.1
+    fast = BufferedFunction(arm.jac_dq)
+    fast(q)
+    J = fast.output_matrix(0)
+    h = 1e-6
+    fd = np.column_stack(
+        [
+            (np.asarray(arm.fk_dq(q + h * e)).ravel() - np.asarray(arm.fk_dq(q - h * e)).ravel()) / (2 * h)
+            for e in np.eye(arm.n_config)
+        ]
+    )
+    np.testing.assert_allclose(J, fd, atol=1e-8)
