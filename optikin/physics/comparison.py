@@ -352,7 +352,7 @@ class Comparison:
         for name in METHODS:
             r = self.results[name]
             mark = "" if r.status == "ok" else f" ({r.status})"
-            cells.append(f"{1e3 * r.max_error:.4f} / {1e3 * r.rms_error:.4f}{mark}")
+            cells.append(f"{1e3 * r.max_error:.3g} / {1e3 * r.rms_error:.3g}{mark}")
         return cells
 
 
