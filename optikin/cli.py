@@ -237,7 +237,24 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("bench", help="forward-kinematics throughput of every evaluation path against numpy")
     bench.add_arguments(p)
     p.set_defaults(run=bench.main)
+
+    p = sub.add_parser("export", help="a problem's kinematics or IK solver as a self-contained C library")
+    p.add_argument("problem", help="problem name or path to a problem file")
+    p.add_argument(
+        "--what",
+        required=True,
+        choices=("fk", "ik-step", "ik-trajectory"),
+        help="fk: fk_dq, fk_position, backbone; ik-step / ik-trajectory: the damped Gauss-Newton IK",
+    )
+    p.add_argument("--out", required=True, help="output folder (.c, .h, main.c, Makefile)")
+    p.set_defaults(run=_cmd_export)
     return parser
+
+
+def _cmd_export(args: argparse.Namespace) -> int:
+    from optikin import export
+
+    return export.main(args)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -1,0 +1,358 @@
+"""``optikin export``: a problem's kinematics or its inverse-kinematics solver as a self-contained C library.
+
+What is exported (``--what``):
+
+``fk``
+    the arm's ``fk_dq`` (unit dual quaternion of the tip, 8), ``fk_position`` (3) and
+    ``backbone`` (``3 x K`` points), CasADi code generation behind checked entry points.
+``ik-step``, ``ik-trajectory``
+    the problem's inverse kinematics (an ``ik`` problem whose least-squares problem has no
+    fixed variables and no constraints: the constant-curvature position, pose and point
+    targets) solved by the damped projected Gauss-Newton iteration of
+    :mod:`optikin.solvers.gauss_newton`, written in C in ``templates/ik.c`` (same damping
+    rule ``lam = mu ||r||^2 + 1e-10 tr(J D^-1 J^T)/m``, same acceptance, same switch to the
+    Newton model on a stalled large residual, the options and limits of the
+    ``gauss-newton`` preset), with ``r``, ``J`` and the Hessian of ``1/2 ||r||^2`` generated
+    by CasADi. The step's linear system is solved by LU with partial pivoting in C (CasADi's
+    symbolic QR in Python), so iterates agree to rounding. ``ik-step`` solves each target from
+    the problem's start; ``ik-trajectory`` warm-starts each from the previous solution.
+
+The folder written holds ``<stem>.c`` (the generated code and the template), ``<stem>.h``
+(the documented API: sizes, work structure, status codes), ``main.c`` (an example that runs
+the problem's first samples or a file of them and times the calls) and a ``Makefile``.
+The library depends on libm only and allocates nothing: the caller owns the work structure.
+:func:`build` compiles the example with a compiler of :data:`optikin.codegen.COMPILERS` and
+flags checked against :data:`optikin.codegen.ALLOWED_FLAGS`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import subprocess
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+from string import Template
+from typing import Iterable
+
+import casadi as ca
+import numpy as np
+
+from optikin.codegen import check_flags, find_compiler
+from optikin.errors import SolverError, SpecError
+
+WHATS = ("fk", "ik-step", "ik-trajectory")
+"""What ``optikin export`` writes (module docstring)."""
+
+EXAMPLE_SAMPLES = 20
+"""Samples of the problem compiled into the example ``main.c``."""
+
+MAX_FILE_SAMPLES = 20000
+"""Samples the example reads from a file at most."""
+
+FK_FUNCTIONS = ("fk_dq", "fk_position", "backbone")
+
+
+@dataclass(frozen=True)
+class Export:
+    """The files :func:`export` wrote.
+
+    ``samples`` are the inputs compiled into the example (targets ``(k, NP)`` for IK,
+    configurations ``(k, N)`` for FK); ``start`` the IK start configuration (None for FK).
+    """
+
+    what: str
+    folder: Path
+    stem: str
+    samples: np.ndarray
+    start: np.ndarray | None = None
+
+    @property
+    def source(self) -> Path:
+        return self.folder / f"{self.stem}.c"
+
+    @property
+    def header(self) -> Path:
+        return self.folder / f"{self.stem}.h"
+
+    @property
+    def files(self) -> tuple[Path, ...]:
+        return (self.source, self.header, self.folder / "main.c", self.folder / "Makefile")
+
+
+def _template(name: str) -> Template:
+    return Template(resources.files("optikin.export").joinpath("templates", name).read_text())
+
+
+def _numbers(values: Iterable[float]) -> str:
+    """C initialiser of doubles, each printed so that it parses back to the same double."""
+    text = []
+    for v in values:
+        v = float(v)
+        if not np.isfinite(v):
+            raise SolverError(f"cannot export the non-finite constant {v}")
+        text.append(repr(v))
+    return ", ".join(text)
+
+
+def _rows(array: np.ndarray) -> str:
+    return ", ".join("{" + _numbers(row) + "}" for row in np.atleast_2d(array))
+
+
+def _generated(functions: list[ca.Function], stem: str) -> tuple[str, dict[str, int]]:
+    """CasADi's C code of ``functions`` (no header, no export macros) and the largest work sizes."""
+    generator = ca.CodeGenerator(f"{stem}.c", {"with_header": False, "with_export": False})
+    for f in functions:
+        generator.add(f)
+    sizes = {
+        "sz_arg": max(max(f.sz_arg() for f in functions), 1),
+        "sz_res": max(max(f.sz_res() for f in functions), 1),
+        "sz_iw": max(max(f.sz_iw() for f in functions), 1),
+        "sz_w": max(max(f.sz_w() for f in functions), 1),
+    }
+    return generator.dump(), sizes
+
+
+def _write(folder: Path, stem: str, code: str, header: str, source: str, main: str) -> None:
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / f"{stem}.h").write_text(header)
+    (folder / f"{stem}.c").write_text(f"/* {stem}.c: written by optikin export */\n{code}\n{source}")
+    (folder / "main.c").write_text(main)
+    (folder / "Makefile").write_text(_template("Makefile.in").substitute(stem=stem))
+
+
+# --------------------------------------------------------------------------- forward kinematics
+def export_fk(problem: str, arm, folder: Path, samples: np.ndarray) -> Export:
+    """Write the FK library of ``arm`` (module docstring); ``samples`` ``(k, N)`` go into the example."""
+    stem = prefix = "optikin_fk"
+    PREFIX = prefix.upper()
+    q = ca.SX.sym("q", arm.n_config)
+    functions, outputs, declarations, definitions, defines = [], [], [], [], []
+    for name in FK_FUNCTIONS:
+        value = ca.densify(getattr(arm, name)(q))
+        rows, cols = value.shape
+        functions.append(ca.Function(f"{prefix}_{name}_cg", [q], [value]))
+        size = f"{PREFIX}_{name.upper()}_SIZE"
+        defines.append(f"#define {size} {rows * cols}")
+        outputs.append(f"     {prefix}_{name}: {rows} x {cols}, {size} doubles")
+        declarations.append(
+            f"/* {name} of q into out ({size} doubles). Returns an enum {prefix}_status. */\n"
+            f"int {prefix}_{name}({prefix}_work* work, const double* q, double* out);\n"
+        )
+        definitions.append(
+            f"int {prefix}_{name}({prefix}_work* work, const double* q, double* out) {{\n"
+            f"  return evaluate({prefix}_{name}_cg, work, q, out);\n}}\n"
+        )
+    code, sizes = _generated(functions, stem)
+    common = dict(stem=stem, prefix=prefix, PREFIX=PREFIX, problem=problem, n=arm.n_config, **sizes)
+    header = _template("fk.h").substitute(
+        common,
+        arm=arm.name,
+        variables=", ".join(arm.config_names),
+        output_list="\n".join(outputs) + "\n",
+        size_defines="\n".join(defines),
+        declarations="\n".join(declarations),
+    )
+    source = _template("fk.c").substitute(common, definitions="\n".join(definitions))
+    main = _template("fk_main.c").substitute(
+        common,
+        n_samples=len(samples),
+        samples=_rows(samples),
+        max_targets=MAX_FILE_SAMPLES,
+        max_out=max(f.nnz_out(0) for f in functions),
+        n_functions=len(functions),
+        function_list=", ".join(f"{prefix}_{name}" for name in FK_FUNCTIONS),
+        name_list=", ".join(f'"{name}"' for name in FK_FUNCTIONS),
+        size_list=", ".join(str(f.nnz_out(0)) for f in functions),
+    )
+    _write(folder, stem, code, header, source, main)
+    return Export("fk", folder, stem, samples)
+
+
+# --------------------------------------------------------------------------- inverse kinematics
+def export_ik(what: str, problem_name: str, problem, adapter, start: np.ndarray, folder: Path, samples: np.ndarray):
+    """Write the IK library of least-squares ``problem`` solved as ``adapter`` (a GaussNewton) would.
+
+    Parameters
+    ----------
+    what:
+        ``ik-step`` (independent targets) or ``ik-trajectory`` (warm-started), for the example.
+    problem:
+        :class:`~optikin.solvers.nonlinear.LeastSquaresProblem` without fixed variables or constraints.
+    adapter:
+        The :class:`~optikin.solvers.gauss_newton.GaussNewton` whose options and limits are exported.
+    start:
+        ``(N,)`` start configuration of independent targets and of a trajectory's first one.
+    samples:
+        ``(k, NP)`` targets compiled into the example.
+    """
+    from optikin.solvers.gauss_newton import LAMBDA_FLOOR, SLOW_PROGRESS, SLOW_STEPS
+
+    if problem.constraints is not None or problem.reduced is not problem:
+        raise SolverError(f"{problem.name}: export handles problems without constraints or fixed variables only")
+    stem = prefix = f"optikin_{what.replace('-', '_')}"
+    PREFIX = prefix.upper()
+    x, p, r, J = problem.symbols
+    hessian = ca.hessian(0.5 * ca.sumsqr(r), x)[0]
+    functions = [
+        ca.Function(f"{prefix}_rj", [x, p], [r, ca.densify(J)]),
+        ca.Function(f"{prefix}_hess", [x, p], [ca.densify(hessian)]),
+    ]
+    code, sizes = _generated(functions, stem)
+    n, m, n_p = problem.n, problem.m, problem.n_data
+    span = problem.upper - problem.lower
+    scaling = np.ones(n) if problem.weights is None else problem.weights**2
+    options, limits = adapter.options, adapter.limits
+    common = dict(stem=stem, prefix=prefix, PREFIX=PREFIX, problem=problem_name, n=n, m=m, n_p=n_p, k=max(n, m))
+    tolerance = repr(float(problem.tolerance))
+    header = _template("ik.h").substitute(
+        common,
+        **sizes,
+        variables=", ".join(problem.variable_names),
+        target_kind=problem.residual.name_in(1),
+        tolerance=tolerance,
+        ok_note="" if problem.exact else ", or a stationary point (the problem is a minimisation)",
+        stationarity_tolerance=repr(float(problem.stationarity_tolerance)),
+        max_iterations=limits.max_iterations,
+    )
+    source = _template("ik.c").substitute(
+        common,
+        start=_numbers(start),
+        lower=_numbers(problem.lower),
+        upper=_numbers(problem.upper),
+        span=_numbers(span),
+        lower_margin=_numbers(problem.lower + 1e-12 * span),
+        upper_margin=_numbers(problem.upper - 1e-12 * span),
+        periodic=", ".join(str(int(v)) for v in problem.periodic),
+        scaling=_numbers(scaling),
+        tolerance=tolerance,
+        stop_tolerance=repr(float(min(problem.tolerance, limits.tolerance))),
+        stationarity_tolerance=repr(float(problem.stationarity_tolerance)),
+        exact=int(problem.exact),
+        damping=repr(float(options.damping)),
+        damping_min=repr(float(options.damping_min)),
+        damping_max=repr(float(options.damping_max)),
+        max_iterations=limits.max_iterations,
+        second_order=int(options.second_order),
+        lambda_floor=repr(LAMBDA_FLOOR),
+        slow_progress=repr(SLOW_PROGRESS),
+        slow_steps=SLOW_STEPS,
+    )
+    trajectory = what == "ik-trajectory"
+    main = _template("ik_main.c").substitute(
+        common,
+        n_samples=len(samples),
+        samples=_rows(samples),
+        max_targets=MAX_FILE_SAMPLES,
+        mode="trajectory" if trajectory else "independent",
+        trajectory=int(trajectory),
+    )
+    _write(folder, stem, code, header, source, main)
+    return Export(what, folder, stem, samples, np.asarray(start, dtype=float))
+
+
+@dataclass(frozen=True)
+class IkExportSetup:
+    """What an IK export is made of: the least-squares problem, the Gauss-Newton adapter, start and targets."""
+
+    problem: object
+    adapter: object
+    start: np.ndarray
+    targets: np.ndarray
+
+
+def ik_setup(problem: str) -> IkExportSetup:
+    """The least-squares problem of ``ik`` problem ``problem``, its ``gauss-newton`` adapter, start and targets.
+
+    Raises
+    ------
+    SpecError
+        The problem is not of kind ``ik``, or its formulation is one per CBHA platform.
+    """
+    from optikin.ik.formulation import build_problem
+    from optikin.problems.ik.run import load_targets, setup_of
+    from optikin.runner import prepare
+    from optikin.solvers import build_preset
+    from optikin.solvers.gauss_newton import GaussNewton
+
+    kind, ctx = prepare(problem)
+    if kind.name != "ik":
+        raise SpecError(ctx.path, "kind", f"--what ik-step/ik-trajectory exports an ik problem, not kind {kind.name!r}")
+    setup = setup_of(ctx)
+    least_squares = build_problem(ctx.arm, setup.formulation)
+    if isinstance(least_squares, list):
+        raise SpecError(ctx.path, "options.target", "leg-length targets (one problem per platform) are not exported")
+    adapter = ctx.adapter if isinstance(ctx.adapter, GaussNewton) else build_preset("gauss-newton")
+    targets = load_targets(ctx, setup)
+    return IkExportSetup(least_squares, adapter, np.asarray(setup.start, dtype=float), targets.values)
+
+
+def export(problem: str, what: str, folder: Path | str, samples: int = EXAMPLE_SAMPLES) -> Export:
+    """Write the C library ``what`` (one of :data:`WHATS`) of named problem ``problem`` into ``folder``.
+
+    Parameters
+    ----------
+    problem:
+        A problem name or file, as for ``optikin solve``.
+    what:
+        ``fk``, ``ik-step`` or ``ik-trajectory`` (module docstring).
+    folder:
+        Where the files go (created; files of the same names are overwritten).
+    samples:
+        How many of the problem's samples the example compiles in (IK: its first targets; FK:
+        configurations drawn uniformly inside the bounds with the problem's seed).
+
+    Returns
+    -------
+    Export
+        The files written.
+
+    Raises
+    ------
+    SpecError
+        ``what`` does not fit the problem.
+    SolverError
+        The problem has fixed variables or constraints (not exported).
+    """
+    folder = Path(folder)
+    if what not in WHATS:
+        raise ValueError(f"--what {what!r}: one of {', '.join(WHATS)}")
+    if what == "fk":
+        from optikin.runner import prepare
+
+        _, ctx = prepare(problem)
+        Q = ctx.arm.sample_configurations(samples, ctx.rng(0))
+        return export_fk(problem, ctx.arm, folder, Q)
+    setup = ik_setup(problem)
+    return export_ik(what, problem, setup.problem, setup.adapter, setup.start, folder, setup.targets[:samples])
+
+
+def build(exported: Export, flags: Iterable[str] = ("-O2",), compiler: str = "cc") -> Path:
+    """Compile the example of ``exported`` (``main.c`` and the library) into ``<folder>/example``.
+
+    ``flags`` are checked against :data:`optikin.codegen.ALLOWED_FLAGS` and ``compiler`` is one of
+    :data:`optikin.codegen.COMPILERS`, as for the compiled backends.
+
+    Raises
+    ------
+    ValueError
+        A flag or the compiler is not allowed.
+    SolverError
+        The compiler is missing or compiling failed.
+    """
+    checked = check_flags(flags)
+    path = find_compiler(compiler)
+    executable = exported.folder / "example"
+    command = [path, *checked, "-std=c99", "-Wall", "main.c", exported.source.name, "-lm", "-o", executable.name]
+    run = subprocess.run(command, cwd=exported.folder, capture_output=True, text=True)
+    if run.returncode != 0:
+        raise SolverError(f"compiling {exported.stem} with {compiler} failed: {run.stderr.strip()[:800]}")
+    return executable
+
+
+def main(args: argparse.Namespace) -> int:
+    """``optikin export PROBLEM --what WHAT --out DIR``: write the files and list them."""
+    exported = export(args.problem, args.what, Path(args.out))
+    for path in exported.files:
+        print(path)
+    return 0
