@@ -20,7 +20,10 @@ arc lengths:
   unknown;
 * ``physics-distributed``: the same with a uniform distributed force as 3 more
   unknowns (9 unknowns, 6 residuals: the fit stops at one of a 3-parameter family
-  of exact solutions, the one Levenberg-Marquardt reaches from the start);
+  of exact solutions, the one Levenberg-Marquardt reaches from the start; a rule
+  preferring the smallest distributed force would pick ``f = 0``, the 6-unknown fit,
+  whenever the tip wrench alone reaches the tip pose, so end poses alone cannot
+  reveal a distributed load);
 * ``physics-weight``: the 6-unknown fit with the rod's weight ``rho A g`` modelled
   (known density and gravity), the fit for a rod whose only unknown load is at the tip.
 
@@ -205,8 +208,8 @@ def cc_arc_points(p0: np.ndarray, t0: np.ndarray, p1: np.ndarray, fractions: np.
     them, the arc has curvature ``kappa = 2 sin(alpha) / |c|``, turns by ``2 alpha`` and is
     ``S = alpha |c| / sin(alpha)`` long; its point at arc length ``sigma`` is
     ``p0 + sin(kappa sigma) / kappa t0 + (1 - cos(kappa sigma)) / kappa n`` with ``n`` the unit
-    part of ``c`` normal to ``t0`` (Webster & Jones, Int. J. Robot. Res. 29(13), 2010,
-    section 3: the constant-curvature arc).
+    part of ``c`` normal to ``t0`` (the constant-curvature arc: Webster & Jones,
+    Int. J. Robot. Res. 29(13), pp. 1661-1683, 2010).
 
     Parameters
     ----------
