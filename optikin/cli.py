@@ -1,4 +1,4 @@
-"""The ``optikin`` command line: ``list``, ``show``, ``solve``, ``plot``, ``bench``.
+"""The ``optikin`` command line: ``list``, ``show``, ``solve``, ``plot``, ``view``, ``bench``.
 
 Exit status, one meaning each:
 
@@ -182,6 +182,16 @@ def _cmd_plot(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _cmd_view(args: argparse.Namespace) -> int:
+    from optikin.view import open_in_browser, write_view
+
+    page = write_view(Path(args.result), Path(args.out) if args.out else None)
+    print(f"wrote {page}")
+    if args.open and not open_in_browser(page):
+        print(f"optikin: no web browser could be started; open {page.resolve().as_uri()}", file=sys.stderr)
+    return EXIT_OK
+
+
 def _headless_figures() -> None:
     """Figures from the command line are files: draw with the Agg backend, whatever the machine has."""
     import matplotlib
@@ -231,6 +241,12 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("plot", help="redraw the figures of a written result from its arrays, without solving")
     p.add_argument("result", help="a result folder (holding result.json and arrays.npz)")
     p.set_defaults(run=_cmd_plot)
+
+    p = sub.add_parser("view", help="an interactive 3-D HTML page of a written result (needs plotly: extra view)")
+    p.add_argument("result", help="a result folder (holding result.json and arrays.npz)")
+    p.add_argument("--out", help="the HTML file to write (default: RESULT/view.html)")
+    p.add_argument("--open", action="store_true", help="open the page in the web browser")
+    p.set_defaults(run=_cmd_view)
 
     from optikin import bench
 
