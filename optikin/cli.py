@@ -248,6 +248,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--open", action="store_true", help="open the page in the web browser")
     p.set_defaults(run=_cmd_view)
 
+    from optikin.sweep import run as sweep
+
+    p = sub.add_parser("sweep", help="solve a problem over axes of overrides (joblib or Dask workers), one table")
+    sweep.add_arguments(p)
+    p.set_defaults(run=sweep.main)
+
     from optikin import bench
 
     p = sub.add_parser("bench", help="forward-kinematics throughput of every evaluation path against numpy")

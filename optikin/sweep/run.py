@@ -1,0 +1,286 @@
+"""Running the cells of a sweep on joblib (loky worker processes) or on a Dask cluster.
+
+The engines do the scheduling and the data transfer; optikin only hands them :func:`run_cell` and the
+picklable cells, and writes each record as it comes back (:func:`optikin.sweep.store.write_cell`).
+
+Worker deaths:
+
+* Dask reschedules a task whose worker died; after ``distributed.scheduler.allowed-failures`` deaths it
+  raises ``KilledWorker`` for it. A ``local:N`` cluster is started with that setting at the sweep's
+  ``retries``; a scheduler at an address keeps its own setting.
+* joblib has no retry: a worker killed mid-cell breaks the loky pool (``TerminatedWorkerError``, and loky
+  ends the other workers too). The cells whose ``running/`` marker outlived its process are charged one
+  try, and the Parallel call is started again on the cells not finished; a cell charged ``1 + retries``
+  tries is written as failed with the reason.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Iterator
+
+from optikin.errors import SpecError
+from optikin.sweep.cell import run_cell
+from optikin.sweep.spec import Cell, expand, load_sweep
+from optikin.sweep.store import dead_tries, markers_dir, read_cells, table_rows, write_cell, write_figures, write_table
+
+Record = dict[str, Any]
+
+
+@dataclass
+class SweepReport:
+    """What one ``optikin sweep`` did."""
+
+    folder: Path
+    cells: int
+    skipped: int
+    ran: int
+    failed: int
+    unsucceeded: int
+    engine: str
+    seconds: float
+    rows: list[dict[str, Any]] = field(default_factory=list)
+    figures: list[Path] = field(default_factory=list)
+
+
+class _Bar:
+    """One aggregated progress bar: cells done / failed / running, with the ETA (silent off a terminal)."""
+
+    def __init__(self, name: str, total: int, completed: int, enabled: bool) -> None:
+        self.name, self.done, self.failed, self.running = name, completed, 0, 0
+        self._bar: Any = None
+        if enabled and sys.stderr.isatty():
+            from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+
+            self._bar = Progress(
+                TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn()
+            )
+            self._bar.start()
+            self._task = self._bar.add_task(self._text(), total=total, completed=completed)
+
+    def _text(self) -> str:
+        return f"{self.name}: {self.done} done, {self.failed} failed, {self.running} running"
+
+    def update(self, record: Record | None, running: int) -> None:
+        if record is not None:
+            self.done += record["status"] == "done"
+            self.failed += record["status"] != "done"
+        self.running = running
+        if self._bar is not None:
+            self._bar.update(self._task, description=self._text(), completed=self.done + self.failed)
+
+    def close(self) -> None:
+        if self._bar is not None:
+            self._bar.stop()
+
+
+def _killed(cell: Cell, tries: int, reason: str) -> Record:
+    return {
+        "key": cell.key,
+        "index": cell.index,
+        "axes": dict(cell.axes),
+        "overrides": [list(o) for o in cell.overrides],
+        "status": "failed",
+        "reason": reason,
+        "tries": tries,
+    }
+
+
+def _joblib(cells: list[Cell], folder: Path, jobs: int, retries: int) -> Iterator[tuple[Record, int]]:
+    """Records as cells finish (any order), with the number still running."""
+    from joblib import Parallel, delayed
+    from joblib.externals.loky.process_executor import TerminatedWorkerError
+
+    pending = {cell.key: cell for cell in cells}
+    deaths: dict[str, int] = {}
+    while pending:
+        try:
+            parallel = Parallel(n_jobs=jobs, backend="loky", return_as="generator_unordered")
+            for record in parallel(delayed(run_cell)(cell) for cell in list(pending.values())):
+                pending.pop(record["key"])
+                record["tries"] = deaths.get(record["key"], 0) + 1
+                yield record, min(jobs, len(pending))
+        except TerminatedWorkerError as exc:
+            time.sleep(0.2)
+            charged = dead_tries(folder)
+            if not charged:
+                charged = {key: 1 for key in pending}
+            for key, count in charged.items():
+                if key not in pending:
+                    continue
+                deaths[key] = deaths.get(key, 0) + count
+                if deaths[key] > retries:
+                    reason = f"its worker died {deaths[key]} times ({str(exc).splitlines()[0]})"
+                    yield _killed(pending.pop(key), deaths[key], reason), min(jobs, len(pending))
+
+
+def _dask(cells: list[Cell], folder: Path, address: str, retries: int) -> Iterator[tuple[Record, int]]:
+    """Records as cells finish on a Dask cluster (``local:N`` starts a ``LocalCluster`` of N processes)."""
+    try:
+        import dask
+        from distributed import Client, LocalCluster, as_completed
+    except ImportError:
+        raise SpecError("--dask", "", 'needs Dask: pip install "optikin[dask]" (dask[distributed])') from None
+    cluster = None
+    if address.startswith("local:"):
+        workers = address.removeprefix("local:")
+        if not workers.isdigit() or int(workers) < 1:
+            raise SpecError("--dask", "", f"expected local:N with N >= 1 workers, got {address!r}")
+        with dask.config.set({"distributed.scheduler.allowed-failures": retries}):
+            cluster = LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True, dashboard_address=None)
+        client = Client(cluster)
+    else:
+        client = Client(address)
+    try:
+        futures = {client.submit(run_cell, cell, key=f"optikin-cell-{cell.key}", pure=False): cell for cell in cells}
+        workers_count = max(1, len(client.scheduler_info().get("workers", {})))
+        remaining = len(futures)
+        deaths: dict[str, int] = {}
+        for future in as_completed(futures):
+            remaining -= 1
+            cell = futures[future]
+            for key, count in dead_tries(folder).items():
+                deaths[key] = deaths.get(key, 0) + count
+            try:
+                record = future.result()
+                record["tries"] = 1 + deaths.get(cell.key, 0)
+            except Exception as exc:  # noqa: BLE001 - KilledWorker and the like fail this cell alone
+                record = _killed(cell, 1 + deaths.get(cell.key, 0), f"{type(exc).__name__}: {exc}")
+            yield record, min(workers_count, remaining)
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def run_sweep(
+    name_or_path: str,
+    out: Path = Path("results"),
+    jobs: int = 1,
+    dask: str | None = None,
+    resume: bool = True,
+    figures: bool = True,
+    progress: bool = True,
+    on_record: Callable[[Record], None] | None = None,
+) -> SweepReport:
+    """Run a sweep file: every cell not already in ``OUT/<name>/cells`` (with ``resume``), then the table.
+
+    Parameters
+    ----------
+    name_or_path:
+        A sweep name (``sweeps/NAME.yaml``) or a path to a sweep file.
+    out:
+        Folder that holds the sweep's folder.
+    jobs:
+        joblib worker processes (1 runs the cells in this process); ignored with ``dask``.
+    dask:
+        A Dask scheduler address, or ``local:N`` for a local cluster of N worker processes.
+    resume:
+        Skip the cells finished before (same key); a failed cell runs again.
+    figures:
+        Draw each metric against each axis.
+    progress:
+        Show the aggregated progress bar on a terminal.
+    on_record:
+        Called with each record as it is written.
+
+    Raises
+    ------
+    SpecError
+        On the sweep file (naming the field), ``--jobs`` or ``--dask``.
+    """
+    if jobs < 1:
+        raise SpecError("--jobs", "", f"expected at least 1 worker, got {jobs}")
+    spec, path = load_sweep(name_or_path)
+    cells = expand(spec, path)
+    folder = Path(out) / spec.name
+    markers_dir(folder).mkdir(parents=True, exist_ok=True)
+    dead_tries(folder)
+    finished = read_cells(folder) if resume else {}
+    todo = [
+        dataclasses.replace(c, marker_dir=str(markers_dir(folder).resolve()))
+        for c in cells
+        if finished.get(c.key, {}).get("status") != "done"
+    ]
+    started = time.perf_counter()
+    bar = _Bar(spec.name, len(cells), len(cells) - len(todo), progress)
+    engine = f"dask {dask}" if dask else f"joblib loky x{jobs}"
+    try:
+        stream = _dask(todo, folder, dask, spec.retries) if dask else _joblib(todo, folder, jobs, spec.retries)
+        for record, running in stream:
+            write_cell(folder, record)
+            bar.update(record, running)
+            if on_record is not None:
+                on_record(record)
+    finally:
+        bar.close()
+    records = read_cells(folder)
+    rows = table_rows(cells, records)
+    write_table(folder, spec, rows)
+    drawn = write_figures(folder, spec, rows) if figures and rows else []
+    return SweepReport(
+        folder=folder,
+        cells=len(cells),
+        skipped=len(cells) - len(todo),
+        ran=len(todo),
+        failed=sum(r["status"] != "done" for r in rows),
+        unsucceeded=sum(r["status"] == "done" and not r["succeeded"] for r in rows),
+        engine=engine,
+        seconds=time.perf_counter() - started,
+        rows=rows,
+        figures=drawn,
+    )
+
+
+def add_arguments(parser: Any) -> None:
+    """The ``optikin sweep`` arguments."""
+    parser.add_argument("sweep", help="sweep name (sweeps/NAME.yaml) or path to a sweep file")
+    parser.add_argument("--out", default="results", help="folder of the sweep's folder (default: ./results)")
+    parser.add_argument("--jobs", type=int, default=1, help="joblib (loky) worker processes (default 1)")
+    parser.add_argument(
+        "--dask", metavar="ADDRESS", help="run the cells on a Dask scheduler, or local:N for a LocalCluster of N"
+    )
+    parser.add_argument(
+        "--resume", action=argparse.BooleanOptionalAction, default=True, help="skip cells finished before"
+    )
+    parser.add_argument("--no-figures", action="store_true", help="skip drawing figures")
+    parser.add_argument("--json", action="store_true", help="print the report as JSON")
+
+
+def main(args: Any) -> int:
+    """``optikin sweep``: 0 every cell done and solved, 1 some cell failed or had failed samples."""
+    import json
+
+    report = run_sweep(
+        args.sweep,
+        out=Path(args.out),
+        jobs=args.jobs,
+        dask=args.dask,
+        resume=args.resume,
+        figures=not args.no_figures,
+        progress=not args.json,
+    )
+    counts = {
+        "folder": str(report.folder),
+        "engine": report.engine,
+        "cells": report.cells,
+        "skipped": report.skipped,
+        "ran": report.ran,
+        "failed": report.failed,
+        "with failed samples": report.unsucceeded,
+        "seconds": round(report.seconds, 3),
+    }
+    if args.json:
+        print(json.dumps(counts | {"rows": report.rows}, indent=1, default=str))
+    else:
+        print(", ".join(f"{k}: {v}" for k, v in counts.items()))
+        for row in report.rows:
+            if row["status"] != "done":
+                print(f"cell {row['index']} failed: {row['reason']}")
+        print(f"table: {report.folder / 'table.csv'}")
+    return 0 if report.failed == 0 and report.unsucceeded == 0 else 1
