@@ -381,7 +381,12 @@ def inv_sinc_of_square(x2: Array) -> Array:
 
 
 def sinc(x: Array) -> Array:
-    """``sin(x)/x``, exact and smooth at ``x = 0`` (see :func:`sinc_of_square`).
+    """``sin(x)/x``, exact and smooth at ``x = 0``.
+
+    Written with the half angle, ``sin(x)/x = sin(x/2) cos(x/2) / (x/2)``, so that a symbolic
+    expression shares ``sin(x/2)`` and ``cos(x/2)`` with the rotation quaternion of the same
+    angle (``cos(x/2) + sin(x/2) n``) instead of evaluating ``sin(x)`` and a square root again;
+    inside :data:`SERIES_BAND` the series of :func:`sinc_of_square`.
 
     Parameters
     ----------
@@ -393,7 +398,10 @@ def sinc(x: Array) -> Array:
     Array
         ``sin(x)/x``, 1 at ``x = 0``, of the same shape and kind.
     """
-    return sinc_of_square(x * x)
+    x2 = x * x
+    small = x2 < SERIES_BAND**2
+    h = 0.5 * x
+    return where(small, 1.0 - x2 / 6.0 + x2 * x2 / 120.0, sin(h) * cos(h) / where(small, 1.0, h))
 
 
 def one_minus_cos_over_square(x: Array) -> Array:
@@ -412,8 +420,11 @@ def one_minus_cos_over_square(x: Array) -> Array:
     Array
         ``(1 - cos x)/x^2``, ``1/2`` at ``x = 0``.
     """
-    half = sinc(0.5 * x)
-    return 0.5 * half * half
+    x2 = x * x
+    small = x2 < SERIES_BAND**2
+    h = 0.5 * x
+    half = sin(h) / where(small, 1.0, h)  # sin(x/2)/(x/2), sharing sin(x/2) as sinc does
+    return where(small, 0.5 - x2 / 24.0 + x2 * x2 / 720.0, 0.5 * half * half)
 
 
 def scale(t: Array, x: Array, n: int) -> Array:
