@@ -11,13 +11,15 @@ The 3-D content is found from the arrays' names and shapes (:func:`scene_layers`
   one curve (``K >= 10``, or a backbone) or point set per sample, shown for the slider's sample;
 * ``(N, 3)`` arrays (tips, bases, targets, reference positions): the slider's point, and all ``N`` as a
   path (a trajectory) or a faint cloud;
-* ``(M, 3)`` arrays with another leading length (obstacles, waypoints): shown throughout.
+* ``(M, 3)`` arrays with another leading length (obstacles, waypoints): shown throughout;
+* the obstacles of the problem spec (``options.obstacles``: spheres, capsules, boxes, half-spaces, static
+  or moving along a path; :func:`obstacle_layers`) as translucent surfaces.
 
 Names saying the values are not positions (``distance``, ``error``, ``angle``, ...) are left out. Two
 hints fill in what a kind does not store as positions: without any backbone array, configuration arrays
-(``solutions``, ``true_configurations``, ``q``, ``q_METHOD``: ``(N, n_config)``) are turned into backbones
-by the arm's forward kinematics (:meth:`optikin.arms.base.ArmModel.backbone`, the arm rebuilt from the
-provenance's problem spec); and ``(N, 8)`` unit dual quaternion ``targets`` give their translation.
+(``solutions``, ``true_configurations``, ``configurations``, ``q``, ``q_METHOD``: ``(N, n_config)``) are turned
+into backbones by the arm's forward kinematics (:meth:`optikin.arms.base.ArmModel.backbone`, the arm rebuilt
+from the provenance's problem spec); and ``(N, 8)`` unit dual quaternion ``targets`` give their translation.
 
 plotly is an optional dependency (extra ``view``), imported only here.
 """
@@ -59,8 +61,26 @@ POSITION_WORDS = (
     "center",
     "disk",
     "node",
+    "truth",
+    "measured",
+    "fitted",
 )
-NOT_POSITION_WORDS = ("distance", "error", "angle", "residual", "orientation", "wrench", "velocity", "rate", "force")
+NOT_POSITION_WORDS = (
+    "distance",
+    "error",
+    "angle",
+    "residual",
+    "orientation",
+    "wrench",
+    "velocity",
+    "rate",
+    "force",
+    "tension",
+    "pressure",
+    "length",
+    "weight",
+    "rpy",
+)
 CONFIGURATION_NAMES = re.compile(r"(solutions|true_configurations|configurations|q)(_.+)?")
 MIN_CURVE_POINTS = 10
 
@@ -74,7 +94,8 @@ class Layer:
     """One labelled piece of the scene, in metres.
 
     ``points`` is ``(N, K, 3)`` for a per-sample layer (the slider's sample is drawn) or ``(M, 3)`` for a
-    static one; ``mode`` is ``"lines"`` or ``"markers"``; ``visible`` False starts it hidden (legend only).
+    static one; ``mode`` is ``"lines"``, ``"markers"``, ``"hull"`` (a convex surface through the points) or
+    ``"plane"`` (a quadrilateral); ``visible`` False starts it hidden (legend only).
     """
 
     name: str
@@ -104,7 +125,7 @@ def _sample_count(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) 
 
 
 def _label(name: str) -> str:
-    return name.replace("_", " ")
+    return re.sub("_+", " ", name)
 
 
 def scene_layers(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -> tuple[int, list[Layer]]:
@@ -136,6 +157,8 @@ def scene_layers(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -
 
             points[f"{name} (position)"] = np.asarray(dq_translation(a))
             continue
+        if a.ndim == 3 and a.shape[1] == 3 and a.shape[2] != 3 and "backbone" in name.lower():
+            a = np.transpose(a, (0, 2, 1))  # (N, 3, K) backbones
         if a.shape[-1] != 3 or not _is_position_name(name):
             continue
         if a.ndim == 3 and a.shape[0] == n:
@@ -160,7 +183,68 @@ def scene_layers(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -
             tips = layer.points[:, -1, :]
             stride = max(1, -(-len(tips) // MAX_PATH_POINTS))
             static.append(Layer(f"{layer.name} (tip path)", tips[::stride], "lines", False, visible=False))
-    return n, per_sample + static
+    return n, per_sample + obstacle_layers(summary, arrays["t"] if trajectory else None, n) + static
+
+
+def obstacle_layers(summary: Mapping[str, Any], t: np.ndarray | None, n: int) -> list[Layer]:
+    """The obstacles of the problem spec's ``options.obstacles`` as surfaces (Mesh3d layers).
+
+    Each entry has a ``type``: ``sphere`` (``center``, ``radius``), ``capsule`` (``a``, ``b``, ``radius``),
+    ``box`` (``center``, ``half_extents``, axis-aligned) or ``halfspace`` (``point``, ``normal``), in metres,
+    and an optional ``path`` of rows ``(t, dx, dy, dz)`` [s, m], the offset interpolated linearly in time and
+    held beyond its ends. Spheres, capsules and boxes are drawn as the convex hull of points on their
+    surface; a half-space as a square patch of its plane, ``HALFSPACE_HALF_WIDTH`` from its point. A
+    moving obstacle is a per-sample layer when the result is a trajectory ``t`` of ``N`` samples.
+    """
+    spec = summary.get("provenance", {}).get("problem", {}).get("spec", {})
+    entries = (spec.get("options") or {}).get("obstacles") or []
+    layers = []
+    for index, entry in enumerate(entries if isinstance(entries, list) else []):
+        try:
+            surface, mode = _obstacle_surface(entry)
+        except (KeyError, TypeError, ValueError):
+            continue
+        name = f"obstacle {index + 1} ({entry['type']})"
+        path = entry.get("path")
+        if path and t is not None:
+            rows = np.asarray(path, dtype=float)
+            offsets = np.stack([np.interp(t, rows[:, 0], rows[:, 1 + j]) for j in range(3)], axis=-1)
+            layers.append(Layer(name, surface[None, :, :] + offsets[:, None, :], mode, True, opacity=0.35))
+        else:
+            offset = np.asarray(path, dtype=float)[0, 1:] if path else np.zeros(3)
+            layers.append(Layer(name, surface + offset, mode, False, opacity=0.35))
+    return layers
+
+
+HALFSPACE_HALF_WIDTH = 0.3
+"""Half side [m] of the square drawn for a half-space's plane."""
+
+
+def _obstacle_surface(entry: Mapping[str, Any]) -> tuple[np.ndarray, str]:
+    """Surface points ``(V, 3)`` [m] of one obstacle at zero offset, and the layer mode (``hull``/``plane``)."""
+    polar, azimuth = np.meshgrid(np.linspace(0, np.pi, 13), np.linspace(0, 2 * np.pi, 25), indexing="ij")
+    unit = np.stack([np.sin(polar) * np.cos(azimuth), np.sin(polar) * np.sin(azimuth), np.cos(polar)], -1)
+    unit = unit.reshape(-1, 3)
+    kind = entry["type"]
+    if kind == "sphere":
+        return np.asarray(entry["center"], float) + float(entry["radius"]) * unit, "hull"
+    if kind == "capsule":
+        ends = [np.asarray(entry[end], float) + float(entry["radius"]) * unit for end in ("a", "b")]
+        return np.concatenate(ends), "hull"
+    if kind == "box":
+        corners = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)], dtype=float)
+        return np.asarray(entry["center"], float) + corners * np.asarray(entry["half_extents"], float), "hull"
+    if kind == "halfspace":
+        normal = np.asarray(entry["normal"], float)
+        normal = normal / np.linalg.norm(normal)
+        helper = np.eye(3)[np.argmin(np.abs(normal))]
+        u = np.cross(normal, helper)
+        u /= np.linalg.norm(u)
+        v = np.cross(normal, u)
+        w = HALFSPACE_HALF_WIDTH
+        square = [(-1, -1), (1, -1), (1, 1), (-1, 1)]
+        return np.array([np.asarray(entry["point"], float) + w * (a * u + b * v) for a, b in square]), "plane"
+    raise ValueError(f"unknown obstacle type {kind!r}")
 
 
 def _configuration_backbones(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any], n: int) -> list[Layer]:
@@ -204,8 +288,10 @@ def _xyz(points: np.ndarray) -> dict[str, list[float | None]]:
 
 
 def _axis_ranges(layers: list[Layer]) -> list[list[float]]:
-    """One equal-length range per axis [mm] holding every finite point (a cube around the content)."""
-    stacked = np.concatenate([np.zeros((0, 3)), *(layer.points.reshape(-1, 3) for layer in layers)])
+    """One equal-length range per axis [mm] holding every finite point (a cube around the content; a
+    half-space's plane is cut by it)."""
+    drawn = [layer.points.reshape(-1, 3) for layer in layers if layer.mode != "plane"]
+    stacked = np.concatenate([np.zeros((0, 3)), *drawn])
     stacked = stacked[np.isfinite(stacked).all(axis=1)] * MM
     if stacked.size == 0:
         stacked = np.zeros((1, 3))
@@ -237,23 +323,12 @@ def build_figure(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -
     moving = [i for i, layer in enumerate(layers) if layer.per_sample]
     for layer in layers:
         shown = layer.points[first] if layer.per_sample else layer.points
-        style: dict[str, Any] = {"size": layer.size} if layer.mode == "markers" else {}
-        figure.add_trace(
-            go.Scatter3d(
-                **_xyz(shown),
-                mode=layer.mode,
-                name=layer.name,
-                marker=style or None,
-                line={"width": 5} if layer.mode == "lines" else None,
-                opacity=layer.opacity,
-                visible=True if layer.visible else "legendonly",
-            )
-        )
+        figure.add_trace(_trace(go, layer, shown))
     t = np.asarray(arrays["t"]) if "t" in arrays and len(arrays["t"]) == n else None
     labels = [f"t = {t[i]:.3g} s" if t is not None else f"sample {i}" for i in frames]
     if moving and len(frames) > 1:
         figure.frames = [
-            go.Frame(name=str(i), data=[go.Scatter3d(**_xyz(layers[k].points[i])) for k in moving], traces=moving)
+            go.Frame(name=str(i), data=[_moved(go, layers[k], layers[k].points[i]) for k in moving], traces=moving)
             for i in frames
         ]
         step = {"mode": "immediate", "frame": {"duration": 0, "redraw": True}, "transition": {"duration": 0}}
@@ -305,6 +380,30 @@ def build_figure(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -
         },
     )
     return figure
+
+
+def _trace(go: Any, layer: Layer, points: np.ndarray) -> Any:
+    """The plotly trace of ``layer`` showing ``points`` ``(K, 3)`` [m]."""
+    visible = True if layer.visible else "legendonly"
+    if layer.mode in ("hull", "plane"):
+        faces = {"alphahull": 0} if layer.mode == "hull" else {"i": [0, 0], "j": [1, 2], "k": [2, 3]}
+        return go.Mesh3d(
+            **_xyz(points), **faces, name=layer.name, opacity=layer.opacity, showlegend=True, visible=visible
+        )
+    return go.Scatter3d(
+        **_xyz(points),
+        mode=layer.mode,
+        name=layer.name,
+        marker={"size": layer.size} if layer.mode == "markers" else None,
+        line={"width": 5} if layer.mode == "lines" else None,
+        opacity=layer.opacity,
+        visible=visible,
+    )
+
+
+def _moved(go: Any, layer: Layer, points: np.ndarray) -> Any:
+    """The frame update of a per-sample ``layer`` to ``points`` (a trace of the same type)."""
+    return go.Mesh3d(**_xyz(points)) if layer.mode in ("hull", "plane") else go.Scatter3d(**_xyz(points))
 
 
 def comparison_html(summary: Mapping[str, Any]) -> str:

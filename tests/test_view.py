@@ -145,6 +145,53 @@ def test_configurations_become_backbones_by_forward_kinematics(tmp_path):
     np.testing.assert_allclose([figure.data[1][a][0] for a in "xyz"], [10.0, 20.0, 150.0], atol=1e-3)
 
 
+def test_obstacles_of_the_spec_are_drawn_as_surfaces(tmp_path):
+    """A sphere's surface points lie at its radius, a moving sphere is offset by the linear interpolation of
+    its path at each sample's time, a half-space's patch lies on its plane, a box's hull has its 8 corners."""
+    t = np.linspace(0.0, 1.1, N)
+    obstacles = [
+        {"type": "sphere", "center": [0.1, 0.0, 0.2], "radius": 0.02},
+        {"type": "sphere", "center": [0.0, 0.0, 0.1], "radius": 0.01, "path": [[0.0, 0, 0, 0], [1.0, 0.05, 0, 0]]},
+        {"type": "halfspace", "point": [0.0, 0.0, -0.01], "normal": [0.0, 1.0, 1.0]},
+        {"type": "box", "center": [0.0, 0.1, 0.1], "half_extents": [0.01, 0.02, 0.03]},
+    ]
+    provenance = {"problem": {"spec": {"options": {"obstacles": obstacles}}}}
+    folder = _write(tmp_path, {"t": t, "backbone": _helix()}, kind="tracking", provenance=provenance)
+    from optikin.results import read_result
+
+    summary, arrays = read_result(folder)
+    figure = build_figure(arrays, summary)
+    meshes = {trace.name: (i, trace) for i, trace in enumerate(figure.data) if trace.type == "mesh3d"}
+    assert list(meshes) == ["obstacle 1 (sphere)", "obstacle 2 (sphere)", "obstacle 3 (halfspace)", "obstacle 4 (box)"]
+
+    def points(trace):
+        return np.stack([_mm(trace, a) for a in "xyz"], axis=1)
+
+    sphere = points(meshes["obstacle 1 (sphere)"][1])
+    np.testing.assert_allclose(np.linalg.norm(sphere - [100.0, 0.0, 200.0], axis=1), 20.0, atol=2e-3)
+    index = meshes["obstacle 2 (sphere)"][0]
+    for i in (3, N - 1):  # t = 0.3 s: 15 mm along x; past the path's end: held at 50 mm
+        frame = figure.frames[i]
+        moved = points(frame.data[list(frame.traces).index(index)])
+        centre = [50.0 * min(t[i], 1.0), 0.0, 100.0]
+        np.testing.assert_allclose(np.linalg.norm(moved - centre, axis=1), 10.0, atol=2e-3)
+    plane = points(meshes["obstacle 3 (halfspace)"][1])
+    np.testing.assert_allclose((plane - [0.0, 0.0, -10.0]) @ np.array([0.0, 1.0, 1.0]), 0.0, atol=2e-3)
+    box = points(meshes["obstacle 4 (box)"][1])
+    np.testing.assert_allclose(box.min(axis=0), [-10.0, 80.0, 70.0], atol=1e-9)
+    np.testing.assert_allclose(box.max(axis=0), [10.0, 120.0, 130.0], atol=1e-9)
+    assert len(box) == 8
+
+
+def test_backbones_stored_as_n_3_k_are_turned(tmp_path):
+    from optikin.view import scene_layers
+
+    backbone = _helix()
+    _, layers = scene_layers({"backbone": np.transpose(backbone, (0, 2, 1))}, {"samples": N})
+    np.testing.assert_array_equal(layers[0].points, backbone)
+    assert layers[0].mode == "lines"
+
+
 class _Tables(HTMLParser):
     """The cells of every ``<table>`` row of a page."""
 
