@@ -3,7 +3,7 @@
 Each step solves
 
     min_qdot  ||J(q) qdot - (xdot_ref + K e)||^2 + lambda ||qdot||^2
-    s.t.      lb <= qdot <= ub
+    s.t.      lb <= qdot <= ub,   A qdot >= b  (optional: the backbone barrier)
 
 where ``J`` is the task Jacobian of the arm's own model (Seleem et al. 2020 eq. 33 for the
 dual-quaternion pose), ``e = x_ref - x`` and ``K = diag(k)`` as in Seleem et al. 2020
@@ -12,6 +12,10 @@ configuration limit after integrating the rate over the step and respects the
 rate limits, also when the arm starts outside a limit (it steers back at the
 full rate; the box is never empty). Without active bounds the solution is the
 damped least-squares step ``(J'J + lambda I)^-1 J' (xdot_ref + K e)``.
+
+With obstacles (``barrier``, :class:`optikin.control.obstacles.BarrierRows`) the rows
+``A qdot >= b`` are the discrete-time barrier of the backbone samples nearest to each
+obstacle; the task stays a least-squares objective (its slack is free), the barrier is hard.
 
 The QP is solved by a step solver of a ``qp`` backend (:mod:`optikin.solvers.qp`,
 ``solve(QPData) -> Solution``), handed to the controller ready-made.
@@ -41,6 +45,7 @@ import numpy as np
 from optikin.arms.base import ArmModel
 from optikin.control.base import Controller
 from optikin.control.limits import RateBounds
+from optikin.control.obstacles import BarrierRows
 from optikin.control.task import Task
 from optikin.solvers.base import QPStepSolver, Solution
 from optikin.solvers.qp.common import QPData
@@ -67,6 +72,8 @@ class QPController(Controller):
         What to command when the solver fails (see the module docstring).
     compiled:
         Compile the per-step CasADi Function with a C compiler.
+    barrier:
+        The backbone barrier rows (its step solver must be created for ``barrier.rows`` rows); ``None``: no obstacles.
     """
 
     name = "qp"
@@ -86,6 +93,7 @@ class QPController(Controller):
         limit_gain: float = 1.0,
         fallback: Fallback = "hold",
         compiled: bool = False,
+        barrier: BarrierRows | None = None,
     ):
         super().__init__(arm, dt, task, gain, compiled)
         if not damping >= 0:
@@ -97,15 +105,25 @@ class QPController(Controller):
         self.bounds = RateBounds(arm, dt, rate_limits, margin, periodic, gain=limit_gain)
         m = self.model
         self.data = QPData(m.J, m.v, self.damping, m.H, m.H_upper, m.g, self.bounds.lb, self.bounds.ub)
+        self.barrier = barrier
+        if barrier is not None:
+            self.data.A, self.data.b = barrier.A, barrier.b
         self.solver = solver
         self.name = f"qp ({getattr(solver, 'name', type(solver).__name__)})"
         self.qdot = np.zeros(arm.n_config)
         self.slip = 0.0
         self.solution: Solution | None = None
 
+    def reset(self, q: np.ndarray, x: np.ndarray) -> None:
+        super().reset(q, x)
+        if self.barrier is not None:
+            self.barrier.reset()
+
     def command(self, q: np.ndarray, x: np.ndarray, x_ref: np.ndarray, xdot_ref: np.ndarray) -> np.ndarray:
         self.model.evaluate(q, x, x_ref, xdot_ref)
         self.bounds.update(q)
+        if self.barrier is not None:
+            self.barrier.update(q)
         lb, ub = self.bounds.lb, self.bounds.ub
         try:
             solution = self.solution = self.solver.solve(self.data)

@@ -74,11 +74,49 @@ def figures(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -> dic
         "lyapunov": (lyapunov, "lyapunov", "V(e) = e'e/2"),
         "step_times": (step_times, "step_time", "time per control step"),
     }
-    return {
+    out: dict[str, Drawer] = {
         name: partial(draw, view=view, title=f"{title}: {words}")
         for name, (draw, field, words) in drawn.items()
         if view.curves(field) and (name != "limits" or "config_names" in view.arm)
     }
+    if "snapshot_obstacles" in arrays:
+        labels = {name: _label(name, summary) for name in (key[10:] for key in arrays if key.startswith("clearance_"))}
+        out["obstacles"] = partial(obstacles, arrays=arrays, labels=labels, title=f"{title}: backbones and obstacles")
+    return out
+
+
+def obstacles(path: Path, arrays: Mapping[str, np.ndarray], labels: Mapping[str, str], title: str) -> None:
+    """3-D backbones of the QP and the first baseline at a few instants with the obstacles, and every
+    method's least backbone-to-obstacle distance over time against the margin."""
+    fig = plt.figure(figsize=(11.0, 4.8))
+    shown = list(labels)[:2]
+    times = arrays["snapshot_t"]
+    colours = plt.get_cmap("viridis")(np.linspace(0.0, 1.0, len(times)))
+    for panel, name in enumerate(shown):
+        ax = fig.add_subplot(1, len(shown) + 1, panel + 1, projection="3d")
+        for k, colour in enumerate(colours):
+            shell = arrays["snapshot_obstacles"][k] * MM
+            ax.scatter(*shell.T, s=2, color=colour, alpha=0.3)
+            backbone = arrays[f"snapshot_backbone_{name}"][k] * MM
+            ax.plot(*backbone, color=colour, lw=2.0, label=f"t = {times[k]:.2g} s")
+        ax.set_title(labels[name], fontsize=9)
+        ax.set_xlabel("x [mm]")
+        ax.set_ylabel("y [mm]")
+        ax.set_zlabel("z [mm]")
+    fig.axes[0].legend(fontsize=7, loc="upper left")
+    ax = fig.add_subplot(1, len(shown) + 1, len(shown) + 1)
+    for name, label in labels.items():
+        ax.plot(arrays["t"], arrays[f"clearance_{name}"] * MM, lw=1.0, label=label)
+    ax.axhline(arrays["barrier_margin"][0] * MM, color="r", ls=":", lw=1.0, label="margin")
+    ax.axhline(0.0, color="k", lw=0.8)
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("least backbone distance [mm]")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
 
 
 def traces(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -> dict[str, Trace]:

@@ -97,6 +97,39 @@ class ToleranceOptions(Options):
     orientation_deg: float = Field(0.05, gt=0.0, description="tip orientation error [deg] (pose task)")
 
 
+Vector3 = tuple[float, float, float]
+
+
+class ObstacleOptions(Options):
+    """One obstacle (:class:`optikin.control.obstacles.Obstacle`): a shape, its geometry (base frame, m), a path."""
+
+    type: Literal["sphere", "capsule", "box", "halfspace"] = Field(description="the shape")
+    center: Vector3 | None = Field(None, description="centre of a sphere or box [m]")
+    radius: PositiveFloat | None = Field(None, description="radius of a sphere or capsule [m]")
+    a: Vector3 | None = Field(None, description="one end of a capsule's axis [m]")
+    b: Vector3 | None = Field(None, description="the other end of a capsule's axis [m]")
+    half_extents: tuple[PositiveFloat, PositiveFloat, PositiveFloat] | None = Field(
+        None, description="half side lengths of an axis-aligned box [m]"
+    )
+    point: Vector3 | None = Field(None, description="a point on a half-space's plane [m]")
+    normal: Vector3 | None = Field(None, description="a half-space's normal, pointing out of the obstacle")
+    path: list[tuple[float, float, float, float]] | None = Field(
+        None,
+        description="rows [t, dx, dy, dz]: offset added to the geometry, linear in between [s, m]; null: static",
+    )
+
+
+class BarrierOptions(Options):
+    """The backbone barrier of the QP (:class:`optikin.control.obstacles.BarrierRows`)."""
+
+    margin: PositiveFloat = Field(0.01, description="d_safe, the distance every backbone sample keeps [m]")
+    gamma: PositiveFloat = Field(20.0, description="barrier rate: d_dot >= -gamma (d - d_safe) [1/s]; gamma dt <= 1")
+    points_per_obstacle: int = Field(3, ge=1, description="backbone samples per obstacle in the QP (the nearest)")
+    points_per_section: int | None = Field(
+        None, ge=1, description="backbone samples per section; null: ceil(S_max / margin), spacing <= margin"
+    )
+
+
 class TrackingOptions(Options):
     """Options of the ``tracking`` kind."""
 
@@ -124,3 +157,7 @@ class TrackingOptions(Options):
     plant: PlantOptions = Field(default_factory=PlantOptions, description="the simulated arm and its sensors")
     mrac: MracOptions = Field(default_factory=MracOptions, description="the MRAC baseline")
     tolerance: ToleranceOptions = Field(default_factory=ToleranceOptions, description="the convergence check")
+    obstacles: list[ObstacleOptions] = Field(
+        default_factory=list, description="obstacles the QP keeps the whole backbone away from (baselines ignore them)"
+    )
+    barrier: BarrierOptions = Field(default_factory=BarrierOptions, description="the QP's backbone barrier")

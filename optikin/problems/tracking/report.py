@@ -2,14 +2,15 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Sequence
 
 import numpy as np
 
+from optikin.control.obstacles import Obstacle
 from optikin.control.simulate import DEG, MM, TrackingRun
 from optikin.problems import ProblemContext
 from optikin.problems.tracking.options import ToleranceOptions
-from optikin.problems.tracking.run import TrackingOutcome
+from optikin.problems.tracking.run import ObstacleOutcome, TrackingOutcome
 from optikin.results import MethodRow, Result
 
 COMPARED = {
@@ -21,6 +22,8 @@ COMPARED = {
     "excess theta [deg]": "max limit excess theta [deg]",
     "step [us]": "step time median [us]",
     "settle [s]": "settling time [s]",
+    "clearance [mm]": "backbone clearance min [mm]",
+    "penetrations": "penetrating samples",
 }
 """Columns of the comparison table: short name -> metric of :meth:`TrackingRun.metrics`."""
 
@@ -33,6 +36,10 @@ def result(ctx: ProblemContext, outcome: TrackingOutcome) -> Result:
     if outcome.settle_after is not None:
         for name, tracking in runs.items():
             summaries[name]["settling time [s]"] = settling_time(tracking, outcome.settle_after, outcome.tolerance)
+    if outcome.obstacles is not None:
+        for name in runs:
+            summaries[name] |= obstacle_metrics(outcome.obstacles, name)
+        summaries["qp"] |= reference_inside_metrics(outcome.obstacles, runs["qp"])
     comparison = [_row(name, tracking, summaries[name], outcome.tolerance) for name, tracking in runs.items()]
     metrics = summaries["qp"] | {"converged": comparison[0].metrics["converged"]}
     for name, tracking in runs.items():
@@ -43,6 +50,14 @@ def result(ctx: ProblemContext, outcome: TrackingOutcome) -> Result:
         "qp step p95 [us]": float(metrics["step time p95 [us]"]),
     }
     criteria, missed = success_criteria(summaries["qp"], outcome.tolerance)
+    if outcome.obstacles is not None:
+        clear = summaries["qp"]["backbone clearance bound [mm]"] > 0
+        criteria["no penetration"] = bool(clear)
+        if not clear:
+            missed.append(
+                "criterion no penetration not met: the QP's backbone came within "
+                f"{summaries['qp']['backbone clearance bound [mm]']:.3g} mm of an obstacle (bound between samples)"
+            )
     return ctx.result(
         status=["ok" if s == "ok" else "failed" for s in qp_run.status],
         residuals=qp_run.position_error,
@@ -50,9 +65,66 @@ def result(ctx: ProblemContext, outcome: TrackingOutcome) -> Result:
         metrics=metrics,
         comparison=comparison,
         arrays=arrays(outcome),
-        notes=missed + notes(runs, summaries, outcome.settle_after),
+        notes=missed + notes(runs, summaries, outcome.settle_after) + obstacle_notes(runs, summaries, outcome),
         criteria=criteria,
     )
+
+
+def obstacle_metrics(obstacles: ObstacleOutcome, name: str) -> dict[str, Any]:
+    """Backbone clearance of run ``name``: least sample distance, penetrations, the bound between samples.
+
+    ``backbone clearance bound`` is the least sample distance less half the sample spacing:
+    the least distance of any point of the continuous backbone (signed distances are 1-Lipschitz).
+    """
+    d = obstacles.distances[name]
+    half = 0.5 * obstacles.barrier.spacing
+    least = float(d.min())
+    return {
+        "backbone clearance min [mm]": least * MM,
+        "backbone clearance bound [mm]": (least - half) * MM,
+        "penetrating samples": int(np.sum(d < 0)),
+        "steps with penetration": int(np.sum(np.any(d < 0, axis=(1, 2)))),
+        "steps within margin": int(np.sum(np.any(d < obstacles.barrier.margin - 1e-6, axis=(1, 2)))),
+    }
+
+
+def reference_inside_metrics(obstacles: ObstacleOutcome, qp_run: TrackingRun) -> dict[str, Any]:
+    """How far the QP's tip stays from the reference while the reference lies within the margin of an obstacle."""
+    inside = obstacles.reference_distance < obstacles.barrier.margin
+    out: dict[str, Any] = {"reference steps inside an obstacle or its margin": int(inside.sum())}
+    if inside.any():
+        error = qp_run.position_error[inside] * MM
+        out |= {
+            "tip from reference while inside, mean [mm]": float(error.mean()),
+            "tip from reference while inside, max [mm]": float(error.max()),
+            "reference depth inside, max [mm]": float(max(0.0, -obstacles.reference_distance.min()) * MM),
+        }
+    return out
+
+
+def obstacle_notes(
+    runs: dict[str, TrackingRun], summaries: dict[str, dict[str, Any]], outcome: TrackingOutcome
+) -> list[str]:
+    """Each run's penetrations (the baselines know no obstacles) and the QP's distance from a blocked reference."""
+    if outcome.obstacles is None:
+        return []
+    out = []
+    for name, tracking in runs.items():
+        m = summaries[name]
+        if m["penetrating samples"]:
+            out.append(
+                f"{tracking.controller}: backbone inside an obstacle on {m['steps with penetration']} steps "
+                f"({m['penetrating samples']} samples), deepest {-m['backbone clearance min [mm]']:.3g} mm"
+            )
+    m = summaries["qp"]
+    if m.get("reference steps inside an obstacle or its margin"):
+        out.append(
+            f"{runs['qp'].controller}: the reference lies in an obstacle or its margin on "
+            f"{m['reference steps inside an obstacle or its margin']} steps; the tip then stays "
+            f"{m['tip from reference while inside, mean [mm]']:.3g} mm (mean), "
+            f"{m['tip from reference while inside, max [mm]']:.3g} mm (max) from it"
+        )
+    return out
 
 
 def _row(name: str, tracking: TrackingRun, full: dict[str, Any], tolerance: ToleranceOptions) -> MethodRow:
@@ -137,7 +209,33 @@ def arrays(outcome: TrackingOutcome) -> dict[str, np.ndarray]:
         }
         if tracking.gains is not None:
             out[f"gains_{name}"] = tracking.gains
+    if outcome.obstacles is not None:
+        out |= obstacle_arrays(outcome)
     return out
+
+
+def obstacle_arrays(outcome: TrackingOutcome, snapshots: int = 6) -> dict[str, np.ndarray]:
+    """Per run the least backbone distance over time; backbones and obstacle surface points at a few instants."""
+    obstacles = outcome.obstacles
+    assert obstacles is not None
+    t = outcome.reference.t
+    picks = np.linspace(0, len(t) - 1, snapshots).round().astype(int)
+    distances = obstacles.barrier.distances
+    out: dict[str, np.ndarray] = {"barrier_margin": np.array([obstacles.barrier.margin]), "snapshot_t": t[picks]}
+    for name, tracking in outcome.runs.items():
+        out[f"clearance_{name}"] = obstacles.distances[name].min(axis=(1, 2))
+        out[f"snapshot_backbone_{name}"] = np.stack([distances.points_at(tracking.q[k]) for k in picks])
+    shells = [surface_points(distances.obstacles, float(t[k])) for k in picks]
+    size = max(len(shell) for shell in shells)
+    out["snapshot_obstacles"] = np.stack(
+        [np.pad(s, ((0, size - len(s)), (0, 0)), constant_values=np.nan) for s in shells]
+    )
+    return out
+
+
+def surface_points(obstacles: Sequence[Obstacle], t: float) -> np.ndarray:
+    """Points on every obstacle's surface at ``t``, ``(M, 3)`` [m]."""
+    return np.concatenate([ob.surface(t) for ob in obstacles])
 
 
 def notes(

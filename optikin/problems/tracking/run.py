@@ -11,6 +11,7 @@ from optikin.arms.constant_curvature import ConstantCurvatureArm
 from optikin.baselines.mrac import MRACController, SeedGainMRACController
 from optikin.baselines.pseudo_inverse import DampedLeastSquaresController, PseudoInverseController
 from optikin.control.base import Controller
+from optikin.control.obstacles import BarrierRows, Obstacle
 from optikin.control.qp import QPController
 from optikin.control.reference import Reference
 from optikin.control.rod_plant import PneumaticRod, RodPlantSimulator
@@ -18,8 +19,15 @@ from optikin.control.simulate import Plant, TrackingRun, simulate
 from optikin.control.task import Task, task_dimension
 from optikin.data.references import TrackingReference
 from optikin.problems import ProblemContext
-from optikin.problems.tracking.options import CosseratPlantOptions, PlantOptions, ToleranceOptions, TrackingOptions
+from optikin.problems.tracking.options import (
+    CosseratPlantOptions,
+    ObstacleOptions,
+    PlantOptions,
+    ToleranceOptions,
+    TrackingOptions,
+)
 from optikin.solvers.base import QPBackend
+from optikin.solvers.qp.common import StepSolverFactory
 
 BASELINES: dict[str, type[Controller]] = {
     "mrac": MRACController,
@@ -46,6 +54,8 @@ class TrackingOutcome:
         The convergence check of ``options.tolerance``.
     settle_after:
         When the plant's disturbance ends [s] (settling times are counted from it); ``None`` without one.
+    obstacles:
+        The distances of every run's backbone samples, ``None`` without obstacles.
     """
 
     reference: Reference
@@ -53,6 +63,26 @@ class TrackingOutcome:
     wall: dict[str, float]
     tolerance: ToleranceOptions
     settle_after: float | None = None
+    obstacles: ObstacleOutcome | None = None
+
+
+@dataclass
+class ObstacleOutcome:
+    """Backbone clearances along every run of a problem with obstacles.
+
+    Attributes
+    ----------
+    barrier:
+        The QP's barrier rows (obstacles, margin, sampling).
+    distances:
+        Per run name, ``(N, n_obstacles, K)`` signed distances of every backbone sample of the plant [m].
+    reference_distance:
+        ``(N,)`` the least signed distance of the reference tip position to any obstacle [m].
+    """
+
+    barrier: BarrierRows
+    distances: dict[str, np.ndarray]
+    reference_distance: np.ndarray
 
 
 def run(ctx: ProblemContext) -> TrackingOutcome:
@@ -64,7 +94,8 @@ def run(ctx: ProblemContext) -> TrackingOutcome:
     q0 = _start(ctx, options, source.start)
     plant = _plant(ctx, options.plant)
     reference = source.reference
-    controllers = _controllers(ctx, options, reference.dt, reference.task)
+    barrier = _barrier(ctx, options, plant, q0, reference)
+    controllers = _controllers(ctx, options, reference.dt, reference.task, barrier)
     runs: dict[str, TrackingRun] = {}
     wall: dict[str, float] = {}
     with ctx.progress.task(
@@ -77,7 +108,14 @@ def run(ctx: ProblemContext) -> TrackingOutcome:
             advance()
     off = plant.disturbance_window[1]
     settle_after = off if plant.disturbance is not None and off <= reference.t[-1] else None
-    return TrackingOutcome(reference, runs, wall, options.tolerance, settle_after)
+    obstacles = None
+    if barrier is not None:
+        factors = plant.length_factors(ctx.arm)
+        distances = {name: barrier.distances.sampled(r.q * factors, r.t) for name, r in runs.items()}
+        tip = reference.position
+        ref = np.min([ob.distances(tip.T, reference.t) for ob in barrier.distances.obstacles], axis=0)
+        obstacles = ObstacleOutcome(barrier, distances, ref)
+    return TrackingOutcome(reference, runs, wall, options.tolerance, settle_after, obstacles)
 
 
 def _vector(
@@ -162,10 +200,98 @@ def _rod_plant(ctx: ProblemContext, options: CosseratPlantOptions | None) -> Rod
     return RodPlantSimulator(arm, rod)
 
 
-def _controllers(ctx: ProblemContext, options: TrackingOptions, dt: float, task: Task) -> dict[str, Controller]:
-    """The QP controller (the preset's step solver) and every baseline of ``baselines:``, by name."""
+SHAPE_FIELDS = {
+    "sphere": ("center", "radius"),
+    "capsule": ("a", "b", "radius"),
+    "box": ("center", "half_extents"),
+    "halfspace": ("point", "normal"),
+}
+"""The geometry fields each obstacle shape needs."""
+
+
+def _obstacle(ctx: ProblemContext, i: int, options: ObstacleOptions) -> Obstacle:
+    """``options.obstacles[i]`` as an :class:`Obstacle`; a missing or foreign field is an error naming it."""
+    where = f"options.obstacles[{i}]"
+    needed = SHAPE_FIELDS[options.type]
+    given = {name: getattr(options, name) for name in ("center", "radius", "a", "b", "half_extents", "point", "normal")}
+    for name, value in given.items():
+        if value is None and name in needed:
+            raise ctx.error(f"{where}.{name}", f"required for a {options.type}")
+        if value is not None and name not in needed:
+            raise ctx.error(f"{where}.{name}", f"not a field of a {options.type} (it takes {', '.join(needed)})")
+    try:
+        return Obstacle(
+            options.type,
+            path=None if options.path is None else tuple(options.path),
+            **{name: value for name, value in given.items() if value is not None},
+        )
+    except ValueError as exc:
+        raise ctx.error(f"{where}.{'path' if 'path' in str(exc) else needed[-1]}", str(exc)) from None
+
+
+def _barrier(
+    ctx: ProblemContext, options: TrackingOptions, plant: Plant, q0: np.ndarray, reference: Reference
+) -> BarrierRows | None:
+    """The QP's backbone barrier of ``options.obstacles``; an obstacle holding the base or the start is an error."""
+    if not options.obstacles:
+        return None
+    if plant.rod is not None:
+        raise ctx.error("options.obstacles", "obstacles need the kinematic plant (the rod plant has no backbone here)")
+    obstacles = [_obstacle(ctx, i, ob) for i, ob in enumerate(options.obstacles)]
+    o = options.barrier
+    try:
+        barrier = BarrierRows(
+            ctx.arm,
+            reference.dt,
+            obstacles,
+            o.margin,
+            o.gamma,
+            o.points_per_obstacle,
+            o.points_per_section,
+            compiled=options.compiled,
+        )
+    except ValueError as exc:
+        raise ctx.error("options.barrier", str(exc)) from None
+    points = np.asarray(barrier.distances.points_at(q0 * plant.length_factors(ctx.arm)))
+    for i, ob in enumerate(obstacles):
+        near_base = min(float(ob.distances(points[:, :1], t)[0]) for t in _path_times(ob, reference))
+        if near_base < o.margin:
+            raise ctx.error(
+                f"options.obstacles[{i}]",
+                f"contains the arm's base or comes within the margin of it ({near_base * 1e3:.3g} mm, margin "
+                f"{o.margin * 1e3:.3g} mm): no command can keep the barrier",
+            )
+        start = ob.distances(points, 0.0)
+        if start.min() < o.margin:
+            j = int(np.argmin(start))
+            raise ctx.error(
+                f"options.obstacles[{i}]",
+                f"contains the start configuration's backbone or lies within the margin of it: sample {j} of "
+                f"{points.shape[1]} at {start[j] * 1e3:.3g} mm (margin {o.margin * 1e3:.3g} mm)",
+            )
+    return barrier
+
+
+def _path_times(ob: Obstacle, reference: Reference) -> np.ndarray:
+    """The instants at which a moving obstacle's offset is checked: the control instants and its path's corners."""
+    if ob.path is None:
+        return np.zeros(1)
+    return np.concatenate([reference.t, [row[0] for row in ob.path]])
+
+
+def _controllers(
+    ctx: ProblemContext, options: TrackingOptions, dt: float, task: Task, barrier: BarrierRows | None = None
+) -> dict[str, Controller]:
+    """The QP controller (the preset's step solver, with the barrier's rows) and every baseline, by name."""
     arm, o = ctx.arm, options
     compiled = o.compiled
+    factory = ctx.backend(QPBackend)
+    if barrier is None:
+        solver = factory.create(arm.n_config, task_dimension(task))
+    elif isinstance(factory, StepSolverFactory):
+        solver = factory.create(arm.n_config, task_dimension(task), rows=barrier.rows)
+    else:
+        raise ctx.error("solver", f"{type(factory).__name__} takes no inequality rows; obstacles need a qp backend")
     try:
         controllers: dict[str, Controller] = {
             "qp": QPController(
@@ -174,12 +300,13 @@ def _controllers(ctx: ProblemContext, options: TrackingOptions, dt: float, task:
                 task,
                 o.gain,
                 o.damping,
-                solver=ctx.backend(QPBackend).create(arm.n_config, task_dimension(task)),
+                solver=solver,
                 rate_limits=o.rate_limits,
                 margin=o.limit_margin,
                 limit_gain=o.limit_gain,
                 fallback=o.fallback,
                 compiled=compiled,
+                barrier=barrier,
             )
         }
         for name in ctx.spec.baselines:

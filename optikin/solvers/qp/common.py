@@ -2,17 +2,19 @@
 
 The QP of one control step (:mod:`optikin.control.qp`) is
 
-    min_qdot  1/2 qdot' H qdot + g' qdot    s.t.  lb <= qdot <= ub,
+    min_qdot  1/2 qdot' H qdot + g' qdot    s.t.  lb <= qdot <= ub,  A qdot >= b,
 
 with ``H = J'J + lambda I`` and ``g = -J'v``; equivalently
 ``min ||J qdot - v||^2 + lambda ||qdot||^2`` over the rate box. :class:`QPData`
 holds views of the arrays the controller refreshes in place every step; a
 backend reads what it needs (OSQP ``H_upper``, ``g``, ``lb``, ``ub``; qpsolvers
-``H``; cvxpy ``J``, ``v``, ``damping``).
+``H``; cvxpy ``J``, ``v``, ``damping``). The rows ``A qdot >= b`` (``p`` of them, none by
+default: the backbone barrier of :mod:`optikin.control.obstacles`) have a fixed count per
+controller; a row with ``b = -inf`` is inactive this step.
 
 A backend is registered once (:func:`optikin.solvers.register_backend`, family
 ``qp``) with a pydantic options model; its adapter is a :class:`StepSolverFactory`
-whose ``create(n, m)`` returns a fresh step solver for one controller (OSQP and
+whose ``create(n, m, rows)`` returns a fresh step solver for one controller (OSQP and
 cvxpy keep per-problem state), keeping :class:`optikin.solvers.base.QPBackend`.
 A step solver's ``solve(data)`` answers with a :class:`~optikin.solvers.base.Solution`:
 ``x`` the joint rates (NaN when the solver returned none), ``status`` ``"ok"`` or
@@ -21,7 +23,7 @@ A step solver's ``solve(data)`` answers with a :class:`~optikin.solvers.base.Sol
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Callable, Generic, TypeVar
 
 import numpy as np
@@ -47,6 +49,8 @@ class QPData:
         order (:func:`upper_triangle_csc_indices`) and ``g = -J'v`` ``(n,)``.
     lb, ub:
         The rate box ``(n,)`` [m/s, rad/s].
+    A, b:
+        Inequality rows ``A qdot >= b``, ``(p, n)`` and ``(p,)``; ``b = -inf`` marks a row inactive.
     """
 
     J: np.ndarray
@@ -57,6 +61,8 @@ class QPData:
     g: np.ndarray
     lb: np.ndarray
     ub: np.ndarray
+    A: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    b: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @property
     def n(self) -> int:
@@ -78,12 +84,12 @@ def failed(
 
 
 class StepSolverFactory(Generic[OptionsT]):
-    """The adapter of a ``qp`` backend: ``create(n, m)`` builds one controller's step solver.
+    """The adapter of a ``qp`` backend: ``create(n, m, rows)`` builds one controller's step solver.
 
     Parameters
     ----------
     make:
-        ``make(n, m, options) -> step solver``.
+        ``make(n, m, options, rows=p) -> step solver``.
     options:
         The preset's validated options.
     """
@@ -91,6 +97,8 @@ class StepSolverFactory(Generic[OptionsT]):
     def __init__(self, make: Callable[[int, int, OptionsT], QPStepSolver], options: OptionsT):
         self.make, self.options = make, options
 
-    def create(self, n: int, m: int) -> QPStepSolver:
-        """A fresh step solver for ``n`` rates and ``m`` task rows."""
+    def create(self, n: int, m: int, rows: int = 0) -> QPStepSolver:
+        """A fresh step solver for ``n`` rates, ``m`` task rows and ``rows`` inequality rows ``A qdot >= b``."""
+        if rows:
+            return self.make(n, m, self.options, rows=rows)  # type: ignore[call-arg]
         return self.make(n, m, self.options)

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import time
 
+import numpy as np
 from pydantic import Field, field_validator
 
 from optikin.options import Options
@@ -49,9 +50,9 @@ class CvxpyOptions(Options):
 
 
 class CvxpyStepSolver:
-    """The tracking QP as a DPP cvxpy Problem with Parameters ``J``, ``v``, ``lambda``, ``lb``, ``ub``."""
+    """The tracking QP as a DPP cvxpy Problem with Parameters ``J``, ``v``, ``lambda``, ``lb``, ``ub``, ``A``, ``b``."""
 
-    def __init__(self, n: int, m: int, options: CvxpyOptions):
+    def __init__(self, n: int, m: int, options: CvxpyOptions, rows: int = 0):
         import cvxpy as cp
 
         self.cp, self.n = cp, n
@@ -62,7 +63,12 @@ class CvxpyStepSolver:
         self.damping = cp.Parameter(nonneg=True)
         self.lb, self.ub = cp.Parameter(n), cp.Parameter(n)
         objective = cp.sum_squares(self.J @ self.x - self.v) + self.damping * cp.sum_squares(self.x)
-        self.problem = cp.Problem(cp.Minimize(objective), [self.x >= self.lb, self.x <= self.ub])
+        constraints = [self.x >= self.lb, self.x <= self.ub]
+        self.rows = rows
+        if rows:
+            self.A, self.b = cp.Parameter((rows, n)), cp.Parameter(rows)
+            constraints.append(self.A @ self.x >= self.b)
+        self.problem = cp.Problem(cp.Minimize(objective), constraints)
         if not self.problem.is_dpp():
             raise RuntimeError("the tracking QP is not DPP: cvxpy would re-canonicalise every step")
 
@@ -70,6 +76,10 @@ class CvxpyStepSolver:
         start = time.perf_counter()
         self.J.value, self.v.value, self.damping.value = data.J, data.v, data.damping
         self.lb.value, self.ub.value = data.lb, data.ub
+        if self.rows:  # an inactive row (b = -inf) as 0 >= -1: a Parameter takes finite values only
+            active = np.isfinite(data.b)
+            self.A.value = np.where(active[:, None], data.A, 0.0)
+            self.b.value = np.where(active, data.b, -1.0)
         self.problem.solve(solver=self.solver, warm_start=True, **self.options)
         seconds = time.perf_counter() - start
         if self.problem.status != self.cp.OPTIMAL or self.x.value is None:

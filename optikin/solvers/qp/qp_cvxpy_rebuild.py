@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import time
 
+import numpy as np
+
 from optikin.solvers import register_backend
 from optikin.solvers.base import Solution
 from optikin.solvers.qp.common import QPData, StepSolverFactory, failed
@@ -25,7 +27,7 @@ from optikin.spec import SolverSpec
 class CvxpyRebuildStepSolver:
     """A new cvxpy Problem for every step's data."""
 
-    def __init__(self, n: int, m: int, options: CvxpyOptions):
+    def __init__(self, n: int, m: int, options: CvxpyOptions, rows: int = 0):
         import cvxpy as cp
 
         self.cp, self.n = cp, n
@@ -37,7 +39,11 @@ class CvxpyRebuildStepSolver:
         start = time.perf_counter()
         x = cp.Variable(data.n)
         objective = cp.sum_squares(data.J @ x - data.v) + data.damping * cp.sum_squares(x)
-        problem = cp.Problem(cp.Minimize(objective), [x >= data.lb, x <= data.ub])
+        constraints = [x >= data.lb, x <= data.ub]
+        active = np.isfinite(data.b)
+        if active.any():
+            constraints.append(data.A[active] @ x >= data.b[active])
+        problem = cp.Problem(cp.Minimize(objective), constraints)
         problem.solve(solver=self.solver, **self.options)
         seconds = time.perf_counter() - start
         if problem.status != cp.OPTIMAL or x.value is None:

@@ -35,6 +35,10 @@ from optikin.solvers.qp.common import QPData, StepSolverFactory, upper_triangle_
 from optikin.spec import SolverSpec
 
 
+_INFINITY = 1e30
+"""OSQP's ``OSQP_INFTY``: a bound at or beyond it is no bound."""
+
+
 class OSQPOptions(Options):
     """OSQP settings (Stellato et al. 2020); the unset optional ones keep OSQP's own defaults."""
 
@@ -68,20 +72,27 @@ class OSQPStepSolver:
 
     name = "osqp"
 
-    def __init__(self, n: int, m: int, options: OSQPOptions):
+    def __init__(self, n: int, m: int, options: OSQPOptions, rows: int = 0):
         import osqp
 
-        self.n = n
+        self.n, self.rows = n, rows
         self.settings = options.settings()
-        rows, cols = upper_triangle_csc_indices(n)
-        pattern = sp.csc_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n))
+        upper_rows, upper_cols = upper_triangle_csc_indices(n)
+        pattern = sp.csc_matrix((np.ones(len(upper_rows)), (upper_rows, upper_cols)), shape=(n, n))
+        # Constraints [I; A] with A dense (its values change every step, its pattern never).
+        constraints = sp.vstack([sp.identity(n), sp.csc_matrix(np.ones((rows, n)))], format="csc")
+        self._A_values = np.empty(constraints.nnz)
+        self._diagonal = np.cumsum(np.r_[0, np.full(n - 1, rows + 1)])  # where I's entries sit, column-major
+        self._rows_at = np.setdiff1d(np.arange(constraints.nnz), self._diagonal)
+        self._A_values[self._diagonal] = 1.0
+        self._l, self._u = np.empty(n + rows), np.full(n + rows, _INFINITY)
         self.problem = osqp.OSQP()
         self.problem.setup(
             pattern + n * sp.identity(n, format="csc"),
             np.zeros(n),
-            sp.identity(n, format="csc"),
-            -np.ones(n),
-            np.ones(n),
+            constraints,
+            -np.ones(n + rows),
+            np.ones(n + rows),
             **self.settings,
         )
         self._solver = getattr(self.problem, "_solver", None)  # the fast path (class docstring)
@@ -91,6 +102,8 @@ class OSQPStepSolver:
     def solve(self, data: QPData) -> Solution:
         """One warm-started solve; ``extras`` holds OSQP's primal and dual residuals."""
         solver = self._solver
+        if self.rows:
+            return self._solve_with_rows(data)
         if solver is None:
             self.problem.update(Px=data.H_upper, q=data.g, l=data.lb, u=data.ub)
             result = self.problem.solve(raise_error=False)
@@ -100,6 +113,24 @@ class OSQPStepSolver:
             solver.update_data_vec(q=data.g, l=data.lb, u=data.ub)
             solver.solve()
             info, x = solver.info, solver.solution.x
+        return self._answer(info, x)
+
+    def _solve_with_rows(self, data: QPData) -> Solution:
+        """The QP with the rows ``A qdot >= b`` under the box: the update also sets ``A``'s values."""
+        n, solver = self.n, self._solver
+        self._A_values[self._rows_at] = data.A.ravel(order="F")
+        self._l[:n], self._u[:n] = data.lb, data.ub
+        np.maximum(data.b, -_INFINITY, out=self._l[n:])  # the compiled solver takes OSQP's infinity, not inf
+        if solver is None:
+            self.problem.update(Px=data.H_upper, q=data.g, Ax=self._A_values, l=self._l, u=self._u)
+            result = self.problem.solve(raise_error=False)
+            return self._answer(result.info, result.x)
+        solver.update_data_mat(P_x=data.H_upper, P_i=None, A_x=self._A_values, A_i=None)
+        solver.update_data_vec(q=data.g, l=self._l, u=self._u)
+        solver.solve()
+        return self._answer(solver.info, solver.solution.x)
+
+    def _answer(self, info: Any, x: np.ndarray) -> Solution:
         extras = {"primal_residual": info.prim_res, "dual_residual": info.dual_res}
         if info.status_val == self._solved:
             return Solution(x, "ok", info.iter, seconds=info.run_time, extras=extras)

@@ -1,6 +1,7 @@
 """Backend ``qp_qpsolvers``: ``qpsolvers.solve_qp(P, q, lb=lb, ub=ub, solver=...)``, one call per step, no state kept.
 
-The rate box is handed over as bounds (not as inequality rows). Where the solver
+The rate box is handed over as bounds (not as inequality rows); the active rows
+``A qdot >= b`` (finite ``b``) as ``G = -A``, ``h = -b``. Where the solver
 has tolerances, they default to tight ones (:data:`TIGHT`); ``settings`` adds or
 overrides keyword arguments of the solver, in the solver's own names. Against
 daqp (active set, exact) on closed-loop steps, proxqp at its own defaults and at
@@ -19,6 +20,7 @@ from __future__ import annotations
 import time
 from typing import Any
 
+import numpy as np
 import scipy.sparse as sp
 from pydantic import Field, field_validator
 
@@ -64,7 +66,7 @@ class QpsolversOptions(Options):
 class QpsolversStepSolver:
     """One ``qpsolvers.solve_qp`` call per step (dense or sparse ``P`` as the solver takes it)."""
 
-    def __init__(self, n: int, m: int, options: QpsolversOptions):
+    def __init__(self, n: int, m: int, options: QpsolversOptions, rows: int = 0):
         import qpsolvers
 
         self.n, self.solver, self.name = n, options.solver, f"qpsolvers-{options.solver}"
@@ -75,7 +77,13 @@ class QpsolversStepSolver:
     def solve(self, data: QPData) -> Solution:
         start = time.perf_counter()
         P = sp.csc_matrix(data.H) if self.sparse else data.H
-        x = self._solve_qp(P, data.g, lb=data.lb, ub=data.ub, solver=self.solver, **self.options)
+        G = h = None
+        active = np.isfinite(data.b)
+        if active.any():  # A qdot >= b as G qdot <= h, active rows only
+            G, h = -data.A[active], -data.b[active]
+            if self.sparse:
+                G = sp.csc_matrix(G)
+        x = self._solve_qp(P, data.g, G, h, lb=data.lb, ub=data.ub, solver=self.solver, **self.options)
         seconds = time.perf_counter() - start
         if x is None:
             return failed(self.n, "no solution returned", seconds)
