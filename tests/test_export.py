@@ -133,3 +133,30 @@ def test_the_export_subcommand_writes_the_files(tmp_path, capsys):
     written = capsys.readouterr().out.split()
     assert {Path(p).name for p in written} == {"optikin_ik_step.c", "optikin_ik_step.h", "main.c", "Makefile"}
     assert main(["export", "cbha-fk", "--what", "ik-step", "--out", str(tmp_path / "x")]) == 2
+
+
+@pytest.mark.skipif(shutil.which("make") is None or shutil.which("nm") is None, reason="needs make and nm")
+def test_the_makefile_builds_a_library_that_needs_only_libm(tmp_path):
+    exported = export("cc-ik-position", "ik-step", tmp_path)
+    subprocess.run(["make", "-s", "CC=cc"], cwd=tmp_path, check=True, capture_output=True, timeout=120)
+    assert (tmp_path / "example").exists()
+    symbols = subprocess.run(["nm", "-u", f"{exported.stem}.o"], cwd=tmp_path, capture_output=True, text=True)
+    names = {line.split()[-1] for line in symbols.stdout.splitlines() if line.strip()}
+    undefined = {name for name in names if not name.startswith("_")}  # leaving out the compiler's runtime
+    libm = {
+        "sin",
+        "cos",
+        "sincos",
+        "tan",
+        "sqrt",
+        "fmin",
+        "fmax",
+        "fmod",
+        "floor",
+        "fabs",
+        "atan2",
+        "exp",
+        "log",
+        "pow",
+    }
+    assert undefined <= libm, undefined - libm
