@@ -8,6 +8,7 @@
 :mod:`.shooting`            the BVP by shooting (RK4 + Newton), load derivatives (IFT)
 :mod:`.collocation`         the same BVP by Gauss-Legendre collocation and IPOPT
 :mod:`.reconstruction`      a shape from its end poses (the fitted tip wrench)
+:mod:`.comparison`          backbones from end poses: PH, arc and tip-wrench fit against a relaxed rod
 :mod:`.solution`            :class:`RodSolution`, what both solvers return
 ==========================  ==========================================================
 

@@ -90,13 +90,14 @@ def arc_guess(options: CosseratWrenchOptions, t0: np.ndarray, t1: np.ndarray, le
 
     A pure couple ``E I kappa`` with ``kappa = theta / L`` (``theta`` the angle between the
     unit tangents) about ``t0 x t1`` bends the rod into that arc (Euler's elastica under an
-    end couple); ``n(0) = -(rho A L) g`` carries the rod's weight.
+    end couple); ``n(0) = (rho A L) g`` carries the rod's weight (``n' + f = 0`` with ``f = rho A g``
+    and a free tip, ``n(L) = 0``).
     """
     axis = np.cross(t0, t1)
     sine = float(np.linalg.norm(axis))
     theta = float(np.arctan2(sine, float(np.dot(t0, t1))))
     couple = options.EI * theta / length * axis / sine if sine > 1e-12 else np.zeros(3)
-    force = -options.mass_per_length * length * np.asarray(options.gravity, dtype=float)
+    force = options.mass_per_length * length * np.asarray(options.gravity, dtype=float)
     return np.concatenate([force, couple])
 
 
