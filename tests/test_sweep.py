@@ -165,3 +165,19 @@ def test_engines_give_identical_tables(tmp_path):
     ]
     assert tables[0] == tables[1] == tables[2]
     assert all(r["status"] == "done" for r in tables[0])
+
+
+@pytest.mark.parametrize("name", ["ph-noise", "ik-robustness", "nn-database"])
+def test_shipped_sweeps_validate_every_cell(name):
+    from optikin.spec import load_problem
+
+    spec, path = load_sweep(name)
+    cells = expand(spec, path)
+    assert len(cells) <= 12
+    for cell in cells:
+        problem, _ = load_problem(cell.problem, cell.overrides)
+        for field, value in cell.axes:
+            node = problem.model_dump()
+            for part in field.split("."):
+                node = node[part]
+            assert node == value
