@@ -300,8 +300,9 @@ def _axis_ranges(layers: list[Layer]) -> list[list[float]]:
     return [[float(c - half), float(c + half)] for c in centre]
 
 
-def build_figure(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -> Any:
-    """The plotly figure of a result: its layers, a slider over the samples and equal axes [mm].
+def build_figure(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -> dict[str, Any]:
+    """The plotly figure of a result, as plotly's JSON-ready dict: its layers, a slider over the samples and
+    equal axes [mm].
 
     Parameters
     ----------
@@ -312,27 +313,26 @@ def build_figure(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -
 
     Returns
     -------
-    plotly.graph_objects.Figure
-        Per-sample traces first (updated by the slider's frames), then static traces.
+    dict
+        ``data`` (per-sample traces first, updated by the slider's ``frames``, then static traces),
+        ``layout`` and ``frames``, in plotly's figure schema (written without plotly's validation).
     """
-    go = _plotly()
     n, layers = scene_layers(arrays, summary)
     frames = frame_indices(n)
     first = int(frames[0]) if len(frames) else 0
-    figure = go.Figure()
     moving = [i for i, layer in enumerate(layers) if layer.per_sample]
-    for layer in layers:
-        shown = layer.points[first] if layer.per_sample else layer.points
-        figure.add_trace(_trace(go, layer, shown))
+    data = [_trace(layer, layer.points[first] if layer.per_sample else layer.points) for layer in layers]
+    layout: dict[str, Any] = {}
+    figure: dict[str, Any] = {"data": data, "layout": layout, "frames": []}
     t = np.asarray(arrays["t"]) if "t" in arrays and len(arrays["t"]) == n else None
     labels = [f"t = {t[i]:.3g} s" if t is not None else f"sample {i}" for i in frames]
     if moving and len(frames) > 1:
-        figure.frames = [
-            go.Frame(name=str(i), data=[_moved(go, layers[k], layers[k].points[i]) for k in moving], traces=moving)
+        figure["frames"] = [
+            {"name": str(i), "data": [_moved(layers[k], layers[k].points[i]) for k in moving], "traces": moving}
             for i in frames
         ]
         step = {"mode": "immediate", "frame": {"duration": 0, "redraw": True}, "transition": {"duration": 0}}
-        figure.update_layout(
+        layout.update(
             sliders=[
                 {
                     "active": 0,
@@ -370,40 +370,33 @@ def build_figure(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -
             ],
         )
     ranges = _axis_ranges(layers)
-    figure.update_layout(
+    layout.update(
         height=720,
         margin={"l": 0, "r": 0, "t": 30, "b": 90},
         legend={"itemsizing": "constant"},
         scene={
             "aspectmode": "cube",
-            **{f"{axis}axis": {"title": f"{axis} [mm]", "range": r} for axis, r in zip("xyz", ranges)},
+            **{f"{axis}axis": {"title": {"text": f"{axis} [mm]"}, "range": r} for axis, r in zip("xyz", ranges)},
         },
     )
     return figure
 
 
-def _trace(go: Any, layer: Layer, points: np.ndarray) -> Any:
+def _trace(layer: Layer, points: np.ndarray) -> dict[str, Any]:
     """The plotly trace of ``layer`` showing ``points`` ``(K, 3)`` [m]."""
-    visible = True if layer.visible else "legendonly"
-    if layer.mode in ("hull", "plane"):
-        faces = {"alphahull": 0} if layer.mode == "hull" else {"i": [0, 0], "j": [1, 2], "k": [2, 3]}
-        return go.Mesh3d(
-            **_xyz(points), **faces, name=layer.name, opacity=layer.opacity, showlegend=True, visible=visible
-        )
-    return go.Scatter3d(
-        **_xyz(points),
-        mode=layer.mode,
-        name=layer.name,
-        marker={"size": layer.size} if layer.mode == "markers" else None,
-        line={"width": 5} if layer.mode == "lines" else None,
-        opacity=layer.opacity,
-        visible=visible,
-    )
+    trace = {**_moved(layer, points), "name": layer.name, "opacity": layer.opacity}
+    trace["visible"] = True if layer.visible else "legendonly"
+    if layer.mode == "hull":
+        return {**trace, "alphahull": 0, "showlegend": True}
+    if layer.mode == "plane":
+        return {**trace, "i": [0, 0], "j": [1, 2], "k": [2, 3], "showlegend": True}
+    style = {"marker": {"size": layer.size}} if layer.mode == "markers" else {"line": {"width": 5}}
+    return {**trace, "mode": layer.mode, **style}
 
 
-def _moved(go: Any, layer: Layer, points: np.ndarray) -> Any:
-    """The frame update of a per-sample ``layer`` to ``points`` (a trace of the same type)."""
-    return go.Mesh3d(**_xyz(points)) if layer.mode in ("hull", "plane") else go.Scatter3d(**_xyz(points))
+def _moved(layer: Layer, points: np.ndarray) -> dict[str, Any]:
+    """The frame update of a per-sample ``layer`` to ``points``: the trace type and coordinates [mm]."""
+    return {"type": "mesh3d" if layer.mode in ("hull", "plane") else "scatter3d", **_xyz(points)}
 
 
 def comparison_html(summary: Mapping[str, Any]) -> str:
@@ -440,8 +433,12 @@ def page_html(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -> s
     Once plotly has drawn the plot, the ``<body>`` gets ``data-plotted="yes"``; a script error is shown in
     ``#view-errors``.
     """
+    pio = _plotly_io()
     figure = build_figure(arrays, summary)
-    plot = figure.to_html(
+    figure["layout"]["template"] = pio.templates["plotly"].to_plotly_json()  # plotly's default look
+    plot = pio.to_html(
+        figure,
+        validate=False,
         full_html=False,
         include_plotlyjs=True,
         div_id="view-plot",
@@ -509,12 +506,12 @@ def write_view(folder: Path, out: Path | None = None) -> Path:
     return target
 
 
-def _plotly() -> Any:
+def _plotly_io() -> Any:
     try:
-        import plotly.graph_objects as go
+        import plotly.io as pio
     except ImportError:
         raise ViewError("optikin view needs plotly: pip install 'optikin[view]' (or pip install 'plotly>=5')") from None
-    return go
+    return pio
 
 
 def open_in_browser(page: Path) -> bool:

@@ -16,6 +16,7 @@ import pytest
 from optikin.results import MethodRow, Result, write_result
 
 plotly = pytest.importorskip("plotly", reason="optikin view needs plotly (extra 'view')")
+go = pytest.importorskip("plotly.graph_objects")
 
 from optikin.view import MAX_FRAMES, ViewError, build_figure, page_html, write_view  # noqa: E402
 
@@ -61,7 +62,7 @@ def _trajectory_arrays() -> dict[str, np.ndarray]:
 
 
 def _mm(trace, axis: str) -> np.ndarray:
-    return np.array([np.nan if v is None else v for v in getattr(trace, axis)], dtype=float)
+    return np.array([np.nan if v is None else v for v in trace[axis]], dtype=float)
 
 
 def test_layers_and_frames_of_a_trajectory(tmp_path):
@@ -70,30 +71,31 @@ def test_layers_and_frames_of_a_trajectory(tmp_path):
 
     summary, arrays = read_result(folder)
     figure = build_figure(arrays, summary)
-    names = [trace.name for trace in figure.data]
+    names = [trace["name"] for trace in figure["data"]]
     assert names[:3] == ["backbone", "markers", "tip position"]
     assert {"tip position (path)", "backbone (tip path)", "obstacle centres"} <= set(names)
     assert not any("distance" in name for name in names)
-    assert figure.data[0].mode == "lines" and figure.data[1].mode == "markers"
+    assert figure["data"][0]["mode"] == "lines" and figure["data"][1]["mode"] == "markers"
+    go.Figure(figure)  # plotly's own schema check of every trace, frame and layout field
     # one slider position per sample, labelled by t; frame i holds sample i of the helix in mm
-    assert len(figure.frames) == N
-    steps = figure.layout.sliders[0].steps
-    assert steps[-1].label == "t = 1.1 s"
+    assert len(figure["frames"]) == N
+    steps = figure["layout"]["sliders"][0]["steps"]
+    assert steps[-1]["label"] == "t = 1.1 s"
     backbone = _helix() * 1e3
     for i in (0, 7):
-        frame = figure.frames[i]
-        assert list(frame.traces) == [0, 1, 2]
-        got = np.stack([_mm(frame.data[0], a) for a in "xyz"], axis=1)
+        frame = figure["frames"][i]
+        assert frame["traces"] == [0, 1, 2]
+        got = np.stack([_mm(frame["data"][0], a) for a in "xyz"], axis=1)
         np.testing.assert_allclose(got, backbone[i], atol=1e-3)
-        np.testing.assert_allclose([_mm(frame.data[2], a)[0] for a in "xyz"], backbone[i, -1], atol=1e-3)
-    path = next(t for t in figure.data if t.name == "tip position (path)")
-    assert len(path.x) == N and path.mode == "lines"
-    obstacles = next(t for t in figure.data if t.name == "obstacle centres")
+        np.testing.assert_allclose([_mm(frame["data"][2], a)[0] for a in "xyz"], backbone[i, -1], atol=1e-3)
+    path = next(t for t in figure["data"] if t["name"] == "tip position (path)")
+    assert len(path["x"]) == N and path["mode"] == "lines"
+    obstacles = next(t for t in figure["data"] if t["name"] == "obstacle centres")
     np.testing.assert_allclose(_mm(obstacles, "x"), [50.0, -50.0])
     # equal axis scales: a cube holding every point of every sample
-    scene = figure.layout.scene
-    ranges = np.array([scene.xaxis.range, scene.yaxis.range, scene.zaxis.range])
-    assert scene.aspectmode == "cube"
+    scene = figure["layout"]["scene"]
+    ranges = np.array([scene[f"{a}axis"]["range"] for a in "xyz"])
+    assert scene["aspectmode"] == "cube" and scene["zaxis"]["title"] == {"text": "z [mm]"}
     spans = ranges[:, 1] - ranges[:, 0]
     np.testing.assert_allclose(spans, spans[0])
     every = backbone.reshape(-1, 3)
@@ -112,8 +114,8 @@ def test_samples_without_time_get_a_cloud_and_sample_labels(tmp_path):
     assert names == ["target positions", "target positions (all samples)"]
     assert layers[1].mode == "markers" and layers[1].points.shape == (n, 3)
     figure = build_figure({"target_positions": targets}, {"samples": n})
-    assert len(figure.frames) == MAX_FRAMES
-    assert figure.layout.sliders[0].steps[-1].label == f"sample {n - 1}"
+    assert len(figure["frames"]) == MAX_FRAMES
+    assert figure["layout"]["sliders"][0]["steps"][-1]["label"] == f"sample {n - 1}"
 
 
 def test_configurations_become_backbones_by_forward_kinematics(tmp_path):
@@ -132,17 +134,17 @@ def test_configurations_become_backbones_by_forward_kinematics(tmp_path):
 
     summary, arrays = read_result(folder)
     figure = build_figure(arrays, summary)
-    names = [trace.name for trace in figure.data]
+    names = [trace["name"] for trace in figure["data"]]
     assert names[:2] == ["backbone of solutions", "targets (position)"]
-    straight = np.stack([_mm(figure.data[0], a) for a in "xyz"], axis=1)
+    straight = np.stack([_mm(figure["data"][0], a) for a in "xyz"], axis=1)
     np.testing.assert_allclose(straight[:, :2], 0.0, atol=1e-9)
     np.testing.assert_allclose(straight[-1], [0.0, 0.0, 200.0], atol=1e-3)
-    bent = np.stack([_mm(figure.frames[1].data[0], a) for a in "xyz"], axis=1)
+    bent = np.stack([_mm(figure["frames"][1]["data"][0], a) for a in "xyz"], axis=1)
     first_section_end = bent[20]  # 20 backbone points per section after the base point
     np.testing.assert_allclose(
         np.linalg.norm(first_section_end), 2 * 100 * np.sin(theta / 2) / theta, atol=2e-3
     )  # mm, rounded to 1 um
-    np.testing.assert_allclose([figure.data[1][a][0] for a in "xyz"], [10.0, 20.0, 150.0], atol=1e-3)
+    np.testing.assert_allclose([figure["data"][1][a][0] for a in "xyz"], [10.0, 20.0, 150.0], atol=1e-3)
 
 
 def test_obstacles_of_the_spec_are_drawn_as_surfaces(tmp_path):
@@ -161,7 +163,8 @@ def test_obstacles_of_the_spec_are_drawn_as_surfaces(tmp_path):
 
     summary, arrays = read_result(folder)
     figure = build_figure(arrays, summary)
-    meshes = {trace.name: (i, trace) for i, trace in enumerate(figure.data) if trace.type == "mesh3d"}
+    go.Figure(figure)
+    meshes = {trace["name"]: (i, trace) for i, trace in enumerate(figure["data"]) if trace["type"] == "mesh3d"}
     assert list(meshes) == ["obstacle 1 (sphere)", "obstacle 2 (sphere)", "obstacle 3 (halfspace)", "obstacle 4 (box)"]
 
     def points(trace):
@@ -171,8 +174,8 @@ def test_obstacles_of_the_spec_are_drawn_as_surfaces(tmp_path):
     np.testing.assert_allclose(np.linalg.norm(sphere - [100.0, 0.0, 200.0], axis=1), 20.0, atol=2e-3)
     index = meshes["obstacle 2 (sphere)"][0]
     for i in (3, N - 1):  # t = 0.3 s: 15 mm along x; past the path's end: held at 50 mm
-        frame = figure.frames[i]
-        moved = points(frame.data[list(frame.traces).index(index)])
+        frame = figure["frames"][i]
+        moved = points(frame["data"][frame["traces"].index(index)])
         centre = [50.0 * min(t[i], 1.0), 0.0, 100.0]
         np.testing.assert_allclose(np.linalg.norm(moved - centre, axis=1), 10.0, atol=2e-3)
     plane = points(meshes["obstacle 3 (halfspace)"][1])
@@ -234,7 +237,7 @@ def test_page_is_self_contained_with_the_comparison_table(tmp_path):
 
 
 def test_missing_plotly_names_the_extra(monkeypatch):
-    monkeypatch.setitem(sys.modules, "plotly.graph_objects", None)
+    monkeypatch.setitem(sys.modules, "plotly.io", None)
     with pytest.raises(ViewError, match=r"optikin\[view\]"):
         page_html({"tip_position": np.zeros((2, 3))}, {"samples": 2})
 
@@ -248,6 +251,19 @@ def test_cli_writes_the_page_and_names_a_bad_folder(tmp_path, capsys):
     assert str(tmp_path / "page.html") in capsys.readouterr().out
     assert main(["view", str(tmp_path / "nothing")]) == EXIT_BAD_INPUT
     assert "nothing" in capsys.readouterr().err
+
+
+def test_open_hands_the_file_url_to_the_browser(tmp_path, monkeypatch, capsys):
+    import webbrowser
+
+    from optikin.cli import EXIT_OK, main
+
+    opened: list[str] = []
+    monkeypatch.setattr(webbrowser, "open", lambda url: opened.append(url) or False)
+    folder = _write(tmp_path, _trajectory_arrays())
+    assert main(["view", str(folder), "--open"]) == EXIT_OK
+    assert opened == [(folder / "view.html").resolve().as_uri()]
+    assert "no web browser could be started" in capsys.readouterr().err
 
 
 # ---------------------------------------------------------------------- the page in a real browser
