@@ -160,3 +160,36 @@ def test_the_makefile_builds_a_library_that_needs_only_libm(tmp_path):
         "pow",
     }
     assert undefined <= libm, undefined - libm
+
+
+def test_point_targets_with_fixed_lengths_agree_with_gauss_newton(tmp_path):
+    """cc-ik-points: inextensible sections (lengths fixed, not solved for, returned at their value)."""
+    setup = ik_setup("cc-ik-points")
+    P = setup.targets[:15]
+    out = numeric(run_example(export("cc-ik-points", "ik-step", tmp_path), P, tmp_path))
+    fixed = setup.problem.fixed
+    assert fixed.any()
+    for row, p in zip(out, P):
+        solution = setup.adapter.solve(setup.problem, setup.start, p)
+        assert STATUS[int(row[0])] == solution.status == "ok"
+        np.testing.assert_array_equal(row[3:][fixed], setup.problem.lower[fixed])
+        np.testing.assert_allclose(row[3:], solution.x, rtol=0, atol=1e-10)
+
+
+def test_pose_targets_reach_the_pose(tmp_path):
+    """cc-ik-pose: the pose Jacobian of a two-section CC arm has rank 5, so the configuration along its
+    null direction is set by rounding (the Python path itself moves by ~1e-3 when the start changes by
+    1e-15): statuses are compared, and the pose reached against the target."""
+    from optikin.runner import prepare
+
+    setup = ik_setup("cc-ik-pose")
+    P = setup.targets[:10]
+    out = numeric(run_example(export("cc-ik-pose", "ik-step", tmp_path), P, tmp_path))
+    arm = prepare("cc-ik-pose")[1].arm
+    assert (out[:, 0] == 0).sum() >= 8
+    for row, p in zip(out, P):
+        solution = setup.adapter.solve(setup.problem, setup.start, p)
+        assert STATUS[int(row[0])] == solution.status
+        if solution.status == "ok":
+            dq = np.asarray(arm.fk_dq(row[3:])).ravel()
+            assert min(np.abs(dq - p).max(), np.abs(dq + p).max()) < 1e-9

@@ -7,14 +7,18 @@ What is exported (``--what``):
     ``backbone`` (``3 x K`` points), CasADi code generation behind checked entry points.
 ``ik-step``, ``ik-trajectory``
     the problem's inverse kinematics (an ``ik`` problem whose least-squares problem has no
-    fixed variables and no constraints: the constant-curvature position, pose and point
-    targets) solved by the damped projected Gauss-Newton iteration of
+    constraints: the constant-curvature position, pose and point targets; fixed variables,
+    e.g. inextensible sections, are substituted as
+    :attr:`~optikin.solvers.nonlinear.LeastSquaresProblem.reduced` does)
+    solved by the damped projected Gauss-Newton iteration of
     :mod:`optikin.solvers.gauss_newton`, written in C in ``templates/ik.c`` (same damping
     rule ``lam = mu ||r||^2 + 1e-10 tr(J D^-1 J^T)/m``, same acceptance, same switch to the
     Newton model on a stalled large residual, the options and limits of the
     ``gauss-newton`` preset), with ``r``, ``J`` and the Hessian of ``1/2 ||r||^2`` generated
     by CasADi. The step's linear system is solved by LU with partial pivoting in C (CasADi's
-    symbolic QR in Python), so iterates agree to rounding. ``ik-step`` solves each target from
+    symbolic QR in Python), so iterates agree to rounding; where the Jacobian has a null
+    direction at the solution (pose targets of a two-section CC arm, rank 5) rounding sets
+    where along it either path lands. ``ik-step`` solves each target from
     the problem's start; ``ik-trajectory`` warm-starts each from the previous solution.
 
 The folder written holds ``<stem>.c`` (the generated code and the template), ``<stem>.h``
@@ -178,7 +182,7 @@ def export_ik(what: str, problem_name: str, problem, adapter, start: np.ndarray,
     what:
         ``ik-step`` (independent targets) or ``ik-trajectory`` (warm-started), for the example.
     problem:
-        :class:`~optikin.solvers.nonlinear.LeastSquaresProblem` without fixed variables or constraints.
+        :class:`~optikin.solvers.nonlinear.LeastSquaresProblem` without constraints.
     adapter:
         The :class:`~optikin.solvers.gauss_newton.GaussNewton` whose options and limits are exported.
     start:
@@ -188,8 +192,12 @@ def export_ik(what: str, problem_name: str, problem, adapter, start: np.ndarray,
     """
     from optikin.solvers.gauss_newton import LAMBDA_FLOOR, SLOW_PROGRESS, SLOW_STEPS
 
-    if problem.constraints is not None or problem.reduced is not problem:
-        raise SolverError(f"{problem.name}: export handles problems without constraints or fixed variables only")
+    if problem.constraints is not None:
+        raise SolverError(f"{problem.name}: export handles problems without constraints only")
+    full = problem
+    problem = full.reduced  # the variables solved for (fixed ones substituted), as the Python adapters do
+    if problem.n == 0:
+        raise SolverError(f"{full.name}: every variable is fixed, nothing to solve")
     stem = prefix = f"optikin_{what.replace('-', '_')}"
     PREFIX = prefix.upper()
     x, p, r, J = problem.symbols
@@ -203,12 +211,19 @@ def export_ik(what: str, problem_name: str, problem, adapter, start: np.ndarray,
     span = problem.upper - problem.lower
     scaling = np.ones(n) if problem.weights is None else problem.weights**2
     options, limits = adapter.options, adapter.limits
-    common = dict(stem=stem, prefix=prefix, PREFIX=PREFIX, problem=problem_name, n=n, m=m, n_p=n_p, k=max(n, m))
+    fixed = full.fixed
+    common = dict(
+        stem=stem, prefix=prefix, PREFIX=PREFIX, problem=problem_name, n=full.n, n_free=n, m=m, n_p=n_p, k=max(n, m)
+    )
     tolerance = repr(float(problem.tolerance))
     header = _template("ik.h").substitute(
         common,
         **sizes,
-        variables=", ".join(problem.variable_names),
+        variables=", ".join(full.variable_names),
+        fixed_note=", ".join(
+            f"{name} = {value!r}" for name, value, f in zip(full.variable_names, full.lower, fixed) if f
+        )
+        or "none",
         target_kind=problem.residual.name_in(1),
         tolerance=tolerance,
         ok_note="" if problem.exact else ", or a stationary point (the problem is a minimisation)",
@@ -218,6 +233,8 @@ def export_ik(what: str, problem_name: str, problem, adapter, start: np.ndarray,
     source = _template("ik.c").substitute(
         common,
         start=_numbers(start),
+        free_index=", ".join(str(i) for i in np.flatnonzero(~fixed)),
+        fixed_value=_numbers(np.where(fixed, full.lower, 0.0)),
         lower=_numbers(problem.lower),
         upper=_numbers(problem.upper),
         span=_numbers(span),
@@ -312,7 +329,7 @@ def export(problem: str, what: str, folder: Path | str, samples: int = EXAMPLE_S
     SpecError
         ``what`` does not fit the problem.
     SolverError
-        The problem has fixed variables or constraints (not exported).
+        The problem has constraints (not exported) or every variable is fixed.
     """
     folder = Path(folder)
     if what not in WHATS:

@@ -1,11 +1,14 @@
 /* ---- optikin export: the damped projected Gauss-Newton iteration (optikin.solvers.gauss_newton) ---- */
 #include "${stem}.h"
 
-#define NX ${PREFIX}_N
+#define NX ${PREFIX}_NFREE
+#define NFULL ${PREFIX}_N
 #define NR ${PREFIX}_M
 #define NK ${PREFIX}_K
 
-const double ${prefix}_start[NX] = {${start}};
+const double ${prefix}_start[NFULL] = {${start}};
+static const int free_index[NX] = {${free_index}};   /* position of each solved variable in x */
+static const double fixed_value[NFULL] = {${fixed_value}}; /* the value of each fixed variable (0: solved) */
 static const double lower[NX] = {${lower}};
 static const double upper[NX] = {${upper}};
 static const double span[NX] = {${span}};
@@ -156,16 +159,17 @@ int ${prefix}_solve(${prefix}_work* w, const double* x0, const double* p, double
   double mu = damping, trial_mu, rn, st, trial_rn, trial_st, t;
   if (!w || !p || !x_out || !w->ready) return ${PREFIX}_INVALID_INPUT;
   if (!x0) x0 = ${prefix}_start;
-  for (i = 0; i < NX; ++i)
+  for (i = 0; i < NFULL; ++i)
     if (!isfinite(x0[i])) return ${PREFIX}_INVALID_INPUT;
   for (i = 0; i < ${PREFIX}_NP; ++i)
     if (!isfinite(p[i])) return ${PREFIX}_INVALID_INPUT;
-  for (i = 0; i < NX; ++i) { /* project the start into the box */
-    if (periodic[i]) {
-      t = fmod(x0[i] - lower[i], span[i]);
-      w->x[i] = (x0[i] >= lower[i] && x0[i] <= upper[i]) ? x0[i] : lower[i] + (t < 0 ? t + span[i] : t);
+  for (i = 0; i < NX; ++i) { /* the solved variables of the start, projected into the box */
+    t = x0[free_index[i]];
+    if (periodic[i] && !(t >= lower[i] && t <= upper[i])) {
+      t = fmod(t - lower[i], span[i]);
+      w->x[i] = lower[i] + (t < 0 ? t + span[i] : t);
     } else {
-      w->x[i] = fmin(fmax(x0[i], lower[i]), upper[i]);
+      w->x[i] = periodic[i] ? t : fmin(fmax(t, lower[i]), upper[i]);
     }
   }
   rn = step(w, w->x, p, mu, newton, w->proposal, &st);
@@ -189,7 +193,8 @@ int ${prefix}_solve(${prefix}_work* w, const double* x0, const double* p, double
       calls += 1;
     }
   }
-  copy(x_out, w->x);
+  for (i = 0; i < NFULL; ++i) x_out[i] = fixed_value[i];
+  for (i = 0; i < NX; ++i) x_out[free_index[i]] = w->x[i];
   if (residual) *residual = rn;
   if (iterations) *iterations = calls;
   if (!isfinite(rn)) return ${PREFIX}_FAILED;
@@ -206,13 +211,13 @@ long ${prefix}_trajectory(${prefix}_work* w, const double* x0, const double* P, 
   const double* start = x0 ? x0 : ${prefix}_start;
   for (k = 0; k < n; ++k) {
     rn = NAN;
-    s = ${prefix}_solve(w, start, P + k * ${PREFIX}_NP, X + k * NX, &rn, 0);
+    s = ${prefix}_solve(w, start, P + k * ${PREFIX}_NP, X + k * NFULL, &rn, 0);
     if (residuals) residuals[k] = rn;
     if (status) status[k] = s;
     if (s != ${PREFIX}_OK) failures += 1;
     finite = s != ${PREFIX}_INVALID_INPUT;
-    for (i = 0; i < NX && finite; ++i) finite = isfinite(X[k * NX + i]);
-    if (finite) start = X + k * NX;
+    for (i = 0; i < NFULL && finite; ++i) finite = isfinite(X[k * NFULL + i]);
+    if (finite) start = X + k * NFULL;
   }
   return failures;
 }

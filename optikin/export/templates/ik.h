@@ -8,6 +8,7 @@
 
    Sizes (compile-time constants):
      ${PREFIX}_N   configuration variables x            (${n}: ${variables})
+     ${PREFIX}_NFREE of them solved for               (${n_free}; the others are fixed: ${fixed_note})
      ${PREFIX}_NP  target entries p                     (${n_p}: ${target_kind})
      ${PREFIX}_M   residual rows r(x, p)                (${m}, units of the problem: metres)
 
@@ -34,6 +35,7 @@ extern "C" {
 #endif
 
 #define ${PREFIX}_N ${n}
+#define ${PREFIX}_NFREE ${n_free}
 #define ${PREFIX}_NP ${n_p}
 #define ${PREFIX}_M ${m}
 #define ${PREFIX}_K ${k}
@@ -53,17 +55,17 @@ typedef struct {
   long long iw[${sz_iw}];
   double w[${sz_w}];
   double r[${PREFIX}_M];
-  double J[${PREFIX}_M * ${PREFIX}_N];   /* column-major */
-  double H[${PREFIX}_N * ${PREFIX}_N];   /* J^T J, or the Hessian of 1/2 ||r||^2 */
-  double g[${PREFIX}_N];
+  double J[${PREFIX}_M * ${PREFIX}_NFREE];       /* column-major, free variables only */
+  double H[${PREFIX}_NFREE * ${PREFIX}_NFREE];   /* J^T J, or the Hessian of 1/2 ||r||^2 */
+  double g[${PREFIX}_NFREE];
   double A[${PREFIX}_K * ${PREFIX}_K];
   double b[${PREFIX}_K];
   int pivot[${PREFIX}_K];
-  double free_[${PREFIX}_N];
-  double d[${PREFIX}_N];
-  double x[${PREFIX}_N];
-  double proposal[${PREFIX}_N];
-  double next[${PREFIX}_N];
+  double free_[${PREFIX}_NFREE];
+  double d[${PREFIX}_NFREE];
+  double x[${PREFIX}_NFREE];
+  double proposal[${PREFIX}_NFREE];
+  double next[${PREFIX}_NFREE];
   int ready;
 } ${prefix}_work;
 
@@ -71,7 +73,7 @@ typedef struct {
 void ${prefix}_init(${prefix}_work* work);
 
 /* One solve from start configuration x0 (N; NULL: the problem's start, ${prefix}_start) to target p (NP).
-   Writes the configuration reached into x (N), ||r(x)|| into *residual and the number of step
+   Writes the configuration reached into x (N; fixed variables at their value), ||r(x)|| into *residual and the number of step
    evaluations into *iterations (either may be NULL). Returns an enum ${prefix}_status. */
 int ${prefix}_solve(${prefix}_work* work, const double* x0, const double* p, double* x, double* residual,
                     int* iterations);
