@@ -173,12 +173,12 @@ def max_section_length(arm: ArmModel) -> float:
 class BackboneDistances:
     """The Function ``(q, offsets) -> (d, G, P_q)`` of every obstacle and backbone sample.
 
-    ``d`` is ``(n_obstacles, K)``, the signed distances with every obstacle translated by
-    its column of ``offsets`` ``(3, n_obstacles)``; ``G`` ``(3, n_obstacles K)`` their
-    gradients with respect to the sample's position (column ``i K + j``: obstacle ``i``,
-    sample ``j``); ``P_q`` ``(3 K, n)`` the Jacobian of the samples (rows ``3j .. 3j+2``:
-    sample ``j``). The distance Jacobian of obstacle ``i`` and sample ``j`` is
-    ``G[:, iK+j]' P_q[3j:3j+3]`` (chain rule), formed only for the rows the QP takes.
+    :attr:`d` is ``(n_obstacles, K)``, the signed distances with every obstacle translated by
+    its column of ``offsets`` ``(3, n_obstacles)``; :attr:`G_rows` ``(n_obstacles K, 3)`` their
+    gradients with respect to the sample's position (row ``i K + j``: obstacle ``i``,
+    sample ``j``); :attr:`P_q` ``(K, 3, n)`` the Jacobian of every sample. The distance
+    Jacobian of obstacle ``i`` and sample ``j`` is ``G_rows[iK+j] P_q[j]`` (chain rule),
+    formed only for the rows the QP takes.
     """
 
     arm: ArmModel
@@ -206,17 +206,23 @@ class BackboneDistances:
         self.function = ca.Function(
             "backbone_distances",
             [q, offsets],
-            [ca.vertcat(*d_rows), ca.horzcat(*g_cols), ca.jacobian(ca.vec(points), q)],
+            [ca.vertcat(*d_rows).T, ca.horzcat(*g_cols), ca.jacobian(ca.vec(points), q).T],
             ["q", "offsets"],
             ["d", "G", "P_q"],
             {"cse": True},
         )
         self._f = BufferedFunction(self.function, compiled=self.compiled)
         self._q, self._offsets = self._f.inputs
-        self.d, self.G = self._f.output_matrix(0), self._f.output_matrix(1)
-        self.P_q = self._f.output_matrix(2).reshape(K, 3, n)
+        # Transposed outputs, so that the column-major buffers read as row-major (n_obstacles, K),
+        # (n_obstacles K, 3) and (K, 3, n) arrays without copies.
+        self.d_flat = self._f.outputs[0]
+        self.d = self.d_flat.reshape(count, K)
+        self.G_rows = self._f.outputs[1].reshape(count * K, 3)
+        self.P_q = self._f.outputs[2].reshape(K, 3, n)
         self.moving = [i for i, ob in enumerate(self.obstacles) if ob.path is not None]
         self._static = np.zeros((3, count))
+        self._offsets[:] = 0.0
+        self._holds_static = True
 
     def points_at(self, q: np.ndarray) -> np.ndarray:
         """The backbone samples of configuration ``q``, ``(3, K)`` [m]."""
@@ -232,14 +238,16 @@ class BackboneDistances:
         return out
 
     def evaluate(self, q: np.ndarray, offsets: np.ndarray) -> None:
-        """Refresh :attr:`d`, :attr:`G`, :attr:`P_q` (views, valid until the next call)."""
+        """Refresh :attr:`d`, :attr:`G_rows`, :attr:`P_q` (views, valid until the next call)."""
         self._q[:] = q
-        self._offsets[:] = offsets.ravel(order="F")
+        if offsets is not self._static or not self._holds_static:  # static obstacles: written once
+            self._offsets[:] = offsets.ravel(order="F")
+            self._holds_static = offsets is self._static
         self._f()
 
     def jacobian(self, flat: np.ndarray) -> np.ndarray:
         """``d d / d q`` of the (obstacle, sample) pairs ``flat`` (``i K + j``), ``(len(flat), n)``."""
-        return np.matmul(self.G[:, flat].T[:, None, :], self.P_q[flat % self.samples])[:, 0, :]
+        return np.matmul(self.G_rows[flat][:, None, :], self.P_q[flat % self.samples])[:, 0, :]
 
     def sampled(self, Q: np.ndarray, t: np.ndarray) -> np.ndarray:
         """Distances of every sample along a run: ``(N, n_obstacles, K)`` for configurations ``Q`` ``(N, n)``."""
@@ -319,11 +327,11 @@ class BarrierRows:
         k = self.points_per_obstacle
         nearest = np.argpartition(d.d, k - 1, axis=1)[:, :k] if k < d.samples else np.indices(d.d.shape)[1]
         flat = (self._base + nearest).ravel()
-        h = np.take(d.d, flat) - self.margin
+        h = d.d_flat[flat] - self.margin
         self.A[:] = d.jacobian(flat)
         if d.moving:
             # The obstacle's own step: d(q, t + dt) - d(q, t) = -G' (c(t + dt) - c(t)) to first order.
             moved = np.repeat(d.offsets(t + dt) - now, k, axis=1)
-            self.b[:] = -self.gamma * h + np.einsum("ir,ir->r", d.G[:, flat], moved) / dt
+            self.b[:] = -self.gamma * h + np.einsum("ri,ir->r", d.G_rows[flat], moved) / dt
         else:
             self.b[:] = -self.gamma * h

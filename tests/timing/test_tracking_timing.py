@@ -113,3 +113,72 @@ def test_cvxpy_parameters(benchmark, steps, solver):
 )
 def test_unconstrained_baselines(benchmark, steps, Controller):
     _bench(benchmark, Controller.name, Controller(ARM, 1 / RATE, "pose"), steps)
+
+
+OBSTACLE_GROUP = (
+    f"tracking with 3 obstacles on the backbone: time per control step, two-section CC arm, pose, {RATE:.0f} Hz"
+)
+_obstacle_medians: dict[str, float] = {}
+
+
+def obstacle_qp(backend="qp_osqp", compiled=False, **options):
+    """The barrier QP (3 obstacles: sphere on the reference, capsule, box) with a step solver of ``backend``."""
+    from optikin.control.obstacles import BarrierRows, Obstacle
+    from optikin.solvers import preset_of
+    from optikin.spec import SolverSpec
+
+    obstacles = [
+        Obstacle("sphere", center=(0.1554, 0.1544, 0.2668), radius=0.02),
+        Obstacle("capsule", a=(-0.1, 0.05, 0.1), b=(-0.1, -0.05, 0.3), radius=0.02),
+        Obstacle("box", center=(0.0, -0.15, 0.2), half_extents=(0.03, 0.03, 0.05)),
+    ]
+    barrier = BarrierRows(ARM, 1 / RATE, obstacles, margin=0.01, gamma=20.0, compiled=compiled)
+    factory = preset_of(SolverSpec(name=backend, backend=backend, options=options)).build()
+    solver = factory.create(ARM.n_config, 8, rows=barrier.rows)
+    return QPController(ARM, 1 / RATE, compiled=compiled, solver=solver, barrier=barrier)
+
+
+@pytest.fixture(scope="module")
+def obstacle_steps():
+    start, end = np.array([0.18, 0.6, 0.3, 0.18, 0.5, -1.0]), np.array([0.17, 1.0, 0.8, 0.19, -0.4, -0.5])
+    t, Q, Qdot = minimum_jerk_path(np.array([start, end]), 1.5, RATE)
+    ref = reference_from_configurations(ARM, t, Q, Qdot, "pose")
+    run = simulate(obstacle_qp(), ref, start)
+    pick = range(len(t) // 2 - STEPS // 2, len(t) // 2 + STEPS // 2)  # where the sphere blocks the reference
+    return [(k, run.q[k], run.x[k], ref.value[k], ref.rate[k]) for k in pick]
+
+
+def _bench_obstacles(benchmark, name, controller, steps):
+    controller.reset(steps[0][1], steps[0][2])
+    cursor = iter(range(10**9))
+
+    def step():
+        k, q, x, x_ref, xdot_ref = steps[next(cursor) % len(steps)]
+        controller.barrier.step = k  # the barrier's clock at the recorded instant
+        return controller.command(q, x, x_ref, xdot_ref)
+
+    solves, rows = [], []
+    for _ in range(len(steps)):
+        step()
+        solves.append(controller.solution.seconds)
+        rows.append(int(np.sum(controller.barrier.A @ controller.qdot <= controller.barrier.b + 1e-6)))
+    benchmark.extra_info["solver's own time median [us]"] = float(np.median(solves) * 1e6)
+    benchmark.extra_info["steps with an active barrier row"] = int(np.count_nonzero(rows))
+    benchmark.group = OBSTACLE_GROUP
+    benchmark.pedantic(step, rounds=len(steps), iterations=1, warmup_rounds=0)
+    _obstacle_medians[name] = benchmark.stats.stats.median
+    if "cvxpy" in _obstacle_medians and name != "cvxpy":
+        benchmark.extra_info["speed-up over cvxpy Parameters"] = _obstacle_medians["cvxpy"] / _obstacle_medians[name]
+
+
+def test_obstacles_cvxpy_parameters(benchmark, obstacle_steps):
+    _bench_obstacles(benchmark, "cvxpy", obstacle_qp("qp_cvxpy", solver="OSQP"), obstacle_steps[:100])
+
+
+@pytest.mark.parametrize("compiled", [False, True], ids=["casadi-vm", "compiled"])
+def test_obstacles_osqp_updated_in_place(benchmark, obstacle_steps, compiled):
+    _bench_obstacles(benchmark, f"osqp {compiled}", obstacle_qp(compiled=compiled), obstacle_steps)
+
+
+def test_obstacles_qpsolvers_daqp(benchmark, obstacle_steps):
+    _bench_obstacles(benchmark, "daqp", obstacle_qp("qp_qpsolvers", solver="daqp"), obstacle_steps)

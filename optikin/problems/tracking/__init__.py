@@ -41,6 +41,12 @@ Options (all optional; :class:`~optikin.problems.tracking.options.TrackingOption
             physics: {type: cosserat, gravity: true, payload: 0.05, ...}}   # a Cosserat rod plant
     mrac: {gain: [..], adaptation: [..], gain_limit: 100, natural_frequency: 10, damping_ratio: 1}
     tolerance: {position_mm: 0.05, orientation_deg: 0.05}   # convergence check on the last 10 % of the run
+    obstacles:                   # kept off the whole backbone by the QP (optikin.control.obstacles)
+      - type: sphere             # sphere (center, radius), capsule (a, b, radius), box (center, half_extents),
+        center: [x, y, z]        # halfspace (point, normal) [m]
+        radius: r
+        path: [[t, dx, dy, dz], ...]   # optional: offset, linear in time [s, m]
+    barrier: {margin: 0.01, gamma: 20.0, points_per_obstacle: 3, points_per_section: null}
 
 Per-step status: ``ok``, or ``failed`` where the QP solver failed and the
 fallback was applied (the reason is in the notes). The run succeeds when every
@@ -50,6 +56,10 @@ step is ``ok`` and the QP meets both criteria of the Result
 which its own command kept or took the arm outside the configuration limits);
 otherwise ``optikin solve`` exits 1 and a note says which criterion failed and by
 how much. The baselines' convergence is a reported metric, not a criterion.
+With obstacles a third criterion, ``no penetration``: the QP's backbone, between its samples
+too (least sample distance minus half the sample spacing), stays outside every obstacle; every
+controller's clearance and penetrations are reported (columns ``clearance [mm]``,
+``penetrations``), and how far the QP's tip stays from a reference that an obstacle blocks.
 """
 
 from __future__ import annotations
