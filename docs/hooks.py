@@ -163,7 +163,7 @@ def kind_pages() -> dict[str, str]:
         lines = [
             f"# Kind `{name}`",
             "",
-            f"{_cell(kind.summary)}.",
+            f"{_cell(kind.summary[:1].upper() + kind.summary[1:])}.",
             "",
             f"- solved by the backend families: {families}",
             f"- default solver preset: `{kind.default_solver}`" if kind.default_solver else "- no default preset",
