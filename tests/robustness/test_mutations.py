@@ -148,7 +148,7 @@ def test_random_bytes_are_refused(blob, tmp_path, capsys):
 
 def test_a_demonstration_too_short_to_tune_is_a_field_error(tmp_path, capsys):
     data, _ = shipped_data("dmp-imu-dualquat")
-    data["data"]["samples"] = 8
+    data["data"]["samples"] = 4  # tau / dt = 3: beta <= 0.9 tau / dt = 2.7 lies below the tuning box's lower bound
     data.setdefault("outputs", {})["figures"] = False
     problem = write(tmp_path, data)
     assert main(["solve", str(problem), "--out", str(tmp_path / "out"), "--json"]) == EXIT_BAD_INPUT
