@@ -253,18 +253,29 @@ def add_arguments(parser: Any) -> None:
 
 
 def main(args: Any) -> int:
-    """``optikin sweep``: 0 every cell done and solved, 1 some cell failed or had failed samples."""
+    """``optikin sweep``: 0 every cell done and solved, 1 some cell failed or had failed samples, 130
+    interrupted (the finished cells are kept)."""
     import json
 
-    report = run_sweep(
-        args.sweep,
-        out=Path(args.out),
-        jobs=args.jobs,
-        dask=args.dask,
-        resume=args.resume,
-        figures=not args.no_figures,
-        progress=not args.json,
-    )
+    try:
+        report = run_sweep(
+            args.sweep,
+            out=Path(args.out),
+            jobs=args.jobs,
+            dask=args.dask,
+            resume=args.resume,
+            figures=not args.no_figures,
+            progress=not args.json,
+        )
+    except KeyboardInterrupt:
+        spec, path = load_sweep(args.sweep)
+        kept = len(read_cells(Path(args.out) / spec.name))
+        print(
+            f"optikin: interrupted; {kept} of {len(expand(spec, path))} cells are finished in "
+            f"{Path(args.out) / spec.name} (the same command resumes)",
+            file=sys.stderr,
+        )
+        return 130
     counts = {
         "folder": str(report.folder),
         "engine": report.engine,
