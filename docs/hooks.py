@@ -147,8 +147,6 @@ def _presets_by_backend() -> dict[str, list[Any]]:
 
 def kind_pages() -> dict[str, str]:
     """``{kind name: page}`` of every registered problem kind."""
-    import importlib
-
     from optikin.data.sources import DATA_SOURCES
     from optikin.problems import load_kinds
     from optikin.registry import PROBLEM_KINDS
@@ -158,7 +156,6 @@ def kind_pages() -> dict[str, str]:
     pages = {}
     for name in PROBLEM_KINDS.names():
         kind = PROBLEM_KINDS.get(name)
-        module = importlib.import_module(f"optikin.problems.{name}")
         families = ", ".join(f"[{f}](../backends/{f}.md)" for f in kind.backend_families) or "itself"
         lines = [
             f"# Kind `{name}`",
@@ -186,7 +183,16 @@ def kind_pages() -> dict[str, str]:
             lines += [f"### `{source_name}`", "", f"{_cell(source.summary)}.", "", model_tables(source.params)]
         lines += ["## Shipped problem files", ""]
         lines += [f"- `{p}`: {_cell(title)}" for p, title in problems.get(name, [])] or ["None."]
-        lines += ["", "## Module docstring", "", "```text", (module.__doc__ or "").strip(), "```", ""]
+        lines += [
+            "",
+            "## Module docstring",
+            "",
+            f"::: optikin.problems.{name}",
+            "    options:",
+            "      members: false",
+            "      show_submodules: false",
+            "",
+        ]
         pages[name] = "\n".join(lines)
     return pages
 
@@ -263,6 +269,9 @@ def problem_file_page() -> str:
     )
 
 
+ROLE_RE = re.compile(r":(?:py:)?(?:mod|class|func|meth|data|attr|exc|obj|const):<code>(~?)([\w.]+)</code>")
+"""A Sphinx role of a docstring as mkdocstrings renders it (``:class:<code>X</code>``)."""
+
 PAGES: dict[str, str] = {}
 NOTEBOOKS = sorted((ROOT / "notebooks").glob("*.ipynb"))
 
@@ -309,6 +318,19 @@ def _expand(nav: Any, generated: dict[str, list[Any]]) -> Any:
     if isinstance(nav, dict):
         return {key: _expand(value, generated) for key, value in nav.items()}
     return nav
+
+
+def on_page_content(html: str, **kwargs: Any) -> str:
+    """Sphinx roles of the docstrings (``:func:`~optikin.api.solve_ik```) as cross-references to the API
+    pages, resolved by mkdocs-autorefs (plain code where the object is not documented on the site), and
+    the ``::`` that opens a reST literal block as one colon."""
+
+    def reference(match: re.Match[str]) -> str:
+        short, identifier = match.groups()
+        title = identifier.rsplit(".", 1)[-1] if short else identifier
+        return f'<autoref identifier="{identifier}" optional><code>{title}</code></autoref>'
+
+    return ROLE_RE.sub(reference, html).replace("::</p>", ":</p>")  # a reST literal block's "::" ends the line
 
 
 @event_priority(100)
