@@ -121,3 +121,20 @@ def test_a_moving_obstacles_row_accounts_for_its_own_step():
     nearest = np.argsort(mover.distances(points, 0.0))[:3]
     # b_moving - b_static = -(d(t + dt) - d(t)) / dt for the same samples
     np.testing.assert_allclose(np.sort(barrier.b - static.b), np.sort(-change[nearest] / dt), rtol=1e-3, atol=1e-6)
+
+
+def test_the_direct_daqp_path_with_rows_matches_qpsolvers():
+    qpsolvers = pytest.importorskip("qpsolvers")
+    from optikin.solvers.qp.qp_qpsolvers import QpsolversOptions, QpsolversStepSolver
+
+    rng = np.random.default_rng(4)
+    rows, cols = upper_triangle_csc_indices(6)
+    for _ in range(5):
+        J, v = rng.standard_normal((8, 6)), 5.0 * rng.standard_normal(8)
+        H, g = J.T @ J + 1e-4 * np.eye(6), -J.T @ v
+        A, b = rng.standard_normal((9, 6)), rng.standard_normal(9) - 1.0
+        data = QPData(J, v, 1e-4, H, H[rows, cols], g, -np.ones(6), np.ones(6), A, b)
+        solver = QpsolversStepSolver(6, 8, QpsolversOptions(solver="daqp"), rows=9)
+        assert solver._daqp is not None  # the direct path is the one under test
+        ref = qpsolvers.solve_qp(H, g, -A, -b, lb=data.lb, ub=data.ub, solver="daqp")
+        np.testing.assert_allclose(solver.solve(data).x, ref, atol=1e-10)

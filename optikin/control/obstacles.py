@@ -171,14 +171,13 @@ def max_section_length(arm: ArmModel) -> float:
 
 @dataclass
 class BackboneDistances:
-    """The Function ``(q, offsets) -> (d, G, P_q)`` of every obstacle and backbone sample.
+    """The Function ``(q, offsets) -> (d, G, D)`` of every obstacle and backbone sample.
 
     :attr:`d` is ``(n_obstacles, K)``, the signed distances with every obstacle translated by
     its column of ``offsets`` ``(3, n_obstacles)``; :attr:`G_rows` ``(n_obstacles K, 3)`` their
     gradients with respect to the sample's position (row ``i K + j``: obstacle ``i``,
-    sample ``j``); :attr:`P_q` ``(K, 3, n)`` the Jacobian of every sample. The distance
-    Jacobian of obstacle ``i`` and sample ``j`` is ``G_rows[iK+j] P_q[j]`` (chain rule),
-    formed only for the rows the QP takes.
+    sample ``j``); :attr:`D` ``(n_obstacles K, n)`` the distance Jacobian, row ``i K + j``
+    being ``G_rows[iK+j] d p_j / d q`` (chain rule through the backbone Jacobian).
     """
 
     arm: ArmModel
@@ -203,22 +202,27 @@ class BackboneDistances:
             d, g = one(points, ca.repmat(offsets[:, i], 1, K))
             d_rows.append(d)
             g_cols.append(g)
+        sample_jacobian = ca.jacobian(ca.vec(points), q)
+        gradients = ca.horzcat(*g_cols)
+        distance_jacobian = ca.vertcat(
+            *[gradients[:, i * K + j].T @ sample_jacobian[3 * j : 3 * j + 3, :] for i in range(count) for j in range(K)]
+        )
         self.function = ca.Function(
             "backbone_distances",
             [q, offsets],
-            [ca.vertcat(*d_rows).T, ca.horzcat(*g_cols), ca.jacobian(ca.vec(points), q).T],
+            [ca.vertcat(*d_rows).T, gradients, distance_jacobian.T],
             ["q", "offsets"],
-            ["d", "G", "P_q"],
+            ["d", "G", "D"],
             {"cse": True},
         )
         self._f = BufferedFunction(self.function, compiled=self.compiled)
         self._q, self._offsets = self._f.inputs
         # Transposed outputs, so that the column-major buffers read as row-major (n_obstacles, K),
-        # (n_obstacles K, 3) and (K, 3, n) arrays without copies.
+        # (n_obstacles K, 3) and (n_obstacles K, n) arrays without copies.
         self.d_flat = self._f.outputs[0]
         self.d = self.d_flat.reshape(count, K)
         self.G_rows = self._f.outputs[1].reshape(count * K, 3)
-        self.P_q = self._f.outputs[2].reshape(K, 3, n)
+        self.D = self._f.outputs[2].reshape(count * K, n)
         self.moving = [i for i, ob in enumerate(self.obstacles) if ob.path is not None]
         self._static = np.zeros((3, count))
         self._offsets[:] = 0.0
@@ -238,7 +242,7 @@ class BackboneDistances:
         return out
 
     def evaluate(self, q: np.ndarray, offsets: np.ndarray) -> None:
-        """Refresh :attr:`d`, :attr:`G_rows`, :attr:`P_q` (views, valid until the next call)."""
+        """Refresh :attr:`d`, :attr:`G_rows`, :attr:`D` (views, valid until the next call)."""
         self._q[:] = q
         if offsets is not self._static or not self._holds_static:  # static obstacles: written once
             self._offsets[:] = offsets.ravel(order="F")
@@ -247,7 +251,7 @@ class BackboneDistances:
 
     def jacobian(self, flat: np.ndarray) -> np.ndarray:
         """``d d / d q`` of the (obstacle, sample) pairs ``flat`` (``i K + j``), ``(len(flat), n)``."""
-        return np.matmul(self.G_rows[flat][:, None, :], self.P_q[flat % self.samples])[:, 0, :]
+        return self.D[flat]
 
     def sampled(self, Q: np.ndarray, t: np.ndarray) -> np.ndarray:
         """Distances of every sample along a run: ``(N, n_obstacles, K)`` for configurations ``Q`` ``(N, n)``."""

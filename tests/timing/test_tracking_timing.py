@@ -180,5 +180,7 @@ def test_obstacles_osqp_updated_in_place(benchmark, obstacle_steps, compiled):
     _bench_obstacles(benchmark, f"osqp {compiled}", obstacle_qp(compiled=compiled), obstacle_steps)
 
 
-def test_obstacles_qpsolvers_daqp(benchmark, obstacle_steps):
-    _bench_obstacles(benchmark, "daqp", obstacle_qp("qp_qpsolvers", solver="daqp"), obstacle_steps)
+@pytest.mark.parametrize("compiled", [False, True], ids=["casadi-vm", "compiled"])
+def test_obstacles_daqp_direct(benchmark, obstacle_steps, compiled):
+    controller = obstacle_qp("qp_qpsolvers", compiled=compiled, solver="daqp")
+    _bench_obstacles(benchmark, f"daqp {compiled}", controller, obstacle_steps)

@@ -1,7 +1,9 @@
 """Backend ``qp_qpsolvers``: ``qpsolvers.solve_qp(P, q, lb=lb, ub=ub, solver=...)``, one call per step, no state kept.
 
 The rate box is handed over as bounds (not as inequality rows); the active rows
-``A qdot >= b`` (finite ``b``) as ``G = -A``, ``h = -b``. Where the solver
+``A qdot >= b`` (finite ``b``) as ``G = -A``, ``h = -b``. With rows and solver daqp (and no
+``settings``) daqp is called directly, ``blower <= [I; A] x <= bupper`` in buffers kept from step
+to step: qpsolvers' conversion of the rows costs several times daqp's own solve. Where the solver
 has tolerances, they default to tight ones (:data:`TIGHT`); ``settings`` adds or
 overrides keyword arguments of the solver, in the solver's own names. Against
 daqp (active set, exact) on closed-loop steps, proxqp at its own defaults and at
@@ -73,8 +75,17 @@ class QpsolversStepSolver:
         self.options = {**TIGHT.get(options.solver, {}), **options.settings}
         self.sparse = options.solver in qpsolvers.sparse_solvers and options.solver not in qpsolvers.dense_solvers
         self._solve_qp = qpsolvers.solve_qp
+        self._daqp = None
+        if rows and options.solver == "daqp" and not options.settings:
+            import daqp
+
+            self._daqp = daqp.solve
+            self._upper, self._lower = np.full(n + rows, _DAQP_INFINITY), np.empty(n + rows)
+            self._sense = np.zeros(n + rows, dtype=np.intc)
 
     def solve(self, data: QPData) -> Solution:
+        if self._daqp is not None:
+            return self._solve_daqp(data)
         start = time.perf_counter()
         P = sp.csc_matrix(data.H) if self.sparse else data.H
         G = h = None
@@ -88,6 +99,23 @@ class QpsolversStepSolver:
         if x is None:
             return failed(self.n, "no solution returned", seconds)
         return Solution(x, "ok", seconds=seconds)
+
+    def _solve_daqp(self, data: QPData) -> Solution:
+        """``daqp.solve(H, g, A, bupper, blower, sense)``, the box as daqp's simple bounds (its first rows)."""
+        start = time.perf_counter()
+        n = self.n
+        self._lower[:n], self._upper[:n] = data.lb, data.ub
+        np.maximum(data.b, -_DAQP_INFINITY, out=self._lower[n:])
+        assert self._daqp is not None
+        x, _, exitflag, _ = self._daqp(data.H, data.g, data.A, self._upper, self._lower, self._sense)
+        seconds = time.perf_counter() - start
+        if exitflag != 1:
+            return failed(self.n, f"daqp exit flag {exitflag}", seconds)
+        return Solution(np.asarray(x), "ok", seconds=seconds)
+
+
+_DAQP_INFINITY = 1e30
+"""A bound daqp takes for none."""
 
 
 @register_backend("qp_qpsolvers", "qp", "qpsolvers.solve_qp with bounds, one call per step", options=QpsolversOptions)
