@@ -21,6 +21,8 @@ from __future__ import annotations
 
 import os
 import re
+import shutil
+import tempfile
 from pathlib import Path
 from typing import Any, get_args
 
@@ -274,6 +276,8 @@ ROLE_RE = re.compile(r":(?:py:)?(?:mod|class|func|meth|data|attr|exc|obj|const):
 
 PAGES: dict[str, str] = {}
 NOTEBOOKS = sorted((ROOT / "notebooks").glob("*.ipynb"))
+NOTEBOOK_DIR: list[Path] = []
+"""The temporary folder holding the notebooks' copies while they are executed (empty: not executing)."""
 
 
 def on_config(config: MkDocsConfig) -> MkDocsConfig:
@@ -298,11 +302,24 @@ def on_config(config: MkDocsConfig) -> MkDocsConfig:
     }
     config["nav"] = _expand(config["nav"], generated)
 
+    NOTEBOOK_DIR.clear()
     if os.environ.get("OPTIKIN_DOCS_EXECUTE") == "1":
         os.environ.setdefault("OPTIKIN_SMALL", "1")
         os.environ.setdefault("MPLBACKEND", "Agg")
         config["plugins"]["mkdocs-jupyter"].config["execute"] = True
+        # The kernel runs in the notebook's folder and a notebook may write there: run copies.
+        NOTEBOOK_DIR.append(Path(tempfile.mkdtemp(prefix="optikin-docs-")))
+        (NOTEBOOK_DIR[0] / "notebooks").mkdir()
+        for path in NOTEBOOKS:
+            shutil.copy2(path, NOTEBOOK_DIR[0] / "notebooks" / path.name)
     return config
+
+
+def on_post_build(config: MkDocsConfig) -> None:
+    """Remove the executed copies of the notebooks."""
+    for folder in NOTEBOOK_DIR:
+        shutil.rmtree(folder, ignore_errors=True)
+    NOTEBOOK_DIR.clear()
 
 
 def _expand(nav: Any, generated: dict[str, list[Any]]) -> Any:
@@ -338,11 +355,12 @@ def on_files(files: Files, config: MkDocsConfig) -> Files:
     """Add the generated pages and the notebooks (before mkdocs-jupyter wraps the notebooks)."""
     for src_uri, content in PAGES.items():
         files.append(File.generated(config, src_uri, content=content))
+    source = NOTEBOOK_DIR[0] if NOTEBOOK_DIR else ROOT
     for path in NOTEBOOKS:
-        # A real source folder (the repository), not File.generated: mkdocs-jupyter's wrapper finds the
-        # notebook from ``src_dir``.
+        # A real source folder (the repository, or the copies), not File.generated: mkdocs-jupyter's
+        # wrapper finds the notebook from ``src_dir``.
         uri = path.relative_to(ROOT).as_posix()
         files.append(
-            File(uri, src_dir=str(ROOT), dest_dir=config.site_dir, use_directory_urls=config.use_directory_urls)
+            File(uri, src_dir=str(source), dest_dir=config.site_dir, use_directory_urls=config.use_directory_urls)
         )
     return files
