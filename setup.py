@@ -1,6 +1,6 @@
-"""Build hook: the named problem files and solver presets go into the wheel as ``optikin/catalog``.
+"""Build hook: the named problem files, solver presets and sweeps go into the wheel as ``optikin/catalog``.
 
-The top-level ``problems/`` and ``solvers/`` folders are the source; a checkout (or an editable
+The top-level ``problems/``, ``solvers/`` and ``sweeps/`` folders are the source; a checkout (or an editable
 install) reads them in place, an installed wheel reads its copy through ``importlib.resources``
 (:func:`optikin.spec.shipped_dir`).
 """
@@ -11,7 +11,7 @@ from pathlib import Path
 from setuptools import setup
 from setuptools.command.build_py import build_py
 
-CATALOG = ("problems", "solvers")
+CATALOG = ("problems", "solvers", "sweeps")
 
 
 class BuildWithCatalog(build_py):

@@ -1,4 +1,4 @@
-"""The ``optikin`` command line: ``list``, ``show``, ``solve``, ``plot``, ``view``, ``export``, ``bench``.
+"""The ``optikin`` command line: ``list``, ``show``, ``solve``, ``sweep``, ``plot``, ``view``, ``export``, ``bench``.
 
 Exit status, one meaning each:
 

@@ -107,12 +107,12 @@ def project_root() -> Path:
     return Path(__file__).resolve().parent.parent
 
 
-def shipped_dir(kind: Literal["problems", "solvers"]) -> Path:
+def shipped_dir(kind: Literal["problems", "solvers", "sweeps"]) -> Path:
     """The folder of the named files that come with optikin.
 
     An installed wheel carries them as ``optikin/catalog/<kind>`` (copied there by the build, found
     through :mod:`importlib.resources`); a checkout or an editable install reads the top-level
-    ``problems/`` and ``solvers/`` beside the package.
+    ``problems/``, ``solvers/`` and ``sweeps/`` beside the package.
     """
     catalog = resources.files("optikin") / "catalog" / kind
     if catalog.is_dir():

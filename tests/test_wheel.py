@@ -49,6 +49,8 @@ def test_the_wheel_carries_the_catalog_licence_and_types(installed):
     package = installed / "optikin"
     assert (package / "catalog" / "problems" / "cc-two-section-fk.yaml").is_file()
     assert (package / "catalog" / "solvers" / "casadi-map.yaml").is_file()
+    assert (package / "catalog" / "sweeps" / "ph-noise.yaml").is_file()
+    assert (package / "export" / "templates" / "ik.c").is_file()
     assert (package / "py.typed").is_file()
     (info,) = installed.glob("optikin-*.dist-info")
     assert "BSD 3-Clause" in (info / "licenses" / "LICENSE").read_text()

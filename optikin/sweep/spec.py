@@ -33,7 +33,7 @@ from pydantic import Field, field_validator
 from optikin import __version__
 from optikin.errors import OptikinError, SpecError
 from optikin.options import Options, validate_options
-from optikin.spec import NAME_PATTERN, _read_yaml, is_path, project_root, resolve
+from optikin.spec import NAME_PATTERN, _read_yaml, is_path, resolve, shipped_dir
 
 RANGE = re.compile(r"^\s*range\(\s*(-?\d+)\s*(?:,\s*(-?\d+)\s*(?:,\s*(-?\d+)\s*)?)?\)\s*$")
 """``range(stop)``, ``range(start, stop)`` or ``range(start, stop, step)`` with integer arguments."""
@@ -122,7 +122,7 @@ def resolve_sweep(name_or_path: str) -> Path:
         if not path.is_file():
             raise SpecError(name_or_path, "", "no such file")
         return path
-    for folder in (Path.cwd() / "sweeps", project_root() / "sweeps"):
+    for folder in (Path.cwd() / "sweeps", shipped_dir("sweeps")):
         if (folder / f"{name_or_path}.yaml").is_file():
             return folder / f"{name_or_path}.yaml"
     raise SpecError(name_or_path, "", "no such sweep (looked in ./sweeps and the shipped sweeps)")
