@@ -305,7 +305,8 @@ def on_config(config: MkDocsConfig) -> MkDocsConfig:
     NOTEBOOK_DIR.clear()
     if os.environ.get("OPTIKIN_DOCS_EXECUTE") == "1":
         os.environ.setdefault("OPTIKIN_SMALL", "1")
-        os.environ.setdefault("MPLBACKEND", "Agg")
+        # Figures shown inline (a notebook's last expression may be its figure), whatever the caller's backend.
+        os.environ["MPLBACKEND"] = "module://matplotlib_inline.backend_inline"
         config["plugins"]["mkdocs-jupyter"].config["execute"] = True
         # The kernel runs in the notebook's folder and a notebook may write there: run copies.
         NOTEBOOK_DIR.append(Path(tempfile.mkdtemp(prefix="optikin-docs-")))
