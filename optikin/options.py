@@ -109,7 +109,8 @@ def describe_options(model: type[BaseModel], prefix: str = "") -> list[tuple[str
         annotation = info.annotation
         nested = annotation if isinstance(annotation, type) and issubclass(annotation, BaseModel) else None
         if nested is not None:
-            rows.append((dotted, nested.__name__, "", info.description or (nested.__doc__ or "").splitlines()[0]))
+            summary = ((nested.__doc__ or "").strip().splitlines() or [""])[0]
+            rows.append((dotted, nested.__name__, "", info.description or summary))
             rows += describe_options(nested, f"{dotted}.")
             continue
         type_name = type_name_of(annotation)

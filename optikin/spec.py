@@ -58,42 +58,56 @@ class ArmSpec(_Strict):
 
 
 class DataSpec(_Strict):
+    """Where the samples come from."""
+
     source: str = Field(description="registered data source of the problem kind")
     seed: int = Field(0, ge=0, description="seed of every random draw in this problem")
-    samples: int = Field(100, ge=1, le=10_000_000)
-    params: dict[str, Any] = Field(default_factory=dict)
+    samples: int = Field(100, ge=1, le=10_000_000, description="number of samples (targets, postures, steps)")
+    params: dict[str, Any] = Field(default_factory=dict, description="the data source's parameters (its own model)")
 
 
 class OutputSpec(_Strict):
-    figures: bool = True
+    """What is written into the result folder."""
+
+    figures: bool = Field(True, description="draw the kind's figures")
     arrays: list[str] | None = Field(None, description="arrays to keep in the NPZ file; all when omitted")
 
 
 class ProblemSpec(_Strict):
-    name: str = Field(pattern=NAME_PATTERN)
-    title: str
-    kind: str
-    arm: ArmSpec | None = None
-    data: DataSpec
-    solver: str | None = None
-    baselines: list[str] = Field(default_factory=list)
-    outputs: OutputSpec = Field(default_factory=OutputSpec)
-    options: dict[str, Any] = Field(default_factory=dict)
-    description: str = ""
+    """A problem file (``problems/*.yaml``)."""
+
+    name: str = Field(pattern=NAME_PATTERN, description="the file's name without .yaml")
+    title: str = Field(description="one line shown in listings and reports")
+    kind: str = Field(description="registered problem kind (optikin list --kinds)")
+    arm: ArmSpec | None = Field(
+        None, description="the arm (or a path to a file holding an arm: section); kinds that need none omit it"
+    )
+    data: DataSpec = Field(description="where the samples come from")
+    solver: str | None = Field(None, description="solver preset (name or path); default the kind's")
+    baselines: list[str] = Field(
+        default_factory=list, description="methods compared in the same run: the kind's own or solver presets"
+    )
+    outputs: OutputSpec = Field(default_factory=OutputSpec, description="what is written into the result folder")
+    options: dict[str, Any] = Field(default_factory=dict, description="the kind's options (its own model)")
+    description: str = Field("", description="what the problem shows and why, in prose")
 
 
 class LimitsSpec(_Strict):
-    max_iterations: int = Field(100, ge=1)
-    time_limit: float = Field(10.0, gt=0, description="seconds per solve")
-    tolerance: float = Field(1e-10, gt=0)
+    """Budgets of every solve of a preset."""
+
+    max_iterations: int = Field(100, ge=1, description="iterations (or evaluations) per solve: the budget")
+    time_limit: float = Field(10.0, gt=0, description="seconds per solve: a safety net above the budget")
+    tolerance: float = Field(1e-10, gt=0, description="the solver's own stopping tolerance")
 
 
 class SolverSpec(_Strict):
-    name: str = Field(pattern=NAME_PATTERN)
-    backend: str
-    title: str = ""
-    options: dict[str, Any] = Field(default_factory=dict)
-    limits: LimitsSpec = Field(default_factory=LimitsSpec)
+    """A solver preset (``solvers/*.yaml``)."""
+
+    name: str = Field(pattern=NAME_PATTERN, description="the file's name without .yaml")
+    backend: str = Field(description="registered backend (optikin list --solvers --where)")
+    title: str = Field("", description="one line shown in listings")
+    options: dict[str, Any] = Field(default_factory=dict, description="the backend's options (its own model)")
+    limits: LimitsSpec = Field(default_factory=LimitsSpec, description="budgets of every solve")
 
 
 # --------------------------------------------------------------------------- locating files
