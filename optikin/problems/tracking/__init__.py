@@ -88,5 +88,6 @@ register_kind(
         options=TrackingOptions,
         data_family="references",
         figures=figures.figures,
+        headline=("rms [mm]", "final [mm]", "outside limits", "step [us]", "converged", "penetrations"),
     )
 )
