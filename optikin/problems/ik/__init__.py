@@ -17,6 +17,10 @@ within the arm's bounds (:mod:`optikin.solvers.nonlinear`), with
   has rank 5 at every configuration (torsion-free sections: the reachable poses form
   a 5-D set), so pose IK is a rank-deficient least-squares problem with a curve of
   solutions per reachable pose.
+* ``target: points``: measured points along the arm (``options.points``: name -> section, ``at`` a
+  fraction of its arc, ``offset`` in the backbone frame there, ``measure`` position / direction /
+  orientation, ``weight``), their rows stacked as :mod:`optikin.ik.points` describes: section ends,
+  markers on disks or tubes, the tip direction without its twist.
 * ``target: legs`` (CBHA only): the 48 leg lengths of the 16 platforms ->
   ``(Z_k, theta_k, psi_k)``, seed 004 eqs. (7)-(9) inverted platform by platform
   (:mod:`optikin.ik.platform`); ``||r||`` in metres of leg length.
@@ -43,6 +47,12 @@ default the inverse ranges of the variables):
                   see :mod:`optikin.ik.formulation`. A sample is ``ok``
                   at a stationary point of that cost; its tip error is reported
                   beside (in general larger than ``tolerance``).
+
+Measured targets carry noise: with ``options.noise`` (metres) the targets are fitted rather than
+matched, ``1/2 ||r||^2`` is minimised (the NLP backends drop the redundancy preference and the equality
+constraints ``r = 0``), and a minimum is ``ok`` when ``||r|| <= tolerance``, ``fit`` when the RMS
+distance of the points (:func:`optikin.problems.ik.run.rms_distances`) is at most ``noise``, else
+``unreachable``. ``fit`` counts as solved (exit status 0).
 
 On a CBHA, ``elongation: distributed`` adds the elongation distribution of seed
 004 section IV (every inter-vertebra a fixed fraction of its section's tube
