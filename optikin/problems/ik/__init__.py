@@ -87,11 +87,11 @@ Problem file
 ``options``
     :class:`~optikin.problems.ik.options.IkOptions`: ``target``, ``redundancy``,
     ``rest``, ``weights``, ``start`` (``rest`` or a configuration), ``restarts``
-    (default 2), ``tolerance`` (``||r||`` in metres counted as solved, default
+    (default 6), ``tolerance`` (``||r||`` in metres counted as solved, default
     1e-10), ``orientation_length``, ``penalty`` (lambda, default 1e-6: m^2 on the
     configuration, a pure number on the position), ``penalty_on``
     (``configuration`` or ``position``), ``elongation`` (``free``, ``distributed``
-    or ``affine``), ``variants`` (``{label: {option: value}}`` over the fields of
+    or ``affine``), ``points`` and ``noise`` (above), ``variants`` (``{label: {option: value}}`` over the fields of
     :class:`~optikin.problems.ik.options.FormulationOptions`).
 """
 
