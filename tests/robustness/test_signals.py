@@ -32,7 +32,11 @@ STOPPED_WITHIN = 2.0
 CASES = {
     # problem file, changes, signal
     "ipopt-buffer": ("cc-ik-pose", {"solver": "ipopt", "baselines": [], "data.samples": 3000}, signal.SIGINT),
-    "mapped-rootfinder": ("cc-ik-position", {"solver": "newton", "baselines": [], "data.samples": 5000}, signal.SIGTERM),
+    "mapped-rootfinder": (
+        "cc-ik-position",
+        {"solver": "newton", "baselines": [], "data.samples": 5000},
+        signal.SIGTERM,
+    ),
     "sklearn-training": ("cbha-nn-fkm", {"baselines": [], "data.samples": 200000}, signal.SIGINT),
 }
 
