@@ -177,7 +177,7 @@ class PointSet:
         reached = self.forward(arm, X)
         position = np.full((len(X), len(self)), np.nan)
         angle = np.full((len(X), len(self)), np.nan)
-        for k, (p, where) in enumerate(zip(self.points, self.slices())):
+        for k, where in enumerate(self.slices()):
             if "position" in where:
                 s = where["position"]
                 position[:, k] = np.linalg.norm(reached[:, s] - targets[:, s], axis=1)
