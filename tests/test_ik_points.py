@@ -39,6 +39,11 @@ def write_problem(tmp_path: Path, name: str = "points", **fields: Any) -> Path:
     return path
 
 
+def flat(value) -> np.ndarray:
+    """A CasADi DM (or numpy array) as a flat numpy vector."""
+    return np.asarray(value, dtype=float).ravel()
+
+
 def arc_point(S: float, theta: float, phi: float, s: float) -> np.ndarray:
     """A point at arc length ``s`` of a circular arc of length ``S`` bending by ``theta`` in plane ``phi``."""
     radius = S / theta
@@ -53,7 +58,7 @@ def test_frame_at_a_fraction_lies_on_the_circular_arc():
     q = np.array([0.2, 1.1, 0.7])
     for f in (0.25, 0.5, 1.0):
         _, position = arm.frame_at(ca.DM(q), 0, f)
-        assert np.allclose(np.ravel(position), arc_point(0.2, 1.1, 0.7, f * 0.2), atol=1e-15)
+        assert np.allclose(flat(position), arc_point(0.2, 1.1, 0.7, f * 0.2), atol=1e-15)
 
 
 def test_frame_at_the_end_of_a_section_is_its_end_frame_and_a_part_of_it_a_shorter_arm():
@@ -61,10 +66,10 @@ def test_frame_at_the_end_of_a_section_is_its_end_frame_and_a_part_of_it_a_short
     q = np.array([0.15, 0.8, -1.0, 0.12, 1.3, 2.0])
     quat, position = arm.frame_at(ca.DM(q), 1, 1.0)
     end_quat, end_position = arm.section_frames(ca.DM(q))[1]
-    assert np.allclose(np.ravel(quat), np.ravel(end_quat)) and np.allclose(np.ravel(position), np.ravel(end_position))
+    assert np.allclose(flat(quat), flat(end_quat)) and np.allclose(flat(position), flat(end_position))
     shorter = np.array([0.15, 0.8, -1.0, 0.4 * 0.12, 0.4 * 1.3, 2.0])
     _, position = arm.frame_at(ca.DM(q), 1, 0.4)
-    assert np.allclose(np.ravel(position), arm.evaluate("fk_position", shorter[None])[0], atol=1e-15)
+    assert np.allclose(flat(position), arm.evaluate("fk_position", shorter[None])[0], atol=1e-15)
 
 
 def test_point_residual_vanishes_at_its_configuration_and_its_jacobian_matches_finite_differences():

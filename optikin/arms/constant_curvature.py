@@ -252,13 +252,13 @@ class ConstantCurvatureArm(ArmModel):
             raise ValueError(f"section {section + 1} out of range: {self.name} has {self.n_sections} sections")
         if not 0.0 < fraction <= 1.0:
             raise ValueError(f"fraction must lie in (0, 1], got {fraction:g}")
-        if section == 0:
-            quat, pos = np.array([1.0, 0.0, 0.0, 0.0]), np.zeros(3)
-        else:
-            quat, pos = self.section_frames(q)[section - 1]
         S, theta, phi = B.components(q, self.n_config)[3 * section : 3 * section + 3]
-        position = pos + quat_rotate(quat, section_position(fraction * S, fraction * theta, phi), check=False)
-        return quat_multiply(quat, section_quaternion(fraction * theta, phi)), position
+        quat = section_quaternion(fraction * theta, phi)
+        position = section_position(fraction * S, fraction * theta, phi)
+        if section == 0:
+            return quat, position
+        base_quat, base_position = self.section_frames(q)[section - 1]
+        return quat_multiply(base_quat, quat), base_position + quat_rotate(base_quat, position, check=False)
 
     def backbone_points(self, q: ca.SX, points_per_section: int) -> ca.SX:
         """Points at equal arc-length fractions along every section, base point first.
