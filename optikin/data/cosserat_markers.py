@@ -388,23 +388,49 @@ def cosserat_recording(
     error = _posture_error(solutions, source)
     if error is not None:
         raise error
-    s = solver.s
+    return record_arm(params, solutions, solver.s, t, pressures, rng, source)
+
+
+def record_arm(
+    params: CosseratMarkerParams,
+    solutions: list[RodSolution],
+    s: np.ndarray,
+    t: np.ndarray,
+    pressures: np.ndarray,
+    rng: np.random.Generator,
+    source: str,
+) -> CosseratRecording:
+    """The motion capture of the equilibria ``solutions`` of one arm, as the ``cosserat`` marker source records.
+
+    Parameters
+    ----------
+    params:
+        The arm and the recorder.
+    solutions:
+        One equilibrium per posture, in the world frame.
+    s:
+        Reference arc length of the solver's nodes ``(K,)`` [m].
+    t:
+        Time stamps ``(N,)`` [s].
+    pressures:
+        Tube pressures ``(N, sections, 3)`` [Pa].
+    rng:
+        Draws the noise (tube markers, base pose, tip pose, potentiometers, in this order).
+    source:
+        Names the recording.
+    """
+    samples, n_sections = len(solutions), len(params.section_lengths)
     backbone = np.stack([sol.positions for sol in solutions])  # (N, K, 3)
     frames = quat_normalize(np.stack([sol.orientations for sol in solutions]), check=False)  # (N, K, 4)
-
-    # stations: base, intermediate, tip (node indices)
     per_section = params.segments_per_section * params.steps_per_segment
     stations = [0, *(int(round(x * per_section)) for x in params.intermediate), n_sections * per_section]
-    section_end = per_section
     rho = params.tube_offset(s)  # (K,)
     directions = quat_rotate(frames[:, :, None, :], LEG_DIRECTIONS[None, None, :, :], check=False)  # (N, K, tube, 3)
-    tubes = backbone[:, :, None, :] + rho[None, :, None, None] * directions  # (N, K, tube, 3)
-    tubes = tubes.transpose(0, 2, 1, 3)  # (N, tube, K, 3)
+    tubes = (backbone[:, :, None, :] + rho[None, :, None, None] * directions).transpose(0, 2, 1, 3)  # (N, tube, K, 3)
     tube_marker_truth = tubes[:, :, stations, :]  # (N, tube, station, 3)
-    lengths = richardson_lengths(tubes, [section_end, len(s) - 1])  # (N, tube, 2)
+    lengths = richardson_lengths(tubes, [per_section, len(s) - 1])  # (N, tube, 2)
     backbone_length = richardson_lengths(backbone, [len(s) - 1])[:, 0]
 
-    # the recorder
     tube_markers = tube_marker_truth + params.noise * rng.standard_normal(tube_marker_truth.shape)
     markers = tube_markers[:, :, 1:-1, :].mean(axis=1)  # (N, station, 3): centroids of the three tubes
 

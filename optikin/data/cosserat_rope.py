@@ -45,19 +45,14 @@ from pathlib import Path
 import numpy as np
 from pydantic import Field
 
-from optikin.algebra import quat_exp, quat_from_axis_angle, quat_multiply, quat_normalize, quat_rotate
+from optikin.algebra import quat_from_axis_angle, quat_multiply
 from optikin.arms.base import ArmModel
-from optikin.arms.cbha import LEG_DIRECTIONS
 from optikin.curves.catenary import Catenary, catenary
-from optikin.curves.tubes import CBHA_TUBE_ANGLES
 from optikin.data.cosserat_markers import (
-    PLATFORMS_PER_SECTION,
     CosseratMarkerParams,
-    CosseratRecording,
-    CosseratTruth,
     actuation,
     cosserat_cbha_arm,
-    richardson_lengths,
+    record_arm,
 )
 from optikin.data.markers import RopeChainRecording, recorded_rope, tube_fractions
 from optikin.data.sources import register_source
@@ -105,93 +100,6 @@ class CosseratRopeChain(RopeChainRecording):
 
     tip_forces: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, 3)))
     coupling_iterations: int = 0
-
-
-def record_arm(
-    params: CosseratMarkerParams,
-    solutions: list[RodSolution],
-    s: np.ndarray,
-    t: np.ndarray,
-    pressures: np.ndarray,
-    rng: np.random.Generator,
-    source: str,
-) -> CosseratRecording:
-    """The motion capture of the equilibria ``solutions`` of one arm, as the ``cosserat`` marker source records.
-
-    Parameters
-    ----------
-    params:
-        The arm and the recorder.
-    solutions:
-        One equilibrium per posture, in the world frame.
-    s:
-        Reference arc length of the solver's nodes ``(K,)`` [m].
-    t:
-        Time stamps ``(N,)`` [s].
-    pressures:
-        Tube pressures ``(N, sections, 3)`` [Pa].
-    rng:
-        Draws the noise (tube markers, base pose, tip pose, potentiometers, in this order).
-    source:
-        Names the recording.
-    """
-    samples, n_sections = len(solutions), len(params.section_lengths)
-    backbone = np.stack([sol.positions for sol in solutions])  # (N, K, 3)
-    frames = quat_normalize(np.stack([sol.orientations for sol in solutions]), check=False)  # (N, K, 4)
-    per_section = params.segments_per_section * params.steps_per_segment
-    stations = [0, *(int(round(x * per_section)) for x in params.intermediate), n_sections * per_section]
-    rho = params.tube_offset(s)  # (K,)
-    directions = quat_rotate(frames[:, :, None, :], LEG_DIRECTIONS[None, None, :, :], check=False)  # (N, K, tube, 3)
-    tubes = (backbone[:, :, None, :] + rho[None, :, None, None] * directions).transpose(0, 2, 1, 3)  # (N, tube, K, 3)
-    tube_marker_truth = tubes[:, :, stations, :]  # (N, tube, station, 3)
-    lengths = richardson_lengths(tubes, [per_section, len(s) - 1])  # (N, tube, 2)
-    backbone_length = richardson_lengths(backbone, [len(s) - 1])[:, 0]
-
-    tube_markers = tube_marker_truth + params.noise * rng.standard_normal(tube_marker_truth.shape)
-    markers = tube_markers[:, :, 1:-1, :].mean(axis=1)  # (N, station, 3): centroids of the three tubes
-
-    def pose(index: int) -> tuple[np.ndarray, np.ndarray]:
-        p = backbone[:, index] + params.pose_noise * rng.standard_normal((samples, 3))
-        turn = quat_exp(0.5 * params.orientation_noise * rng.standard_normal((samples, 3)))
-        return p, quat_normalize(quat_multiply(frames[:, index], turn), check=False)
-
-    base_p, base_q = pose(0)
-    tip_p, tip_q = pose(len(s) - 1)
-    noisy_lengths = lengths + params.length_noise * rng.standard_normal(lengths.shape)
-    vertebrae = tuple(1 + PLATFORMS_PER_SECTION * x for x in params.intermediate)
-    on_vertebrae = all(abs(v - round(v)) < 1e-9 for v in vertebrae)
-    truth = CosseratTruth(
-        configurations=pressures.reshape(samples, -1),
-        vertebrae=backbone,
-        backbone_length=backbone_length,
-        marker_truth=backbone[:, stations[1:-1]],
-        s=s,
-        orientations=frames,
-        tube_markers=tube_marker_truth,
-        tube_lengths=lengths[:, :, 1],
-        section_tube_lengths=lengths[:, :, 0],
-        base_orientation=frames[:, 0],
-        tip_position=backbone[:, -1],
-        tip_orientation=frames[:, -1],
-        iterations=np.array([sol.iterations for sol in solutions]),
-    )
-    return CosseratRecording(
-        t=t,
-        base_position=base_p,
-        base_orientation=base_q,
-        tip_position=tip_p,
-        tip_orientation=tip_q,
-        markers=markers,
-        tube_lengths=noisy_lengths[:, :, 1],
-        section_tube_lengths=noisy_lengths[:, :, 0],
-        source=source,
-        truth=truth,
-        marker_vertebrae=tuple(int(round(v)) for v in vertebrae) if on_vertebrae else (),
-        tube_markers=tube_markers,
-        tube_marker_offsets=rho[stations],
-        tube_angles=CBHA_TUBE_ANGLES,
-        tube_radius=params.tube_radius,
-    )
 
 
 def hanging_ropes(tips: np.ndarray, params: CosseratRopeParams, source: str) -> tuple[list[Catenary], np.ndarray]:
