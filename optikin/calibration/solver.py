@@ -34,6 +34,7 @@ At the solution, the covariance of the free shared parameters is
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -269,8 +270,6 @@ def solve(
     Fit
         The solution, its marker errors and the covariance of the free parameters.
     """
-    import time
-
     started = time.perf_counter()
     if not problem.free.any():
         return solve_postures(problem, X0, beta0, max_iterations, tolerance, step_tolerance)
@@ -347,8 +346,6 @@ def solve_postures(
     stops when a step lowers its cost by less than ``tolerance`` times it or moves none of its variables by
     more than ``step_tolerance``.
     """
-    import time
-
     started = time.perf_counter()
     X = np.array(X0, dtype=float)
     beta = np.asarray(beta, dtype=float)
