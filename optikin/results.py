@@ -254,7 +254,7 @@ def _temporary_name(name: str, role: str) -> str:
     return f".{name}-{role}-{_host()}-{os.getpid()}-{secrets.token_hex(4)}"
 
 
-def _alive(pid: int) -> bool:
+def process_alive(pid: int) -> bool:
     """Whether process ``pid`` of this host exists (one of another user counts)."""
     if pid <= 0:
         return True
@@ -276,7 +276,7 @@ def _remove_stale(out_dir: Path, name: str) -> None:
         return
     for entry in entries:
         match = pattern.fullmatch(entry.name)
-        if match is not None and not _alive(int(match.group(1))):
+        if match is not None and not process_alive(int(match.group(1))):
             if entry.is_dir() and not entry.is_symlink():
                 shutil.rmtree(entry, ignore_errors=True)
             else:

@@ -23,6 +23,7 @@ import secrets
 from pathlib import Path
 from typing import Any
 
+from optikin.results import process_alive
 from optikin.sweep.spec import Cell, SweepSpec
 
 TIMING = re.compile(r"time|elapsed|\[(s|ms|us)\]")
@@ -61,23 +62,13 @@ def read_cells(folder: Path) -> dict[str, dict[str, Any]]:
     return records
 
 
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
-
-
 def dead_tries(folder: Path) -> dict[str, int]:
     """Keys of cells whose worker died in them (a marker whose process is gone), with how many times;
     those markers are removed."""
     counts: dict[str, int] = {}
     for marker in markers_dir(folder).glob("*.*"):
         key, _, pid = marker.name.partition(".")
-        if pid.isdigit() and not _alive(int(pid)):
+        if pid.isdigit() and not process_alive(int(pid)):
             counts[key] = counts.get(key, 0) + 1
             marker.unlink(missing_ok=True)
     return counts
