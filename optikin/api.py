@@ -26,7 +26,7 @@ from optikin.arms.base import ArmModel
 from optikin.data.targets import Targets, reach_bound
 from optikin.ik.formulation import Formulation, build_problem, rest_configuration
 from optikin.ik.points import COMPONENTS, MeasuredPoint, PointSet
-from optikin.problems.ik.run import rms_distances
+from optikin.problems.ik.run import mark_fits, rms_distances
 from optikin.solvers import load_preset
 from optikin.solvers.nonlinear import LeastSquaresProblem, NonlinearAdapter
 
@@ -146,18 +146,19 @@ def solve_ik(
         raise ValueError(f"preset {preset!r} is of family {loaded.backend.family}, not nonlinear")
     adapter: NonlinearAdapter = loaded.build()
     x0 = formulation.rest if start is None else np.asarray(start, dtype=float)
-    solution = adapter.solve(problem, x0, target, x_ref=formulation.rest)
-    x = np.asarray(solution.x, dtype=float)
-    status, message = solution.status, solution.message
-    rms = float(rms_of(arm, formulation, kind, x, target))
-    if noise is not None and status == "ok" and solution.residual > tolerance:
-        status, message = ("fit", "") if rms <= noise else ("unreachable", f"RMS distance {rms:.3g} m > noise")
-    return IkSolution(x, status, float(solution.residual), rms, solution.iterations, solution.seconds, message, problem)
-
-
-def rms_of(arm: ArmModel, formulation: Formulation, kind: str, x: np.ndarray, target: np.ndarray) -> float:
-    """The RMS distance [m] of one answer (as :func:`optikin.problems.ik.run.rms_distances`)."""
-    targets = Targets(
-        kind, target[None], np.full((1, arm.n_config), np.nan), np.ones(1, bool), points=formulation.points
+    targets = Targets(kind, target[None], np.full((1, arm.n_config), np.nan), np.ones(1, bool), points=measured)
+    batch = mark_fits(
+        adapter.solve_many(problem, x0, target[None], x_ref=formulation.rest), arm, targets, formulation, noise
     )
-    return float(rms_distances(arm, targets, formulation, x[None])[0])
+    x = np.asarray(batch.x[0], dtype=float)
+    rms = float(rms_distances(arm, targets, formulation, x[None])[0])
+    return IkSolution(
+        x,
+        batch.status[0],
+        float(batch.residual[0]),
+        rms,
+        int(batch.iterations[0]),
+        float(batch.seconds[0]),
+        batch.messages[0],
+        problem,
+    )
