@@ -13,22 +13,55 @@
 >>> noisy = measured + np.random.default_rng(0).normal(0.0, 3e-4, 9)  # 0.3 mm motion-capture noise
 >>> optikin.solve_ik(arm, noisy, points=disks, noise=1e-3).status
 'fit'
+
+A backbone between two poses, here a quarter circle of radius 0.2 m (tangent ``+z`` at the base, ``+x`` at
+the tip; poses as 4x4 transforms or unit dual quaternions):
+
+>>> base = np.eye(4)
+>>> tip = np.array([[0.0, 0, 1, 0.2], [0, 1, 0, 0], [-1, 0, 0, 0.2], [0, 0, 0, 1]])  # z_tip = +x
+>>> backbone = optikin.reconstruct_backbone(base, tip, length=np.pi / 10)
+>>> backbone.status, round(backbone.arc_length, 6), backbone.points.shape
+('ok', 0.314159, (21, 3))
+
+Closed-loop tracking of a minimum-jerk path through two configurations (the problem files' ``waypoints``):
+
+>>> cc2 = ConstantCurvatureArm()
+>>> run = optikin.track(cc2, {"waypoints": [[0.18, 0.3, 0.0, 0.18, 0.3, 0.0], [0.17, 0.6, 0.4, 0.18, 0.5, 1.0]],
+...                           "task": "position", "rate": 200, "segment_time": 1.0, "hold": 0.5})
+>>> run.statuses.count("ok") == len(run.t), bool(run.error[-1] < 1e-5)
+(True, True)
 """
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Any, Mapping
 
 import numpy as np
 
+from optikin.algebra import dq_rotation, dq_translation, quat_rotate
+from optikin.algebra.quaternion import refuse_degenerate
 from optikin.arms.base import ArmModel
+from optikin.baselines.pseudo_inverse import DampedLeastSquaresController, PseudoInverseController
+from optikin.control.base import Controller
+from optikin.control.qp import QPController
+from optikin.control.reference import Reference, minimum_jerk_path, reference_from_configurations
+from optikin.control.simulate import TrackingRun, simulate
+from optikin.control.task import task_dimension
+from optikin.curves import EnergySettings, PHQuintic, ShapeData, ShapeEnergyModel, arc_length_estimate
+from optikin.curves.min_energy import ShapeSolution
+from optikin.data.references import WaypointParams
 from optikin.data.targets import Targets, reach_bound
 from optikin.ik.formulation import Formulation, build_problem, rest_configuration
 from optikin.ik.points import COMPONENTS, MeasuredPoint, PointSet
+from optikin.physics.comparison import ph_points_at_fractions
 from optikin.problems.ik.run import mark_fits, rms_distances
 from optikin.solvers import load_preset
 from optikin.solvers.nonlinear import LeastSquaresProblem, NonlinearAdapter
+
+logger = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -162,3 +195,238 @@ def solve_ik(
         batch.messages[0],
         problem,
     )
+
+
+@dataclass(frozen=True)
+class Backbone:
+    """The answer of :func:`reconstruct_backbone`.
+
+    Attributes
+    ----------
+    curve:
+        The PH quintic ``r(t)``, ``t`` in ``[0, 1]`` from base to tip (numpy coefficients; points,
+        frames, curvature, torsion, arc length).
+    points:
+        ``(samples, 3)`` points of the curve at equal fractions of its arc length, base first [m].
+    energy:
+        Bending energy ``int kappa^2 ds`` (plus the twist term, if weighted) [1/m].
+    arc_length:
+        Length of the curve [m].
+    status:
+        ``ok``, ``not_converged`` or ``failed``.
+    message:
+        Why, when not ``ok``.
+    solution:
+        The solver's answer (free angles and end speeds, iterations, notes).
+    """
+
+    curve: PHQuintic
+    points: np.ndarray
+    energy: float
+    arc_length: float
+    status: str
+    message: str
+    solution: ShapeSolution
+
+
+def _end(pose: np.ndarray, name: str) -> tuple[np.ndarray, np.ndarray]:
+    """Position [m] and backbone tangent (the frame's z axis) of a unit dual quaternion ``(8,)`` or a 4x4 transform."""
+    x = np.asarray(pose, dtype=float)
+    if x.shape == (4, 4):
+        R = x[:3, :3]
+        if not np.allclose(R.T @ R, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
+            raise ValueError(f"{name}: the upper-left 3x3 block is not a rotation")
+        return x[:3, 3], R[:, 2]
+    if x.shape == (8,):
+        refuse_degenerate(x[:4], name)
+        return dq_translation(x), quat_rotate(dq_rotation(x), np.array([0.0, 0.0, 1.0]))
+    raise ValueError(f"{name} must be a unit dual quaternion (8,) or a 4x4 transform, got shape {x.shape}")
+
+
+@lru_cache(maxsize=4)
+def _shape_model(twist_weight: float) -> ShapeEnergyModel:
+    return ShapeEnergyModel(EnergySettings(twist_weight=twist_weight), free_speeds=True)
+
+
+def reconstruct_backbone(
+    base_pose: np.ndarray,
+    tip_pose: np.ndarray,
+    *,
+    length: float | None = None,
+    samples: int = 21,
+    twist_weight: float = 0.0,
+) -> Backbone:
+    """The minimum-energy spatial PH quintic between two poses (Singh et al. 2018, section II.A).
+
+    The backbone leaves the base point along the base frame's z axis and reaches the tip point along the
+    tip frame's z axis; among the PH quintics that do (a two-parameter family, with the end speeds free),
+    the one of least bending energy whose arc length is ``length`` is taken
+    (:class:`optikin.curves.ShapeEnergyModel` with ``free_speeds=True``, Newton's method).
+
+    Parameters
+    ----------
+    base_pose, tip_pose:
+        End frames in one common frame: unit dual quaternions ``(8,)`` (``(Q_r, Q_d)``, translation in
+        metres) or homogeneous transforms ``(4, 4)``.
+    length:
+        Backbone length [m], longer than the distance of the end points; default the circular arc's
+        (:func:`optikin.curves.arc_length_estimate`).
+    samples:
+        Number of points returned in :attr:`Backbone.points`.
+    twist_weight:
+        Weight of ``int tau^2 ds`` in the energy (0: bending only).
+
+    Returns
+    -------
+    Backbone
+
+    Raises
+    ------
+    ValueError
+        A pose of the wrong shape or not a rigid transform.
+    optikin.errors.InputDataError
+        ``length`` not longer than the chord (naming the field).
+    """
+    p0, t0 = _end(base_pose, "base_pose")
+    p1, t1 = _end(tip_pose, "tip_pose")
+    if length is None:
+        length = float(arc_length_estimate(p0, t0, p1, t1))
+    data = ShapeData.checked(p0, t0, p1, t1, length=length, source="reconstruct_backbone")
+    model = _shape_model(float(twist_weight))
+    solution = model.solve_newton(data)
+    curve = model.curve(solution, data)
+    logger.debug("backbone of length %.6g m: %s in %d iterations", length, solution.status, solution.iterations)
+    return Backbone(
+        curve,
+        ph_points_at_fractions(curve, np.linspace(0.0, 1.0, samples)),
+        solution.energy,
+        float(curve.arc_length()),
+        solution.status,
+        solution.message,
+        solution,
+    )
+
+
+@dataclass(frozen=True)
+class Tracking:
+    """The answer of :func:`track`: one closed-loop run, ``N`` control steps.
+
+    Attributes
+    ----------
+    t:
+        ``(N,)`` control instants [s].
+    q:
+        ``(N, n_config)`` configuration of the arm at each instant (SI units).
+    tip:
+        ``(N, 3)`` tip position [m], base frame.
+    error:
+        ``(N,)`` distance of the tip from the reference position [m].
+    orientation_error:
+        ``(N,)`` angle between the tip and reference orientations [rad]; ``None`` for a position task.
+    statuses:
+        Per step ``ok``, or ``fallback (...): reason`` when the controller's solver failed.
+    controller:
+        The controller's name.
+    run:
+        The full record (commanded rates, limit excess, step times; ``run.metrics()``).
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    tip: np.ndarray
+    error: np.ndarray
+    orientation_error: np.ndarray | None
+    statuses: list[str]
+    controller: str
+    run: TrackingRun
+
+
+def _reference(
+    arm: ArmModel, reference: Reference | Mapping[str, Any] | np.ndarray, rate: float
+) -> tuple[Reference, np.ndarray | None]:
+    """The reference and, for waypoints, the start configuration."""
+    if isinstance(reference, Reference):
+        return reference, None
+    if isinstance(reference, Mapping):
+        params = WaypointParams.model_validate(reference)
+        W = np.asarray(params.waypoints, dtype=float)
+        if W.ndim != 2 or W.shape[1] != arm.n_config:
+            raise ValueError(f"waypoints need rows of {arm.n_config} values ({', '.join(arm.config_names)})")
+        t, Q, Qdot = minimum_jerk_path(W, params.segment_time, params.rate, params.hold)
+        return reference_from_configurations(arm, t, Q, Qdot, params.task), W[0]
+    value = np.asarray(reference, dtype=float)
+    task = {3: "position", 8: "pose"}.get(value.shape[-1]) if value.ndim == 2 else None
+    if task is None:
+        raise ValueError(f"a reference array must be (N, 3) positions or (N, 8) dual quaternions, got {value.shape}")
+    t = np.arange(len(value)) / rate
+    return Reference(t, value, np.gradient(value, t, axis=0), task), None  # type: ignore[arg-type]
+
+
+def track(
+    arm: ArmModel,
+    reference: Reference | Mapping[str, Any] | np.ndarray,
+    controller: str | Controller = "qp",
+    *,
+    start: np.ndarray | None = None,
+    rate: float = 500.0,
+    preset: str = "qp-osqp",
+    gain: float = 10.0,
+    damping: float = 1e-4,
+) -> Tracking:
+    """Track a tip reference in closed loop, as the ``tracking`` kind does (:mod:`optikin.control`).
+
+    The controller's model is the arm itself and the plant is exact (no mismatch, disturbance or noise:
+    :func:`optikin.control.simulate.simulate` with its default plant).
+
+    Parameters
+    ----------
+    arm:
+        The arm.
+    reference:
+        The tip reference: a :class:`~optikin.control.reference.Reference`; a mapping of a problem file's
+        ``waypoints`` source (``{"waypoints": (K, n_config), "segment_time": s, "hold": s, "task":
+        "pose" | "position", "rate": Hz}``: the forward kinematics of a minimum-jerk path through them); or
+        an array of tip positions ``(N, 3)`` [m] or tip dual quaternions ``(N, 8)`` sampled at ``rate``
+        (rates by central differences).
+    controller:
+        ``qp`` (the bounded QP of :class:`~optikin.control.qp.QPController`), ``damped_least_squares``,
+        ``pseudo_inverse``, or a ready :class:`~optikin.control.base.Controller` at the reference's period.
+    start:
+        Configuration ``(n_config,)`` at ``t = 0``; default the first waypoint, else the inverse kinematics of
+        the first reference sample (:func:`solve_ik`).
+    rate:
+        Sample rate of an array reference [Hz].
+    preset:
+        The ``qp`` solver preset of the ``qp`` controller.
+    gain, damping:
+        Feedback gain ``K`` [1/s] and damping ``lambda`` of the built controllers.
+
+    Returns
+    -------
+    Tracking
+    """
+    ref, first = _reference(arm, reference, rate)
+    if start is None:
+        if first is None:
+            solution = solve_ik(arm, ref.value[0])
+            if solution.status != "ok":
+                raise ValueError(f"the first reference sample is not reachable ({solution.message})")
+            first = solution.configuration
+        start = first
+    dt, task, m = ref.dt, ref.task, task_dimension(ref.task)
+    if isinstance(controller, Controller):
+        made = controller
+    elif controller == "qp":
+        loaded = load_preset(preset)
+        if loaded.backend.family != "qp":
+            raise ValueError(f"preset {preset!r} is of family {loaded.backend.family}, not qp")
+        made = QPController(arm, dt, task, gain, damping, solver=loaded.build().create(arm.n_config, m))
+    elif controller == "damped_least_squares":
+        made = DampedLeastSquaresController(arm, dt, task, gain, damping)
+    elif controller == "pseudo_inverse":
+        made = PseudoInverseController(arm, dt, task, gain)
+    else:
+        raise ValueError(f"unknown controller {controller!r}; known: qp, damped_least_squares, pseudo_inverse")
+    run = simulate(made, ref, np.asarray(start, dtype=float))
+    logger.debug("tracked %d steps with %s", len(ref.t), made.name)
+    return Tracking(ref.t, run.q, run.position, run.position_error, run.orientation_error, run.status, made.name, run)

@@ -23,6 +23,7 @@ configurations outside the bounds, naming the sample and the variable.
 
 from __future__ import annotations
 
+import inspect
 from abc import ABC, abstractmethod
 from functools import cached_property
 from typing import Any
@@ -39,6 +40,16 @@ from optikin.errors import InputDataError
 FUNCTION_NAMES = ("fk_dq", "fk_position", "fk_transform", "section_dq", "jac_position", "jac_dq", "backbone")
 """The Functions every arm offers (table in the module docstring)."""
 
+CALLING = """
+
+``f(q)``, with one configuration ``q`` (numpy ``(n_config,)``, a list, or a CasADi column
+``n_config x 1``), returns a ``casadi.DM`` (``numpy.asarray(f(q))`` or ``f(q).full()`` convert it); a
+symbolic ``q`` (``SX``/``MX``) gives the expression. It is a :class:`casadi.Function`: ``map``, code
+generation and buffers work as usual. For a batch ``Q (N, n_config)`` use ``arm.evaluate(name, Q)``,
+one call for all rows.
+"""
+"""How to call an arm Function; ends the docstring of every :class:`ArmFunction`."""
+
 
 class ArmFunction(ca.Function):
     """A CasADi Function of one configuration that names the batch method when given a numpy batch.
@@ -48,17 +59,23 @@ class ArmFunction(ca.Function):
     a wrong length raises a :class:`ValueError` instead of CasADi's shape error (batches go
     through :meth:`ArmModel.evaluate`).
 
+    ``help(arm.fk_dq)`` shows ``doc`` (what the Function computes: shapes, units, frame), not the
+    help of :class:`casadi.Function`.
+
     Parameters
     ----------
     function : casadi.Function
         The Function, one input ``q`` (``n_config x 1``).
     arm_name, short_name : str
         For the message: the arm and the Function's name on it (``fk_dq``).
+    doc : str
+        The docstring of this Function (the arm's property that builds it).
     """
 
-    def __init__(self, function: ca.Function, arm_name: str, short_name: str) -> None:
+    def __init__(self, function: ca.Function, arm_name: str, short_name: str, doc: str = "") -> None:
         super().__init__(function)
         self.arm_name, self.short_name = arm_name, short_name
+        self.__doc__ = inspect.cleandoc(doc) + CALLING if doc else CALLING.lstrip()
 
     def __call__(self, *args: Any, **kwargs: Any) -> Any:
         if len(args) == 1 and isinstance(args[0], (np.ndarray, list, tuple)):
@@ -217,42 +234,72 @@ class ArmModel(ABC):
 
     def _function(self, name: str, out: ca.SX, out_name: str) -> ca.Function:
         f = ca.Function(f"{self.name}_{name}", [self._q], [out], ["q"], [out_name], {"cse": True})
-        return ArmFunction(f, self.name, name)
+        return ArmFunction(f, self.name, name, getattr(type(self), name).__doc__ or "")
 
     @cached_property
     def fk_dq(self) -> ca.Function:
-        """``q (n x 1) -> dq (8 x 1)``: tip pose as a unit dual quaternion ``(Q_r, Q_d)`` (seed 000 eqs. 9-10)."""
+        """Tip pose as a unit dual quaternion (seed 000 eqs. 9-10): ``fk_dq(q)`` is an ``8 x 1`` DM.
+
+        ``q`` is one configuration ``(n_config,)`` in :attr:`config_names` order, SI units (m, rad).
+        The result is ``(Q_r, Q_d)``: the tip frame's rotation ``Q_r = (w, x, y, z)`` and
+        ``Q_d = 0.5 (0, p) Q_r`` with the tip position ``p`` [m], in the arm's base frame (origin at
+        the base centre, z along the unbent backbone; the tip frame's z axis is the backbone tangent).
+        """
         return self._function("fk_dq", self._section_dq_expr[-1], "dq")
 
     @cached_property
     def fk_position(self) -> ca.Function:
-        """``q (n x 1) -> p (3 x 1)``: tip position [m] in the base frame."""
+        """Tip position: ``fk_position(q)`` is a ``3 x 1`` DM [m] in the arm's base frame.
+
+        ``q`` is one configuration ``(n_config,)``, SI units (m, rad).
+        """
         return self._function("fk_position", dq_translation(self._section_dq_expr[-1]), "p")
 
     @cached_property
     def fk_transform(self) -> ca.Function:
-        """``q (n x 1) -> T (4 x 4)``: tip pose as a homogeneous transform (translation in metres)."""
+        """Tip pose as a homogeneous transform: ``fk_transform(q)`` is a ``4 x 4`` DM ``[R, p; 0, 1]``.
+
+        ``q`` is one configuration ``(n_config,)``, SI units (m, rad); ``R`` and ``p`` [m] place the tip
+        frame in the base frame, the same pose as :attr:`fk_dq`.
+        """
         return self._function("fk_transform", transform_from_dq(self._section_dq_expr[-1]), "T")
 
     @cached_property
     def section_dq(self) -> ca.Function:
-        """``q (n x 1) -> dq (8 x m)``: end pose of every section as unit dual quaternions, base section first."""
+        """End pose of every section: ``section_dq(q)`` is an ``8 x m`` DM, base section first.
+
+        ``q`` is one configuration ``(n_config,)``, SI units (m, rad). Column ``i`` is ``(Q_r, Q_d)`` of the
+        end of section ``i + 1`` in the base frame (translation in metres), as :attr:`fk_dq` for the tip.
+        """
         return self._function("section_dq", ca.horzcat(*self._section_dq_expr), "dq")
 
     @cached_property
     def jac_position(self) -> ca.Function:
-        """``q (n x 1) -> J (3 x n)``: ``d p_tip / d q`` by automatic differentiation (seed 000 eqs. 3-4)."""
+        """Position Jacobian ``d p_tip / d q`` (seed 000 eqs. 3-4): ``jac_position(q)`` is a ``3 x n_config`` DM.
+
+        ``q`` is one configuration ``(n_config,)``, SI units (m, rad). Column ``j`` is the derivative of the
+        tip position [m], in the base frame, with respect to variable ``j``, by automatic differentiation.
+        """
         p = dq_translation(self._section_dq_expr[-1])
         return self._function("jac_position", ca.jacobian(p, self._q), "J")
 
     @cached_property
     def jac_dq(self) -> ca.Function:
-        """``q (n x 1) -> J_d (8 x n)``: ``d Q_tip / d q``, the dual-quaternion Jacobian of seed 000 eq. (33)."""
+        """Dual-quaternion Jacobian ``d Q_tip / d q`` (seed 000 eq. 33): ``jac_dq(q)`` is an ``8 x n_config`` DM.
+
+        ``q`` is one configuration ``(n_config,)``, SI units (m, rad). Column ``j`` is the derivative of
+        :attr:`fk_dq`'s ``(Q_r, Q_d)`` with respect to variable ``j`` (the dual part in metres per the
+        variable's unit), by automatic differentiation.
+        """
         return self._function("jac_dq", ca.jacobian(self._section_dq_expr[-1], self._q), "J")
 
     @cached_property
     def backbone(self) -> ca.Function:
-        """``q (n x 1) -> points (3 x K)``: :meth:`backbone_points` at :attr:`backbone_points_per_section`."""
+        """Points along the backbone: ``backbone(q)`` is a ``3 x K`` DM [m] in the base frame, base point first.
+
+        ``q`` is one configuration ``(n_config,)``, SI units (m, rad); ``K = 1 + m`` :attr:`backbone_points_per_section`
+        (:meth:`backbone_points`).
+        """
         pts = self.backbone_points(self._q, self.backbone_points_per_section)
         return self._function("backbone", pts, "points")
 
