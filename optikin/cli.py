@@ -270,6 +270,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--out", required=True, help="output folder (.c, .h, main.c, Makefile)")
     p.set_defaults(run=_cmd_export)
+
+    from optikin.progress import add_verbosity_arguments
+
+    add_verbosity_arguments(parser, sub)
     return parser
 
 
@@ -281,10 +285,11 @@ def _cmd_export(args: argparse.Namespace) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     from optikin.interrupt import deferred_interrupts
+    from optikin.progress import command_line_logging
 
     args = build_parser().parse_args(argv)
     try:
-        with deferred_interrupts():
+        with deferred_interrupts(), command_line_logging(args.verbose, args.quiet):
             return args.run(args)
     except OptikinError as exc:
         print(f"optikin: error: {exc}", file=sys.stderr)
