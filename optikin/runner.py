@@ -13,6 +13,7 @@ on ``data.samples`` too (exit 2), not a traceback.
 
 from __future__ import annotations
 
+import logging
 import time
 from pathlib import Path
 from typing import Any, Callable, Sequence
@@ -29,6 +30,8 @@ from optikin.resources import check_memory
 from optikin.results import Result, write_result
 from optikin.solvers import LoadedPreset, load_backends, load_preset
 from optikin.spec import ProblemSpec, available, load_problem, provenance
+
+logger = logging.getLogger(__name__)
 
 
 def kind_of(spec: ProblemSpec, path: Path) -> ProblemKind:
@@ -167,11 +170,15 @@ def solve(
     overrides:
         ``(dotted field, value)`` pairs set in the problem file before validation (``--set``).
     """
+    clock = time.perf_counter()
     kind, ctx = prepare(problem, solver, progress, notify, overrides)
+    preset = ctx.preset.spec.name if ctx.preset is not None else "none"
+    logger.debug("%s: kind %s, preset %s, prepared in %.3g s", ctx.path, kind.name, preset, time.perf_counter() - clock)
     try:
         started, clock = now(), time.perf_counter()
         result = kind.run(ctx)
         result.provenance = provenance_of(ctx, started, time.perf_counter() - clock)
+        logger.debug("%s: ran in %.3g s", ctx.spec.name, time.perf_counter() - clock)
         _check_arrays(ctx.spec, ctx.path, result)
         written = None
         if out is not None:
@@ -182,6 +189,7 @@ def solve(
                 arrays=ctx.spec.outputs.arrays,
                 figure_builder=kind.figures,
             )
+            logger.debug("%s: written to %s", ctx.spec.name, written)
     except MemoryError:
         raise SpecError(
             ctx.path,
