@@ -40,8 +40,8 @@ INTERVAL_VARIABLE = "OPTIKIN_PROGRESS_INTERVAL"
 """The environment variable that sets the seconds between progress lines off a terminal."""
 DEFAULT_INTERVAL = 5.0
 """Seconds between progress lines off a terminal, unless :data:`INTERVAL_VARIABLE` says otherwise."""
-LINE_FRACTION = 0.1
-"""Off a terminal, a line also whenever a task passes another multiple of this fraction of its steps."""
+LINE_PARTS = 10
+"""Off a terminal, a line also whenever a task passes another ``1/LINE_PARTS`` of its steps."""
 
 
 def progress_interval() -> float:
@@ -132,7 +132,7 @@ class _Lines:
         self.description, self.total, self.interval = description, max(int(total), 0), interval
         self.done = 0
         self.started = self.last = time.monotonic()
-        self.next_fraction = LINE_FRACTION
+        self.parts = 0
         self._lock = threading.Lock()
         self._stop = threading.Event()
         logger.info("%s: started, %d steps", description, self.total)
@@ -160,10 +160,9 @@ class _Lines:
             self.done += n
             if self.done >= self.total:
                 return  # the closing line says so
-            now = time.monotonic()
-            fraction = self.done / self.total
-            if fraction >= self.next_fraction or now - self.last >= self.interval:
-                self.next_fraction = (math.floor(fraction / LINE_FRACTION) + 1) * LINE_FRACTION
+            now, parts = time.monotonic(), LINE_PARTS * self.done // self.total
+            if parts > self.parts or now - self.last >= self.interval:
+                self.parts = parts
                 self._line(now)
 
     def _periodic(self) -> None:
