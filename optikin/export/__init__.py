@@ -37,7 +37,7 @@ from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 from string import Template
-from typing import Iterable
+from typing import Any, Iterable, Sequence
 
 import casadi as ca
 import numpy as np
@@ -45,7 +45,7 @@ import numpy as np
 from optikin.codegen import check_flags, find_compiler
 from optikin.errors import SolverError, SpecError
 
-WHATS = ("fk", "ik-step", "ik-trajectory")
+WHATS = ("fk", "ik-step", "ik-trajectory", "ph-shape")
 """What ``optikin export`` writes (module docstring)."""
 
 EXAMPLE_SAMPLES = 20
@@ -304,7 +304,13 @@ def ik_setup(problem: str) -> IkExportSetup:
     return IkExportSetup(least_squares, adapter, np.asarray(setup.start, dtype=float), targets.values)
 
 
-def export(problem: str, what: str, folder: Path | str, samples: int = EXAMPLE_SAMPLES) -> Export:
+def export(
+    problem: str,
+    what: str,
+    folder: Path | str,
+    samples: int = EXAMPLE_SAMPLES,
+    overrides: Sequence[tuple[str, Any]] = (),
+) -> Export:
     """Write the C library ``what`` (one of :data:`WHATS`) of named problem ``problem`` into ``folder``.
 
     Parameters
@@ -340,6 +346,10 @@ def export(problem: str, what: str, folder: Path | str, samples: int = EXAMPLE_S
         _, ctx = prepare(problem)
         Q = ctx.arm.sample_configurations(samples, ctx.rng(0))
         return export_fk(problem, ctx.arm, folder, Q)
+    if what == "ph-shape":
+        from optikin.export.ph_shape import export_ph_shape, ph_setup
+
+        return export_ph_shape(problem, ph_setup(problem, overrides), folder, samples)
     setup = ik_setup(problem)
     return export_ik(what, problem, setup.problem, setup.adapter, setup.start, folder, setup.targets[:samples])
 

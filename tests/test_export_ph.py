@@ -1,0 +1,120 @@
+"""``optikin export --what ph-shape``: the C trajectory call against the Python ``ph_newton`` path.
+
+The C library runs modified Newton on CasADi-generated code; the Python path runs the same
+Function in CasADi's virtual machine (:meth:`ShapeEnergyModel.solve_newton` in the warm-start loop of
+the ``ph`` adapters). Statuses and Newton step counts must agree sample by sample, solutions and
+energies to 1e-10, also where Newton fails (a small iteration budget) and with the basin check.
+"""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+
+import numpy as np
+import pytest
+
+from optikin.export import build, export
+from optikin.export.ph_shape import ph_setup
+
+pytestmark = pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler cc on PATH")
+
+STATUS = {0: "ok", 2: "not_converged", 3: "invalid_input"}
+SAMPLES = 40
+
+
+@pytest.fixture(scope="module")
+def built(tmp_path_factory):
+    """The setup of cbha-ph-shape and the example built from its export."""
+    folder = tmp_path_factory.mktemp("ph")
+    setup = ph_setup("cbha-ph-shape")
+    executable = build(export("cbha-ph-shape", "ph-shape", folder))
+    return setup, executable, folder
+
+
+def run(built, P: np.ndarray, *options: int) -> np.ndarray:
+    """The example on rows ``P`` with options ``max_iterations restart basin_check``; its rows as an array."""
+    _, executable, folder = built
+    data = folder / "samples.txt"
+    np.savetxt(data, P, fmt="%.17g")
+    out = subprocess.run(
+        [str(executable), str(data), *map(str, options)], capture_output=True, text=True, timeout=60, check=True
+    )
+    assert "per_call_us" in out.stderr and "cpu_us" in out.stderr
+    return np.array([[float(v) for v in line.split()] for line in out.stdout.splitlines()])
+
+
+def adapter_with(setup, max_iterations: int, fallback: bool, basin_check: bool = False):
+    """A ``ph_newton`` adapter like the problem's, with these limits and options."""
+    preset = setup.adapter.preset
+    spec = preset.model_copy(update={"limits": preset.limits.model_copy(update={"max_iterations": max_iterations})})
+    options = setup.adapter.options.model_copy(update={"fallback": fallback, "basin_check": basin_check})
+    return type(setup.adapter)(spec, options)
+
+
+def compare(out: np.ndarray, solutions) -> None:
+    assert [STATUS[int(s)] for s in out[:, 0]] == [s.status for s in solutions]
+    assert list(out[:, 1].astype(int)) == [s.iterations for s in solutions]
+    np.testing.assert_allclose(out[:, 4:6], [s.x for s in solutions], rtol=0, atol=1e-10)
+    np.testing.assert_allclose(out[:, 2], [s.energy for s in solutions], rtol=1e-10, atol=0)
+    np.testing.assert_allclose(out[:, 3], [s.arc_length for s in solutions], rtol=0, atol=1e-12)
+
+
+def test_trajectory_agrees_with_the_python_fast_path(built):
+    setup = built[0]
+    samples = setup.samples[:SAMPLES]
+    out = run(built, setup.parameters[:SAMPLES])
+    compare(out, setup.adapter.solve(setup.model, samples))
+    assert (out[:, 0] == 0).all()
+    # independent of Newton: no point of a 64 x 64 angle grid has a lower energy
+    for k in (0, SAMPLES // 2, SAMPLES - 1):
+        grid = setup.model.solve_grid(samples[k], n=64)
+        assert out[k, 2] <= grid.energy + 1e-12
+
+
+def test_failures_agree_without_fallback(built):
+    """Three Newton steps are not enough for every sample: the failures and their last iterates agree, and a
+    failed sample makes the next one start from the coarse grid in both."""
+    setup = built[0]
+    adapter = adapter_with(setup, max_iterations=3, fallback=False)
+    out = run(built, setup.parameters[:SAMPLES], 3, 0, 0)
+    solutions = adapter.solve(setup.model, setup.samples[:SAMPLES])
+    compare(out, solutions)
+    assert 0 < sum(s.status == "not_converged" for s in solutions) < SAMPLES
+
+
+@pytest.mark.parametrize("max_iterations, outcome", [(4, "coarse grid restart"), (3, "IPOPT fallback")])
+def test_a_failed_warm_start_restarts_from_the_grid(built, max_iterations, outcome):
+    """With fallback, Python restarts a failed warm start from the coarse grid, then calls IPOPT; C restarts
+    alike and reports not_converged where Python needed IPOPT (after which the warm starts differ: IPOPT's
+    answer is Python's). Four steps: a restart succeeds at sample 32; three: restarts fail too, from 31."""
+    setup = built[0]
+    adapter = adapter_with(setup, max_iterations=max_iterations, fallback=True)
+    out = run(built, setup.parameters[:SAMPLES], max_iterations, 1, 0)
+    solutions = adapter.solve(setup.model, setup.samples[:SAMPLES])
+    notes = ["; ".join(s.notes) for s in solutions]
+    ipopt = ["IPOPT fallback" in n for n in notes]
+    first = ipopt.index(True) if any(ipopt) else SAMPLES
+    assert any(outcome in n for n in notes[: first + 1])
+    compare(out[:first], solutions[:first])
+    assert first == SAMPLES or out[first, 0] == 2
+
+
+def test_basin_check_agrees(built):
+    setup = built[0]
+    adapter = adapter_with(setup, max_iterations=50, fallback=True, basin_check=True)
+    n = 12
+    out = run(built, setup.parameters[:n], 50, 1, 1)
+    compare(out, adapter.solve(setup.model, setup.samples[:n]))
+
+
+def test_invalid_input_is_a_status_and_the_next_sample_starts_cold(built):
+    setup = built[0]
+    P = setup.parameters[:3].copy()
+    P[1, 4] = np.nan
+    out = run(built, P)
+    assert [STATUS[int(s)] for s in out[:, 0]] == ["ok", "invalid_input", "ok"]
+    assert np.isnan(out[1, 2:]).all()
+    cold = setup.model.solve_newton(setup.samples[2], None, fallback=False)
+    np.testing.assert_allclose(out[2, 4:6], cold.x, rtol=0, atol=1e-10)
+    assert int(out[2, 1]) == cold.iterations
