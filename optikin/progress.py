@@ -88,11 +88,12 @@ class Progress:
             yield _Advance(None)
             return
         if sys.stderr.isatty():
+            from rich.console import Console
             from rich.progress import BarColumn, MofNCompleteColumn, TextColumn, TimeRemainingColumn
             from rich.progress import Progress as RichProgress
 
             columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn())
-            with RichProgress(*columns, transient=True) as bar:
+            with RichProgress(*columns, transient=True, console=Console(stderr=True)) as bar:
                 task_id = bar.add_task(description, total=total)
                 yield _Advance(lambda n: bar.advance(task_id, n))
             return

@@ -119,3 +119,27 @@ def test_the_library_does_not_print():
             if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "print":
                 printing.append(f"{path.relative_to(ROOT)}:{node.lineno}")
     assert printing == [], "library code logs (logging.getLogger(__name__)) instead of printing"
+
+
+def test_on_a_terminal_the_bar_is_drawn_on_stderr_and_stdout_keeps_only_the_summary(tmp_path):
+    import pty
+
+    master, slave = pty.openpty()
+    command = [sys.executable, "-m", "optikin.cli", *SMALL, "--out", str(tmp_path / "out")]
+    env = dict(os.environ, TERM="xterm", COLUMNS="100")
+    process = subprocess.Popen(command, env=env, cwd=tmp_path, stdout=subprocess.PIPE, stderr=slave, text=True)
+    os.close(slave)
+    terminal = b""
+    while True:
+        try:
+            chunk = os.read(master, 4096)
+        except OSError:  # the child closed the terminal
+            break
+        if not chunk:
+            break
+        terminal += chunk
+    out = process.communicate(timeout=120)[0]
+    os.close(master)
+    assert process.returncode == 0
+    assert b"fk: 20 samples" in terminal and b"\x1b[" in terminal  # the live bar, drawn with escape codes
+    assert "fk: 20 samples" not in out and "\x1b[?25l" not in out and "written to" in out
