@@ -1,0 +1,375 @@
+"""Two arms controlled together: one QP per step over both arms' rates, for a rope they hold or for their tips.
+
+Tasks. ``rope``: the two tips grip a rope of length ``L``; the task is the rope's lowest point
+``P(G)`` (:class:`optikin.curves.catenary_sensitivity.CatenarySensitivity`, the exact catenary of
+the grips ``G = (tip_1, tip_2)``), whose Jacobian is the chain rule through the implicit-function
+derivative, ``J = dP/dG diag(J_tip,1, J_tip,2)`` (3 rows, ``n_1 + n_2`` columns). ``tips``: each
+arm's own tip position reference (6 rows, block diagonal). The rope hangs quasi-statically: the
+skipping-rope motion is its lowest point driven along a closed path in the vertical plane across
+the grips (a real skipping rope also swings by its inertia, which a catenary does not have).
+
+The QP of one step (``q = (q_1, q_2)``, period ``dt``)::
+
+    min_qdot  ||J qdot - (xdot_ref + K e)||^2 + w ||qdot - k_p (q_nom - q)||^2 + lambda ||qdot||^2
+    s.t.      lb <= qdot <= ub                        (both arms' limits, RateBounds)
+              D qdot >= -gamma (d - margin)           (self-collision, TwoTubes)
+              dc/dq qdot <= gamma (L - slack - c)     (rope task: grips kept slack, c = |G_2 - G_1|)
+              dz/dq qdot >= -gamma (z - floor - margin)  (rope task with a floor: the lowest point above it)
+
+The posture term (weight ``w``) settles the motions the task leaves free (the lowest point fixes 3
+of 12 rates). Keeping the grips at least ``slack`` closer than the rope's length keeps the rope
+hanging (its sensitivity grows without bound as it goes taut). The floor row is exact for the
+whole rope, not only its lowest point, when the floor is perpendicular to gravity. The task is a
+least-squares objective (its slack is free); every row is hard, and with every barrier value
+non-negative ``qdot = 0`` satisfies them all, so the QP stays feasible whatever the reference asks.
+
+Baselines: the same QP without the self-collision rows, and the pseudo-inverse (per arm for the
+tips task, of the 3-row rope Jacobian for the rope task), which knows no limits either.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Any, Literal, Sequence
+
+import numpy as np
+
+from optikin.control.limits import RateBounds, limit_excess, periodic_mask, wrap_periodic
+from optikin.control.self_collision import PlacedArm, TwoTubes
+from optikin.curves.catenary_sensitivity import CatenarySensitivity, LowestPoint
+from optikin.errors import InputDataError
+from optikin.interrupt import check_interrupted
+from optikin.solvers.base import QPStepSolver
+from optikin.solvers.qp.common import QPData, StepSolverFactory, upper_triangle_csc_indices
+
+TwoArmTask = Literal["rope", "tips"]
+
+
+def qp_factory(backend: str = "qp_qpsolvers", **options: Any) -> StepSolverFactory:
+    """The step-solver factory of ``qp`` backend ``backend`` with ``options`` (as a preset's), for code and tests."""
+    from optikin.solvers import preset_of
+    from optikin.spec import SolverSpec
+
+    factory = preset_of(SolverSpec(name=backend, backend=backend, options=options)).build()
+    if not isinstance(factory, StepSolverFactory):
+        raise ValueError(f"{backend!r} is not a qp backend")
+    return factory
+
+
+@dataclass(frozen=True)
+class TwoArmReference:
+    """The reference at control instants ``t`` (uniform), ``value``/``rate`` ``(N, 3)`` (rope) or ``(N, 6)`` (tips)."""
+
+    t: np.ndarray
+    value: np.ndarray
+    rate: np.ndarray
+    task: TwoArmTask
+
+    @property
+    def dt(self) -> float:
+        return float(self.t[1] - self.t[0])
+
+
+@dataclass
+class Rope:
+    """The rope held by the tips: its sensitivity, the slack kept and an optional floor (height along ``up``) [m]."""
+
+    sensitivity: CatenarySensitivity
+    slack: float = 0.03
+    floor: float | None = None
+
+
+class TwoArmModel:
+    """Both arms and the task: the task value ``x`` and Jacobian ``J`` at a configuration ``q = (q_1, q_2)``.
+
+    Attributes
+    ----------
+    x, J:
+        After :meth:`evaluate`: task value ``(m,)`` and Jacobian ``(m, n_1 + n_2)``.
+    lowest:
+        The rope's lowest point and its derivatives (rope task), else ``None``.
+    """
+
+    def __init__(self, arms: Sequence[PlacedArm], task: TwoArmTask, rope: Rope | None = None):
+        if len(arms) != 2:
+            raise ValueError(f"two arms needed, got {len(arms)}")
+        if task == "rope" and rope is None:
+            raise ValueError("the rope task needs a rope")
+        self.arms, self.task, self.rope = tuple(arms), task, rope
+        self.n1, self.n2 = arms[0].arm.n_config, arms[1].arm.n_config
+        self.n = self.n1 + self.n2
+        self.m = 3 if task == "rope" else 6
+        self.x = np.zeros(self.m)
+        self.J = np.zeros((self.m, self.n))
+        self.lowest: LowestPoint | None = None
+
+    def split(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return q[: self.n1], q[self.n1 :]
+
+    def evaluate(self, q: np.ndarray) -> None:
+        """Evaluate both arms and the task at ``q``."""
+        first, second = self.arms
+        q1, q2 = self.split(q)
+        first.evaluate(q1)
+        second.evaluate(q2)
+        n1 = self.n1
+        if self.task == "tips":
+            self.x[:3], self.x[3:] = first.tip, second.tip
+            self.J[:3, :n1], self.J[3:, n1:] = first.tip_jacobian, second.tip_jacobian
+            return
+        assert self.rope is not None
+        low = self.lowest = self.rope.sensitivity.lowest_point(first.tip, second.tip)
+        self.x[:] = low.point
+        self.J[:, :n1] = low.jacobian[:, :3] @ first.tip_jacobian
+        self.J[:, n1:] = low.jacobian[:, 3:] @ second.tip_jacobian
+
+
+class TwoArmController:
+    """What the two-arm simulator calls: ``command(q, x_ref, xdot_ref) -> qdot`` and a :attr:`status`."""
+
+    name = "controller"
+
+    def __init__(self, model: TwoArmModel, dt: float, gain: float = 10.0):
+        if not dt > 0:
+            raise ValueError(f"dt must be positive, got {dt}")
+        if not gain >= 0:
+            raise ValueError(f"gain must be non-negative, got {gain}")
+        self.model, self.dt, self.gain = model, float(dt), float(gain)
+        self.status = "ok"
+        self.v = np.zeros(model.m)
+
+    def task_velocity(self, x_ref: np.ndarray, xdot_ref: np.ndarray) -> np.ndarray:
+        """``xdot_ref + K (x_ref - x)`` at the last evaluation."""
+        np.subtract(x_ref, self.model.x, out=self.v)
+        self.v *= self.gain
+        self.v += xdot_ref
+        return self.v
+
+    def command(self, q: np.ndarray, x_ref: np.ndarray, xdot_ref: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+
+class TwoArmPseudoInverse(TwoArmController):
+    """``qdot = J^+ (xdot_ref + K e)``: per arm for the tips task, of the rope Jacobian for the rope task; no limits."""
+
+    name = "pseudo-inverse"
+
+    def command(self, q: np.ndarray, x_ref: np.ndarray, xdot_ref: np.ndarray) -> np.ndarray:
+        m = self.model
+        m.evaluate(q)
+        v = self.task_velocity(x_ref, xdot_ref)
+        if m.task == "rope":
+            return np.linalg.pinv(m.J, rcond=1e-10) @ v
+        first = np.linalg.pinv(m.J[:3, : m.n1], rcond=1e-10) @ v[:3]
+        second = np.linalg.pinv(m.J[3:, m.n1 :], rcond=1e-10) @ v[3:]
+        return np.concatenate([first, second])
+
+
+class TwoArmQP(TwoArmController):
+    """The joint QP of both arms (module docstring).
+
+    Parameters
+    ----------
+    model, dt, gain:
+        The two arms and their task, the control period [s], ``K`` [1/s].
+    factory:
+        A ``qp`` backend's factory (:class:`optikin.solvers.qp.common.StepSolverFactory`, e.g. :func:`qp_factory`):
+        the step solver is created for ``n_1 + n_2`` rates, :attr:`task_rows` task rows and :attr:`rows` rows.
+    damping:
+        ``lambda``.
+    posture, posture_weight, posture_gain:
+        ``q_nom`` ``(n_1 + n_2,)``, ``w`` and ``k_p`` [1/s] of the posture term (``w = 0``: none).
+    rate_limits, limit_margin:
+        Of both arms (:class:`optikin.control.limits.RateBounds`).
+    tubes:
+        The self-collision rows; ``None``: the arms may pass through each other.
+    gamma, margin:
+        Barrier rate [1/s] and the margin of the floor row [m] (rope task).
+    """
+
+    name = "joint QP"
+
+    def __init__(
+        self,
+        model: TwoArmModel,
+        dt: float,
+        gain: float = 10.0,
+        *,
+        factory: StepSolverFactory,
+        damping: float = 1e-4,
+        posture: np.ndarray | None = None,
+        posture_weight: float = 0.0,
+        posture_gain: float = 1.0,
+        rate_limits=None,
+        limit_margin: float = 1e-9,
+        tubes: TwoTubes | None = None,
+        gamma: float = 20.0,
+        margin: float = 0.01,
+    ):
+        super().__init__(model, dt, gain)
+        if not (damping >= 0 and posture_weight >= 0 and posture_gain >= 0):
+            raise ValueError("damping, posture_weight and posture_gain must be non-negative")
+        if not 0 < gamma * dt <= 1:
+            raise ValueError(f"gamma dt must be in (0, 1], got gamma {gamma} 1/s at dt {dt} s")
+        n = model.n
+        self.tubes, self.gamma, self.margin = tubes, float(gamma), float(margin)
+        self.bounds = [
+            RateBounds(placed.arm, dt, rate_limits, limit_margin) for placed in model.arms
+        ]  # one box per arm, written into lb, ub
+        self.periodic = np.concatenate([periodic_mask(placed.arm) for placed in model.arms])
+        self.posture = np.zeros(n) if posture is None else np.asarray(posture, dtype=float).copy()
+        self.posture_rows = n if posture_weight > 0 else 0
+        self.root_weight, self.posture_gain = math.sqrt(posture_weight), float(posture_gain)
+        self.task_rows = model.m + self.posture_rows
+        rope = model.rope if model.task == "rope" else None
+        self.rope_rows = 0 if rope is None else 1 + (rope.floor is not None)
+        self.collision_rows = 0 if tubes is None else tubes.pairs
+        self.rows = self.collision_rows + self.rope_rows
+        J, v = np.zeros((self.task_rows, n)), np.zeros(self.task_rows)
+        if self.posture_rows:
+            J[model.m :, :] = self.root_weight * np.eye(n)
+        H = np.zeros((n, n))
+        self._upper = upper_triangle_csc_indices(n)
+        A, b = np.zeros((self.rows, n)), np.zeros(self.rows)
+        self.data = QPData(
+            J, v, float(damping), H, np.zeros(len(self._upper[0])), np.zeros(n), np.zeros(n), np.zeros(n)
+        )
+        if self.rows:
+            self.data.A, self.data.b = A, b
+        self.solver: QPStepSolver = factory.create(n, self.task_rows, rows=self.rows)
+        self.qdot = np.zeros(n)
+        self._eye = float(damping) * np.eye(n)
+        self.name = "joint QP" + ("" if tubes is not None else " without collision rows")
+
+    def reset(self, posture: np.ndarray | None = None) -> None:
+        """Start a run (``posture``: a new ``q_nom``)."""
+        self.status = "ok"
+        if posture is not None:
+            self.posture[:] = posture
+
+    def command(self, q: np.ndarray, x_ref: np.ndarray, xdot_ref: np.ndarray) -> np.ndarray:
+        m, d = self.model, self.data
+        m.evaluate(q)
+        d.J[: m.m] = m.J
+        d.v[: m.m] = self.task_velocity(x_ref, xdot_ref)
+        if self.posture_rows:
+            error = self.posture - q
+            wrap_periodic(error, self.periodic)
+            d.v[m.m :] = (self.root_weight * self.posture_gain) * error
+        np.matmul(d.J.T, d.J, out=d.H)
+        d.H += self._eye
+        np.matmul(d.J.T, d.v, out=d.g)
+        d.g *= -1.0
+        d.H_upper[:] = d.H[self._upper]
+        for k, (bounds, part) in enumerate(zip(self.bounds, m.split(q))):
+            bounds.update(part)
+            where = slice(0, m.n1) if k == 0 else slice(m.n1, m.n)
+            d.lb[where], d.ub[where] = bounds.lb, bounds.ub
+        if self.tubes is not None:
+            self.tubes.update()
+            d.A[: self.collision_rows], d.b[: self.collision_rows] = self.tubes.A, self.tubes.b
+        if self.rope_rows:
+            self._rope_rows(d.A[self.collision_rows :], d.b[self.collision_rows :])
+        try:
+            solution = self.solver.solve(d)
+            failure = None if solution.status == "ok" else f"no solution ({solution.message})"
+        except Exception as exc:  # noqa: BLE001 - a solver crash must stop neither the loop nor the arms
+            failure = f"solver raised {type(exc).__name__}: {exc}"
+        if failure is None and np.all(np.isfinite(solution.x)):
+            np.clip(solution.x, d.lb, d.ub, out=self.qdot)
+            self.status = "ok"
+            return self.qdot
+        np.clip(0.0, d.lb, d.ub, out=self.qdot)  # hold: the smallest rate inside the box
+        self.status = f"fallback (hold): {failure or 'non-finite solution'}"
+        return self.qdot
+
+    def _rope_rows(self, A: np.ndarray, b: np.ndarray) -> None:
+        """The grips kept ``slack`` inside the rope's length, and the lowest point above the floor."""
+        m = self.model
+        rope = m.rope
+        assert rope is not None and m.lowest is not None
+        first, second = m.arms
+        chord = second.tip - first.tip
+        c = float(np.linalg.norm(chord))
+        u = chord / c
+        A[0, : m.n1] = u @ first.tip_jacobian
+        A[0, m.n1 :] = -(u @ second.tip_jacobian)
+        b[0] = -self.gamma * (rope.sensitivity.length - rope.slack - c)
+        if rope.floor is not None:
+            up = rope.sensitivity.up
+            A[1] = up @ m.J
+            b[1] = -self.gamma * (float(up @ m.x) - rope.floor - self.margin)
+
+
+@dataclass
+class TwoArmRun:
+    """One closed-loop run of ``N`` steps."""
+
+    controller: str
+    reference: TwoArmReference
+    q: np.ndarray  # (N, n_1 + n_2) configurations
+    qdot: np.ndarray  # (N, n_1 + n_2) commanded rates
+    x: np.ndarray  # (N, m) task value (lowest point, or both tips)
+    tips: np.ndarray  # (N, 2, 3) both tips
+    step_time: np.ndarray  # (N,) [s]
+    status: list[str]
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def t(self) -> np.ndarray:
+        return self.reference.t
+
+    @property
+    def error(self) -> np.ndarray:
+        """Task position error per step [m]: of the lowest point, or the larger of the two tips'."""
+        e = self.reference.value - self.x
+        if self.reference.task == "rope":
+            return np.linalg.norm(e, axis=1)
+        return np.maximum(np.linalg.norm(e[:, :3], axis=1), np.linalg.norm(e[:, 3:], axis=1))
+
+
+def simulate_two_arms(
+    controller: TwoArmController, reference: TwoArmReference, q0: np.ndarray, plant: TwoArmModel
+) -> TwoArmRun:
+    """Run ``controller`` along ``reference`` from ``q0`` on the kinematic plant ``plant`` (its own evaluator).
+
+    Per step the plant's task value and tips are recorded, the command timed and held over the
+    step (``q_{k+1} = q_k + dt qdot_k``, periodic variables wrapped).
+    """
+    if abs(reference.dt - controller.dt) > 1e-9 * reference.dt:
+        raise ValueError(f"reference period {reference.dt} s differs from the controller's {controller.dt} s")
+    N, n = len(reference.t), plant.n
+    Q, Qdot, X = np.empty((N, n)), np.empty((N, n)), np.empty((N, plant.m))
+    tips, step_time = np.empty((N, 2, 3)), np.empty(N)
+    status: list[str] = []
+    wrapped = np.concatenate([periodic_mask(placed.arm) for placed in plant.arms])
+    notes: list[str] = []
+    q = np.array(q0, dtype=float)
+    for k in range(N):
+        check_interrupted()
+        try:
+            plant.evaluate(q)
+        except InputDataError as exc:  # the rope went taut: the run ends here, held at its last state
+            if k == 0:
+                raise
+            notes.append(f"stopped at t = {reference.t[k]:.4g} s: {exc}")
+            Q[k:], Qdot[k:], X[k:], tips[k:], step_time[k:] = Q[k - 1], 0.0, X[k - 1], tips[k - 1], np.nan
+            status += ["failed: rope taut"] * (N - k)
+            break
+        X[k], tips[k, 0], tips[k, 1] = plant.x, plant.arms[0].tip, plant.arms[1].tip
+        start = time.perf_counter()
+        qdot = controller.command(q, reference.value[k], reference.rate[k])
+        step_time[k] = time.perf_counter() - start
+        Q[k], Qdot[k] = q, qdot
+        status.append(controller.status)
+        q = wrap_periodic(q + controller.dt * qdot, wrapped)
+    return TwoArmRun(controller.name, reference, Q, Qdot, X, tips, step_time, status, notes)
+
+
+def limit_excess_two(model: TwoArmModel, Q: np.ndarray) -> np.ndarray:
+    """How far each configuration of both arms lies outside the limits, ``(N, n_1 + n_2)``."""
+    return np.hstack(
+        [limit_excess(model.arms[0].arm, Q[:, : model.n1]), limit_excess(model.arms[1].arm, Q[:, model.n1 :])]
+    )

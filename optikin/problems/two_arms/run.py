@@ -1,0 +1,241 @@
+"""The ``two_arms`` run: both arms placed, the reference, the joint QP and its baselines, the closed loops."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from optikin.control.self_collision import PlacedArm, TwoTubes, collision_density, rotation_from_quaternion
+from optikin.control.two_arm import (
+    Rope,
+    TwoArmController,
+    TwoArmModel,
+    TwoArmPseudoInverse,
+    TwoArmQP,
+    TwoArmReference,
+    TwoArmRun,
+    TwoArmTask,
+    simulate_two_arms,
+)
+from optikin.curves.catenary_sensitivity import CatenarySensitivity
+from optikin.errors import InputDataError
+from optikin.problems import ProblemContext
+from optikin.problems.two_arms.options import TwoArmOptions
+from optikin.problems.two_arms.references import RopeLoop, TipPaths
+from optikin.solvers.base import QPBackend
+from optikin.solvers.qp.common import StepSolverFactory
+
+BASELINES = {
+    "no_collision_rows": "the same joint QP without the self-collision rows",
+    "pseudo_inverse": "the pseudo-inverse (per arm for tips, of the rope Jacobian for the rope), no limits",
+}
+"""The kind's own baselines: ``baselines:`` name -> what it is."""
+
+
+@dataclass
+class TwoArmOutcome:
+    """The closed-loop runs of one problem.
+
+    Attributes
+    ----------
+    reference:
+        The task reference every controller tracked.
+    model:
+        The plant: both arms placed, the task (and the rope).
+    tubes:
+        The two tubes' clearance (the QP's collision rows).
+    runs, wall:
+        ``"qp"`` and every baseline's name -> its run, and the seconds it took.
+    clearances:
+        Per run name, the least sampled clearance between the tubes at every step ``(N,)`` [m].
+    """
+
+    reference: TwoArmReference
+    model: TwoArmModel
+    tubes: TwoTubes
+    runs: dict[str, TwoArmRun]
+    wall: dict[str, float]
+    clearances: dict[str, np.ndarray]
+
+
+def run(ctx: ProblemContext) -> TwoArmOutcome:
+    """Place the arms, load the reference, build the controllers from ``ctx`` and run every closed loop."""
+    if "samples" in ctx.spec.data.model_fields_set:
+        raise ctx.error("data.samples", "not used by two_arms: the run length follows from the path and rate")
+    options: TwoArmOptions = ctx.options
+    source = ctx.load_data()
+    task: TwoArmTask = "rope" if isinstance(source, RopeLoop) else "tips"
+    dt = float(source.t[1] - source.t[0])
+    arms = _placed(ctx, options)
+    rope = _rope(ctx, options, task)
+    q0 = _start(ctx, options, source)
+    plant = TwoArmModel(arms, task, rope)
+    _check_start(ctx, options, plant, q0)
+    reference = _reference(plant, source, q0)
+    c = options.collision
+    try:
+        tubes = TwoTubes(arms[0], arms[1], c.margin, c.gamma, dt, c.pairs)
+    except ValueError as exc:
+        raise ctx.error("options.collision", str(exc)) from None
+    controllers = _controllers(ctx, options, plant, tubes, dt, q0)
+    runs: dict[str, TwoArmRun] = {}
+    wall: dict[str, float] = {}
+    with ctx.progress.task(
+        f"two arms: {len(controllers)} controllers x {len(reference.t)} steps", total=len(controllers)
+    ) as advance:
+        for name, controller in controllers.items():
+            start = time.perf_counter()
+            runs[name] = simulate_two_arms(controller, reference, q0, plant)
+            wall[name] = time.perf_counter() - start
+            advance()
+    n1 = plant.n1
+    clearances = {name: tubes.clearances(r.q[:, :n1], r.q[:, n1:]) for name, r in runs.items()}
+    return TwoArmOutcome(reference, plant, tubes, runs, wall, clearances)
+
+
+def _placed(ctx: ProblemContext, options: TwoArmOptions) -> tuple[PlacedArm, PlacedArm]:
+    """Both arms in the shared frame; bases whose tubes overlap (within the margin) are an error naming the base."""
+    arm, c = ctx.arm, options.collision
+    try:
+        density = collision_density(arm, c.margin) if c.points_per_section is None else c.points_per_section
+    except ValueError as exc:
+        raise ctx.error("arm", str(exc)) from None
+    first, second = (
+        PlacedArm(arm, np.array(p.base), rotation_from_quaternion(p.orientation), p.radius, density, options.compiled)
+        for p in options.arms
+    )
+    apart = float(np.linalg.norm(first.base - second.base))
+    needed = first.radius + second.radius + c.margin
+    if apart < needed:
+        raise ctx.error(
+            "options.arms.1.base",
+            f"the bases are {apart * 1e3:.3g} mm apart: the tubes (radii {first.radius * 1e3:.3g} and "
+            f"{second.radius * 1e3:.3g} mm) overlap or come within the margin ({c.margin * 1e3:.3g} mm) of each other "
+            f"there, where no command moves them",
+        )
+    return first, second
+
+
+def _rope(ctx: ProblemContext, options: TwoArmOptions, task: TwoArmTask) -> Rope | None:
+    if task == "tips":
+        if options.rope is not None:
+            raise ctx.error("options.rope", "the tips task (data.source tip_waypoints) holds no rope")
+        return None
+    r = options.rope
+    if r is None:
+        raise ctx.error("options.rope", "the rope task (data.source rope_loop) needs the rope: {length: ...}")
+    if not r.slack < r.length:
+        raise ctx.error("options.rope.slack", f"{r.slack} m leaves no rope of length {r.length} m")
+    try:
+        sensitivity = CatenarySensitivity(r.length, r.mass_per_length, r.gravity, options.compiled, str(ctx.path))
+    except InputDataError as exc:
+        raise ctx.error(f"options.rope.{exc.field}", str(exc)) from None
+    return Rope(sensitivity, r.slack, r.floor)
+
+
+def _start(ctx: ProblemContext, options: TwoArmOptions, source: RopeLoop | TipPaths) -> np.ndarray:
+    n = ctx.arm.n_config
+    parts = []
+    for k, placement in enumerate(options.arms):
+        if placement.start is None:
+            if isinstance(source, RopeLoop):
+                raise ctx.error(f"options.arms.{k}.start", "the rope task needs each arm's start configuration")
+            parts.append(source.configurations[k][0])
+            continue
+        if len(placement.start) != n:
+            raise ctx.error(f"options.arms.{k}.start", f"expected {n} numbers ({ctx.arm.name}), got {placement.start}")
+        parts.append(np.asarray(placement.start, dtype=float))
+    return np.concatenate(parts)
+
+
+def _check_start(ctx: ProblemContext, options: TwoArmOptions, plant: TwoArmModel, q0: np.ndarray) -> None:
+    """The start: inside the limits, tubes clear of each other, the rope longer than its grips' distance."""
+    for k, (placed, part) in enumerate(zip(plant.arms, plant.split(q0))):
+        outside = (part < placed.arm.lower - 1e-12) | (part > placed.arm.upper + 1e-12)
+        outside &= ~placed.arm.periodic
+        if outside.any():
+            names = [placed.arm.config_names[i] for i in np.flatnonzero(outside)]
+            raise ctx.error(f"options.arms.{k}.start", f"outside the arm's limits in {', '.join(names)}")
+    first, second = plant.arms
+    tubes = TwoTubes(first, second, options.collision.margin, 1.0, 1.0)
+    first.evaluate(plant.split(q0)[0])
+    second.evaluate(plant.split(q0)[1])
+    least = float(tubes.clearance_matrix(first.P, second.P).min())
+    if least < options.collision.margin:
+        raise ctx.error(
+            "options.arms",
+            f"the start configurations' tubes are {least * 1e3:.3g} mm apart, within the margin "
+            f"({options.collision.margin * 1e3:.3g} mm): the barrier cannot hold there",
+        )
+    if plant.rope is not None:
+        rope = plant.rope
+        grips = float(np.linalg.norm(second.tip - first.tip))
+        if not grips < rope.sensitivity.length - rope.slack:
+            raise ctx.error(
+                "options.rope.length",
+                f"rope of length {rope.sensitivity.length:.6g} m is not longer than the distance between the grips "
+                f"at the start, {grips:.6g} m, by the slack {rope.slack:.3g} m: it cannot hang",
+            )
+        try:
+            plant.evaluate(q0)
+        except InputDataError as exc:
+            raise ctx.error(f"options.rope.{exc.field}", str(exc)) from None
+        if rope.floor is not None and float(rope.sensitivity.up @ plant.x) < rope.floor + options.collision.margin:
+            raise ctx.error("options.rope.floor", "the start's lowest point lies below the floor or within the margin")
+
+
+def _reference(plant: TwoArmModel, source: RopeLoop | TipPaths, q0: np.ndarray) -> TwoArmReference:
+    """The task reference in the shared frame: the loop about its centre, or both tips' forward kinematics."""
+    if isinstance(source, RopeLoop):
+        plant.evaluate(q0)
+        center = plant.x.copy() if source.center is None else np.asarray(source.center, dtype=float)
+        return TwoArmReference(source.t, center + source.offset, source.rate, "rope")
+    value, rate = [], []
+    for placed, Q, Qdot in zip(plant.arms, source.configurations, source.rates):
+        tips, rates = np.empty((len(Q), 3)), np.empty((len(Q), 3))
+        for k, (q, qdot) in enumerate(zip(Q, Qdot)):
+            placed.evaluate(q)
+            tips[k], rates[k] = placed.tip, placed.tip_jacobian @ qdot
+        value.append(tips)
+        rate.append(rates)
+    return TwoArmReference(source.t, np.hstack(value), np.hstack(rate), "tips")
+
+
+def _controllers(
+    ctx: ProblemContext, options: TwoArmOptions, plant: TwoArmModel, tubes: TwoTubes, dt: float, q0: np.ndarray
+) -> dict[str, TwoArmController]:
+    """The joint QP (the preset's step solver, with the collision rows) and every baseline, by name."""
+    factory = ctx.backend(QPBackend)
+    if not isinstance(factory, StepSolverFactory):
+        raise ctx.error("solver", f"{type(factory).__name__} takes no inequality rows; two_arms needs a qp backend")
+    o = options
+
+    def joint(with_tubes: bool) -> TwoArmQP:
+        return TwoArmQP(
+            plant,
+            dt,
+            o.gain,
+            factory=factory,
+            damping=o.damping,
+            posture=q0,
+            posture_weight=o.posture_weight,
+            posture_gain=o.posture_gain,
+            rate_limits=o.rate_limits,
+            limit_margin=o.limit_margin,
+            tubes=tubes if with_tubes else None,
+            gamma=o.collision.gamma,
+            margin=o.collision.margin,
+        )
+
+    try:
+        controllers: dict[str, TwoArmController] = {"qp": joint(True)}
+        for name in ctx.spec.baselines:
+            if name == "no_collision_rows":
+                controllers[name] = joint(False)
+            else:
+                controllers[name] = TwoArmPseudoInverse(plant, dt, o.gain)
+    except ValueError as exc:
+        raise ctx.error("options", str(exc)) from None
+    return controllers

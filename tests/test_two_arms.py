@@ -1,0 +1,173 @@
+"""Two arms by one QP: the distance Jacobian between two backbones and the rope task's Jacobian against central
+differences, the sampling bound against densely sampled backbones, the shipped scenarios without a collision
+(their baselines' collisions reported), and bad input refused naming the field."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+import pytest
+import yaml
+
+from optikin.arms.constant_curvature import ConstantCurvatureArm
+from optikin.control.self_collision import PlacedArm, TwoTubes, collision_density, rotation_from_quaternion
+from optikin.control.two_arm import Rope, TwoArmModel, TwoArmQP, qp_factory
+from optikin.curves.catenary_sensitivity import CatenarySensitivity
+from optikin.errors import SpecError
+from optikin.runner import prepare, solve
+from optikin.spec import load_problem
+
+ARM = ConstantCurvatureArm()
+DT = 0.002
+
+
+def two_arms(points_per_section: int | None = None) -> tuple[PlacedArm, PlacedArm]:
+    pps = collision_density(ARM, 0.02) if points_per_section is None else points_per_section
+    turn = rotation_from_quaternion([np.cos(0.3), 0.0, 0.0, np.sin(0.3)]) @ rotation_from_quaternion([0, 0, 0, 1])
+    return (
+        PlacedArm(ARM, np.array([-0.15, 0.01, 0.0]), np.eye(3), 0.015, pps),
+        PlacedArm(ARM, np.array([0.15, -0.02, 0.01]), turn, 0.012, pps),
+    )
+
+
+def central_differences(f, q: np.ndarray, step: float = 1e-6) -> np.ndarray:
+    columns = []
+    for i in range(len(q)):
+        up, down = q.copy(), q.copy()
+        up[i] += step
+        down[i] -= step
+        columns.append((f(up) - f(down)) / (2 * step))
+    return np.stack(columns, axis=-1)
+
+
+Q = np.array([0.17, 0.7, 0.3, 0.19, 0.5, -0.4, 0.18, 0.6, -0.2, 0.17, 0.8, 0.5])
+
+
+def test_distance_jacobian_between_two_backbones_matches_central_differences():
+    first, second = two_arms()
+    tubes = TwoTubes(first, second, margin=0.02, gamma=20.0, dt=DT, pairs=5)
+    first.evaluate(Q[:6])
+    second.evaluate(Q[6:])
+    tubes.update()
+
+    def pair_distances(q: np.ndarray) -> np.ndarray:
+        P1, P2 = first.points_at(q[:6]), second.points_at(q[6:])
+        i, j = tubes.chosen.T
+        return np.linalg.norm(P1[i] - P2[j], axis=1) - first.radius - second.radius
+
+    assert np.allclose(tubes.A, central_differences(pair_distances, Q), atol=1e-8)
+    d = pair_distances(Q)
+    assert np.allclose(tubes.b, -20.0 * (d - 0.02))
+    # The rows are the nearest pairs: no other sample of arm 1 is nearer to arm 2 than the farthest chosen one.
+    all_pairs = tubes.clearance_matrix(first.points_at(Q[:6]), second.points_at(Q[6:]))
+    assert d.max() <= np.sort(all_pairs.min(axis=1))[tubes.pairs - 1] + 1e-12
+
+
+def test_rope_task_jacobian_is_the_lowest_points_derivative_in_both_configurations():
+    first, second = two_arms(4)
+    model = TwoArmModel([first, second], "rope", Rope(CatenarySensitivity(0.5)))
+    q = np.array([0.18, 0.3, 0.1, 0.18, 0.3, 0.0, 0.17, 0.25, -0.1, 0.18, 0.35, 0.2])
+
+    def lowest(q: np.ndarray) -> np.ndarray:
+        model.evaluate(q)
+        return model.x.copy()
+
+    numeric = central_differences(lowest, q)
+    model.evaluate(q)
+    assert np.allclose(model.J, numeric, atol=1e-8)
+
+
+def test_sampled_clearance_less_half_the_spacings_bounds_the_dense_backbones():
+    first, second = two_arms()
+    tubes = TwoTubes(first, second, margin=0.02, gamma=20.0, dt=DT)
+    s = ca.SX.sym("q", 6)
+    backbone = ca.Function("dense", [s], [ARM.backbone_points(s, 120)])
+
+    def dense(placed: PlacedArm, q: np.ndarray) -> np.ndarray:
+        return placed.base + (placed.rotation @ np.asarray(backbone(q))).T
+
+    rng = np.random.default_rng(3)
+    for _ in range(10):
+        q = np.concatenate([ARM.sample_configurations(1, rng)[0] for _ in range(2)])
+        sampled = tubes.clearance_matrix(first.points_at(q[:6]), second.points_at(q[6:])).min()
+        continuous = tubes.clearance_matrix(dense(first, q[:6]), dense(second, q[6:])).min()
+        assert sampled - tubes.between_samples <= continuous + 1e-12 <= sampled + 1e-12
+
+
+def test_joint_qp_without_active_rows_is_the_damped_least_squares_step():
+    first, second = two_arms(4)
+    model = TwoArmModel([first, second], "tips")
+    qp = TwoArmQP(model, DT, 10.0, factory=qp_factory("qp_qpsolvers", solver="daqp"), damping=1e-3)
+    q = np.array([0.18, 0.5, 0.1, 0.18, 0.4, 0.0, 0.18, 0.45, -0.1, 0.18, 0.35, 0.2])
+    model.evaluate(q)
+    x_ref = model.x + 1e-4 * np.arange(6)
+    qdot = qp.command(q, x_ref, np.zeros(6))
+    J, v = model.J, 10.0 * (x_ref - model.x)
+    expected = np.linalg.solve(J.T @ J + 1e-3 * np.eye(12), J.T @ v)
+    assert qp.status == "ok" and np.allclose(qdot, expected, atol=1e-9)
+
+
+@pytest.mark.parametrize("name", ["rope-skipping", "track-two-arms-shared-space"])
+def test_shipped_scenario_has_no_collision_for_the_joint_qp_and_reports_the_baselines(tmp_path, name):
+    problem = variant(tmp_path, name, lambda d: d.update(baselines=["no_collision_rows"]))
+    result, _ = solve(str(problem), out=tmp_path / "out", figures=False)
+    rows = {row.role + ":" + row.method: row.metrics for row in result.comparison}
+    qp = rows["solver:joint QP"]
+    baseline = rows["baseline:joint QP without collision rows"]
+    assert result.criteria == {"no collision": True, "within limits": True}
+    assert result.status_counts() == {"ok": result.samples}
+    assert qp["collision steps"] == 0 and result.metrics["tube clearance bound [mm]"] > 0
+    assert qp["clearance [mm]"] >= 20.0 - 0.5  # the margin, to the linearisation over one step
+    assert baseline["collision steps"] > 0 and baseline["depth [mm]"] > 0
+    assert any("interpenetrate" in note for note in result.notes)
+
+
+def variant(tmp_path: Path, name: str, change) -> Path:
+    _, path = load_problem(name)
+    data = yaml.safe_load(path.read_text())
+    change(data)
+    out = tmp_path / f"{name}.yaml"
+    out.write_text(yaml.safe_dump(data, sort_keys=False))
+    return out
+
+
+def error_field(problem: Path) -> str:
+    kind, ctx = prepare(str(problem))
+    with pytest.raises(SpecError) as err:
+        kind.run(ctx)
+    return err.value.field
+
+
+def test_rope_shorter_than_the_grips_distance_is_refused_naming_the_length(tmp_path):
+    problem = variant(tmp_path, "rope-skipping", lambda d: d["options"]["rope"].update(length=0.2))
+    assert error_field(problem) == "options.rope.length"
+
+
+def test_overlapping_bases_are_refused_naming_the_base(tmp_path):
+    problem = variant(
+        tmp_path, "track-two-arms-shared-space", lambda d: d["options"]["arms"][1].update(base=[-0.13, 0, 0])
+    )
+    assert error_field(problem) == "options.arms.1.base"
+
+
+@pytest.mark.parametrize(
+    "change,field",
+    [
+        (lambda d: d["options"].pop("rope"), "options.rope"),
+        (lambda d: d["options"]["arms"][0].update(start=[0.18, 0.3]), "options.arms.0.start"),
+        (lambda d: d["options"]["arms"][0].pop("start"), "options.arms.0.start"),
+        (lambda d: d["options"]["rope"].update(floor=0.3), "options.rope.floor"),
+    ],
+)
+def test_bad_rope_task_input_names_the_field(tmp_path, change, field):
+    assert error_field(variant(tmp_path, "rope-skipping", change)) == field
+
+
+def test_start_with_the_tubes_within_the_margin_is_refused(tmp_path):
+    def closer(d):
+        d["options"]["arms"][0]["base"] = [-0.1, 0.0, 0.0]
+        d["options"]["arms"][1]["base"] = [0.1, 0.0, 0.0]
+
+    assert error_field(variant(tmp_path, "rope-skipping", closer)) == "options.arms"
