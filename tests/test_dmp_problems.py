@@ -226,7 +226,7 @@ def small_problem(tmp_path: Path, source: str, params: dict, samples: int = 60) 
 
 def csv_params(tmp_path: Path) -> dict:
     demonstrations.write_csv(tmp_path / "demo.csv", demonstrations.smooth_pose_demonstration(samples=50, seed=2))
-    return {"path": "demo.csv"}  # relative to the problem file
+    return {"file": "demo.csv"}  # relative to the problem file
 
 
 def source_params(source: str, tmp_path: Path) -> dict:
@@ -261,7 +261,7 @@ def test_csv_source_resamples_and_needs_its_file(tmp_path):
     assert result.metrics["demonstration samples"] == 40
     with pytest.raises(SpecError, match="required") as info:
         solve(str(small_problem(tmp_path, "csv", {})))
-    assert info.value.field == "data.params.path"
+    assert info.value.field == "data.params.file"
 
 
 @pytest.mark.parametrize(

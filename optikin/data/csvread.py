@@ -187,7 +187,7 @@ Selection = Callable[[tuple[str, ...]], tuple[Sequence[str], Sequence[str]]]
 """``header -> (columns, finite)``: the columns to read, and those of them where NaN and infinities are refused."""
 
 
-def read_table(path: str | Path, select: Selection) -> Table:
+def read_table(path: str | Path, select: Selection, exact: bool = False) -> Table:
     """Read the numeric columns ``select(header)`` chooses from a CSV file with a header row.
 
     Parameters
@@ -198,6 +198,9 @@ def read_table(path: str | Path, select: Selection) -> Table:
         Given the file's header (names stripped), returns the columns to read and those of
         them that must hold finite numbers; it raises (e.g. :func:`missing_columns`) when
         the header lacks what the reader needs.
+    exact:
+        Refuse a row with more cells than the header has names too (a decimal comma, a
+        stray separator), not only one with too few.
 
     Returns
     -------
@@ -234,6 +237,13 @@ def read_table(path: str | Path, select: Selection) -> Table:
             line, start = start, reader.line_num + 1
             if not row:
                 continue
+            if exact and len(row) > len(header):
+                raise InputDataError(
+                    f"{len(row)} cells, the header has {len(header)} names (a decimal comma?) (line {line})",
+                    source=source,
+                    sample=rows,
+                    field=header[-1],
+                )
             for j, name, finite_only in zip(index, columns, must_be_finite):
                 if j >= len(row):
                     raise InputDataError(

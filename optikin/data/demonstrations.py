@@ -18,10 +18,12 @@ hemisphere-continuous) to learn from.
   positions and left-wrist orientations at 30 frames per second with skeleton
   jitter, calibrated into the 36 cm cube workspace, roll-pitch-yaw by eq. (30)
   and smoothed by the moving-average filter of eq. (31).
-* :func:`read_csv` / :func:`write_csv` -- recorded demonstrations, columns
-  ``t,x,y,z,qw,qx,qy,qz`` (seconds, metres, unit quaternion ``(w, x, y, z)``);
-  :func:`resample_uniform` puts a recording with jittery time stamps on the
-  fixed step a DMP integrates with.
+* :func:`read_demonstration` -- a recorded demonstration file of tip poses
+  (``t,x,y,z,qw,qx,qy,qz``), tip positions (``t,x,y,z``) or configurations (``t``
+  and the arm's variables), in seconds, metres (or the declared unit), unit
+  quaternions ``(w, x, y, z)``, radians; :func:`read_csv` / :func:`write_csv` the
+  pose files; :func:`resample_uniform` puts a recording with jittery time stamps
+  on the fixed step a DMP integrates with.
 
 The noise figures are assumptions stated where they are used; Seleem et al. give
 none (its data came from hardware).
@@ -30,8 +32,8 @@ Each is also a data source of the family ``demonstrations`` (``data.source``
 of the ``dmp`` kind): ``imu``, ``kinect``, ``smooth``, ``gimbal`` and ``csv``,
 ``data.params`` the keyword arguments of the function (validated by
 :class:`ImuParams`, :class:`KinectParams`, :class:`SmoothParams`,
-:class:`GimbalParams`, :class:`CsvParams`), ``data.samples`` and ``data.seed``
-its sample count and seed. A loader returns the recording (an
+:class:`GimbalParams`, :class:`CsvParams`: ``file``, ``content``, ``units``,
+``samples``), ``data.samples`` and ``data.seed`` its sample count and seed. A loader returns the recording (an
 :class:`InterfaceRecording`, a :class:`KinectRecording` or a
 :class:`PoseDemonstration`); :func:`pose_demonstration` is the demonstration
 in it.
@@ -42,7 +44,7 @@ from __future__ import annotations
 import csv
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Literal, Sequence, get_args
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -51,6 +53,8 @@ from scipy.interpolate import CubicSpline
 
 from optikin.algebra import (
     dq_from_rotation_translation,
+    dq_rotation,
+    dq_translation,
     quat_exp,
     quat_from_rpy,
     quat_hemisphere_continuous,
@@ -65,7 +69,8 @@ from optikin.arms.constant_curvature import (
     section_angles_from_quaternion,
 )
 from optikin.arms.base import ArmModel
-from optikin.data.csvread import columns_of, read_table
+from optikin.data.csvread import missing_columns, read_table
+from optikin.data.files import FileParams
 from optikin.data.sources import register_source
 from optikin.errors import InputDataError, SpecError
 from optikin.options import Options
@@ -383,19 +388,176 @@ def kinect_recording(
 # ----------------------------------------------------------------------------- recorded files
 
 
-def read_csv(path: str | Path, unit_tolerance: float = 1e-3) -> PoseDemonstration:
-    """A demonstration from a CSV file with a header naming (at least) ``t,x,y,z,qw,qx,qy,qz``.
+Content = Literal["pose", "position", "configuration"]
+"""What a demonstration file records: tip poses, tip positions or the arm's configurations."""
+CONTENTS: tuple[str, ...] = get_args(Content)
+POSITION_COLUMNS = CSV_COLUMNS[:4]
+"""``t, x, y, z``: the columns of a file of tip positions."""
+LENGTH_UNITS: dict[str, float] = {"m": 1.0, "cm": 1e-2, "mm": 1e-3}
+"""Metres per length unit a demonstration file may be written in."""
+MIN_ROWS = 3
+"""Rows a demonstration needs at least."""
 
-    The format (:mod:`optikin.data.csvread` for what every reader refuses); every cell
-    read must be a finite number, and there must be at least 3 rows:
+
+@dataclass(frozen=True)
+class RecordedDemonstration:
+    """A demonstration file as read: times and what the file records (SI units, the arm's base frame).
+
+    Attributes
+    ----------
+    source:
+        The file, as errors name it.
+    content:
+        ``pose``, ``position`` or ``configuration``.
+    t:
+        ``(N,)`` times [s], strictly increasing.
+    position:
+        ``(N, 3)`` tip positions [m] (pose and position files), else None.
+    quaternion:
+        ``(N, 4)`` unit tip quaternions ``(w, x, y, z)``, hemisphere-continuous (pose files), else None.
+    configuration:
+        ``(N, n)`` configurations in the arm's variables' order and units (configuration files), else None.
+    lines:
+        ``(N,)`` the 1-based line of the file each row is on.
+    """
+
+    source: str
+    content: Content
+    t: np.ndarray
+    position: np.ndarray | None = None
+    quaternion: np.ndarray | None = None
+    configuration: np.ndarray | None = None
+    lines: np.ndarray | None = None
+
+    def error(self, message: str, row: int, column: str) -> InputDataError:
+        """An error on data row ``row`` (from 0) and ``column`` of the file; the message gets the line."""
+        line = "" if self.lines is None else f" (line {int(self.lines[row])})"
+        return InputDataError(f"{message}{line}", source=self.source, sample=int(row), field=column)
+
+    def pose(self, arm: ArmModel | None = None) -> PoseDemonstration:
+        """The tip poses: the file's, or the forward kinematics of its configurations on ``arm``.
+
+        Raises
+        ------
+        ValueError
+            A position file (it has no orientations), or a configuration file without ``arm``.
+        """
+        if self.position is not None and self.quaternion is not None:
+            return PoseDemonstration(self.t, self.position, self.quaternion)
+        if self.configuration is None:
+            raise ValueError(f"{self.source}: a file of tip positions (t, x, y, z) holds no orientations")
+        if arm is None:
+            raise ValueError(f"{self.source}: the tip poses of configurations need the arm")
+        dq = arm.evaluate("fk_dq", self.configuration)
+        return PoseDemonstration(self.t, dq_translation(dq), quat_hemisphere_continuous(dq_rotation(dq)))
+
+
+def content_columns(content: str, names: Sequence[str]) -> tuple[str, ...]:
+    """The columns a file of ``content`` must have: ``t`` then ``x, y, z [, qw, qx, qy, qz]`` or ``names``."""
+    if content == "pose":
+        return CSV_COLUMNS
+    if content == "position":
+        return POSITION_COLUMNS
+    return ("t", *names)
+
+
+def detect_content(header: Sequence[str], names: Sequence[str]) -> Content:
+    """What a file records, from its header: poses if it has a column of ``qw, qx, qy, qz``, else
+    configurations if it names a variable of ``names`` and not ``x``, else positions."""
+    if any(c in header for c in CSV_COLUMNS[4:]):
+        return "pose"
+    if "x" not in header and any(n in header for n in names):
+        return "configuration"
+    return "position"
+
+
+def read_demonstration(
+    path: str | Path,
+    content: Content | None = None,
+    names: Sequence[str] = (),
+    units: str = "m",
+    unit_tolerance: float = 1e-3,
+) -> RecordedDemonstration:
+    """A demonstration from a CSV file with a header row: tip poses, tip positions or configurations.
+
+    The formats (:mod:`optikin.data.csvread` for what every reader refuses); every cell read
+    must be a finite number, every row as wide as the header, and there must be at least
+    :data:`MIN_ROWS` rows:
 
     ======================  ================================================================
-    ``t``                   time in seconds, strictly increasing
-    ``x, y, z``             tip position, metres
-    ``qw, qx, qy, qz``      tip orientation ``(w, x, y, z)``, unit to within ``unit_tolerance``
-                            (then normalised; sensor quaternions are unit to a few decimals)
+    ``t``                   time in seconds, strictly increasing (every format)
+    ``x, y, z``             tip position in the arm's base frame (pose and position files),
+                            in ``units``
+    ``qw, qx, qy, qz``      pose files: tip orientation ``(w, x, y, z)``, unit to within
+                            ``unit_tolerance`` (then normalised)
+    ``names``               configuration files: one column per variable of the arm
+                            (``S1, theta1, phi1, ...``), metres and radians
     other columns           ignored
     ======================  ================================================================
+
+    Parameters
+    ----------
+    path:
+        The file.
+    content:
+        ``pose``, ``position`` or ``configuration``; None: :func:`detect_content` from the header.
+    names:
+        The arm's configuration variables (configuration files).
+    units:
+        The length unit of ``x, y, z``: ``m``, ``cm`` or ``mm`` (:data:`LENGTH_UNITS`).
+    unit_tolerance:
+        Largest ``| |q| - 1 |`` accepted.
+
+    Returns
+    -------
+    RecordedDemonstration
+        Every row, positions in metres, quaternions normalised and made hemisphere-continuous.
+
+    Raises
+    ------
+    InputDataError
+        Naming the file, the row (``sample`` from 0, and its line) and the column: the file
+        cannot be read or is refused (not a regular file, over 200 MiB, binary, not UTF-8),
+        is empty, lacks a column, has fewer than 3 rows, a row with fewer or more cells than
+        the header, a cell that is not a finite number; times do not increase strictly; a
+        quaternion is not unit.
+    """
+    path = Path(path)
+    source = str(path)
+    chosen: list[Content] = []
+
+    def select(header: tuple[str, ...]) -> tuple[Sequence[str], Sequence[str]]:
+        kind = content or detect_content(header, names)
+        chosen.append(kind)
+        wanted = content_columns(kind, names)
+        how = "given as data.params.content" if content else "read from the header; data.params.content chooses"
+        error = missing_columns(source, header, wanted, hint=f" (a {kind} file, {how})")
+        if error is not None:
+            raise error
+        return wanted, ("t",)
+
+    table = read_table(path, select, exact=True)
+    kind = chosen[0]
+    if len(table) < MIN_ROWS:
+        raise InputDataError(f"a demonstration needs at least {MIN_ROWS} rows, got {len(table)}", source=source)
+    columns = content_columns(kind, names)
+    table.check_finite(columns[1:])
+    table.check_increasing("t")
+    t = table.column("t")
+    if kind == "configuration":
+        return RecordedDemonstration(source, kind, t, configuration=table.stacked(columns[1:]), lines=table.lines)
+    position = table.stacked(POSITION_COLUMNS[1:]) * LENGTH_UNITS[units]
+    quaternion = None
+    if kind == "pose":
+        q = table.check_unit_quaternions(CSV_COLUMNS[4:], unit_tolerance)
+        quaternion = quat_hemisphere_continuous(quat_normalize(q, check=False))
+    return RecordedDemonstration(source, kind, t, position, quaternion, lines=table.lines)
+
+
+def read_csv(path: str | Path, unit_tolerance: float = 1e-3) -> PoseDemonstration:
+    """A pose demonstration from a CSV file with a header naming (at least) ``t,x,y,z,qw,qx,qy,qz``.
+
+    :func:`read_demonstration` of a pose file in metres (its format and refusals).
 
     Parameters
     ----------
@@ -412,23 +574,9 @@ def read_csv(path: str | Path, unit_tolerance: float = 1e-3) -> PoseDemonstratio
     Raises
     ------
     InputDataError
-        Naming the file, the row (``sample`` from 0, and its line) and the column: the file
-        cannot be read or is refused (not a regular file, over 200 MiB, binary, not UTF-8),
-        is empty, lacks a column, has fewer than 3 rows, a short row or a cell that is not
-        a finite number; times do not increase strictly; a quaternion is not unit.
+        As :func:`read_demonstration`.
     """
-    path = Path(path)
-    table = read_table(path, columns_of(str(path), CSV_COLUMNS, finite=("t",)))
-    if len(table) < 3:
-        raise InputDataError(f"a demonstration needs at least 3 rows, got {len(table)}", source=str(path))
-    table.check_finite(CSV_COLUMNS[1:])
-    table.check_increasing("t")
-    quaternion = table.check_unit_quaternions(CSV_COLUMNS[4:], unit_tolerance)
-    return PoseDemonstration(
-        t=table.column("t"),
-        position=table.stacked(CSV_COLUMNS[1:4]),
-        quaternion=quat_hemisphere_continuous(quat_normalize(quaternion, check=False)),
-    )
+    return read_demonstration(path, "pose", unit_tolerance=unit_tolerance).pose()
 
 
 def write_csv(path: str | Path, demo: PoseDemonstration) -> None:
@@ -513,16 +661,35 @@ class GimbalParams(Options):
     reach: float = Field(0.1, ge=0, description="size of the position detour [m]")
 
 
-class CsvParams(Options):
-    """``data.params`` of source ``csv`` (:func:`read_csv`)."""
+class DemonstrationFileParams(FileParams):
+    """``data.params`` of a source reading a demonstration file (:func:`read_demonstration`)."""
 
-    path: str = Field(description="the CSV file (columns t,x,y,z,qw,qx,qy,qz), relative to the problem file")
+    file: str = Field(
+        min_length=1,
+        description="the CSV file (t and x,y,z[,qw,qx,qy,qz], or t and the arm's variables), "
+        "relative to the problem file's folder",
+    )
+    content: Content | None = Field(
+        None, description="pose | position | configuration; null: from the header (qw..qz: pose, x: position)"
+    )
+    units: Literal["m", "cm", "mm"] = Field("m", description="length unit of the file's x, y, z")
+
+
+class CsvParams(DemonstrationFileParams):
+    """``data.params`` of source ``csv`` (family ``demonstrations``): a file of tip poses or configurations."""
+
     samples: int | None = Field(
         None,
         ge=3,
         description="resample to this many equally spaced samples; null: as "
         "many as the file has (resampled only if its steps vary)",
     )
+
+
+def read_params_file(arm: ArmModel | None, params: DemonstrationFileParams, path: Path) -> RecordedDemonstration:
+    """:func:`read_demonstration` of ``params.file`` (relative to the problem file ``path``), for ``arm``."""
+    names = () if arm is None else arm.config_names
+    return read_demonstration(params.resolve(path), params.content, names, params.units)
 
 
 def _generated(maker: Callable[..., Any], data: DataSpec, path: Path, **params: Any) -> Any:
@@ -565,11 +732,32 @@ def load_gimbal(arm: ArmModel, data: DataSpec, params: GimbalParams, path: Path)
     return _generated(gimbal_demonstration, data, path, **params.model_dump())
 
 
-@register_source("demonstrations", "csv", "a recorded demonstration (t,x,y,z,qw,qx,qy,qz)", params=CsvParams)
+@register_source(
+    "demonstrations",
+    "csv",
+    "a recorded demonstration file: tip poses (t,x,y,z,qw,qx,qy,qz) or configurations (t and the arm's variables)",
+    params=CsvParams,
+)
 def load_csv(arm: ArmModel, data: DataSpec, params: CsvParams, path: Path) -> PoseDemonstration:
-    """The file's demonstration, resampled to ``params.samples`` or onto a fixed step if its steps vary."""
-    file = Path(params.path)
-    demo = read_csv(file if file.is_absolute() else path.parent / file)
+    """The file's tip poses (of a configuration file: their forward kinematics on the arm), resampled to
+    ``params.samples`` or onto a fixed step if its steps vary.
+
+    Raises
+    ------
+    SpecError
+        Naming ``data.params.content`` for a file of tip positions: every DMP variant of the kind
+        learns the pose.
+    """
+    recorded = read_params_file(arm, params, path)
+    if recorded.content == "position":
+        raise SpecError(
+            str(path),
+            "data.params.content",
+            f"{recorded.source} holds tip positions only (t, x, y, z); the dmp kind learns tip poses: add the "
+            "columns qw, qx, qy, qz, or give the arm's configurations (a position demonstration can be tracked: "
+            "source csv of the tracking kind)",
+        )
+    demo = recorded.pose(arm)
     steps = np.diff(demo.t)
     if params.samples is not None or not np.allclose(steps, steps.mean(), rtol=1e-6):
         demo = resample_uniform(demo, params.samples)

@@ -242,5 +242,5 @@ def _read(path: Path, params: RecordingParams) -> Recording:
     FAMILY, "c3d", "a C3D file: points, rotations, analog channels (needs ezc3d: optikin[c3d])", params=RecordingParams
 )
 def c3d_source(arm: object, data: DataSpec, params: RecordingParams, path: Path) -> Recording:
-    """:func:`read_c3d` of ``params.path``, then the steps of :mod:`optikin.data.readers.common`."""
+    """:func:`read_c3d` of ``params.file``, then the steps of :mod:`optikin.data.readers.common`."""
     return load_recording(_read, data, params, path)

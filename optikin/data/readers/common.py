@@ -1,7 +1,7 @@
 """What every reader of :mod:`optikin.data.readers` shares: its params, units resolution and the source loader.
 
-A source of family ``recordings`` reads ``data.params.path`` (relative to the problem
-file) in the declared ``frame`` and ``units`` (:class:`RecordingParams`), converts it
+A source of family ``recordings`` reads ``data.params.file`` (relative to the problem
+file; :mod:`optikin.data.files`) in the declared ``frame`` and ``units`` (:class:`RecordingParams`), converts it
 once (:func:`optikin.data.recording.to_base_frame`), notes its gaps, NaN cells and
 label swaps (:func:`optikin.data.recording.inspect_frames`), keeps the selected
 markers and bodies and, unless ``drop_incomplete: false``, drops the frames where one
@@ -19,9 +19,9 @@ import numpy as np
 from pydantic import Field
 
 from optikin.data.configurations import first_rows
+from optikin.data.files import FileParams
 from optikin.data.recording import FrameOptions, Recording, Units, inspect_frames, to_base_frame
 from optikin.errors import InputDataError
-from optikin.options import Options
 from optikin.spec import DataSpec
 
 FAMILY = "recordings"
@@ -44,10 +44,10 @@ UNIT_NAMES: dict[str, Units] = {
 """A file's own name of its length unit (case-insensitive) -> :data:`~optikin.data.recording.Units`."""
 
 
-class RecordingParams(Options):
+class RecordingParams(FileParams):
     """``data.params`` shared by every source of family ``recordings``."""
 
-    path: str = Field(description="the recording, relative to the problem file")
+    file: str = Field(min_length=1, description="the recording, relative to the problem file's folder")
     frame: FrameOptions = Field(default_factory=FrameOptions, description="axes of the file's frame")
     units: Units | None = Field(
         None,
@@ -154,7 +154,7 @@ P = TypeVar("P", bound=RecordingParams)
 
 def load_recording(read: Callable[[Path, P], Recording], data: DataSpec, params: P, path: Path) -> Recording:
     """The loader of a ``recordings`` source: ``read(file, params)``, then the steps of the module docstring."""
-    recording = select(read((Path(path).parent / params.path).resolve(), params), params)
+    recording = select(read(params.resolve(path), params), params)
     if params.drop_incomplete:
         recording = recording.drop_incomplete()
     keep, _ = first_rows(data, len(recording))

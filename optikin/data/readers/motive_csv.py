@@ -314,5 +314,5 @@ def _read(path: Path, params: MotiveParams) -> Recording:
 
 @register_source(FAMILY, "motive", "an OptiTrack Motive CSV export (markers and rigid bodies)", params=MotiveParams)
 def motive_source(arm: object, data: DataSpec, params: MotiveParams, path: Path) -> Recording:
-    """:func:`read_motive_csv` of ``params.path``, then the steps of :mod:`optikin.data.readers.common`."""
+    """:func:`read_motive_csv` of ``params.file``, then the steps of :mod:`optikin.data.readers.common`."""
     return load_recording(_read, data, params, path)

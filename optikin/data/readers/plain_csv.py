@@ -7,7 +7,7 @@ The problem file says which column is what::
     data:
       source: csv
       params:
-        path: trunk.csv
+        file: trunk.csv
         frame: {up: y}
         units: mm
         time: t
@@ -153,5 +153,5 @@ def _read(path: Path, params: PlainCsvParams) -> Recording:
 
 @register_source(FAMILY, "csv", "a plain CSV file with a column mapping in data.params", params=PlainCsvParams)
 def csv_source(arm: object, data: DataSpec, params: PlainCsvParams, path: Path) -> Recording:
-    """:func:`read_plain_csv` of ``params.path``, then the steps of :mod:`optikin.data.readers.common`."""
+    """:func:`read_plain_csv` of ``params.file``, then the steps of :mod:`optikin.data.readers.common`."""
     return load_recording(_read, data, params, path)

@@ -286,5 +286,5 @@ def _read(path: Path, params: RosbagParams) -> Recording:
     params=RosbagParams,
 )
 def rosbag_source(arm: object, data: DataSpec, params: RosbagParams, path: Path) -> Recording:
-    """:func:`read_rosbag` of ``params.path``, then the steps of :mod:`optikin.data.readers.common`."""
+    """:func:`read_rosbag` of ``params.file``, then the steps of :mod:`optikin.data.readers.common`."""
     return load_recording(_read, data, params, path)
