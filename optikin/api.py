@@ -57,6 +57,7 @@ from optikin.data.targets import Targets, reach_bound
 from optikin.ik.formulation import Formulation, build_problem, rest_configuration
 from optikin.ik.points import COMPONENTS, MeasuredPoint, PointSet
 from optikin.physics.comparison import ph_points_at_fractions
+from optikin.options import validate_options
 from optikin.problems.ik.run import mark_fits, rms_distances
 from optikin.solvers import load_preset
 from optikin.solvers.nonlinear import LeastSquaresProblem, NonlinearAdapter
@@ -348,7 +349,7 @@ def _reference(
     if isinstance(reference, Reference):
         return reference, None
     if isinstance(reference, Mapping):
-        params = WaypointParams.model_validate(reference)
+        params = validate_options(WaypointParams, dict(reference), "track", "reference")
         W = np.asarray(params.waypoints, dtype=float)
         if W.ndim != 2 or W.shape[1] != arm.n_config:
             raise ValueError(f"waypoints need rows of {arm.n_config} values ({', '.join(arm.config_names)})")
@@ -404,6 +405,14 @@ def track(
     Returns
     -------
     Tracking
+
+    Raises
+    ------
+    optikin.errors.SpecError
+        A waypoint mapping its model refuses (naming ``reference.<field>``).
+    ValueError
+        An unknown controller, a preset not of family ``qp``, a reference array of the wrong shape, waypoints
+        of the wrong length, or a first reference sample that no configuration reaches.
     """
     ref, first = _reference(arm, reference, rate)
     if start is None:

@@ -147,6 +147,10 @@ def test_track_refuses_unknown_controllers_and_presets():
         optikin.track(arm, ref, preset="gauss-newton")
     with pytest.raises(ValueError, match="\\(N, 3\\) positions or \\(N, 8\\)"):
         optikin.track(arm, np.zeros((10, 5)))
+    with pytest.raises(optikin.errors.SpecError, match="track: reference.segment_tme"):
+        optikin.track(arm, ref | {"segment_tme": 1.0})
+    with pytest.raises(ValueError, match="rows of 6 values"):
+        optikin.track(arm, ref | {"waypoints": [[0.18, 0.3, 0.0]] * 2})
 
 
 # ---------------------------------------------------------------------------- arm Functions
