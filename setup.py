@@ -1,8 +1,9 @@
-"""Build hook: the named problem files, solver presets and sweeps go into the wheel as ``optikin/catalog``.
+"""Build hook: the named problem files, solver presets, sweeps and examples go into the wheel as ``optikin/catalog``.
 
-The top-level ``problems/``, ``solvers/`` and ``sweeps/`` folders are the source; a checkout (or an editable
-install) reads them in place, an installed wheel reads its copy through ``importlib.resources``
-(:func:`optikin.spec.shipped_dir`).
+The top-level ``problems/``, ``solvers/``, ``sweeps/`` and ``examples/`` folders are the source; a checkout (or
+an editable install) reads them in place, an installed wheel reads its copy through ``importlib.resources``
+(:func:`optikin.spec.shipped_dir`); the examples (data files and the problem files that read them) are there
+for a user to copy from.
 """
 
 import shutil
@@ -11,7 +12,7 @@ from pathlib import Path
 from setuptools import setup
 from setuptools.command.build_py import build_py
 
-CATALOG = ("problems", "solvers", "sweeps")
+CATALOG = ("problems", "solvers", "sweeps", "examples")
 
 
 class BuildWithCatalog(build_py):

@@ -50,6 +50,8 @@ def test_the_wheel_carries_the_catalog_licence_and_types(installed):
     assert (package / "catalog" / "problems" / "cc-two-section-fk.yaml").is_file()
     assert (package / "catalog" / "solvers" / "casadi-map.yaml").is_file()
     assert (package / "catalog" / "sweeps" / "ph-noise.yaml").is_file()
+    assert (package / "catalog" / "examples" / "track-my-demo.yaml").is_file()
+    assert (package / "catalog" / "examples" / "data" / "demo-pose.csv").is_file()
     assert (package / "export" / "templates" / "ik.c").is_file()
     assert (package / "py.typed").is_file()
     (info,) = installed.glob("optikin-*.dist-info")
@@ -71,6 +73,9 @@ def test_an_installed_wheel_lists_and_solves_from_an_unrelated_folder(installed,
     assert (tmp_path / "out" / "cc-two-section-fk" / "result.json").is_file()
     origin = run(installed, tmp_path, "show", "--solver", "casadi-map")
     assert origin.returncode == 0, origin.stderr
+    example = installed / "optikin" / "catalog" / "examples" / "dmp-my-demo.yaml"
+    learned = run(installed, tmp_path, "solve", str(example), "--out", "out", "--no-figures", "--json")
+    assert learned.returncode == 0, learned.stderr
 
 
 def test_the_installed_package_is_the_wheel_not_the_checkout(installed, tmp_path):
