@@ -60,8 +60,31 @@ class TwoArmOutcome:
     clearances: dict[str, np.ndarray]
 
 
-def run(ctx: ProblemContext) -> TwoArmOutcome:
-    """Place the arms, load the reference, build the controllers from ``ctx`` and run every closed loop."""
+@dataclass
+class TwoArmSetup:
+    """Everything a run is made of, built and checked from the problem file.
+
+    Attributes
+    ----------
+    reference, q0:
+        The task reference and the start of both arms ``(n_1 + n_2,)``.
+    plant:
+        Both arms placed, the task (and the rope).
+    tubes:
+        The self-collision rows of the joint QP.
+    controllers:
+        ``"qp"`` and every baseline's name -> its controller.
+    """
+
+    reference: TwoArmReference
+    q0: np.ndarray
+    plant: TwoArmModel
+    tubes: TwoTubes
+    controllers: dict[str, TwoArmController]
+
+
+def setup(ctx: ProblemContext) -> TwoArmSetup:
+    """Place the arms, load the reference, build the controllers from ``ctx``; bad input is a SpecError naming it."""
     if "samples" in ctx.spec.data.model_fields_set:
         raise ctx.error("data.samples", "not used by two_arms: the run length follows from the path and rate")
     options: TwoArmOptions = ctx.options
@@ -79,13 +102,19 @@ def run(ctx: ProblemContext) -> TwoArmOutcome:
         tubes = TwoTubes(arms[0], arms[1], c.margin, c.gamma, dt, c.pairs)
     except ValueError as exc:
         raise ctx.error("options.collision", str(exc)) from None
-    controllers = _controllers(ctx, options, plant, tubes, dt, q0)
+    return TwoArmSetup(reference, q0, plant, tubes, _controllers(ctx, options, plant, tubes, dt, q0))
+
+
+def run(ctx: ProblemContext) -> TwoArmOutcome:
+    """Build the problem (:func:`setup`) and run every closed loop."""
+    built = setup(ctx)
+    reference, plant, tubes, q0 = built.reference, built.plant, built.tubes, built.q0
     runs: dict[str, TwoArmRun] = {}
     wall: dict[str, float] = {}
     with ctx.progress.task(
-        f"two arms: {len(controllers)} controllers x {len(reference.t)} steps", total=len(controllers)
+        f"two arms: {len(built.controllers)} controllers x {len(reference.t)} steps", total=len(built.controllers)
     ) as advance:
-        for name, controller in controllers.items():
+        for name, controller in built.controllers.items():
             start = time.perf_counter()
             runs[name] = simulate_two_arms(controller, reference, q0, plant)
             wall[name] = time.perf_counter() - start
