@@ -16,7 +16,7 @@ that shows or hides the other records shows or hides it too:
 The interval defaults to the environment variable ``OPTIKIN_PROGRESS_INTERVAL`` (seconds), else 5 s.
 
 :func:`command_line_logging` is what ``optikin -v`` / ``-q`` choose: optikin's records on stderr at INFO
-(progress lines, notes), DEBUG with ``--verbose``, only warnings and errors with ``--quiet``.
+(progress lines, notes), DEBUG with ``--verbose``, only errors with ``--quiet`` (the command still prints its summary).
 """
 
 from __future__ import annotations
@@ -220,13 +220,13 @@ def command_line_logging(verbose: bool = False, quiet: bool = False) -> Iterator
     verbose:
         DEBUG records too, each with its level and logger.
     quiet:
-        Only warnings and errors (no progress); ``verbose`` wins over it.
+        Only errors (no progress, no warnings); ``verbose`` wins over it.
     """
     package = logging.getLogger("optikin")
     handler = _StderrHandler(sys.stderr)
     handler.setFormatter(_Formatter(verbose))
     saved = package.level
-    package.setLevel(logging.DEBUG if verbose else logging.WARNING if quiet else logging.INFO)
+    package.setLevel(logging.DEBUG if verbose else logging.ERROR if quiet else logging.INFO)
     package.addHandler(handler)
     try:
         yield

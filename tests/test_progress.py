@@ -143,3 +143,21 @@ def test_on_a_terminal_the_bar_is_drawn_on_stderr_and_stdout_keeps_only_the_summ
     assert process.returncode == 0
     assert b"fk: 20 samples" in terminal and b"\x1b[" in terminal  # the live bar, drawn with escape codes
     assert "fk: 20 samples" not in out and "\x1b[?25l" not in out and "written to" in out
+
+
+def test_quiet_keeps_errors_only_and_verbose_names_level_and_logger(capsys):
+    from optikin.progress import command_line_logging
+
+    library = logging.getLogger("optikin.somewhere")
+    with command_line_logging(quiet=True):
+        library.info("progress")
+        library.warning("a warning")
+        library.error("an error")
+    assert capsys.readouterr().err == "optikin: error: an error\n"
+    with command_line_logging(verbose=True):
+        library.debug("detail")
+    assert capsys.readouterr().err == "optikin: debug: optikin.somewhere: detail\n"
+    with command_line_logging():
+        library.debug("detail")
+        library.warning("a warning")
+    assert capsys.readouterr().err == "optikin: warning: a warning\n"
