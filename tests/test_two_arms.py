@@ -171,3 +171,16 @@ def test_start_with_the_tubes_within_the_margin_is_refused(tmp_path):
         d["options"]["arms"][1]["base"] = [0.1, 0.0, 0.0]
 
     assert error_field(variant(tmp_path, "rope-skipping", closer)) == "options.arms"
+
+
+def test_floor_row_keeps_the_ropes_lowest_point_above_a_floor_the_loop_dips_below(tmp_path):
+    def floor(d):
+        d["baselines"] = []
+        d["data"]["params"].update(cycles=1, hold=0.0)
+        d["options"]["rope"]["floor"] = 0.12  # the loop's bottom lies at about 95 mm
+
+    result, _ = solve(str(variant(tmp_path, "rope-skipping", floor)), out=tmp_path / "out", figures=False)
+    reference_low = float(result.arrays["reference"][:, 2].min())
+    assert reference_low < 0.12
+    assert result.metrics["lowest point above the floor min [mm]"] >= 20.0 - 0.5  # the margin, to one step's error
+    assert np.all(result.arrays["x_qp"][:, 2] >= 0.12)

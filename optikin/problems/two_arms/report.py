@@ -68,7 +68,29 @@ def run_metrics(outcome: TwoArmOutcome, name: str) -> dict[str, Any]:
         if rope.floor is not None:
             height = tracked.x @ rope.sensitivity.up - rope.floor
             out["lowest point above the floor min [mm]"] = float(height.min() * MM)
+        out["rope to the arms' tubes min [mm]"] = float(rope_clearance(outcome, tracked) * MM)
     return out
+
+
+def rope_clearance(outcome: TwoArmOutcome, tracked: TwoArmRun, every: int = 10, count: int = 60) -> float:
+    """The least distance of the hanging rope to either arm's tube on every ``every``-th step [m] (reported, not
+    constrained): the rope sampled at ``count`` points, those within arc length twice an arm's radius of the
+    grip it hangs from left out (the rope leaves that tube there)."""
+    rope = outcome.model.rope
+    assert rope is not None
+    first, second = outcome.model.arms
+    n1, L = outcome.model.n1, rope.sensitivity.length
+    s = np.linspace(0.0, L, count)
+    keep = (s > 2.0 * first.radius) & (s < L - 2.0 * second.radius)
+    least = np.inf
+    for k in range(0, len(tracked.t), every):
+        points = _rope_points(outcome, tracked, k, count)[keep]
+        if np.isnan(points).any():
+            continue
+        for placed, q in ((first, tracked.q[k, :n1]), (second, tracked.q[k, n1:])):
+            gaps = points[:, None, :] - placed.points_at(q)[None, :, :]
+            least = min(least, float(np.sqrt(np.einsum("ijk,ijk->ij", gaps, gaps)).min()) - placed.radius)
+    return least
 
 
 def result(ctx: ProblemContext, outcome: TwoArmOutcome) -> Result:
