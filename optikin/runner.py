@@ -16,9 +16,10 @@ from __future__ import annotations
 import logging
 import time
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Sequence
 
 from optikin.arms import build_arm
+from optikin.arms.base import ArmModel
 from optikin.data.sources import source_of
 from optikin.errors import SpecError, UnknownNameError
 from optikin.options import validate_options
@@ -30,6 +31,9 @@ from optikin.resources import check_memory
 from optikin.results import Result, write_result
 from optikin.solvers import LoadedPreset, load_backends, load_preset
 from optikin.spec import ProblemSpec, available, load_problem, provenance
+
+if TYPE_CHECKING:
+    from optikin.sweep.chunks import Chunks
 
 logger = logging.getLogger(__name__)
 
@@ -99,12 +103,14 @@ def prepare(
     progress: Progress = SILENT,
     notify: Callable[[str], None] | None = None,
     overrides: Sequence[tuple[str, Any]] = (),
+    arms: Callable[[str, dict[str, Any], Path], ArmModel] = build_arm,
 ) -> tuple[ProblemKind, ProblemContext]:
     """Everything :func:`solve` checks and builds before the run: the kind and its context.
 
     ``notify`` receives one line for each file used that is not one of optikin's own
     (:func:`optikin.spec.provenance`); ``overrides`` are ``(dotted field, value)`` pairs set in the
-    problem file before it is validated (:func:`optikin.spec.apply_overrides`).
+    problem file before it is validated (:func:`optikin.spec.apply_overrides`); ``arms`` builds the arm
+    as :func:`optikin.arms.build_arm` does (a sweep worker's cache: :func:`optikin.sweep.cell.cached_arm`).
     """
     load_backends()
     spec, path = load_problem(problem, overrides)
@@ -121,7 +127,7 @@ def prepare(
     adapter = None if preset is None else preset.build()
     if spec.arm is None and not kind.arm_optional:
         raise SpecError(path, "arm", f"missing: kind {kind.name!r} needs an arm (arm: {{type: ..., params: ...}})")
-    arm = None if spec.arm is None else build_arm(spec.arm.type, spec.arm.params, path)
+    arm = None if spec.arm is None else arms(spec.arm.type, spec.arm.params, path)
     check_memory(kind.name, arm, 1 + len(spec.baselines), spec.data.samples, path)
     ctx = ProblemContext(
         spec=spec,
@@ -150,6 +156,8 @@ def solve(
     progress: Progress = SILENT,
     notify: Callable[[str], None] | None = None,
     overrides: Sequence[tuple[str, Any]] = (),
+    arms: Callable[[str, dict[str, Any], Path], ArmModel] = build_arm,
+    chunks: "Chunks | None" = None,
 ) -> tuple[Result, Path | None]:
     """Solve a named problem (or a path to one); returns the Result and where it was written.
 
@@ -169,14 +177,19 @@ def solve(
         Receives one line per file used that is not one of optikin's own.
     overrides:
         ``(dotted field, value)`` pairs set in the problem file before validation (``--set``).
+    arms:
+        Builds the arm (:func:`prepare`).
+    chunks:
+        Splits the samples of a kind that allows it across worker processes
+        (:class:`optikin.sweep.chunks.Chunks`; ``--jobs`` / ``--dask``).
     """
     clock = time.perf_counter()
-    kind, ctx = prepare(problem, solver, progress, notify, overrides)
+    kind, ctx = prepare(problem, solver, progress, notify, overrides, arms)
     preset = ctx.preset.spec.name if ctx.preset is not None else "none"
     logger.debug("%s: kind %s, preset %s, prepared in %.3g s", ctx.path, kind.name, preset, time.perf_counter() - clock)
     try:
         started, clock = now(), time.perf_counter()
-        result = kind.run(ctx)
+        result = kind.run(ctx) if chunks is None else chunks.run(kind, ctx, overrides)
         result.provenance = provenance_of(ctx, started, time.perf_counter() - clock)
         logger.debug("%s: ran in %.3g s", ctx.spec.name, time.perf_counter() - clock)
         _check_arrays(ctx.spec, ctx.path, result)

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable, TypeVar
+from typing import TYPE_CHECKING, Any, Callable, Protocol, Sequence, TypeVar
 
 import numpy as np
 
@@ -129,6 +129,25 @@ class ProblemContext:
         return SpecError(self.path, field_path, message)
 
 
+ChunkWork = Callable[[ProblemContext, dict[str, Any], Any], Any]
+"""``work(ctx, memo, piece) -> answer``: a module-level function solving one piece of a run's samples in a
+worker process, where ``ctx`` is built from the same problem file and ``memo`` is a dict kept with it in that
+process across the pieces of one run (for the models a worker builds once)."""
+
+
+class ChunkEngine(Protocol):
+    """What :attr:`ProblemKind.run_chunked` receives: the pieces of a run's samples and the engine solving them
+    (:mod:`optikin.sweep.chunks`)."""
+
+    def split(self, n: int) -> list[slice]:
+        """Contiguous slices covering samples ``0 .. n - 1``, one per piece (one slice: solve them here)."""
+        ...
+
+    def map(self, work: ChunkWork, pieces: Sequence[Any]) -> list[Any]:
+        """``work(ctx, memo, piece)`` of every piece, in the order of ``pieces``, on the engine's workers."""
+        ...
+
+
 @dataclass(frozen=True)
 class ProblemKind:
     """What a kind accepts and how it runs.
@@ -157,6 +176,11 @@ class ProblemKind:
     arm_optional:
         Whether a problem file may leave out ``arm:`` (the data carry everything, e.g. the end poses
         of a shape reconstruction); the data source then receives ``arm=None``.
+    run_chunked:
+        ``run_chunked(ctx, engine) -> Result``: :attr:`run` with the independent samples split in pieces
+        across worker processes (``optikin solve --jobs N`` or ``--dask``). The kind draws its samples once,
+        here, hands slices of them to ``engine.map`` and merges the answers, which equal :attr:`run`'s
+        sample for sample. None: the kind runs as one piece.
     """
 
     name: str
@@ -170,6 +194,7 @@ class ProblemKind:
     figures: FigureBuilder | None = None
     headline: tuple[str, ...] = ()
     arm_optional: bool = False
+    run_chunked: Callable[[ProblemContext, ChunkEngine], Result] | None = None
 
 
 def register_kind(kind: ProblemKind) -> ProblemKind:

@@ -20,6 +20,7 @@ import argparse
 import dataclasses
 import sys
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterator
@@ -119,11 +120,19 @@ def _joblib(cells: list[Cell], folder: Path, jobs: int, retries: int) -> Iterato
                     yield _killed(pending.pop(key), deaths[key], reason), min(jobs, len(pending))
 
 
-def _dask(cells: list[Cell], folder: Path, address: str, retries: int) -> Iterator[tuple[Record, int]]:
-    """Records as cells finish on a Dask cluster (``local:N`` starts a ``LocalCluster`` of N processes)."""
+def check_jobs(jobs: int) -> None:
+    """``--jobs`` counts worker processes: at least 1."""
+    if jobs < 1:
+        raise SpecError("--jobs", "", f"expected at least 1 worker, got {jobs}")
+
+
+@contextmanager
+def dask_client(address: str, retries: int) -> Iterator[Any]:
+    """A ``distributed.Client`` of the scheduler at ``address``, or of a ``LocalCluster`` of N single-threaded
+    worker processes for ``local:N`` (its scheduler allowing ``retries`` worker deaths per task); closed after."""
     try:
         import dask
-        from distributed import Client, LocalCluster, as_completed
+        from distributed import Client, LocalCluster
     except ImportError:
         raise SpecError("--dask", "", 'needs Dask: pip install "optikin[dask]" (dask[distributed])') from None
     cluster = None
@@ -137,6 +146,18 @@ def _dask(cells: list[Cell], folder: Path, address: str, retries: int) -> Iterat
     else:
         client = Client(address)
     try:
+        yield client
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def _dask(cells: list[Cell], folder: Path, address: str, retries: int) -> Iterator[tuple[Record, int]]:
+    """Records as cells finish on a Dask cluster (``local:N`` starts a ``LocalCluster`` of N processes)."""
+    with dask_client(address, retries) as client:
+        from distributed import as_completed
+
         futures = {client.submit(run_cell, cell, key=f"optikin-cell-{cell.key}", pure=False): cell for cell in cells}
         workers_count = max(1, len(client.scheduler_info().get("workers", {})))
         remaining = len(futures)
@@ -152,10 +173,6 @@ def _dask(cells: list[Cell], folder: Path, address: str, retries: int) -> Iterat
             except Exception as exc:  # noqa: BLE001 - KilledWorker and the like fail this cell alone
                 record = _killed(cell, 1 + deaths.get(cell.key, 0), f"{type(exc).__name__}: {exc}")
             yield record, min(workers_count, remaining)
-    finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
 
 
 def run_sweep(
@@ -194,8 +211,7 @@ def run_sweep(
     SpecError
         On the sweep file (naming the field), ``--jobs`` or ``--dask``.
     """
-    if jobs < 1:
-        raise SpecError("--jobs", "", f"expected at least 1 worker, got {jobs}")
+    check_jobs(jobs)
     spec, path = load_sweep(name_or_path)
     cells = expand(spec, path)
     folder = Path(out) / spec.name

@@ -31,6 +31,7 @@ from __future__ import annotations
 import optikin.data.configurations  # noqa: F401 - registers the sources of data family "configurations"
 from optikin.problems import ProblemContext, ProblemKind, register_kind
 from optikin.problems.fk import figures
+from optikin.problems.fk.chunks import run_chunked
 from optikin.problems.fk.options import FkOptions
 from optikin.problems.fk.report import report
 from optikin.problems.fk.run import FkOutcome, numpy_tip_dq, run
@@ -55,5 +56,6 @@ register_kind(
         options=FkOptions,
         data_family="configurations",
         figures=figures.figures,
+        run_chunked=run_chunked,
     )
 )

@@ -101,27 +101,45 @@ def evaluate_all(
     return tip, sections, backbone, t_tip
 
 
-def run_baseline(arm: ArmModel, name: str, Q: np.ndarray) -> BaselineRun:
-    """Baseline ``name`` on ``Q``: ``numpy``, or an evaluation preset (built once on one sample, then timed)."""
+def run_baseline(
+    arm: ArmModel, name: str, Q: np.ndarray, evaluators: dict[str, EvaluationBackend] | None = None
+) -> BaselineRun:
+    """Baseline ``name`` on ``Q``: ``numpy``, or an evaluation preset (built once on one sample, then timed;
+    kept in ``evaluators`` when given)."""
     if name == "numpy":
         tip, seconds = timed(lambda: numpy_tip_dq(arm, Q))
         return BaselineRun(name, seconds, tip)
-    evaluator = build_preset(name)
+    evaluators = {} if evaluators is None else evaluators
+    if name not in evaluators:
+        evaluators[name] = build_preset(name)
+    evaluator = evaluators[name]
     evaluator.evaluate(arm, "fk_dq", Q[:1])
     tip, seconds = timed(lambda: evaluator.evaluate(arm, "fk_dq", Q)[:, :, 0])
     return BaselineRun(name, seconds, tip)
 
 
-def run(ctx: ProblemContext) -> FkOutcome:
-    """Evaluate the solver's backend and every baseline on the configurations of ``data:``."""
+def evaluate(ctx: ProblemContext, Q: np.ndarray, evaluators: dict[str, EvaluationBackend] | None = None) -> FkOutcome:
+    """The solver's backend and every baseline on configurations ``Q`` ``(N, n_config)`` (checked)."""
     arm = ctx.arm
-    samples = ctx.load_data()
-    Q = arm.validate(samples.values, source=f"{ctx.path.name}: data ({ctx.spec.data.source})")
     evaluator = ctx.backend(EvaluationBackend)
     # Build the Functions (and compile them, for compiled backends) before timing.
     t_build = timed(lambda: [evaluator.evaluate(arm, name, Q[:1]) for name in FUNCTIONS])[1]
     tip, sections, backbone, t_tip = evaluate_all(ctx, evaluator, Q)
-    baselines = [run_baseline(arm, name, Q) for name in ctx.spec.baselines]
-    return FkOutcome(
-        Q, samples.t, tip, sections, backbone, unit_error(tip), t_build, t_tip, baselines, samples.skipped_rows
-    )
+    baselines = [run_baseline(arm, name, Q, evaluators) for name in ctx.spec.baselines]
+    return FkOutcome(Q, None, tip, sections, backbone, unit_error(tip), t_build, t_tip, baselines)
+
+
+def load_configurations(ctx: ProblemContext) -> tuple[np.ndarray, np.ndarray | None, int]:
+    """The configurations of ``data:`` ``(N, n_config)``, checked against the arm; their times; the rows
+    of a file left out."""
+    samples = ctx.load_data()
+    Q = ctx.arm.validate(samples.values, source=f"{ctx.path.name}: data ({ctx.spec.data.source})")
+    return Q, samples.t, samples.skipped_rows
+
+
+def run(ctx: ProblemContext) -> FkOutcome:
+    """Evaluate the solver's backend and every baseline on the configurations of ``data:``."""
+    Q, t, skipped_rows = load_configurations(ctx)
+    outcome = evaluate(ctx, Q)
+    outcome.t, outcome.skipped_rows = t, skipped_rows
+    return outcome

@@ -100,6 +100,7 @@ from __future__ import annotations
 from optikin.data.targets import FAMILY as TARGETS
 from optikin.problems import ProblemContext, ProblemKind, register_kind
 from optikin.problems.ik import figures
+from optikin.problems.ik.chunks import run_chunked
 from optikin.problems.ik.options import FormulationOptions, IkOptions
 from optikin.problems.ik.report import array_key, result_of
 from optikin.problems.ik.run import solve
@@ -124,5 +125,6 @@ register_kind(
         options=IkOptions,
         data_family=TARGETS,
         figures=figures.figures,
+        run_chunked=run_chunked,
     )
 )

@@ -427,8 +427,12 @@ class IkOutcome:
         return self.runs[0]
 
 
-def solve(ctx: ProblemContext) -> IkOutcome:
-    """Check the options, load the targets, and solve them with every method (module docstring)."""
+def solve(ctx: ProblemContext, split: Callable[[int, Solve], Solve] | None = None) -> IkOutcome:
+    """Check the options, load the targets, and solve them with every method (module docstring).
+
+    ``split(index, solve)``, when given, replaces the batch solver of method ``index`` of
+    :func:`methods_of` (:mod:`optikin.problems.ik.chunks`: the batch in pieces on worker processes).
+    """
     setup = setup_of(ctx)
     assert ctx.data_source is not None
     targets = load_targets(ctx, setup)
@@ -437,11 +441,13 @@ def solve(ctx: ProblemContext) -> IkOutcome:
         raise ctx.error("solver", f"{methods[0].name} cannot solve this formulation: {methods[0].not_applicable}")
     runs = []
     skipped = [m for m in methods if m.not_applicable]
-    methods = [m for m in methods if not m.not_applicable]
-    with ctx.progress.task(f"ik: {len(targets)} targets x {len(methods)} methods", total=len(methods)) as advance:
-        for method in methods:
+    applicable = [(index, m) for index, m in enumerate(methods) if not m.not_applicable]
+    with ctx.progress.task(f"ik: {len(targets)} targets x {len(applicable)} methods", total=len(applicable)) as advance:
+        for index, method in applicable:
             solve_batch = solver_of(method.adapter, method.problem)
             solve_batch(setup.start, targets.values[:1], False, None)  # build (and compile) before timing
+            if split is not None:
+                solve_batch = split(index, solve_batch)
             started = time.perf_counter()
             report = solve_targets(solve_batch, targets, setup, method.formulation, ctx)
             wall = time.perf_counter() - started
