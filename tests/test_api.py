@@ -70,7 +70,7 @@ def test_backbone_meets_both_poses_and_the_length_with_a_pythagorean_hodograph()
     assert backbone.arc_length == pytest.approx(length, rel=1e-9)
     steps = np.linalg.norm(np.diff(backbone.points, axis=0), axis=1)  # equal arc-length fractions
     assert backbone.points.shape == (41, 3) and np.ptp(steps) < 1e-3 * steps.mean()
-    np.testing.assert_allclose(backbone.points[[0, -1]], [base[:3, 3], tip[:3, 3]], atol=1e-9)
+    np.testing.assert_allclose(backbone.points[[0, -1]], [base[:3, 3], tip[:3, 3]], atol=1e-14)
 
 
 def test_backbone_of_a_quarter_circle_has_the_circle_s_energy():

@@ -86,6 +86,15 @@ def test_ph_points_at_fractions_of_arc_length():
     np.testing.assert_allclose(chord[nearest] / chord[-1], fractions, atol=2e-5)
 
 
+def test_ph_points_at_fractions_hit_the_ends_exactly():
+    p0, t0, p1, t1 = np.zeros(3), np.array([0.0, 0.0, 1.0]), np.array([0.15, 0.05, 0.2]), np.array([1.0, 0.0, 0.0])
+    model = ShapeEnergyModel(free_speeds=False)
+    data = ShapeData.checked(p0, t0, p1, t1, length=0.35)
+    curve = model.curve(model.solve_newton(data), data)
+    points = ph_points_at_fractions(curve, np.array([0.0, 1.0]))
+    np.testing.assert_allclose(points, [p0, p1], rtol=0, atol=1e-15)
+
+
 @pytest.mark.parametrize("case", TIP_FORCE_CASES + GRAVITY_CASES)
 def test_reference_is_the_continuum_rod(case):
     files = files_of(case)

@@ -246,7 +246,8 @@ def ph_points_at_fractions(curve: PHQuintic, fractions: np.ndarray, iterations: 
 
     The arc length ``s(t)`` of a PH curve is a polynomial (:meth:`PHQuintic.arc_length_at`)
     with derivative the parametric speed ``sigma(t) > 0``; ``s(t) = f S`` is solved for ``t``
-    by Newton's method from ``t = f``, safeguarded by bisection.
+    by Newton's method from ``t = f``, safeguarded by bisection (a step onto a bracket end is kept,
+    so the fractions 0 and 1 give the end points exactly).
     """
     target = fractions * float(curve.arc_length())
     t, lo, hi = np.array(fractions, dtype=float), np.zeros_like(fractions), np.ones_like(fractions)
@@ -254,7 +255,7 @@ def ph_points_at_fractions(curve: PHQuintic, fractions: np.ndarray, iterations: 
         r = np.asarray(curve.arc_length_at(t)) - target
         lo, hi = np.where(r < 0, t, lo), np.where(r > 0, t, hi)
         step = t - r / np.maximum(np.asarray(curve.parametric_speed(t)), 1e-300)
-        t = np.where((step > lo) & (step < hi), step, 0.5 * (lo + hi))
+        t = np.where((step >= lo) & (step <= hi), step, 0.5 * (lo + hi))
     return np.asarray(curve.point(t))
 
 
