@@ -194,10 +194,13 @@ def test_the_former_key_path_still_reads_the_file_with_a_warning(tmp_path, kind)
         spec = yaml.safe_load(problem.read_text())
         spec["data"]["params"]["path"] = spec["data"]["params"].pop("file")
         problem.write_text(yaml.safe_dump(spec))
-    with pytest.warns(FutureWarning, match=r"data\.params\.path is deprecated: .*data\.params\.file"):
-        _, ctx = prepare(str(problem))
+    _, ctx = prepare(str(problem))
     assert Path(ctx.data_params.file).name in ("motive.csv", "demo-pose.csv")
-    loaded = ctx.load_data()
+    with pytest.warns(FutureWarning, match=r"data\.params\.path is deprecated: .*data\.params\.file") as caught:
+        loaded = ctx.load_data()
+    (warning,) = [w for w in caught if w.category is FutureWarning]
+    line = problem.read_text().splitlines()[warning.lineno - 1]
+    assert warning.filename == str(problem) and re.search(r"\bpath:", line), line
     rows = {
         "recordings": lambda: len(loaded),
         "dmp": lambda: len(loaded.t),
