@@ -3,17 +3,46 @@
 The cell is plain data (:class:`~optikin.sweep.spec.Cell`); the worker builds the arm and the solver's
 CasADi Functions itself from the problem file, so no CasADi object crosses a process boundary. A worker
 keeps its imports (CasADi, scipy, the kinds and backends) from one cell to the next, which is where most
-of a cold cell's time goes.
+of a cold cell's time goes, and its arms (:func:`cached_arm`): the cells of a sweep over seeds, noise or
+solvers share one arm and its CasADi Functions, built by the first of them.
 """
 
 from __future__ import annotations
 
+import json
 import os
 import time
+from collections import OrderedDict
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from optikin.sweep.spec import Cell
+
+if TYPE_CHECKING:
+    from optikin.arms.base import ArmModel
+
+KEPT_ARMS = 8
+"""Arms a worker process keeps (the most recently used)."""
+
+_ARMS: OrderedDict[str, "ArmModel"] = OrderedDict()
+
+
+def cached_arm(arm_type: str, params: dict[str, Any], path: str | Path = "<arm>") -> "ArmModel":
+    """:func:`optikin.arms.build_arm`, once per process for each arm: keyed by the canonical JSON of
+    ``{type, params}``, so every cell with the same arm reuses it with the CasADi Functions built on it.
+
+    An arm is read-only once built (its Functions are cached properties of its parameters), so cells
+    sharing it get the answers of a fresh one. A spec error is raised again for every cell that has it.
+    """
+    from optikin.arms import build_arm
+
+    key = json.dumps({"type": arm_type, "params": params}, sort_keys=True, default=repr)
+    if key not in _ARMS:
+        _ARMS[key] = build_arm(arm_type, params, path)
+        while len(_ARMS) > KEPT_ARMS:
+            _ARMS.popitem(last=False)
+    _ARMS.move_to_end(key)
+    return _ARMS[key]
 
 
 def _marker(cell: Cell) -> Path | None:
@@ -70,7 +99,9 @@ def run_cell(cell: Cell) -> dict[str, Any]:
     }
     try:
         solver = None if any(field == "solver" for field, _ in cell.overrides) else cell.solver
-        result, _ = solve(cell.problem, solver=solver, out=None, figures=False, overrides=list(cell.overrides))
+        result, _ = solve(
+            cell.problem, solver=solver, out=None, figures=False, overrides=list(cell.overrides), arms=cached_arm
+        )
         summary = result.summary()
         summary.pop("created", None)
         record |= {

@@ -25,6 +25,7 @@ from typing import Any, Sequence
 from optikin.errors import SpecError
 from optikin.problems import ChunkWork, ProblemContext, ProblemKind
 from optikin.results import Result
+from optikin.sweep.cell import cached_arm
 from optikin.sweep.run import check_jobs, dask_client
 
 MIN_PIECE = 64
@@ -62,7 +63,7 @@ def _context(ref: ProblemRef) -> tuple[ProblemContext, dict[str, Any]]:
 
     key = ref.key
     if key not in _CONTEXTS:
-        _, ctx = prepare(ref.path, ref.solver, overrides=ref.overrides)
+        _, ctx = prepare(ref.path, ref.solver, overrides=ref.overrides, arms=cached_arm)
         _CONTEXTS[key] = (ctx, {})
         while len(_CONTEXTS) > KEPT_CONTEXTS:
             _CONTEXTS.popitem(last=False)
