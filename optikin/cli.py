@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import logging
 import sys
 import traceback
 from pathlib import Path
@@ -150,8 +151,9 @@ def _cmd_solve(args: argparse.Namespace) -> int:
         out=Path(args.out),
         figures=not args.no_figures,
         progress=Progress(enabled=not args.json),
-        notify=lambda line: print(f"optikin: {line}", file=sys.stderr),
+        notify=logging.getLogger("optikin.cli").info,
         overrides=overrides,
+        chunks=_solve_chunks(args),
     )
     if args.json:
         print(json.dumps(result.summary(), indent=2))
@@ -159,6 +161,12 @@ def _cmd_solve(args: argparse.Namespace) -> int:
         print_result(result, wide=args.wide)
         print(f"written to {written}")
     return EXIT_OK if result.succeeded else EXIT_FAILED_SAMPLES
+
+
+def _solve_chunks(args: argparse.Namespace) -> Any:
+    from optikin.sweep.chunks import chunks_of
+
+    return chunks_of(args.jobs, args.dask)
 
 
 def _cmd_plot(args: argparse.Namespace) -> int:
@@ -236,6 +244,8 @@ def build_parser() -> argparse.ArgumentParser:
         help="override a field of the problem file (dotted, e.g. data.seed=3 or options.noise=0.001; "
         "the value is YAML); validated like the file; repeatable",
     )
+    p.add_argument("--jobs", type=int, default=1, help="split the samples across N joblib (loky) worker processes")
+    p.add_argument("--dask", metavar="ADDRESS", help="split the samples on a Dask scheduler, or local:N (LocalCluster)")
     p.set_defaults(run=_cmd_solve)
 
     p = sub.add_parser("plot", help="redraw the figures of a written result from its arrays, without solving")
