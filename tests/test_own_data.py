@@ -310,3 +310,49 @@ def test_the_command_line_prints_one_line_for_a_bad_file(tmp_path):
     )
     assert run.returncode == EXIT_BAD_INPUT
     assert run.stderr.startswith(f"optikin: error: {bad}: sample 17: y: nan is not a finite number"), run.stderr
+
+
+# ------------------------------------------------------------------------------ interpolation, units, content
+def circle_file(path: Path, rate: float, unit: float = 1.0) -> Path:
+    """A pose file at ``rate`` Hz over 1 s: the tip on a 2 cm circle about (0.1, 0, 0.3) m, turning about z
+    at 1 rad/s (positions written in metres times ``1 / unit``)."""
+    t = np.arange(int(rate) + 1) / rate
+    angle = 0.5 * t
+    rows = [
+        [ti, (0.1 + 0.02 * np.cos(ti)) / unit, 0.02 * np.sin(ti) / unit, 0.3 / unit, np.cos(a), 0.0, 0.0, np.sin(a)]
+        for ti, a in zip(t, angle)
+    ]
+    path.write_text(POSE_HEADER + "\n" + "\n".join(",".join(f"{v:.12g}" for v in r) for r in rows) + "\n")
+    return path
+
+
+def test_a_pose_file_is_interpolated_on_the_circle_and_the_rotation_it_samples(tmp_path):
+    """At 100 Hz from a 50 Hz file: slerp between orientations is exact for a turn about one axis, the spline's
+    positions and velocities lie on the circle (closed forms), the pose rate is the dual quaternion's derivative."""
+    file = circle_file(tmp_path / "circle.csv", 50.0)
+    pose = reference_of(tracking(tmp_path, file, task="pose", hold=0.0)).reference
+    position = reference_of(tracking(tmp_path, file, "circle-position", task="position", hold=0.0)).reference
+    t = pose.t
+    assert t.shape == (101,) and pose.dt == pytest.approx(0.01)
+    circle = np.column_stack([0.1 + 0.02 * np.cos(t), 0.02 * np.sin(t), np.full_like(t, 0.3)])
+    speed = np.column_stack([-0.02 * np.sin(t), 0.02 * np.cos(t), 0 * t])
+    np.testing.assert_allclose(pose.position, circle, atol=2e-8)
+    np.testing.assert_allclose(position.value, circle, atol=2e-8)
+    np.testing.assert_allclose(position.rate[1:-1], speed[1:-1], atol=2e-7)  # clamped-free ends: looser there
+    turn = np.column_stack([np.cos(t / 2), 0 * t, 0 * t, np.sin(t / 2)])
+    np.testing.assert_allclose(pose.orientation, turn, atol=1e-12)
+    # d/dt (q_r + eps 0.5 p q_r) with q_r = (cos t/2, 0, 0, sin t/2): the real part's derivative is exact
+    np.testing.assert_allclose(
+        pose.rate[1:-1, :4], 0.5 * np.column_stack([-turn[:, 3], 0 * t, 0 * t, turn[:, 0]])[1:-1], atol=1e-4
+    )
+
+
+def test_units_and_content_are_read_as_declared(tmp_path):
+    metres = reference_of(tracking(tmp_path, circle_file(tmp_path / "m.csv", 50.0), task="position", hold=0.0))
+    millimetres = tracking(tmp_path, circle_file(tmp_path / "mm.csv", 50.0, 1e-3), "mm", task="position", hold=0.0)
+    spec = yaml.safe_load(millimetres.read_text())
+    spec["data"]["params"]["units"] = "mm"
+    millimetres.write_text(yaml.safe_dump(spec))
+    np.testing.assert_allclose(reference_of(millimetres).reference.value, metres.reference.value, atol=1e-12)
+    positions = read_demonstration(DATA / "demo-pose.csv", content="position")
+    assert positions.content == "position" and positions.quaternion is None
