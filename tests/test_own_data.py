@@ -154,18 +154,29 @@ def test_the_recording_examples_are_read_and_the_motive_one_calibrates(tmp_path)
     assert result.succeeded, result.notes
 
 
-def test_the_c3d_example_is_read():
-    pytest.importorskip("ezc3d")
+def assert_same_disks(recording, motive) -> None:
+    """The three disks of ``recording`` where the Motive export has them: positions to its 1e-6 mm rounding
+    (C3D stores float32: 0.1 micrometre), orientations to rounding."""
+    assert sorted(recording.bodies) == sorted(motive.bodies) == ["disk1", "disk2", "disk3"]
+    for name, body in motive.bodies.items():
+        np.testing.assert_allclose(recording.bodies[name].positions, body.positions, atol=1e-7)
+        agreement = np.abs(np.sum(recording.bodies[name].quaternions * body.quaternions, axis=1))
+        np.testing.assert_allclose(agreement, 1.0, atol=1e-12)
+
+
+@pytest.mark.parametrize("reader", ["c3d", "rosbag"])
+def test_the_c3d_and_bag_examples_hold_the_motive_examples_frames(reader):
+    """Three formats written independently (Motive text, C3D floats, ROS messages) read back as one recording."""
+    pytest.importorskip("ezc3d" if reader == "c3d" else "rosbags")
     from optikin.data.readers.c3d import read_c3d
-
-    assert len(read_c3d(DATA / "trunk.c3d", FrameOptions(up="y"), "mm")) == 40
-
-
-def test_the_rosbag_example_is_read():
-    pytest.importorskip("rosbags")
     from optikin.data.readers.rosbag import read_rosbag
 
-    assert len(read_rosbag(DATA / "trunk_bag", FrameOptions(up="y"), "mm")) == 40
+    y_up = FrameOptions(up="y")
+    motive = read_motive_csv(DATA / "motive.csv", y_up)
+    read = read_c3d(DATA / "trunk.c3d", y_up, "mm") if reader == "c3d" else read_rosbag(DATA / "trunk_bag", y_up, "mm")
+    assert len(read) == len(motive) == 12
+    np.testing.assert_allclose(read.time, motive.time, atol=1e-9)
+    assert_same_disks(read, motive)
 
 
 def test_every_example_file_is_listed_in_the_examples_readme():

@@ -15,9 +15,9 @@
                                :mod:`optikin.data.markers`, 0.3 mm marker noise)
 ``motive.csv``                 an OptiTrack Motive CSV export (y up, mm) of the hanging three-section
                                trunk of ``tools/make_recordings.py``, 12 frames at 5 Hz
-``trunk.c3d``, ``trunk_bag/``  the C3D file and the ROS 2 bag (sqlite3) of the trunk: the test
-                               recordings of ``problems/data/recordings/``, copied (their writers need
-                               ezc3d and rosbags)
+``trunk.c3d``, ``trunk_bag/``  the same 12 frames as a C3D file and a ROS 2 bag (sqlite3 storage),
+                               by the writers of ``tools/make_recordings.py`` (they need ezc3d and
+                               rosbags)
 =============================  ======================================================================
 
 Run ``python tools/make_examples.py`` (``--out`` another folder); every draw is seeded, so the files
@@ -29,7 +29,6 @@ from __future__ import annotations
 import argparse
 import csv
 import importlib.util
-import shutil
 import sys
 from pathlib import Path
 
@@ -42,7 +41,6 @@ from optikin.control.reference import minimum_jerk_path
 from optikin.data.markers import synthetic_recording, write_marker_csv
 
 ROOT = Path(__file__).resolve().parents[1]
-RECORDINGS = ROOT / "problems" / "data" / "recordings"
 ARM = ConstantCurvatureArm(section_lengths=(0.18, 0.18))
 WAYPOINTS = np.array(
     [
@@ -61,9 +59,9 @@ POSITION_NOISE = 1e-4
 ANGLE_NOISE_DEG = 0.05
 """Standard deviation of the demonstration's tip orientation per axis [deg]."""
 MOTIVE_FRAMES = 12
-"""Frames of the Motive example."""
+"""Frames of the recording examples (Motive, C3D, bag)."""
 MOTIVE_RATE = 5.0
-"""Frame rate of the Motive example [Hz]: its 12 frames span 2.4 s of the trunk's motion."""
+"""Frame rate of the recording examples [Hz]: their 12 frames span 2.4 s of the trunk's motion."""
 
 
 def write_rows(path: Path, header: list[str], rows: np.ndarray, digits: int = 6) -> None:
@@ -104,7 +102,7 @@ def samples(out: Path) -> None:
 
 
 def recordings(out: Path) -> None:
-    """``motive.csv`` from ``tools/make_recordings.py``; the C3D file and the bag copied from the test recordings."""
+    """``motive.csv``, ``trunk.c3d`` and ``trunk_bag/``: 12 frames at 5 Hz by ``tools/make_recordings.py``."""
     spec = importlib.util.spec_from_file_location("make_recordings", ROOT / "tools" / "make_recordings.py")
     assert spec is not None and spec.loader is not None
     make_recordings = importlib.util.module_from_spec(spec)
@@ -112,9 +110,8 @@ def recordings(out: Path) -> None:
     spec.loader.exec_module(make_recordings)
     make_recordings.FRAMES, make_recordings.RATE = MOTIVE_FRAMES, MOTIVE_RATE  # read by its writers when called
     make_recordings.write_motive_csv(out / "motive.csv")
-    shutil.copy(RECORDINGS / "trunk.c3d", out / "trunk.c3d")
-    shutil.rmtree(out / "trunk_bag", ignore_errors=True)
-    shutil.copytree(RECORDINGS / "trunk_bag", out / "trunk_bag")
+    make_recordings.write_c3d(out / "trunk.c3d")
+    make_recordings.write_bag(out / "trunk_bag")
 
 
 def main(argv: list[str] | None = None) -> None:
