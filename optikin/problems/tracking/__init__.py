@@ -6,7 +6,10 @@ the baselines, run on the same reference, plant and noise draws, are the paper's
 MRAC (``mrac``, :mod:`optikin.baselines.mrac`) started from the same task gain as
 every other controller, the same MRAC started from the paper's optimised gains
 (``mrac_seed``), the plain pseudo-inverse (``pseudo_inverse``) and damped least
-squares (``damped_least_squares``).
+squares (``damped_least_squares``); two more controllers on the same footing, listed there too,
+are the MPC (``mpc``, :mod:`optikin.control.mpc`: a horizon of ``options.mpc.horizon`` steps, one
+sparse QP per step by OSQP) and its nonlinear reference by IPOPT (``mpc_ipopt``,
+:mod:`optikin.control.mpc_nlp`), with the QP's gain, limits and obstacles.
 
 The reference (``data``, family ``references`` of :mod:`optikin.data.references`)
 is either the forward kinematics of a minimum-jerk configuration path (source
@@ -47,6 +50,8 @@ Options (all optional; :class:`~optikin.problems.tracking.options.TrackingOption
         radius: r
         path: [[t, dx, dy, dz], ...]   # optional: offset, linear in time [s, m]
     barrier: {margin: 0.01, gamma: 20.0, points_per_obstacle: 3, points_per_section: null}
+    mpc: {horizon: 20, effort_weight: null, solver: osqp, preview: true, eps: 1.0e-3, rho: 0.1,
+          max_iter: 4000, polishing: false, ipopt_tolerance: 1.0e-8, ipopt_max_iter: 200}
 
 Per-step status: ``ok``, or ``failed`` where the QP solver failed and the
 fallback was applied (the reason is in the notes). The run succeeds when every
@@ -59,7 +64,10 @@ how much. The baselines' convergence is a reported metric, not a criterion.
 With obstacles a third criterion, ``no penetration``: the QP's backbone, between its samples
 too (least sample distance minus half the sample spacing), stays outside every obstacle; every
 controller's clearance and penetrations are reported (columns ``clearance [mm]``,
-``penetrations``), and how far the QP's tip stays from a reference that an obstacle blocks.
+``penetrations``, ``depth [mm]``), and how far the QP's tip stays from a reference that an obstacle
+blocks. The MPC baselines are held to the same criterion (``no penetration (mpc)``,
+``no penetration (mpc_ipopt)``); a step on which an MPC's horizon failed is counted (column
+``fallbacks``) and named in the notes.
 """
 
 from __future__ import annotations
@@ -88,6 +96,6 @@ register_kind(
         options=TrackingOptions,
         data_family="references",
         figures=figures.figures,
-        headline=("rms [mm]", "final [mm]", "outside limits", "step [us]", "converged", "penetrations"),
+        headline=("rms [mm]", "final [mm]", "outside limits", "step [us]", "converged", "penetrations", "depth [mm]"),
     )
 )

@@ -130,6 +130,32 @@ class BarrierOptions(Options):
     )
 
 
+class MPCOptions(Options):
+    """The MPC controllers (:mod:`optikin.control.mpc`, :mod:`optikin.control.mpc_nlp`), run when in ``baselines``.
+
+    ``mpc`` is the controller of ``solver`` (the sparse QP by OSQP, or the nonlinear horizon by
+    IPOPT), ``mpc_ipopt`` always the IPOPT reference; both share the horizon, the weights and the
+    QP's gain, limits and barrier.
+    """
+
+    horizon: int = Field(20, ge=1, le=500, description="N, the control steps predicted")
+    effort_weight: NonNegativeFloat | None = Field(
+        None,
+        description="lambda, the weight of ||u_j||^2 against the task slacks (task velocities); "
+        "null: options.damping, so that N = 1 without obstacles is the QP's step",
+    )
+    solver: Literal["osqp", "ipopt"] = Field(
+        "osqp", description="the controller of baseline mpc: osqp (one sparse QP per step) or ipopt (nonlinear)"
+    )
+    preview: bool = Field(True, description="the reference's rates ahead enter the target; false: present rate held")
+    eps: PositiveFloat = Field(1e-3, description="OSQP's absolute and relative tolerance")
+    rho: PositiveFloat = Field(0.1, description="OSQP's ADMM step size")
+    max_iter: int = Field(4000, ge=1, description="OSQP's iterations per step before the horizon counts as failed")
+    polishing: bool = Field(False, description="OSQP's active-set polishing of each answer")
+    ipopt_tolerance: PositiveFloat = Field(1e-8, description="IPOPT's tol")
+    ipopt_max_iter: int = Field(200, ge=1, description="IPOPT's iterations per step")
+
+
 class TrackingOptions(Options):
     """Options of the ``tracking`` kind."""
 
@@ -161,3 +187,4 @@ class TrackingOptions(Options):
         default_factory=list, description="obstacles the QP keeps the whole backbone away from (baselines ignore them)"
     )
     barrier: BarrierOptions = Field(default_factory=BarrierOptions, description="the QP's backbone barrier")
+    mpc: MPCOptions = Field(default_factory=MPCOptions, description="the MPC baselines mpc and mpc_ipopt")

@@ -10,7 +10,7 @@ from optikin.control.obstacles import Obstacle
 from optikin.control.simulate import DEG, MM, TrackingRun
 from optikin.problems import ProblemContext
 from optikin.problems.tracking.options import ToleranceOptions
-from optikin.problems.tracking.run import ObstacleOutcome, TrackingOutcome
+from optikin.problems.tracking.run import MPC_NAMES, ObstacleOutcome, TrackingOutcome
 from optikin.results import MethodRow, Result
 
 COMPARED = {
@@ -24,6 +24,8 @@ COMPARED = {
     "settle [s]": "settling time [s]",
     "clearance [mm]": "backbone clearance min [mm]",
     "penetrations": "penetrating samples",
+    "depth [mm]": "penetration depth max [mm]",
+    "fallbacks": "fallback steps",
 }
 """Columns of the comparison table: short name -> metric of :meth:`TrackingRun.metrics`."""
 
@@ -51,13 +53,14 @@ def result(ctx: ProblemContext, outcome: TrackingOutcome) -> Result:
     }
     criteria, missed = success_criteria(summaries["qp"], outcome.tolerance)
     if outcome.obstacles is not None:
-        clear = summaries["qp"]["backbone clearance bound [mm]"] > 0
-        criteria["no penetration"] = bool(clear)
-        if not clear:
-            missed.append(
-                "criterion no penetration not met: the QP's backbone came within "
-                f"{summaries['qp']['backbone clearance bound [mm]']:.3g} mm of an obstacle (bound between samples)"
-            )
+        for name in ("qp", *(name for name in MPC_NAMES if name in runs)):
+            clear = summaries[name]["backbone clearance bound [mm]"] > 0
+            criteria["no penetration" if name == "qp" else f"no penetration ({name})"] = bool(clear)
+            if not clear:
+                missed.append(
+                    f"criterion no penetration not met: the backbone of {runs[name].controller} came within "
+                    f"{summaries[name]['backbone clearance bound [mm]']:.3g} mm of an obstacle (bound between samples)"
+                )
     return ctx.result(
         status=["ok" if s == "ok" else "failed" for s in qp_run.status],
         residuals=qp_run.position_error,
@@ -83,6 +86,7 @@ def obstacle_metrics(obstacles: ObstacleOutcome, name: str) -> dict[str, Any]:
         "backbone clearance min [mm]": least * MM,
         "backbone clearance bound [mm]": (least - half) * MM,
         "penetrating samples": int(np.sum(d < 0)),
+        "penetration depth max [mm]": float(max(0.0, -least) * MM),
         "steps with penetration": int(np.sum(np.any(d < 0, axis=(1, 2)))),
         "steps within margin": int(np.sum(np.any(d < obstacles.barrier.margin - 1e-6, axis=(1, 2)))),
     }
@@ -130,7 +134,7 @@ def obstacle_notes(
 def _row(name: str, tracking: TrackingRun, full: dict[str, Any], tolerance: ToleranceOptions) -> MethodRow:
     row = {short: full[key] for short, key in COMPARED.items() if key in full}
     row["converged"] = converged(full, tolerance)
-    return MethodRow(tracking.controller, "solver" if name == "qp" else "baseline", row)
+    return MethodRow(tracking.controller, "solver" if name in ("qp", "mpc") else "baseline", row)
 
 
 def settling_time(tracking: TrackingRun, after: float, tolerance: ToleranceOptions) -> float | None:
@@ -249,6 +253,10 @@ def notes(
         out.append(f"QP solver failed on {len(failed)} steps; first at t = {failed[0][0]:.4g} s: {failed[0][1]}")
     for name, tracking in runs.items():
         m = summaries[name]
+        if name != "qp" and m["fallback steps"]:
+            out.append(
+                f"{tracking.controller}: fallback on {m['fallback steps']} steps; first at {m['first fallback']}"
+            )
         out += [f"{tracking.controller}: {note}" for note in tracking.notes]
         if m.get("plant equilibrium failures"):
             out.append(

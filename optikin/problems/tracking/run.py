@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -11,6 +12,8 @@ from optikin.arms.constant_curvature import ConstantCurvatureArm
 from optikin.baselines.mrac import MRACController, SeedGainMRACController
 from optikin.baselines.pseudo_inverse import DampedLeastSquaresController, PseudoInverseController
 from optikin.control.base import Controller
+from optikin.control.mpc import MPCController
+from optikin.control.mpc_nlp import NonlinearMPCController
 from optikin.control.obstacles import BarrierRows, Obstacle
 from optikin.control.qp import QPController
 from optikin.control.reference import Reference
@@ -34,8 +37,17 @@ BASELINES: dict[str, type[Controller]] = {
     "mrac_seed": SeedGainMRACController,
     "pseudo_inverse": PseudoInverseController,
     "damped_least_squares": DampedLeastSquaresController,
+    "mpc": MPCController,
+    "mpc_ipopt": NonlinearMPCController,
 }
-"""The kind's own baselines: ``baselines:`` name -> controller (its ``name`` labels its rows and curves)."""
+"""The kind's own baselines: ``baselines:`` name -> controller (its ``name`` labels its rows and curves).
+
+``mpc`` and ``mpc_ipopt`` are the MPC of ``options.mpc`` (:mod:`optikin.control.mpc`), with the QP's
+gain, limits and obstacles: ``mpc`` by ``options.mpc.solver``, ``mpc_ipopt`` the IPOPT reference.
+"""
+
+MPC_NAMES = ("mpc", "mpc_ipopt")
+"""The baselines that are MPC controllers (held to the no-penetration criterion like the QP)."""
 
 
 @dataclass
@@ -95,7 +107,7 @@ def run(ctx: ProblemContext) -> TrackingOutcome:
     plant = _plant(ctx, options.plant)
     reference = source.reference
     barrier = _barrier(ctx, options, plant, q0, reference)
-    controllers = _controllers(ctx, options, reference.dt, reference.task, barrier)
+    controllers = _controllers(ctx, options, reference.dt, reference.task, barrier, reference)
     runs: dict[str, TrackingRun] = {}
     wall: dict[str, float] = {}
     with ctx.progress.task(
@@ -280,9 +292,18 @@ def _path_times(ob: Obstacle, reference: Reference) -> np.ndarray:
 
 
 def _controllers(
-    ctx: ProblemContext, options: TrackingOptions, dt: float, task: Task, barrier: BarrierRows | None = None
+    ctx: ProblemContext,
+    options: TrackingOptions,
+    dt: float,
+    task: Task,
+    barrier: BarrierRows | None = None,
+    reference: Reference | None = None,
 ) -> dict[str, Controller]:
-    """The QP controller (the preset's step solver, with the barrier's rows) and every baseline, by name."""
+    """The QP controller (the preset's step solver, with the barrier's rows) and every baseline, by name.
+
+    The MPC baselines get barrier rows of their own (same obstacles and settings; each keeps its
+    own clock) and ``reference`` as their preview when ``options.mpc.preview``.
+    """
     arm, o = ctx.arm, options
     compiled = o.compiled
     factory = ctx.backend(QPBackend)
@@ -316,6 +337,8 @@ def _controllers(
             elif name == "mrac_seed":
                 seed = o.mrac.model_dump(exclude={"gain"})
                 controllers[name] = SeedGainMRACController(arm, dt, task, **seed, compiled=compiled)
+            elif name in MPC_NAMES:
+                controllers[name] = _mpc(ctx, options, dt, task, name, barrier, reference)
             elif name == "damped_least_squares":
                 controllers[name] = DampedLeastSquaresController(arm, dt, task, o.gain, o.damping, compiled=compiled)
             else:
@@ -323,3 +346,58 @@ def _controllers(
     except ValueError as exc:
         raise ctx.error("options", str(exc)) from None
     return controllers
+
+
+def _mpc(
+    ctx: ProblemContext,
+    options: TrackingOptions,
+    dt: float,
+    task: Task,
+    name: str,
+    barrier: BarrierRows | None,
+    reference: Reference | None,
+) -> Controller:
+    """The MPC baseline ``name`` of ``options.mpc``; a bad horizon or weight is an error naming ``options.mpc``."""
+    o, m = options, options.mpc
+    rows = None
+    if barrier is not None:
+        rows = BarrierRows(
+            ctx.arm,
+            barrier.dt,
+            barrier.distances.obstacles,
+            barrier.margin,
+            barrier.gamma,
+            barrier.points_per_obstacle,
+            barrier.distances.points_per_section,
+            compiled=barrier.distances.compiled,
+        )
+    horizon: dict[str, Any] = dict(
+        horizon=m.horizon,
+        rate_limits=o.rate_limits,
+        margin=o.limit_margin,
+        limit_gain=o.limit_gain,
+        barrier=rows,
+        preview=reference if m.preview else None,
+        compiled=o.compiled,
+    )
+    weight = o.damping if m.effort_weight is None else m.effort_weight
+    try:
+        if name == "mpc_ipopt" or m.solver == "ipopt":
+            return NonlinearMPCController(
+                ctx.arm, dt, task, o.gain, weight, tolerance=m.ipopt_tolerance, max_iter=m.ipopt_max_iter, **horizon
+            )
+        return MPCController(
+            ctx.arm,
+            dt,
+            task,
+            o.gain,
+            weight,
+            eps_abs=m.eps,
+            eps_rel=m.eps,
+            rho=m.rho,
+            max_iter=m.max_iter,
+            polishing=m.polishing,
+            **horizon,
+        )
+    except ValueError as exc:
+        raise ctx.error("options.mpc", str(exc)) from None
