@@ -102,3 +102,23 @@ def test_grips_on_one_vertical_and_bad_parameters_are_refused():
         with pytest.raises(InputDataError) as err:
             CatenarySensitivity(**kwargs)
         assert err.value.field == field
+
+
+def test_rope_samples_are_the_catenarys_points_and_their_grip_jacobian_matches_central_differences():
+    from optikin.curves.catenary_sensitivity import RopeSamples
+
+    A, B = np.array([-0.2, 0.01, 0.3]), np.array([0.15, -0.03, 0.33])
+    arc = np.linspace(0.0, 0.6, 9)
+    samples = RopeSamples(CatenarySensitivity(0.6), arc)
+    samples.evaluate(A, B)
+    assert np.allclose(samples.P, catenary(A, B, 0.6).points(arc), atol=1e-14)
+    jacobian = samples.J.copy()
+
+    def points(G: np.ndarray) -> np.ndarray:
+        samples.evaluate(G[:3], G[3:])
+        return samples.P.copy()
+
+    assert np.allclose(jacobian, central_differences(points, np.r_[A, B]), atol=2e-8)
+    assert np.allclose(jacobian[0], np.c_[np.eye(3), np.zeros((3, 3))]) and np.allclose(
+        jacobian[-1], np.c_[np.zeros((3, 3)), np.eye(3)], atol=1e-12
+    )

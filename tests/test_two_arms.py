@@ -184,3 +184,70 @@ def test_floor_row_keeps_the_ropes_lowest_point_above_a_floor_the_loop_dips_belo
     assert reference_low < 0.12
     assert result.metrics["lowest point above the floor min [mm]"] >= 20.0 - 0.5  # the margin, to one step's error
     assert np.all(result.arrays["x_qp"][:, 2] >= 0.12)
+
+
+def test_rope_rows_are_the_derivative_of_the_rope_samples_clearance_to_each_tube():
+    from optikin.control.two_arm import RopeTubes, rope_samples
+
+    first, second = two_arms(6)
+    sensitivity = CatenarySensitivity(0.5)
+    model = TwoArmModel([first, second], "rope", Rope(sensitivity, samples=rope_samples(sensitivity, 0.07, 0.01)))
+    rows = RopeTubes(model, margin=0.01, gamma=20.0, dt=DT, pairs=3)
+    q = np.array([0.18, 0.3, 0.1, 0.18, 0.3, 0.0, 0.17, 0.25, -0.1, 0.18, 0.35, 0.2])
+    model.evaluate(q)
+    rows.update()
+    chosen = []  # (rope sample, arm, backbone sample) of every row, recovered from the clearances
+    R = model.rope.samples.P.copy()
+    for arm, placed in enumerate(model.arms):
+        d = np.linalg.norm(R[:, None, :] - placed.P[None, :, :], axis=2) - placed.radius
+        for b in rows.b[3 * arm : 3 * arm + 3]:
+            i, j = np.argwhere(np.isclose(-20.0 * (d - 0.01), b, rtol=0, atol=1e-12))[0]
+            chosen.append((i, arm, j))
+
+    def clearances(q: np.ndarray) -> np.ndarray:
+        model.evaluate(q)
+        R, out = model.rope.samples.P, []
+        for i, arm, j in chosen:
+            placed = model.arms[arm]
+            out.append(np.linalg.norm(R[i] - placed.P[j]) - placed.radius)
+        return np.array(out)
+
+    numeric = central_differences(clearances, q)
+    assert np.allclose(rows.A, numeric, atol=1e-8)
+
+
+def test_rope_rows_keep_the_rope_off_the_tubes_where_the_baseline_comes_closer(tmp_path):
+    def margin(d):
+        d["baselines"] = ["no_collision_rows"]
+        d["options"]["collision"]["rope_margin"] = 0.044  # the start: 44.8 mm
+
+    result, _ = solve(str(variant(tmp_path, "rope-skipping", margin)), out=tmp_path / "out", figures=False)
+    assert result.criteria == {"no collision": True, "within limits": True}
+    # Dense rope points on every 10th step; between the QP's samples the rope may come (5 + 9.9)/2 mm closer.
+    assert result.metrics["rope to the arms' tubes min [mm]"] >= 44.0 - 7.5
+    baseline = run_metrics_of(result, "no_collision_rows")
+    assert baseline < 44.0 - 1.0
+
+
+def run_metrics_of(result, name: str) -> float:
+    """The least dense rope clearance of run ``name`` from its arrays (every 10th step, 60 rope points)."""
+    from optikin.curves.catenary import catenary
+
+    first, second = two_arms_of("rope-skipping")
+    tips, Q = result.arrays[f"tips_{name}"], result.arrays[f"q_{name}"]
+    s = np.linspace(0.0, 0.3, 60)
+    keep = (s >= 0.07) & (s <= 0.3 - 0.07)
+    least = np.inf
+    for k in range(0, len(Q), 10):
+        rope = catenary(tips[k, 0], tips[k, 1], 0.3).points(s)[keep]
+        for placed, q in ((first, Q[k, :6]), (second, Q[k, 6:])):
+            least = min(least, np.linalg.norm(rope[:, None] - placed.points_at(q)[None], axis=2).min() - placed.radius)
+    return float(least * 1e3)
+
+
+def two_arms_of(name: str) -> tuple[PlacedArm, PlacedArm]:
+    spec, _ = load_problem(name)
+    return tuple(  # type: ignore[return-value]
+        PlacedArm(ARM, np.array(a["base"]), rotation_from_quaternion(a["orientation"]), a["radius"], 4)
+        for a in spec.options["arms"]
+    )

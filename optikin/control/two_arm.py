@@ -15,6 +15,7 @@ The QP of one step (``q = (q_1, q_2)``, period ``dt``)::
               D qdot >= -gamma (d - margin)           (self-collision, TwoTubes)
               dc/dq qdot <= gamma (L - slack - c)     (rope task: grips kept slack, c = |G_2 - G_1|)
               dz/dq qdot >= -gamma (z - floor - margin)  (rope task with a floor: the lowest point above it)
+              D_rope qdot >= -gamma (d_rope - rope margin)  (rope task: its samples off both tubes, RopeTubes)
 
 The posture term (weight ``w``) settles the motions the task leaves free (the lowest point fixes 3
 of 12 rates). Keeping the grips at least ``slack`` closer than the rope's length keeps the rope
@@ -38,7 +39,7 @@ import numpy as np
 
 from optikin.control.limits import RateBounds, limit_excess, periodic_mask, wrap_periodic
 from optikin.control.self_collision import PlacedArm, TwoTubes
-from optikin.curves.catenary_sensitivity import CatenarySensitivity, LowestPoint
+from optikin.curves.catenary_sensitivity import CatenarySensitivity, LowestPoint, RopeSamples
 from optikin.errors import InputDataError
 from optikin.interrupt import check_interrupted
 from optikin.solvers.base import QPStepSolver
@@ -74,11 +75,31 @@ class TwoArmReference:
 
 @dataclass
 class Rope:
-    """The rope held by the tips: its sensitivity, the slack kept and an optional floor (height along ``up``) [m]."""
+    """The rope held by the tips: its sensitivity, the slack kept, an optional floor (height along ``up``) [m], and
+    the samples kept off the arms' tubes (``None``: none), from arc length ``exclusion`` [m] of each grip on."""
 
     sensitivity: CatenarySensitivity
     slack: float = 0.03
     floor: float | None = None
+    samples: RopeSamples | None = None
+    exclusion: float = 0.07
+
+
+def rope_samples(
+    sensitivity: CatenarySensitivity, exclusion: float, margin: float, compiled: bool = False
+) -> RopeSamples:
+    """Rope samples from arc length ``exclusion`` of each grip on, spaced at most ``margin / 2`` (:class:`RopeTubes`).
+
+    Raises
+    ------
+    ValueError
+        An exclusion that leaves no rope between the grips.
+    """
+    inner = sensitivity.length - 2.0 * exclusion
+    if not inner > 0:
+        raise ValueError(f"an exclusion of {exclusion} m at both grips leaves nothing of a {sensitivity.length} m rope")
+    count = int(np.ceil(inner / (0.5 * margin) - 1e-9)) + 1
+    return RopeSamples(sensitivity, np.linspace(exclusion, sensitivity.length - exclusion, count), compiled)
 
 
 class TwoArmModel:
@@ -121,9 +142,74 @@ class TwoArmModel:
             return
         assert self.rope is not None
         low = self.lowest = self.rope.sensitivity.lowest_point(first.tip, second.tip)
+        if self.rope.samples is not None:
+            self.rope.samples.evaluate(first.tip, second.tip, low.a)
         self.x[:] = low.point
         self.J[:, :n1] = low.jacobian[:, :3] @ first.tip_jacobian
         self.J[:, n1:] = low.jacobian[:, 3:] @ second.tip_jacobian
+
+
+class RopeTubes:
+    """Barrier rows keeping the rope's samples ``margin`` off both arms' tubes (:mod:`optikin.control.self_collision`).
+
+    For a rope sample ``p_i(G)`` (:class:`~optikin.curves.catenary_sensitivity.RopeSamples`, its derivative through
+    the catenary's implicit function) and a backbone sample ``p_j(q_k)`` of arm ``k`` the clearance is
+    ``d = |p_i - p_j| - r_k`` with ``d d / d q = n' (dp_i/dG dG/dq - dp_j/dq)``, ``dG/dq`` the tips' Jacobians.
+    Per arm, each rope sample's nearest backbone sample, and of those the ``pairs`` nearest, enter the QP as
+    ``(d d/d q) qdot >= -gamma (d - margin)``. The rope is sampled only from ``exclusion`` of each grip on (it
+    leaves the tube of the arm holding it there), spaced at most ``margin / 2`` (:func:`rope_samples`), so
+    between samples the rope keeps at least ``margin - (h_rope + h_arm) / 2`` off the tubes.
+
+    Parameters
+    ----------
+    model:
+        The two arms and the rope task (its rope holding :attr:`Rope.samples`).
+    margin, gamma, dt, pairs:
+        The clearance kept [m], the barrier rate [1/s], the control period [s], the rows per arm.
+    """
+
+    def __init__(self, model: "TwoArmModel", margin: float, gamma: float, dt: float, pairs: int = 2):
+        rope = model.rope
+        if rope is None or rope.samples is None:
+            raise ValueError("rope rows need the rope's samples")
+        if not (margin > 0 and 0 < gamma * dt <= 1 and pairs >= 1):
+            raise ValueError(f"need margin > 0, 0 < gamma dt <= 1, pairs >= 1; got {margin}, {gamma * dt}, {pairs}")
+        self.model, self.samples = model, rope.samples
+        self.margin, self.gamma = float(margin), float(gamma)
+        self.pairs = min(int(pairs), len(self.samples.arc_lengths))
+        self.rows = 2 * self.pairs
+        self.A, self.b = np.zeros((self.rows, model.n)), np.zeros(self.rows)
+
+    def update(self) -> None:
+        """The rows at the model's last :meth:`TwoArmModel.evaluate`."""
+        m, R, JR = self.model, self.samples.P, self.samples.J
+        first, second = m.arms
+        k = self.pairs
+        for arm, placed in enumerate(m.arms):
+            P = placed.P
+            squared = np.einsum("ik,ik->i", R, R)[:, None] + np.einsum("jk,jk->j", P, P)[None, :] - 2.0 * (R @ P.T)
+            nearest = np.argmin(squared, axis=1)
+            best = squared[np.arange(len(R)), nearest]
+            i = np.argpartition(best, k - 1)[:k] if k < len(best) else np.arange(len(R))
+            j = nearest[i]
+            gap = R[i] - P[j]
+            length = np.sqrt(np.einsum("rk,rk->r", gap, gap))
+            normal = gap / length[:, None]
+            along = np.einsum("rk,rkg->rg", normal, JR[i])  # d d / d G, (k, 6)
+            rows = slice(arm * k, arm * k + k)
+            self.A[rows, : m.n1] = along[:, :3] @ first.tip_jacobian
+            self.A[rows, m.n1 :] = along[:, 3:] @ second.tip_jacobian
+            columns = slice(0, m.n1) if arm == 0 else slice(m.n1, m.n)
+            self.A[rows, columns] -= np.einsum("rk,rkn->rn", normal, placed.J[j])
+            self.b[rows] = -self.gamma * (length - placed.radius - self.margin)
+
+    def clearance(self) -> float:
+        """The least clearance of every rope sample to either tube at the model's last evaluation [m]."""
+        R = self.samples.P
+        return min(
+            float(np.sqrt(((R[:, None, :] - placed.P[None, :, :]) ** 2).sum(axis=2)).min()) - placed.radius
+            for placed in self.model.arms
+        )
 
 
 class TwoArmController:
@@ -185,6 +271,8 @@ class TwoArmQP(TwoArmController):
         Of both arms (:class:`optikin.control.limits.RateBounds`).
     tubes:
         The self-collision rows; ``None``: the arms may pass through each other.
+    rope_tubes:
+        The rows keeping the rope off the arms' tubes (rope task); ``None``: none.
     gamma, margin:
         Barrier rate [1/s] and the margin of the floor row [m] (rope task).
     """
@@ -205,6 +293,7 @@ class TwoArmQP(TwoArmController):
         rate_limits=None,
         limit_margin: float = 1e-9,
         tubes: TwoTubes | None = None,
+        rope_tubes: RopeTubes | None = None,
         gamma: float = 20.0,
         margin: float = 0.01,
     ):
@@ -226,7 +315,9 @@ class TwoArmQP(TwoArmController):
         rope = model.rope if model.task == "rope" else None
         self.rope_rows = 0 if rope is None else 1 + (rope.floor is not None)
         self.collision_rows = 0 if tubes is None else tubes.pairs
-        self.rows = self.collision_rows + self.rope_rows
+        self.rope_tubes = rope_tubes
+        self.rope_tube_rows = 0 if rope_tubes is None else rope_tubes.rows
+        self.rows = self.collision_rows + self.rope_tube_rows + self.rope_rows
         J, v = np.zeros((self.task_rows, n)), np.zeros(self.task_rows)
         if self.posture_rows:
             J[model.m :, :] = self.root_weight * np.eye(n)
@@ -270,8 +361,14 @@ class TwoArmQP(TwoArmController):
         if self.tubes is not None:
             self.tubes.update()
             d.A[: self.collision_rows], d.b[: self.collision_rows] = self.tubes.A, self.tubes.b
+        start = self.collision_rows
+        if self.rope_tubes is not None:
+            self.rope_tubes.update()
+            d.A[start : start + self.rope_tube_rows] = self.rope_tubes.A
+            d.b[start : start + self.rope_tube_rows] = self.rope_tubes.b
+            start += self.rope_tube_rows
         if self.rope_rows:
-            self._rope_rows(d.A[self.collision_rows :], d.b[self.collision_rows :])
+            self._rope_rows(d.A[start:], d.b[start:])
         try:
             solution = self.solver.solve(d)
             failure = None if solution.status == "ok" else f"no solution ({solution.message})"

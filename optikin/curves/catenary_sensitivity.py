@@ -124,16 +124,8 @@ class CatenarySensitivity:
 
     def _function(self) -> ca.Function:
         A, B, a = ca.SX.sym("A", 3), ca.SX.sym("B", 3), ca.SX.sym("a")
-        L, up = self.length, ca.DM(self.up)
-        G = ca.vertcat(A, B)
-        chord = B - A
-        v = ca.dot(chord, up)
-        flat = chord - v * up
-        h = ca.sqrt(ca.sumsqr(flat))
-        e = flat / h
-        residual = 2.0 * a * ca.sinh(h / (2.0 * a)) - ca.sqrt(L * L - v * v)
-        da = -ca.jacobian(residual, G) / ca.jacobian(residual, a)  # implicit-function theorem, (1, 6)
-        x0 = h / 2.0 - a * ca.atanh(v / L)
+        G, e, x0, da = self.plane(A, B, a)
+        up = ca.DM(self.up)
         P = A + x0 * e + a * (1.0 - ca.cosh(x0 / a)) * up
         dP = ca.jacobian(P, G) + ca.jacobian(P, a) @ da
         H = self.mass_per_length * G_ACCELERATION * a
@@ -145,6 +137,19 @@ class CatenarySensitivity:
             ["P", "dP_dG", "da_dG", "x0", "H", "dH_dG"],
             {"cse": True},
         )
+
+    def plane(self, A: ca.SX, B: ca.SX, a: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX, ca.SX]:
+        """``G = (A, B)``, the horizontal direction ``e``, the vertex abscissa ``x0`` and ``da/dG`` ``(1, 6)``
+        (implicit-function theorem) as CasADi expressions of the grips and ``a`` (module docstring)."""
+        L, up = self.length, ca.DM(self.up)
+        G = ca.vertcat(A, B)
+        chord = B - A
+        v = ca.dot(chord, up)
+        flat = chord - v * up
+        h = ca.sqrt(ca.sumsqr(flat))
+        residual = 2.0 * a * ca.sinh(h / (2.0 * a)) - ca.sqrt(L * L - v * v)
+        da = -ca.jacobian(residual, G) / ca.jacobian(residual, a)
+        return G, flat / h, h / 2.0 - a * ca.atanh(v / L), da
 
     def shape(self, A: np.ndarray, B: np.ndarray) -> tuple[float, float, float]:
         """``(a, span, rise)`` [m] of the rope between ``A`` and ``B``.
@@ -208,3 +213,63 @@ class CatenarySensitivity:
             float(self._H[0]),
             self._dH.copy(),
         )
+
+
+class RopeSamples:
+    """Points of the hanging rope at fixed arc lengths from ``A`` and their derivatives with respect to the grips.
+
+    With ``u = s/a - sinh(x0/a)`` the point at arc length ``s`` is
+    ``A + (x0 + a asinh(u)) e + a (sqrt(1 + u^2) - cosh(x0/a)) up`` (:mod:`optikin.curves.catenary`);
+    its derivative with respect to ``G`` goes through ``a`` by the implicit-function theorem, as the
+    lowest point's (:class:`CatenarySensitivity`).
+
+    Parameters
+    ----------
+    rope:
+        The rope (length, gravity).
+    arc_lengths:
+        ``M`` arc lengths from ``A`` [m], in ``[0, L]``.
+    compiled:
+        Compile the Function with a C compiler.
+
+    Attributes
+    ----------
+    P, J:
+        After :meth:`evaluate`: the points ``(M, 3)`` and ``dP/dG`` ``(M, 3, 6)`` (views, valid until the next call).
+    """
+
+    def __init__(self, rope: CatenarySensitivity, arc_lengths, compiled: bool = False):
+        s = np.asarray(arc_lengths, dtype=float)
+        if s.ndim != 1 or len(s) == 0 or np.any(s < 0) or np.any(s > rope.length):
+            raise ValueError(f"arc lengths must lie in [0, {rope.length}], got {arc_lengths!r}")
+        self.rope, self.arc_lengths = rope, s
+        A, B, a = ca.SX.sym("A", 3), ca.SX.sym("B", 3), ca.SX.sym("a")
+        G, e, x0, da = rope.plane(A, B, a)
+        up = ca.DM(rope.up)
+        columns = []
+        for arc in s:
+            u = arc / a - ca.sinh(x0 / a)
+            columns.append(A + (x0 + a * ca.asinh(u)) * e + a * (ca.sqrt(1.0 + u * u) - ca.cosh(x0 / a)) * up)
+        P = ca.horzcat(*columns)
+        flat = ca.vec(P)
+        dP = ca.jacobian(flat, G) + ca.jacobian(flat, a) @ da
+        self.function = ca.Function(
+            "rope_samples", [A, B, a], [P, dP.T], ["A", "B", "a"], ["P", "dP_dG"], {"cse": True}
+        )
+        self._f = BufferedFunction(self.function, compiled=compiled)
+        self._A, self._B, self._a = self._f.inputs
+        M = len(s)
+        self.P = self._f.outputs[0].reshape(M, 3)
+        self.J = self._f.outputs[1].reshape(M, 3, 6)
+
+    def evaluate(self, A: np.ndarray, B: np.ndarray, a: float | None = None) -> None:
+        """Refresh :attr:`P`, :attr:`J` for grips ``A``, ``B`` (``a``: the catenary parameter if known).
+
+        Raises
+        ------
+        InputDataError
+            See :meth:`CatenarySensitivity.shape`.
+        """
+        self._A[:], self._B[:] = A, B
+        self._a[0] = self.rope.shape(A, B)[0] if a is None else a
+        self._f()

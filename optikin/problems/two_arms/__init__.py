@@ -5,7 +5,8 @@ two arms of the file's ``arm:`` model stand in one frame (``options.arms``: base
 start, tube radius); one QP per control step over both arms' rates
 (:class:`optikin.control.two_arm.TwoArmQP`) drives the task, keeps both arms' configuration and
 rate limits, and keeps the two tubes apart by self-collision barrier rows
-(:class:`optikin.control.self_collision.TwoTubes`). Tasks, by the data source (family
+(:class:`optikin.control.self_collision.TwoTubes`) and, with a rope, the rope's samples off both tubes
+(:class:`optikin.control.two_arm.RopeTubes`). Tasks, by the data source (family
 ``two_arm_references``, :mod:`optikin.problems.two_arms.references`):
 
 * ``rope_loop``: the tips hold a rope (``options.rope``: length, mass per length, slack, floor);
@@ -27,7 +28,8 @@ rate limits, and keeps the two tubes apart by self-collision barrier rows
       rope: {length: 0.3, mass_per_length: 0.05, slack: 0.03, floor: null}
       gain: 10.0
       posture_weight: 0.001
-      collision: {margin: 0.02, gamma: 20.0, pairs: 4, points_per_section: null}
+      collision: {margin: 0.02, gamma: 20.0, pairs: 4, points_per_section: null,
+                  rope_pairs: 2, rope_margin: 0.01, rope_exclusion: 0.07}
 
 Baselines: ``no_collision_rows`` (the same QP without the self-collision rows) and
 ``pseudo_inverse`` (no limits, no rows); their collisions are reported (columns ``collision steps``,

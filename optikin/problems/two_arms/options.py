@@ -55,6 +55,11 @@ class CollisionOptions(Options):
     points_per_section: int | None = Field(
         None, ge=1, description="backbone samples per section; null: ceil(2 S_max / margin), spacing <= margin / 2"
     )
+    rope_pairs: int = Field(2, ge=0, description="rows per arm keeping the rope's samples off its tube; 0: none")
+    rope_margin: PositiveFloat = Field(0.01, description="clearance the rope's samples keep from the tubes [m]")
+    rope_exclusion: PositiveFloat = Field(
+        0.07, description="arc length of rope at each grip not kept off the tubes (it leaves the holding tube) [m]"
+    )
 
 
 class TwoArmOptions(Options):

@@ -73,15 +73,15 @@ def run_metrics(outcome: TwoArmOutcome, name: str) -> dict[str, Any]:
 
 
 def rope_clearance(outcome: TwoArmOutcome, tracked: TwoArmRun, every: int = 10, count: int = 60) -> float:
-    """The least distance of the hanging rope to either arm's tube on every ``every``-th step [m] (reported, not
-    constrained): the rope sampled at ``count`` points, those within arc length twice an arm's radius of the
-    grip it hangs from left out (the rope leaves that tube there)."""
+    """The least distance of the hanging rope to either arm's tube on every ``every``-th step [m]: the rope
+    sampled at ``count`` points, those within arc length ``exclusion`` of a grip left out (the rope leaves the
+    holding tube there; the QP's rope rows exclude the same)."""
     rope = outcome.model.rope
     assert rope is not None
     first, second = outcome.model.arms
     n1, L = outcome.model.n1, rope.sensitivity.length
     s = np.linspace(0.0, L, count)
-    keep = (s > 2.0 * first.radius) & (s < L - 2.0 * second.radius)
+    keep = (s >= rope.exclusion) & (s <= L - rope.exclusion)
     least = np.inf
     for k in range(0, len(tracked.t), every):
         points = _rope_points(outcome, tracked, k, count)[keep]

@@ -10,6 +10,7 @@ import numpy as np
 from optikin.control.self_collision import PlacedArm, TwoTubes, collision_density, rotation_from_quaternion
 from optikin.control.two_arm import (
     Rope,
+    RopeTubes,
     TwoArmController,
     TwoArmModel,
     TwoArmPseudoInverse,
@@ -17,6 +18,7 @@ from optikin.control.two_arm import (
     TwoArmReference,
     TwoArmRun,
     TwoArmTask,
+    rope_samples,
     simulate_two_arms,
 )
 from optikin.curves.catenary_sensitivity import CatenarySensitivity
@@ -74,6 +76,8 @@ class TwoArmSetup:
         The self-collision rows of the joint QP.
     controllers:
         ``"qp"`` and every baseline's name -> its controller.
+    rope_tubes:
+        The rows keeping the rope off the tubes (rope task with ``collision.rope_pairs``), or ``None``.
     """
 
     reference: TwoArmReference
@@ -81,6 +85,7 @@ class TwoArmSetup:
     plant: TwoArmModel
     tubes: TwoTubes
     controllers: dict[str, TwoArmController]
+    rope_tubes: RopeTubes | None = None
 
 
 def setup(ctx: ProblemContext) -> TwoArmSetup:
@@ -102,7 +107,15 @@ def setup(ctx: ProblemContext) -> TwoArmSetup:
         tubes = TwoTubes(arms[0], arms[1], c.margin, c.gamma, dt, c.pairs)
     except ValueError as exc:
         raise ctx.error("options.collision", str(exc)) from None
-    return TwoArmSetup(reference, q0, plant, tubes, _controllers(ctx, options, plant, tubes, dt, q0))
+    rope_tubes = None
+    if rope is not None and rope.samples is not None:
+        try:
+            rope_tubes = RopeTubes(plant, c.rope_margin, c.gamma, dt, c.rope_pairs)
+        except ValueError as exc:
+            raise ctx.error("options.collision", str(exc)) from None
+    return TwoArmSetup(
+        reference, q0, plant, tubes, _controllers(ctx, options, plant, tubes, rope_tubes, dt, q0), rope_tubes
+    )
 
 
 def run(ctx: ProblemContext) -> TwoArmOutcome:
@@ -161,7 +174,14 @@ def _rope(ctx: ProblemContext, options: TwoArmOptions, task: TwoArmTask) -> Rope
         sensitivity = CatenarySensitivity(r.length, r.mass_per_length, r.gravity, options.compiled, str(ctx.path))
     except InputDataError as exc:
         raise ctx.error(f"options.rope.{exc.field}", str(exc)) from None
-    return Rope(sensitivity, r.slack, r.floor)
+    c = options.collision
+    samples = None
+    if c.rope_pairs:
+        try:
+            samples = rope_samples(sensitivity, c.rope_exclusion, c.rope_margin, options.compiled)
+        except ValueError as exc:
+            raise ctx.error("options.collision.rope_exclusion", str(exc)) from None
+    return Rope(sensitivity, r.slack, r.floor, samples, c.rope_exclusion)
 
 
 def _start(ctx: ProblemContext, options: TwoArmOptions, source: RopeLoop | TipPaths) -> np.ndarray:
@@ -213,6 +233,14 @@ def _check_start(ctx: ProblemContext, options: TwoArmOptions, plant: TwoArmModel
             raise ctx.error(f"options.rope.{exc.field}", str(exc)) from None
         if rope.floor is not None and float(rope.sensitivity.up @ plant.x) < rope.floor + options.collision.margin:
             raise ctx.error("options.rope.floor", "the start's lowest point lies below the floor or within the margin")
+        if rope.samples is not None:
+            clearance = RopeTubes(plant, options.collision.rope_margin, 1.0, 1.0).clearance()
+            if clearance < options.collision.rope_margin:
+                raise ctx.error(
+                    "options.arms",
+                    f"at the start the rope comes {clearance * 1e3:.3g} mm from a tube, within "
+                    f"collision.rope_margin ({options.collision.rope_margin * 1e3:.3g} mm)",
+                )
 
 
 def _reference(plant: TwoArmModel, source: RopeLoop | TipPaths, q0: np.ndarray) -> TwoArmReference:
@@ -233,9 +261,16 @@ def _reference(plant: TwoArmModel, source: RopeLoop | TipPaths, q0: np.ndarray) 
 
 
 def _controllers(
-    ctx: ProblemContext, options: TwoArmOptions, plant: TwoArmModel, tubes: TwoTubes, dt: float, q0: np.ndarray
+    ctx: ProblemContext,
+    options: TwoArmOptions,
+    plant: TwoArmModel,
+    tubes: TwoTubes,
+    rope_tubes: RopeTubes | None,
+    dt: float,
+    q0: np.ndarray,
 ) -> dict[str, TwoArmController]:
-    """The joint QP (the preset's step solver, with the collision rows) and every baseline, by name."""
+    """The joint QP (the preset's step solver, with the collision rows) and every baseline, by name (the QP
+    without collision rows has neither the tubes' nor the rope's)."""
     factory = ctx.backend(QPBackend)
     if not isinstance(factory, StepSolverFactory):
         raise ctx.error("solver", f"{type(factory).__name__} takes no inequality rows; two_arms needs a qp backend")
@@ -254,6 +289,7 @@ def _controllers(
             rate_limits=o.rate_limits,
             limit_margin=o.limit_margin,
             tubes=tubes if with_tubes else None,
+            rope_tubes=rope_tubes if with_tubes else None,
             gamma=o.collision.gamma,
             margin=o.collision.margin,
         )
