@@ -8,6 +8,7 @@ import importlib.util
 import numpy as np
 import pytest
 
+from optikin.cli import main
 from optikin.errors import SpecError
 from optikin.runner import solve
 from optikin.sweep.chunks import MIN_PIECE, Chunks, chunks_of
@@ -46,6 +47,7 @@ def _check_engine(chunks: Chunks) -> None:
         single, _ = solve(problem, overrides=overrides)
         split, _ = solve(problem, overrides=overrides, chunks=chunks)
         _assert_same_samples(single, split)
+        assert "solved in pieces" in split.notes[-1] and not any("pieces" in note for note in single.notes)
         assert len(single.arrays["configurations" if problem == FK[0] else "targets"]) >= 2 * MIN_PIECE
 
 
@@ -73,8 +75,9 @@ def test_dask_local_cluster_gives_the_single_process_samples():
     _check_engine(Chunks(dask="local:2"))
 
 
-def test_kind_without_pieces_and_trajectory_say_they_run_as_one_piece():
-    with pytest.raises(SpecError, match="kind 'ph_shape' runs as one piece"):
-        solve("trunk-ph-shape", chunks=Chunks(jobs=2))
+def test_kind_without_pieces_and_trajectory_say_they_run_as_one_piece(tmp_path, capsys):
+    assert main(["solve", "trunk-ph-shape", "--jobs", "2", "--out", str(tmp_path)]) == 2
+    assert "--jobs: kind 'ph_shape' runs as one piece" in capsys.readouterr().err
+    assert not any(tmp_path.iterdir())
     with pytest.raises(SpecError, match="run as one piece"):
         solve("cc-ik-trajectory", overrides=[("data.samples", 20), ("baselines", [])], chunks=Chunks(jobs=2))

@@ -126,14 +126,19 @@ class Chunks:
         self._ref = ProblemRef(str(files[0]), preset, tuple((f, v) for f, v in overrides), digest)
         self._local = (ctx, {})
         if self.dask is None:
-            return kind.run_chunked(ctx, self)
+            return self._noted(kind.run_chunked(ctx, self))
         with dask_client(self.dask, retries=RETRIES) as client:
             self._client = client
             self.workers = max(1, len(client.scheduler_info().get("workers", {})))
             try:
-                return kind.run_chunked(ctx, self)
+                return self._noted(kind.run_chunked(ctx, self))
             finally:
                 self._client = None
+
+    def _noted(self, result: Result) -> Result:
+        engine = f"Dask ({self.dask}, {self.workers} workers)" if self.dask else f"{self.jobs} joblib (loky) workers"
+        result.notes.append(f"samples solved in pieces on {engine}; per-sample answers as in one process")
+        return result
 
     def split(self, n: int) -> list[slice]:
         """Contiguous slices of ``n`` samples: :data:`PIECES_PER_WORKER` per worker, none smaller than
