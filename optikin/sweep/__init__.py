@@ -6,6 +6,9 @@ worker process (:mod:`optikin.sweep.cell`), run by joblib's loky backend or on a
 (:mod:`optikin.sweep.run`); every finished cell is written atomically as it completes, keyed by a hash
 of its problem, overrides, preset and optikin version, so a rerun does only the missing or changed
 cells; the merged table and the figures are written at the end (:mod:`optikin.sweep.store`).
+
+The same engines split one large problem's samples (``optikin solve NAME --jobs N`` / ``--dask``):
+:mod:`optikin.sweep.chunks`.
 """
 
 from optikin.sweep.run import SweepReport, run_sweep

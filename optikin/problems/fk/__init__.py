@@ -24,6 +24,9 @@ Options (``options:``): none; any field there is an error.
 
 Arrays: ``configurations``, ``tip_dq``, ``tip_position``, ``section_dq``,
 ``backbone`` and, for a trajectory, ``t``.
+
+With ``optikin solve NAME --jobs N`` (or ``--dask``) the configurations are evaluated in pieces on worker
+processes, with the single-process run's per-sample arrays (:mod:`optikin.problems.fk.chunks`).
 """
 
 from __future__ import annotations

@@ -93,6 +93,10 @@ Problem file
     (``configuration`` or ``position``), ``elongation`` (``free``, ``distributed``
     or ``affine``), ``points`` and ``noise`` (above), ``variants`` (``{label: {option: value}}`` over the fields of
     :class:`~optikin.problems.ik.options.FormulationOptions`).
+
+Independent targets can be split across worker processes (``optikin solve NAME --jobs N`` or ``--dask``):
+the batch solves go in pieces to the workers, the retries are decided here on all samples, and every
+per-sample answer equals the single-process run's (:mod:`optikin.problems.ik.chunks`).
 """
 
 from __future__ import annotations
