@@ -45,6 +45,7 @@ Preset options: :class:`GaussNewtonOptions`.
 from __future__ import annotations
 
 import time
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -60,10 +61,34 @@ from optikin.solvers.nonlinear import LeastSquaresProblem, NonlinearAdapter
 
 
 LAMBDA_FLOOR = 1e-10
-"""Smallest Levenberg parameter, relative to ``tr(J D^-1 J^T)/m``. CasADi solves the step's
-linear system by an unpivoted symbolic QR, which loses the step when ``J`` is singular (the
-pose Jacobian of a two-section CC arm has rank 5) and the system is nearly so; 1e-10 keeps it
-regular and costs nothing visible in the convergence (a linear rate of about 1e-10/sigma_min^2)."""
+"""Smallest Levenberg parameter, relative to ``tr(J D^-1 J^T)/m``. The step's linear system is
+solved without pivoting (symbolic QR, or sparse LDL^T / QR: :data:`SYMBOLIC_SOLVE_MAX`), which
+loses the step when ``J`` is singular (the pose Jacobian of a two-section CC arm has rank 5) and
+the system is nearly so; 1e-10 keeps it regular and costs nothing visible in the convergence (a
+linear rate of about 1e-10/sigma_min^2)."""
+
+SYMBOLIC_SOLVE_MAX = 12
+"""Largest linear system of a step that is solved symbolically (CasADi's SX QR, expanded into the
+step's instructions: cheap for small systems and fastest there, one flat SX Function). Larger
+systems are solved numerically when the step is evaluated, by CasADi's sparse linear solvers
+(:data:`GAUSS_NEWTON_SOLVER`, :data:`NEWTON_SOLVER`): the expanded QR grows as the cube of the
+size (for the 48 x 48 CBHA system, twice expanded, it was twenty times the residual and Jacobian
+together), the numeric one costs its flops only."""
+
+GAUSS_NEWTON_SOLVER = "ldl"
+NEWTON_SOLVER = "qr"
+"""CasADi linear-solver plugins of the numeric solves (:data:`SYMBOLIC_SOLVE_MAX`): sparse LDL^T for
+the Gauss-Newton models (symmetric positive definite for ``lam > 0``), sparse QR for the Newton
+model (``J^T J + S`` may be indefinite). Both generate C, so ``compile: true`` keeps working."""
+
+
+def _point_quantities(problem: LeastSquaresProblem, second_order: bool):
+    """``x, p, r, J, J^T r, ||r||``, the active-bound masks and (``second_order``) the Hessian of
+    ``1/2 ||r||^2``, as SX expressions of ``x`` and ``p``."""
+    x, p, r, J = problem.symbols
+    lower_active, upper_active = problem.active_bounds(x)
+    hessian = ca.hessian(0.5 * ca.sumsqr(r), x)[0] if second_order else ca.SX(0, 0)
+    return x, p, r, J, ca.mtimes(J.T, r), ca.norm_2(r), lower_active, upper_active, hessian
 
 
 def step_function(problem: LeastSquaresProblem, second_order: bool = False) -> ca.Function:
@@ -73,43 +98,88 @@ def step_function(problem: LeastSquaresProblem, second_order: bool = False) -> c
     ``1/2 ||r||^2``). One packed input and output, so a batch is one array in and one array
     out, for :class:`~optikin.solvers.evaluation.CompiledFunction` and
     :func:`~optikin.solvers.evaluation.batched`.
+
+    A linear system of at most :data:`SYMBOLIC_SOLVE_MAX` unknowns is solved symbolically and the
+    step is one SX Function. A larger one gives an MX Function around one SX Function that
+    evaluates ``r``, ``J`` (with CasADi's sparsity), ``J^T r`` and the bound masks (and, for
+    ``second_order``, the Hessian) with their common subexpressions shared; ``J^T J`` (or
+    ``J D^-1 J^T``) is a numeric sparse product, the system is solved numerically
+    (:data:`GAUSS_NEWTON_SOLVER`, :data:`NEWTON_SOLVER`), and the second, bound-restricted solve is
+    evaluated only when a bound blocks a component of the first step (it equals the first otherwise).
     """
-    x, p, r, J = problem.symbols
     n, m = problem.n, problem.m
-    mu = ca.SX.sym("mu")
+    numeric = (m if m < n and not second_order else n) > SYMBOLIC_SOLVE_MAX
+    quantities: tuple[Any, ...] = _point_quantities(problem, second_order)  # SX, then MX for a numeric solve
+    x, p, r, J, g, rn, lower_active, upper_active, hessian = quantities
+    mu: Any = ca.SX.sym("mu")
+    if numeric:
+        names = ["r", "J", "g", "rn", "lower_active", "upper_active", "hessian"]
+        parts = ca.Function(
+            f"{problem.name}_gn_point", [x, p], [r, J, g, rn, lower_active, upper_active, hessian], ["x", "p"], names
+        )
+        x, p, mu = ca.MX.sym("x", n), ca.MX.sym("p", problem.n_data), ca.MX.sym("mu")
+        r, J, g, rn, lower_active, upper_active, hessian = parts(x, p)
     lower, upper = ca.DM(problem.lower), ca.DM(problem.upper)
     periodic = ca.DM(problem.periodic.astype(float))
     scaling = ca.DM.ones(n) if problem.weights is None else ca.DM(problem.weights**2)
-    lower_active, upper_active = problem.active_bounds(x)
-    g = ca.mtimes(J.T, r)
-    rn = ca.norm_2(r)
     # Levenberg parameter mu ||r||^2 (Yamashita & Fukushima 2001: quadratic convergence without full rank),
     # plus a floor relative to the trace of J D^-1 J^T that keeps the linear system regular (LAMBDA_FLOOR).
     trace = ca.dot(ca.sum1(J * J).T, 1 / scaling)
     lam = mu * rn * rn + LAMBDA_FLOOR * trace / m
+    plugin = NEWTON_SOLVER if second_order else GAUSS_NEWTON_SOLVER
 
-    def full_direction(H):
-        def direction(free):
-            F = ca.diag(free)
-            A = ca.mtimes(F, ca.mtimes(H, F)) + ca.diag(1 - free) + lam * ca.diag(scaling)
-            return -free * ca.solve(A, free * g)
+    def directions(M, v, lam):
+        """The step restricted to the variables marked by ``free``, from ``M`` (the model's ``J^T J``, its
+        Newton matrix, or ``J`` for the ``m x m`` form), ``v`` (``J^T r``, or ``r`` for the ``m x m`` form)
+        and the Levenberg parameter."""
 
-        return direction
+        def full(free):
+            if not numeric:
+                F = ca.diag(free)
+                A = ca.mtimes(F, ca.mtimes(M, F)) + ca.diag(1 - free) + lam * ca.diag(scaling)
+                return -free * ca.solve(A, free * v)
+            if isinstance(free, ca.DM):  # the first direction: nothing masked
+                return -ca.solve(M + ca.diag(lam * scaling), v, plugin)
+            A = M * ca.mtimes(free, free.T) + ca.diag(1 - free + lam * scaling)
+            return -free * ca.solve(A, free * v, plugin)
 
-    if m < n:
-
-        def gauss_newton(free):
+        def small(free):
             mf = free / scaling
-            A = ca.mtimes(J, ca.mtimes(ca.diag(mf), J.T)) + lam * ca.DM.eye(m)
-            return -mf * ca.mtimes(J.T, ca.solve(A, r))
+            if not numeric:
+                A = ca.mtimes(M, ca.mtimes(ca.diag(mf), M.T)) + lam * ca.DM.eye(m)
+                return -mf * ca.mtimes(M.T, ca.solve(A, v))
+            A = ca.mtimes(M * ca.repmat(mf.T, m, 1), M.T) + lam * ca.DM.eye(m)
+            return -mf * ca.mtimes(M.T, ca.solve(A, v, plugin))
+
+        return small if m < n and not second_order else full
+
+    if second_order:
+        model, vector = hessian, g
+    elif m < n:
+        model, vector = J, r
     else:
-        gauss_newton = full_direction(ca.mtimes(J.T, J))
-
-    direction = full_direction(ca.hessian(0.5 * ca.sumsqr(r), x)[0]) if second_order else gauss_newton
-
-    first = direction(ca.DM.ones(n))
+        model, vector = ca.mtimes(J.T, J), g
+    first = directions(model, vector, lam)(ca.DM.ones(n))
     blocked = ca.logic_or(ca.logic_and(lower_active, first < 0), ca.logic_and(upper_active, first > 0))
-    moved = x + direction(1 - blocked)
+    if numeric:
+        # The bound-restricted solve only when a bound blocks a component (it equals ``first`` otherwise):
+        # a switch between two Functions of the quantities already computed.
+        M, v, l_, free, kept = (
+            ca.MX.sym("M", model.sparsity()),
+            ca.MX.sym("v", vector.sparsity()),
+            ca.MX.sym("lam"),
+            ca.MX.sym("free", n),
+            ca.MX.sym("first", n),
+        )
+        args = [M, v, l_, free, kept]
+        restrict = ca.Function.if_else(
+            f"{problem.name}_gn_restrict",
+            ca.Function("restricted", args, [directions(M, v, l_)(free)]),
+            ca.Function("unrestricted", args, [kept]),
+        )
+        moved = x + restrict(ca.mmax(blocked) > 0, model, vector, lam, 1 - blocked, first)
+    else:
+        moved = x + directions(model, vector, lam)(1 - blocked)
     span = upper - lower
     wrapped = moved - span * ca.floor((moved - lower) / span)
     x_new = ca.if_else(periodic, wrapped, ca.fmin(ca.fmax(moved, lower), upper))
