@@ -287,7 +287,7 @@ def test_sources_are_registered_and_apply_the_problem_file(tmp_path):
     shutil.copy(RECORDINGS / "trunk_motive_faults.csv", tmp_path / "take.csv")
     assert {"motive", "c3d", "rosbag", "csv"} <= set(DATA_SOURCES["recordings"].names())
     source = source_of("recordings", "motive", problem)
-    raw = {"path": "take.csv", "frame": {"up": "y"}, "units": "mm", "markers": ["disk1:Marker1"]}
+    raw = {"file": "take.csv", "frame": {"up": "y"}, "units": "mm", "markers": ["disk1:Marker1"]}
     params = validate_options(source.params, raw, problem, "data.params")
     rec = source.load(None, DataSpec(source="motive"), params, problem)
     assert list(rec.markers) == ["disk1:Marker1"] and len(rec) == 40 - 2 - 2  # frames 20 and 21: swapped bodies
@@ -309,7 +309,7 @@ def test_plain_csv_source(tmp_path):
     shutil.copy(RECORDINGS / "trunk_plain.csv", tmp_path / "trunk_plain.csv")
     mapping = yaml.safe_load((RECORDINGS / "trunk_plain.yaml").read_text())
     source = source_of("recordings", "csv", problem)
-    params = validate_options(source.params, {"path": "trunk_plain.csv", **mapping}, problem, "data.params")
+    params = validate_options(source.params, {"file": "trunk_plain.csv", **mapping}, problem, "data.params")
     rec = source.load(None, DataSpec(source="csv"), params, problem)
     assert len(rec) == 40 and len(rec.markers) == 9
 

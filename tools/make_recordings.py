@@ -344,7 +344,7 @@ def write_bag(path: Path, storage: str = "sqlite3") -> None:
 
 # ------------------------------------------------------------------------------ plain CSV
 def plain_mapping() -> dict:
-    """The ``data.params`` column mapping of ``trunk_plain.csv`` (without ``path``)."""
+    """The ``data.params`` column mapping of ``trunk_plain.csv`` (without ``file``)."""
     return {
         "frame": {"up": "y"},
         "units": "mm",

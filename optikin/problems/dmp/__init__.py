@@ -16,8 +16,9 @@ Demonstrations (``data.source``, the ``demonstrations`` family of
       seed: 7
       samples: 1000      # imu / kinect / smooth / gimbal
       params: {...}      # the keyword arguments of the source's function (imu: the sections
-                         # default to the arm's); csv: {path: demo.csv (relative to the
-                         # problem file), samples: N (resample)}
+                         # default to the arm's); csv: {file: demo.csv (relative to the
+                         # problem file), content: pose | configuration, units: m,
+                         # samples: N (resample)}
 
 Options (all optional; :class:`~optikin.problems.dmp.options.DmpOptions`)::
 
