@@ -45,7 +45,7 @@ import numpy as np
 from optikin.codegen import check_flags, find_compiler
 from optikin.errors import SolverError, SpecError
 
-WHATS = ("fk", "ik-step", "ik-trajectory", "ph-shape")
+WHATS = ("fk", "ik-step", "ik-trajectory", "ph-shape", "qp-step")
 """What ``optikin export`` writes (module docstring)."""
 
 EXAMPLE_SAMPLES = 20
@@ -350,6 +350,10 @@ def export(
         from optikin.export.ph_shape import export_ph_shape, ph_setup
 
         return export_ph_shape(problem, ph_setup(problem, overrides), folder, samples)
+    if what == "qp-step":
+        from optikin.export.qp_step import export_qp_step, qp_setup
+
+        return export_qp_step(problem, qp_setup(problem, overrides), folder, samples)
     setup = ik_setup(problem)
     return export_ik(what, problem, setup.problem, setup.adapter, setup.start, folder, setup.targets[:samples])
 
