@@ -251,3 +251,13 @@ def two_arms_of(name: str) -> tuple[PlacedArm, PlacedArm]:
         PlacedArm(ARM, np.array(a["base"]), rotation_from_quaternion(a["orientation"]), a["radius"], 4)
         for a in spec.options["arms"]
     )
+
+
+def test_solve_of_a_rope_shorter_than_its_grips_exits_2_naming_file_and_field(tmp_path, capsys):
+    from optikin.cli import EXIT_BAD_INPUT, main
+
+    problem = variant(tmp_path, "rope-skipping", lambda d: d["options"]["rope"].update(length=0.2))
+    assert main(["solve", str(problem), "--out", str(tmp_path / "out")]) == EXIT_BAD_INPUT
+    message = capsys.readouterr().err
+    assert str(problem) in message and "options.rope.length" in message
+    assert not (tmp_path / "out").exists()
