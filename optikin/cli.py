@@ -270,15 +270,16 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_arguments(p)
     p.set_defaults(run=bench.main)
 
-    p = sub.add_parser("export", help="a problem's kinematics or IK solver as a self-contained C library")
+    p = sub.add_parser("export", help="a problem's kinematics, IK, PH shape or QP step as a self-contained C library")
     p.add_argument("problem", help="problem name or path to a problem file")
     p.add_argument(
         "--what",
         required=True,
-        choices=("fk", "ik-step", "ik-trajectory"),
-        help="fk: fk_dq, fk_position, backbone; ik-step / ik-trajectory: the damped Gauss-Newton IK",
+        choices=("fk", "ik-step", "ik-trajectory", "ph-shape", "qp-step"),
+        help="fk: fk_dq, fk_position, backbone; ik-step / ik-trajectory: the damped Gauss-Newton IK; "
+        "ph-shape: minimum-energy PH backbones along a trajectory; qp-step: one tracking QP step",
     )
-    p.add_argument("--out", required=True, help="output folder (.c, .h, main.c, Makefile)")
+    p.add_argument("--out", required=True, help="output folder (.c, .h, main.c, Makefile, CMakeLists.txt)")
     p.set_defaults(run=_cmd_export)
 
     from optikin.progress import add_verbosity_arguments
