@@ -112,9 +112,17 @@ def test_fk_agrees_with_the_arm_functions(tmp_path):
         )
 
 
-@pytest.mark.parametrize("what", ["ik-step", "fk"])
-def test_the_library_allocates_nothing_and_needs_only_libm(tmp_path, what):
-    exported = export("cc-ik-position", what, tmp_path)
+@pytest.mark.parametrize(
+    "problem, what",
+    [
+        ("cc-ik-position", "ik-step"),
+        ("cc-ik-position", "fk"),
+        ("cbha-ph-shape", "ph-shape"),
+        ("track-nominal", "qp-step"),
+    ],
+)
+def test_the_library_allocates_nothing_and_needs_only_libm(tmp_path, problem, what):
+    exported = export(problem, what, tmp_path)
     for path in (exported.source, exported.header):
         text = path.read_text()
         assert not re.search(r"\b(malloc|calloc|realloc|free|alloca)\s*\(", text), path.name
@@ -131,8 +139,21 @@ def test_build_refuses_flags_outside_the_allow_list(tmp_path):
 def test_the_export_subcommand_writes_the_files(tmp_path, capsys):
     assert main(["export", "cc-ik-position", "--what", "ik-step", "--out", str(tmp_path)]) == 0
     written = capsys.readouterr().out.split()
-    assert {Path(p).name for p in written} == {"optikin_ik_step.c", "optikin_ik_step.h", "main.c", "Makefile"}
+    assert {Path(p).name for p in written} == {
+        "optikin_ik_step.c",
+        "optikin_ik_step.h",
+        "main.c",
+        "Makefile",
+        "CMakeLists.txt",
+    }
     assert main(["export", "cbha-fk", "--what", "ik-step", "--out", str(tmp_path / "x")]) == 2
+
+
+@pytest.mark.parametrize("problem, what", [("cbha-ph-shape", "ph-shape"), ("track-nominal", "qp-step")])
+def test_the_subcommand_exports_ph_shape_and_qp_step_and_refuses_other_kinds(tmp_path, problem, what):
+    assert main(["export", problem, "--what", what, "--out", str(tmp_path)]) == 0
+    assert (tmp_path / "CMakeLists.txt").exists()
+    assert main(["export", "cc-ik-position", "--what", what, "--out", str(tmp_path / "x")]) == 2
 
 
 @pytest.mark.skipif(shutil.which("make") is None or shutil.which("nm") is None, reason="needs make and nm")
@@ -160,6 +181,23 @@ def test_the_makefile_builds_a_library_that_needs_only_libm(tmp_path):
         "pow",
     }
     assert undefined <= libm, undefined - libm
+
+
+@pytest.mark.skipif(shutil.which("cmake") is None, reason="needs cmake")
+@pytest.mark.parametrize("problem, what", [("cc-ik-position", "fk"), ("track-nominal", "qp-step")])
+def test_cmake_builds_the_library_and_the_example(tmp_path, problem, what):
+    """CMakeLists.txt beside the Makefile: the example it builds prints what the Makefile's does."""
+    exported = export(problem, what, tmp_path)
+    build_dir = tmp_path / "build"
+    for command in (["cmake", "-S", str(tmp_path), "-B", str(build_dir)], ["cmake", "--build", str(build_dir)]):
+        subprocess.run(command, check=True, capture_output=True, timeout=300)
+    assert (build_dir / f"lib{exported.stem}.a").exists()
+    ours = subprocess.run([str(build_dir / "example")], capture_output=True, text=True, timeout=60, check=True)
+    theirs = subprocess.run([str(build(exported))], capture_output=True, text=True, timeout=60, check=True)
+    words, expected = ours.stdout.split(), theirs.stdout.split()
+    assert len(words) == len(expected) > 0
+    for word, other in zip(words, expected):
+        assert word == other or abs(float(word) - float(other)) <= 1e-12
 
 
 def test_point_targets_with_fixed_lengths_agree_with_gauss_newton(tmp_path):

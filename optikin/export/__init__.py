@@ -20,10 +20,20 @@ What is exported (``--what``):
     direction at the solution (pose targets of a two-section CC arm, rank 5) rounding sets
     where along it either path lands. ``ik-step`` solves each target from
     the problem's start; ``ik-trajectory`` warm-starts each from the previous solution.
+``ph-shape``
+    the minimum-energy PH quintic backbones of a ``ph_shape`` problem (given end speeds), a
+    whole trajectory of samples in one call: warm starts, modified Newton, coarse-grid restart
+    and basin check as the ``ph_newton`` fast path (:mod:`optikin.export.ph_shape`).
+``qp-step``
+    one step of the tracking QP controller of a ``tracking`` problem: Jacobian, rate box,
+    optional rows ``A qdot >= b``, the QP solved by a dense dual active-set method in C, and the
+    controller's fallback (:mod:`optikin.export.qp_step`).
 
 The folder written holds ``<stem>.c`` (the generated code and the template), ``<stem>.h``
 (the documented API: sizes, work structure, status codes), ``main.c`` (an example that runs
-the problem's first samples or a file of them and times the calls) and a ``Makefile``.
+the problem's first samples or a file of them and times the calls), a ``Makefile`` and a
+``CMakeLists.txt``. The problem is read importing only its own kind
+(:mod:`optikin.export.context`).
 The library depends on libm only and allocates nothing: the caller owns the work structure.
 :func:`build` compiles the example with a compiler of :data:`optikin.codegen.COMPILERS` and
 flags checked against :data:`optikin.codegen.ALLOWED_FLAGS`.
@@ -81,7 +91,13 @@ class Export:
 
     @property
     def files(self) -> tuple[Path, ...]:
-        return (self.source, self.header, self.folder / "main.c", self.folder / "Makefile")
+        return (
+            self.source,
+            self.header,
+            self.folder / "main.c",
+            self.folder / "Makefile",
+            self.folder / "CMakeLists.txt",
+        )
 
 
 def _template(name: str) -> Template:
@@ -123,6 +139,7 @@ def _write(folder: Path, stem: str, code: str, header: str, source: str, main: s
     (folder / f"{stem}.c").write_text(f"/* {stem}.c: written by optikin export */\n{code}\n{source}")
     (folder / "main.c").write_text(main)
     (folder / "Makefile").write_text(_template("Makefile.in").substitute(stem=stem))
+    (folder / "CMakeLists.txt").write_text(_template("CMakeLists.txt.in").substitute(stem=stem))
 
 
 # --------------------------------------------------------------------------- forward kinematics
@@ -286,20 +303,21 @@ def ik_setup(problem: str) -> IkExportSetup:
     SpecError
         The problem is not of kind ``ik``, or its formulation is one per CBHA platform.
     """
+    from optikin.export.context import context, registered_preset
     from optikin.ik.formulation import build_problem
     from optikin.problems.ik.run import load_targets, setup_of
-    from optikin.runner import prepare
-    from optikin.solvers import build_preset
     from optikin.solvers.gauss_newton import GaussNewton
 
-    kind, ctx = prepare(problem)
-    if kind.name != "ik":
-        raise SpecError(ctx.path, "kind", f"--what ik-step/ik-trajectory exports an ik problem, not kind {kind.name!r}")
+    ctx = context(problem, ("ik",), "--what ik-step/ik-trajectory", (), ("optikin.solvers.gauss_newton",))
     setup = setup_of(ctx)
     least_squares = build_problem(ctx.arm, setup.formulation)
     if isinstance(least_squares, list):
         raise SpecError(ctx.path, "options.target", "leg-length targets (one problem per platform) are not exported")
-    adapter = ctx.adapter if isinstance(ctx.adapter, GaussNewton) else build_preset("gauss-newton")
+    adapter = ctx.adapter
+    if not isinstance(adapter, GaussNewton):
+        preset = registered_preset("gauss-newton")
+        assert preset is not None  # optikin.solvers.gauss_newton, imported above, registers it
+        adapter = preset.build()
     targets = load_targets(ctx, setup)
     return IkExportSetup(least_squares, adapter, np.asarray(setup.start, dtype=float), targets.values)
 
@@ -318,12 +336,16 @@ def export(
     problem:
         A problem name or file, as for ``optikin solve``.
     what:
-        ``fk``, ``ik-step`` or ``ik-trajectory`` (module docstring).
+        ``fk``, ``ik-step``, ``ik-trajectory``, ``ph-shape`` or ``qp-step`` (module docstring).
     folder:
         Where the files go (created; files of the same names are overwritten).
     samples:
         How many of the problem's samples the example compiles in (IK: its first targets; FK:
-        configurations drawn uniformly inside the bounds with the problem's seed).
+        configurations drawn uniformly inside the bounds with the problem's seed; PH: its first
+        samples; QP: steps spread along the reference).
+    overrides:
+        ``(dotted field, value)`` pairs set in the problem file before it is validated (``ph-shape``
+        and ``qp-step``), e.g. ``("arm.params.section_lengths", [0.18] * 4)``.
 
     Returns
     -------
@@ -341,9 +363,9 @@ def export(
     if what not in WHATS:
         raise ValueError(f"--what {what!r}: one of {', '.join(WHATS)}")
     if what == "fk":
-        from optikin.runner import prepare
+        from optikin.export.context import context
 
-        _, ctx = prepare(problem)
+        ctx = context(problem, None, "--what fk", overrides)
         Q = ctx.arm.sample_configurations(samples, ctx.rng(0))
         return export_fk(problem, ctx.arm, folder, Q)
     if what == "ph-shape":

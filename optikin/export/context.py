@@ -19,7 +19,7 @@ from optikin.errors import SpecError, UnknownNameError
 
 def context(
     problem: str,
-    kinds: Sequence[str],
+    kinds: Sequence[str] | None,
     what: str,
     overrides: Sequence[tuple[str, Any]] = (),
     backend_modules: Sequence[str] = (),
@@ -31,7 +31,7 @@ def context(
     problem:
         A problem name or file, as for ``optikin solve``.
     kinds:
-        The kinds the export takes.
+        The kinds the export takes (None: any).
     what:
         The export, for the error message (``--what ...``).
     overrides:
@@ -53,7 +53,7 @@ def context(
     from optikin.spec import load_problem
 
     spec, path = load_problem(problem, overrides)
-    if spec.kind not in kinds:
+    if kinds is not None and spec.kind not in kinds:
         raise SpecError(path, "kind", f"{what} exports a problem of kind {' or '.join(kinds)}, not {spec.kind!r}")
     importlib.import_module(f"optikin.problems.{spec.kind}")
     for module in backend_modules:

@@ -57,7 +57,11 @@ def ph_setup(problem: str, overrides=()) -> PHExportSetup:
     if options.free_speeds:
         raise SolverError(f"{problem}: --what ph-shape exports given end speeds only (options.free_speeds: false)")
     _, _, samples = shape_samples(ctx.load_data(), options, f"{ctx.path.name}: data")
-    adapter = ctx.adapter if isinstance(ctx.adapter, NewtonAdapter) else registered_preset("ph-newton").build()
+    adapter = ctx.adapter
+    if not isinstance(adapter, NewtonAdapter):
+        preset = registered_preset("ph-newton")
+        assert preset is not None  # optikin.solvers.ph_backends, imported by context, registers it
+        adapter = preset.build()
     model = adapter.model(options.energy, False)
     return PHExportSetup(model, adapter, samples, np.array([s.parameters() for s in samples]))
 
