@@ -175,3 +175,31 @@ def test_an_infeasible_horizon_is_a_reported_step_status():
     assert any(s.startswith("fallback (hold): horizon") for s in run.status)
     assert all(s.startswith(("fallback (first step): horizon", "fallback (hold): horizon")) for s in run.status)
     assert run.metrics()["fallback steps"] == len(run.status)
+
+
+def test_a_moving_obstacles_rows_along_the_horizon_follow_its_distances():
+    """For the arm held at ``q``, the horizon's row ``j`` of sample ``i`` is the barrier at ``t_{k+j}``,
+    ``-gamma (d_i(t_{k+j}) - d_safe) - (d_i(t_{k+j+1}) - d_i(t_{k+j})) / dt``, with the distances of the
+    obstacle translated along its path (closed form), to first order in the translation: halving the
+    obstacle's speed quarters the difference."""
+    from optikin.control.mpc import HorizonBarrier
+
+    k, N, gamma, margin = 20, 10, 20.0, 0.01
+
+    def differences(speed):
+        path = ((k * DT, 0.0, 0.0, 0.0), (k * DT + 1, -0.05 * speed, 0.02 * speed, 0.01 * speed))  # leaves at t_k
+        mover = Obstacle("sphere", center=(0.12, 0.0, 0.2), radius=0.02, path=path)
+        barrier = BarrierRows(ARM, DT, [mover], margin=margin, gamma=gamma)
+        horizon = HorizonBarrier(barrier, N)
+        barrier.step = k
+        horizon.update(Q0)
+        assert barrier.step == k + 1  # the barrier's clock counted the present step only
+        points = barrier.distances.points_at(Q0)
+        nearest = points[:, np.argsort(mover.distances(points, k * DT))[:3]]
+        d = np.array([mover.distances(nearest, (k + j) * DT) for j in range(N + 1)])
+        expected = -gamma * (d[:-1] - margin) - np.diff(d, axis=0) / DT
+        return np.abs(np.sort(horizon.b, axis=1) - np.sort(expected, axis=1)).max(axis=1)
+
+    full, half = differences(1.0), differences(0.5)
+    assert 0 < full[-1] < 1e-2  # m/s
+    np.testing.assert_allclose(full / half, 4.0, rtol=0.1)
