@@ -33,7 +33,8 @@ Each round passes over the 100 postures once per contender, every posture timed 
 clock and the thread's CPU clock; interleaved by ``pass`` (each contender's 100 postures in a
 row, then the next contender's: the code and data of the one running stay in the caches) or by
 ``posture`` (every contender on posture ``k`` before posture ``k + 1``: each call finds the caches
-filled by the others, as a solver called between other work does). ``extra_info`` holds, per
+filled by the others, as a solver called between other work does) or ``cold`` (as ``posture``, and
+a sweep over 64 MB of memory before every timed call). ``extra_info`` holds, per
 contender, the medians over all timed postures [us], the mean |tube-length error| against the
 recording's [mm] and the postures not ok. The first round (untimed) builds and compiles.
 """
@@ -62,6 +63,8 @@ from optikin.problems.ph_shared import recording_of
 from optikin.solvers import build_preset
 
 ROUNDS = 5
+SWEEP_BYTES = 64 * 2**20
+"""Memory swept before every timed call of the ``cold`` runs."""
 
 
 @pytest.fixture(scope="module", autouse=True)
@@ -70,7 +73,7 @@ def one_blas_thread():
         yield
 
 
-@pytest.mark.parametrize("interleave", ["pass", "posture"])
+@pytest.mark.parametrize("interleave", ["pass", "posture", "cold"])
 def test_exact_tube_lengths_against_hybrid_networks(benchmark, interleave):
     arm = CBHAArm()
     recording = recording_of("cbha-ph-shape").with_fixed_base()
@@ -127,7 +130,11 @@ def test_exact_tube_lengths_against_hybrid_networks(benchmark, interleave):
     wall = {name: [] for name in contenders}
     cpu = {name: [] for name in contenders}
 
+    sweep = np.ones(SWEEP_BYTES // 8) if interleave == "cold" else None
+
     def timed(name, k):
+        if sweep is not None:
+            np.add(sweep, 1.0, out=sweep)  # evicts the caches
         began, began_cpu = time.perf_counter(), time.thread_time()
         lengths[name][k], status[name][k] = contenders[name](k)
         spent_cpu, spent = time.thread_time() - began_cpu, time.perf_counter() - began
@@ -135,7 +142,7 @@ def test_exact_tube_lengths_against_hybrid_networks(benchmark, interleave):
         cpu[name].append(spent_cpu * 1e6)
 
     def one_round():
-        if interleave == "posture":
+        if interleave in ("posture", "cold"):
             for k in range(n):
                 for name in contenders:
                     timed(name, k)
