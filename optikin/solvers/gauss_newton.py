@@ -29,7 +29,7 @@ model ``J^T J + sum_i r_i Hess r_i`` of ``1/2 ||r||^2`` (same damping; the
 structured switch of Fletcher & Xu 1987), which reaches the stationary point
 that flags the target ``unreachable``. Option ``second_order: false`` turns this off.
 The Newton step Function is built the first time a sample needs it: for the whole
-CBHA it is about fifty times the size of the Gauss-Newton step.
+CBHA its Hessian makes it about five times the size of the Gauss-Newton step.
 
 The step, ``||r||`` and a stationarity measure are one CasADi Function, so a
 single solve costs one zero-copy ``Function.buffer()`` call per iteration, and
