@@ -177,7 +177,7 @@ def newton_step_function(arm: CBHAArm, elongation: str = NR_ELONGATION, step: bo
         ends = ca.vertcat(*[pos for _, pos in arm.section_frames(x)])
         r = ca.vertcat(ends - measured, *rows)
         out = ca.vertcat(ca.norm_inf(r), ca.norm_2(r), 0.0, outside, sum(tubes))
-        return ca.Function(name, [ca.vertcat(x, measured)], [out], ["x_ends"], ["check"])
+        return ca.Function(name, [ca.vertcat(x, measured)], [out], ["x_ends"], ["check"], {"cse": True})
     ends, P = section_ends_jacobian(arm, x)
     r_ends = ends - measured
     u, V, section_of = [], [], []
@@ -200,7 +200,7 @@ def newton_step_function(arm: CBHAArm, elongation: str = NR_ELONGATION, step: bo
     r = ca.vertcat(r_ends, *rows)
     x_new = ca.fmin(ca.fmax(x + dx, ca.DM(arm.lower)), ca.DM(arm.upper))
     out = ca.vertcat(x_new, ca.norm_inf(r), ca.norm_2(r), ca.norm_inf(x_new - x), outside, sum(tubes))
-    return ca.Function(name, [ca.vertcat(x, measured)], [out], ["x_ends"], ["step"])
+    return ca.Function(name, [ca.vertcat(x, measured)], [out], ["x_ends"], ["step"], {"cse": True})
 
 
 def fixed_newton_function(arm: CBHAArm, steps: int = FIXED_STEPS, elongation: str = NR_ELONGATION) -> ca.Function:
