@@ -27,6 +27,7 @@ import numpy as np
 from optikin.algebra import backend as B
 from optikin.dmp import basis, regression
 from optikin.dmp.canonical import goal_stopping_weight
+from optikin.dmp.compiled import ENGINES, compiled_rollout
 from optikin.dmp.gains import Gains
 from optikin.dmp.imitation import Demonstration, amplitude, design_matrix, prepare, target_forces
 from optikin.dmp.rollout import input_size, rollout_function
@@ -210,6 +211,7 @@ class DMP:
         lower: float | np.ndarray | None = None,
         upper: float | np.ndarray | None = None,
         source: str = "demonstration",
+        factorisation: str = "cholesky",
     ) -> regression.Fit:
         """Learn the weights from a demonstration (eqs. 16, 21-22) and keep them, with the demonstration and basis.
 
@@ -228,6 +230,9 @@ class DMP:
             Bounds on the weights, scalars or ``(n_basis, dim)`` (``cvxpy`` only).
         source:
             Names the data in errors.
+        factorisation:
+            How ``lstsq`` solves: ``cholesky`` (one factorisation for every gap component) or ``svd``
+            (the reference; :func:`optikin.dmp.regression.fit_lstsq`).
 
         Returns
         -------
@@ -243,7 +248,7 @@ class DMP:
         if method == "lstsq":
             if lower is not None or upper is not None:
                 raise ValueError("bounds on the weights need method='cvxpy'")
-            fit = regression.fit_lstsq(problem.X, problem.F, ridge)
+            fit = regression.fit_lstsq(problem.X, problem.F, ridge, factorisation)
         elif method == "cvxpy":
             fit = regression.fit_cvxpy(problem.X, problem.F, ridge, lower, upper)
         elif method == "lwr":
@@ -295,6 +300,7 @@ class DMP:
         offset: PerStep = None,
         gains: Gains | None = None,
         weights: np.ndarray | None = None,
+        engine: str = "auto",
     ) -> Rollout:
         """Integrate the DMP from ``start`` at rest towards ``goal`` (eqs. 11-12, 15, 17-18, 23-28).
 
@@ -325,6 +331,12 @@ class DMP:
             not displaced).
         gains, weights:
             Override the learned gains and weights ``(dim, n_basis)`` (tuning).
+        engine:
+            ``compiled``: the step as generated C in one C loop (:mod:`optikin.dmp.compiled`), built
+            now if needed (where no C compiler is found, the CasADi Function); ``casadi``: the CasADi
+            Function of :func:`optikin.dmp.rollout.rollout_function` (the reference, same arithmetic);
+            ``auto``: the C loop once built (by an earlier ``compiled`` call, in the per-user cache, or
+            after :data:`optikin.dmp.compiled.AUTO_BUILD_AFTER` roll-outs in this process), else CasADi.
 
         Returns
         -------
@@ -346,26 +358,20 @@ class DMP:
         )  # checks that the DMP has learned
         W = np.asarray(self.weights if weights is None else weights, dtype=float)
         space, size, dim = self.space, self.space.size, self.space.dim
+        if engine not in ENGINES:
+            raise ValueError(f"unknown roll-out engine {engine!r}; choose from {ENGINES}")
         x0 = plan.initial_state(gains.alpha_s)
-        f = rollout_function(space, self.n_basis, plan.steps)
+        compiled = None if engine == "casadi" else compiled_rollout(space, self.n_basis, build=engine == "compiled")
+        f = rollout_function(space, self.n_basis, plan.steps) if compiled is None else None
         begin = time.perf_counter()
         c, h, s_end = self._basis()
-        X = np.asarray(
-            f(
-                x0,
-                plan.inputs.T,
-                W,
-                c,
-                h,
-                plan.amplitude,
-                gains.vector(),
-                plan.tau,
-                plan.dt,
-                s_end,
-                self.goal_stopping,
-                np.minimum(gains.goal_rates(dim), 1e300),
-            )
-        ).T
+        rates = np.minimum(gains.goal_rates(dim), 1e300)
+        params = (W, c, h, plan.amplitude, gains.vector(), plan.tau, plan.dt, s_end, self.goal_stopping, rates)
+        if compiled is not None:
+            X = compiled(x0, plan.inputs, *params)
+        else:
+            assert f is not None
+            X = np.asarray(f(x0, plan.inputs.T, *params)).T
         seconds = time.perf_counter() - begin
         return Rollout(
             t=plan.t,

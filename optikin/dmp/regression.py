@@ -7,8 +7,10 @@ with the same residual measure and the wall time:
 * :func:`fit_cvxpy` -- every weight of every dimension at once,
   ``min |X W^T - F|_F^2 + ridge |W|_F^2`` subject to optional bounds
   ``lower <= W <= upper``: a convex QP (Clarabel by default, any cvxpy solver).
-* :func:`fit_lstsq` -- the closed form of the same problem without bounds
-  (``numpy.linalg.lstsq`` on ``[X; sqrt(ridge) I]``).
+* :func:`fit_lstsq` -- the closed form of the same problem without bounds: one Cholesky
+  factorisation of the normal equations shared by every dimension, refined once on the residual
+  (``numpy.linalg.lstsq`` on ``[X; sqrt(ridge) I]`` as the reference, and where ``X`` is
+  ill-conditioned).
 * :func:`fit_lwr` -- locally weighted regression, one weight per basis
   function from its own Gaussian-weighted fit (Ijspeert et al. 2013, eq. 2.14,
   the regression the DMP literature uses): ``w_j = sum psi_j s f / sum psi_j s^2``.
@@ -22,6 +24,7 @@ from typing import Literal, get_args
 
 import cvxpy as cp
 import numpy as np
+import scipy.linalg
 
 from optikin.errors import SolverError
 
@@ -59,8 +62,16 @@ def _residual(X: np.ndarray, F: np.ndarray, W: np.ndarray) -> float:
     return float(np.sqrt(np.mean((X @ W.T - F) ** 2)))
 
 
-def fit_lstsq(X: np.ndarray, F: np.ndarray, ridge: float = 0.0) -> Fit:
-    """Closed-form (ridge) least squares ``min |X W^T - F|^2 + ridge |W|^2`` with ``numpy.linalg.lstsq``.
+CONDITION_LIMIT = 1e12
+"""Largest condition number of the Gram matrix ``X^T X + ridge I`` the Cholesky path accepts; beyond it
+(``cond(X)`` above about 1e6) :func:`fit_lstsq` solves by SVD."""
+
+
+def fit_lstsq(X: np.ndarray, F: np.ndarray, ridge: float = 0.0, factorisation: str = "svd") -> Fit:
+    """Closed-form (ridge) least squares ``min |X W^T - F|^2 + ridge |W|^2``.
+
+    Every gap component shares the design matrix ``X``, so it is factorised once for all
+    ``dim`` right-hand sides.
 
     Parameters
     ----------
@@ -70,22 +81,52 @@ def fit_lstsq(X: np.ndarray, F: np.ndarray, ridge: float = 0.0) -> Fit:
         ``(K, dim)`` target forces (eqs. 16, 22).
     ridge:
         Weight of the ridge term, >= 0.
+    factorisation:
+        ``cholesky``: the normal equations ``(X^T X + ridge I) W^T = X^T F`` by one Cholesky
+        factorisation and one step of iterative refinement on the residual, falling back to
+        ``svd`` when the Gram matrix is singular or its estimated condition number exceeds
+        :data:`CONDITION_LIMIT` (what :meth:`optikin.dmp.DMP.imitate` uses); ``svd``:
+        ``numpy.linalg.lstsq`` on ``[X; sqrt(ridge) I]`` (the reference). The two agree to about
+        ``cond(X)`` times the rounding error relative to the largest weight.
 
     Returns
     -------
     Fit
         Weights ``(dim, n)``.
     """
+    if factorisation not in ("cholesky", "svd"):
+        raise ValueError(f"unknown factorisation {factorisation!r}; choose cholesky or svd")
     start = time.perf_counter()
-    if ridge > 0:
-        n = X.shape[1]
-        A = np.vstack([X, np.sqrt(ridge) * np.eye(n)])
-        b = np.vstack([F, np.zeros((n, F.shape[1]))])
-    else:
-        A, b = X, F
-    W = np.linalg.lstsq(A, b, rcond=None)[0].T
+    W = _normal_equations(X, F, ridge) if factorisation == "cholesky" else None
+    if W is None:
+        if ridge > 0:
+            n = X.shape[1]
+            A = np.vstack([X, np.sqrt(ridge) * np.eye(n)])
+            b = np.vstack([F, np.zeros((n, F.shape[1]))])
+        else:
+            A, b = X, F
+        W = np.linalg.lstsq(A, b, rcond=None)[0].T
     seconds = time.perf_counter() - start
     return Fit("lstsq", W, _residual(X, F, W), seconds)
+
+
+def _normal_equations(X: np.ndarray, F: np.ndarray, ridge: float) -> np.ndarray | None:
+    """``W (dim, n)`` from one Cholesky factorisation of ``X^T X + ridge I`` and one refinement step, or
+    ``None`` when the Gram matrix is not safely positive definite (see :data:`CONDITION_LIMIT`)."""
+    G = X.T @ X
+    if ridge > 0:
+        G[np.diag_indices_from(G)] += ridge
+    norm = float(np.abs(G).sum(axis=0).max())
+    factor, info = scipy.linalg.lapack.dpotrf(G, lower=0, clean=1)
+    if info != 0:
+        return None
+    rcond, info = scipy.linalg.lapack.dpocon(factor, norm, uplo="U")
+    if info != 0 or not rcond * CONDITION_LIMIT >= 1.0:
+        return None
+    Wt = scipy.linalg.cho_solve((factor, False), X.T @ F, check_finite=False)
+    correction = X.T @ (F - X @ Wt) - ridge * Wt
+    Wt = Wt + scipy.linalg.cho_solve((factor, False), correction, check_finite=False)
+    return np.ascontiguousarray(Wt.T)
 
 
 def fit_cvxpy(
