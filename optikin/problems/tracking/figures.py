@@ -11,7 +11,7 @@ the same figures from :class:`~optikin.control.simulate.TrackingRun` objects.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
 from typing import Any, Callable, Mapping
@@ -19,9 +19,13 @@ from typing import Any, Callable, Mapping
 import matplotlib.pyplot as plt
 import numpy as np
 
+from optikin import plots
 from optikin.algebra import dq_rotation, dq_translation, quat_angle, quat_conjugate, quat_multiply
 from optikin.control.simulate import DEG, MM, TrackingRun
 from optikin.results import Drawer
+
+FLOOR = 1e-6
+"""Errors are drawn on a log scale; smaller ones (exact zeros too) sit at this floor [mm or deg]."""
 
 
 @dataclass(frozen=True)
@@ -38,12 +42,17 @@ class Trace:
 
 @dataclass(frozen=True)
 class TrackingView:
-    """What the figures draw: times, the reference tip position, the arm's limits and one :class:`Trace` per label."""
+    """What the figures draw: times, the reference tip position, the arm's limits and one :class:`Trace` per label.
+
+    ``roles`` maps labels to their comparison role (``solver`` for optikin's own controllers), which
+    picks their line styles (:func:`optikin.plots.method_styles`); without it the first label is optikin's.
+    """
 
     t: np.ndarray
     reference_position: np.ndarray
     arm: Mapping[str, Any]
     traces: dict[str, Trace]
+    roles: Mapping[str, str] = field(default_factory=dict)
 
     @classmethod
     def of_runs(cls, runs: Mapping[str, TrackingRun]) -> "TrackingView":
@@ -65,7 +74,13 @@ def figures(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -> dic
     """The figures of a tracking result whose arrays are present (a figure without its arrays is left out)."""
     if "t" not in arrays or "reference_position" not in arrays:
         return {}
-    view = TrackingView(arrays["t"], arrays["reference_position"], summary.get("arm", {}), traces(arrays, summary))
+    view = TrackingView(
+        arrays["t"],
+        arrays["reference_position"],
+        summary.get("arm", {}),
+        traces(arrays, summary),
+        plots.roles_of(summary),
+    )
     title = summary.get("problem", "tracking")
     drawn: dict[str, tuple[Callable[..., None], str, str]] = {
         "tracking": (reference_vs_actual, "position", "tip position"),
@@ -81,42 +96,52 @@ def figures(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -> dic
     }
     if "snapshot_obstacles" in arrays:
         labels = {name: _label(name, summary) for name in (key[10:] for key in arrays if key.startswith("clearance_"))}
-        out["obstacles"] = partial(obstacles, arrays=arrays, labels=labels, title=f"{title}: backbones and obstacles")
+        out["obstacles"] = partial(
+            obstacles, arrays=arrays, labels=labels, title=f"{title}: backbones and obstacles", roles=view.roles
+        )
     return out
 
 
-def obstacles(path: Path, arrays: Mapping[str, np.ndarray], labels: Mapping[str, str], title: str) -> None:
-    """3-D backbones of the QP and the first baseline at a few instants with the obstacles, and every
-    method's least backbone-to-obstacle distance over time against the margin."""
-    fig = plt.figure(figsize=(11.0, 4.8))
+def obstacles(
+    path: Path,
+    arrays: Mapping[str, np.ndarray],
+    labels: Mapping[str, str],
+    title: str,
+    roles: Mapping[str, str] | None = None,
+) -> None:
+    """3-D backbones of the QP and the first baseline at a few instants with the obstacles, coloured by
+    time, and every method's least backbone-to-obstacle distance [mm] over time against the margin."""
     shown = list(labels)[:2]
     times = arrays["snapshot_t"]
-    colours = plt.get_cmap("viridis")(np.linspace(0.0, 1.0, len(times)))
-    for panel, name in enumerate(shown):
-        ax = fig.add_subplot(1, len(shown) + 1, panel + 1, projection="3d")
+    fig = plt.figure(figsize=(14.0, 5.2), layout="constrained")
+    spaces = [fig.add_subplot(1, len(shown) + 1, panel + 1, projection="3d") for panel in range(len(shown))]
+    colours: Any = plots.colour_scale(fig, spaces, times, "snapshot t [s]") if spaces else []
+    for ax, name in zip(spaces, shown):
+        drawn = []
         for k, colour in enumerate(colours):
             shell = arrays["snapshot_obstacles"][k] * MM
-            ax.scatter(*shell.T, s=2, color=colour, alpha=0.3)
+            ax.scatter(*shell.T, s=2, color=colour, alpha=0.3, label="obstacle surface" if k == 0 else None)
             backbone = arrays[f"snapshot_backbone_{name}"][k] * MM
-            ax.plot(*backbone, color=colour, lw=2.0, label=f"t = {times[k]:.2g} s")
+            ax.plot(*backbone, color=colour, lw=2.0, label="backbone" if k == 0 else None)
+            drawn += [shell.reshape(-1, 3), backbone.T]
+        plots.equal_axes_3d(ax, np.concatenate(drawn))
         ax.set_title(labels[name], fontsize=9)
-        ax.set_xlabel("x [mm]")
-        ax.set_ylabel("y [mm]")
-        ax.set_zlabel("z [mm]")
-    fig.axes[0].legend(fontsize=7, loc="upper left")
+        ax.legend(fontsize=7, loc="upper left")
     ax = fig.add_subplot(1, len(shown) + 1, len(shown) + 1)
-    for name, label in labels.items():
-        ax.plot(arrays["t"], arrays[f"clearance_{name}"] * MM, lw=1.0, label=label)
-    ax.axhline(arrays["barrier_margin"][0] * MM, color="r", ls=":", lw=1.0, label="margin")
-    ax.axhline(0.0, color="k", lw=0.8)
+    methods = list(labels.values())
+    styles = plots.method_styles(methods, roles or None)
+    clearance = {labels[name]: arrays[f"clearance_{name}"] * MM for name in labels}
+    legend = plots.labelled(methods, plots.coincident([clearance]))
+    for method, values in clearance.items():
+        ax.plot(arrays["t"], values, label=legend[method], **styles[method])
+    plots.limit_lines(ax, [arrays["barrier_margin"][0] * MM], label="margin")
+    ax.axhline(0.0, color="k", lw=0.8, label="contact")
     ax.set_xlabel("t [s]")
-    ax.set_ylabel("least backbone distance [mm]")
+    ax.set_ylabel("least backbone-obstacle distance [mm]")
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=7)
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(0.0, -0.15), ncol=2)
     fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    plots.save(fig, path)
 
 
 def traces(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -> dict[str, Trace]:
@@ -161,22 +186,28 @@ def _trace(arrays: Mapping[str, np.ndarray], name: str) -> Trace:
 
 def _save(fig: Any, path: Path, title: str) -> None:
     fig.axes[0].set_title(title)
-    fig.axes[-1].set_xlabel("t [s]")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    plots.save(fig, path)
+
+
+def _styles(view: TrackingView, field: str) -> tuple[dict[str, np.ndarray], dict[str, dict[str, Any]]]:
+    curves = view.curves(field)
+    return curves, plots.method_styles(list(curves), view.roles or None)
 
 
 def reference_vs_actual(path: Path, view: TrackingView, title: str) -> None:
-    """Tip position x, y, z of every method against the reference (Seleem et al. 2020, Fig. 26)."""
-    fig, axes = plt.subplots(3, 1, figsize=(7.0, 7.0), sharex=True)
-    for j, (ax, label) in enumerate(zip(axes, "xyz")):
-        ax.plot(view.t, view.reference_position[:, j] * MM, "k--", lw=1.5, label="reference")
-        for name, position in view.curves("position").items():
-            ax.plot(view.t, position[:, j] * MM, lw=1.0, label=name)
-        ax.set_ylabel(f"{label} [mm]")
+    """Tip position x, y, z [mm] of every method against the reference (Seleem et al. 2020, Fig. 26)."""
+    positions, styles = _styles(view, "position")
+    on = plots.coincident([{m: p[:, j] for m, p in positions.items()} for j in range(3)])
+    labels = plots.labelled(list(positions), on)
+    fig, axes = plots.subplots(3, 1, figsize=(8.6, 7.0), sharex=True)
+    for j, (ax, axis) in enumerate(zip(axes[:, 0], "xyz")):
+        ax.plot(view.t, view.reference_position[:, j] * MM, label="reference", **plots.REFERENCE)
+        for name, position in positions.items():
+            ax.plot(view.t, position[:, j] * MM, label=labels[name], **styles[name])
+        ax.set_ylabel(f"tip {axis} [mm]")
         ax.grid(alpha=0.3)
-    axes[0].legend(fontsize=8, ncol=2)
+    axes[-1, 0].set_xlabel("t [s]")
+    plots.legend_outside(fig)
     _save(fig, path, title)
 
 
@@ -184,17 +215,20 @@ def errors(path: Path, view: TrackingView, title: str) -> None:
     """Position error [mm] and, for pose tracking, orientation error [deg] over time (Figs. 25, 27)."""
     angles = view.curves("orientation_error")
     pose = bool(angles)
-    fig, axes = plt.subplots(2 if pose else 1, 1, figsize=(7.0, 5.0 if pose else 3.0), sharex=True, squeeze=False)
-    for name, error in view.curves("position_error").items():
-        axes[0, 0].semilogy(view.t, np.maximum(error * MM, 1e-6), lw=1.0, label=name)
-        if name in angles:
-            axes[1, 0].semilogy(view.t, np.maximum(angles[name] * DEG, 1e-6), lw=1.0, label=name)
-    axes[0, 0].set_ylabel("position error [mm]")
+    lengths, styles = _styles(view, "position_error")
+    drawn = [{m: np.maximum(e * MM, FLOOR) for m, e in lengths.items()}]
     if pose:
-        axes[1, 0].set_ylabel("orientation error [deg]")
-    for ax in axes[:, 0]:
+        drawn.append({m: np.maximum(angles[m] * DEG, FLOOR) for m in lengths if m in angles})
+    on = plots.coincident([{m: np.log10(v) for m, v in panel.items()} for panel in drawn])
+    labels = plots.labelled(list(lengths), on)
+    fig, axes = plots.subplots(len(drawn), 1, figsize=(8.6, 5.0 if pose else 3.2), sharex=True)
+    for ax, panel, unit in zip(axes[:, 0], drawn, ("position error [mm]", "orientation error [deg]")):
+        for name, values in panel.items():
+            ax.semilogy(view.t, values, label=labels[name], **styles[name])
+        ax.set_ylabel(unit)
         ax.grid(alpha=0.3, which="both")
-    axes[0, 0].legend(fontsize=8)
+    axes[-1, 0].set_xlabel("t [s]")
+    plots.legend_outside(fig)
     _save(fig, path, title)
 
 
@@ -202,37 +236,49 @@ def limits(path: Path, view: TrackingView, title: str) -> None:
     """Every bounded variable (lengths in mm, bending angles in deg) of every method, with its limits."""
     names, lower, upper = view.arm["config_names"], view.arm["lower"], view.arm["upper"]
     shown = [i for i, name in enumerate(names) if name.startswith(("S", "theta"))]
-    fig, axes = plt.subplots(len(shown), 1, figsize=(7.0, 1.9 * len(shown)), sharex=True, squeeze=False)
+    scales = {i: (MM, "mm") if names[i].startswith("S") else (DEG, "deg") for i in shown}
+    q, styles = _styles(view, "q")
+    on = plots.coincident([{m: c[:, i] for m, c in q.items()} for i in shown])
+    labels = plots.labelled(list(q), on)
+    fig, axes = plots.subplots(len(shown), 1, figsize=(8.6, 1.2 + 1.9 * len(shown)), sharex=True)
     for ax, i in zip(axes[:, 0], shown):
-        scale, unit = (MM, "mm") if names[i].startswith("S") else (DEG, "deg")
-        for method, q in view.curves("q").items():
-            ax.plot(view.t, q[:, i] * scale, lw=1.0, label=method)
-        for bound in (lower[i], upper[i]):
-            ax.axhline(bound * scale, color="r", lw=0.8, ls=":")
+        scale, unit = scales[i]
+        for method, values in q.items():
+            ax.plot(view.t, values[:, i] * scale, label=labels[method], **styles[method])
+        plots.limit_lines(ax, (lower[i] * scale, upper[i] * scale), label="limits (lower, upper)")
         ax.set_ylabel(f"{names[i]} [{unit}]")
         ax.grid(alpha=0.3)
-    axes[0, 0].legend(fontsize=8, ncol=2)
+    axes[-1, 0].set_xlabel("t [s]")
+    plots.legend_outside(fig)
     _save(fig, path, title)
 
 
 def lyapunov(path: Path, view: TrackingView, title: str) -> None:
     """``V(e) = e'e/2`` along every run (Seleem et al. 2020, eq. 36 with P = I)."""
-    fig, ax = plt.subplots(figsize=(7.0, 3.0))
-    for name, V in view.curves("lyapunov").items():
-        ax.semilogy(view.t, np.maximum(V, 1e-16), lw=1.0, label=name)
-    ax.set_ylabel("V(e) = e'e/2")
-    ax.grid(alpha=0.3, which="both")
-    ax.legend(fontsize=8)
+    values, styles = _styles(view, "lyapunov")
+    clipped = {m: np.maximum(V, 1e-16) for m, V in values.items()}
+    labels = plots.labelled(list(clipped), plots.coincident([{m: np.log10(v) for m, v in clipped.items()}]))
+    fig, axes = plots.subplots(1, 1, figsize=(8.6, 3.2))
+    for name, V in clipped.items():
+        axes[0, 0].semilogy(view.t, V, label=labels[name], **styles[name])
+    pose = bool(view.curves("orientation_error"))
+    axes[0, 0].set_ylabel("V(e) = e'e/2\n[dual-quaternion error]" if pose else "V(e) = e'e/2 [m^2]")
+    axes[0, 0].set_xlabel("t [s]")
+    axes[0, 0].grid(alpha=0.3, which="both")
+    plots.legend_outside(fig)
     _save(fig, path, title)
 
 
 def step_times(path: Path, view: TrackingView, title: str) -> None:
-    """Wall time of every control step (Jacobian evaluation included), per method."""
-    fig, ax = plt.subplots(figsize=(7.0, 3.0))
-    for name, seconds in view.curves("step_time").items():
+    """Wall time of every control step (Jacobian evaluation included) [us], per method."""
+    seconds_of, styles = _styles(view, "step_time")
+    fig, axes = plots.subplots(1, 1, figsize=(8.6, 3.2))
+    for name, seconds in seconds_of.items():
         label = f"{name} (median {np.median(seconds) * 1e6:.0f} us)"
-        ax.semilogy(view.t, seconds * 1e6, ".", ms=1.5, label=label)
-    ax.set_ylabel("step time [us]")
-    ax.grid(alpha=0.3, which="both")
-    ax.legend(fontsize=8, markerscale=6)
+        style = {"color": styles[name]["color"], "marker": styles[name].get("marker", "o")}
+        axes[0, 0].semilogy(view.t, seconds * 1e6, ls="none", ms=1.5, label=label, **style)
+    axes[0, 0].set_ylabel("step time [us]")
+    axes[0, 0].set_xlabel("t [s]")
+    axes[0, 0].grid(alpha=0.3, which="both")
+    plots.legend_outside(fig, markerscale=3)
     _save(fig, path, title)
