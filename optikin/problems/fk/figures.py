@@ -1,6 +1,7 @@
 """Figures of an ``fk`` result, from its arrays and summary alone (``optikin plot`` redraws them).
 
-``backbones``  up to 12 backbones in 3-D with their section ends (arrays ``backbone``, ``section_dq``).
+``backbones``  up to 12 backbones in 3-D with their section ends (arrays ``backbone``, ``section_dq``),
+               coloured by time (``t``) or sample.
 ``tip``        the tip position over time (``tip_position``, ``t``), or, without sample times,
                the tip positions in 3-D coloured by their distance from the base.
 """
@@ -26,11 +27,12 @@ def figures(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -> dic
     if "backbone" in arrays:
         backbone = arrays["backbone"]
         ends = dq_translation(arrays["section_dq"]) if "section_dq" in arrays else None
+        times = arrays.get("t")
 
         def draw_backbones(path: Path) -> None:
             from optikin import plots
 
-            plots.backbones_3d(path, backbone, f"{name}: backbones ({arm})", ends)
+            plots.backbones_3d(path, backbone, f"{name}: backbones ({arm})", ends, t=times)
 
         drawers["backbones"] = draw_backbones
     if "tip_position" in arrays:
