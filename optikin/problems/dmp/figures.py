@@ -2,9 +2,9 @@
 
 ``reproduction_error``
     the position [mm] and orientation [mrad] error of every variant's
-    reproduction against the demonstration;
+    reproduction against the demonstration, one panel each;
 ``<variant>_<scenario>``
-    the unit quaternion ``Q_r`` (and ``Q_d`` of the dual-quaternion variants)
+    the unit quaternion ``Q_r`` [-] (and ``Q_d`` [m] of the dual-quaternion variants)
     of the reproduction, the goal-switch roll-out and the roll-out coupled to
     the demonstration under the disturbance, over the demonstration where the
     lengths agree (variants with an orientation quaternion only).
@@ -56,13 +56,15 @@ def _errors_figure(arrays: Mapping[str, np.ndarray], variants: list[str], name: 
     def draw(path: Path) -> None:
         from optikin import plots
 
-        series, n = {}, len(t)
+        series, units, n = {}, {}, len(t)
         for variant in variants:
             y = arrays[rollout_key(variant, scenario)]
             n = min(len(y), len(t))
             for k, v in pose_errors(variant, y[:n], position[:n], quaternion[:n]).items():
-                series[f"{variant} {k}"] = v[:, None] * unit_of(k)[1]
-        plots.time_series(path, t[:n], series, "[mm | mrad]", f"{name}: {scenario} error", labels=("error",))
+                unit, factor = unit_of(k)
+                series[f"{variant}\n{k} error"] = v[:, None] * factor
+                units[f"{variant}\n{k} error"] = f"[{unit}]"
+        plots.time_series(path, t[:n], series, units, f"{name}: {scenario} error", labels=("error",))
 
     return draw
 
@@ -82,10 +84,12 @@ def _quaternion_figure(arrays: Mapping[str, np.ndarray], variant: str, name: str
         if dual:
             series[f"{variant} Q_d"] = y[:, 4:]
         if len(y) == len(demo_t):  # the demonstration above its reproduction
-            series = {"demonstration Q_r": demo_q, **series}
+            shown: dict[str, np.ndarray] = {"demonstration Q_r": demo_q}
             if dual:
-                demo_qd = dq_from_rotation_translation(demo_q, arrays["demo_position"], check=False)[:, 4:]
-                series = {"demonstration Q_d": demo_qd, **series}
-        plots.time_series(path, t, series, "", f"{name}: {variant}, {scenario}", labels=("w", "x", "y", "z"))
+                demo_dq = dq_from_rotation_translation(demo_q, arrays["demo_position"], check=False)
+                shown["demonstration Q_d"] = demo_dq[:, 4:]
+            series = shown | series
+        units = {label: "[m]" if label.endswith("Q_d") else "[-]" for label in series}  # Q_d = t Q_r / 2
+        plots.time_series(path, t, series, units, f"{name}: {variant}, {scenario}", labels=("w", "x", "y", "z"))
 
     return draw
