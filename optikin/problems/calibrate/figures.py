@@ -4,7 +4,8 @@
     per marker, the marker error of every posture [mm] (fit and held out), rejected
     postures marked;
 ``markers``
-    in 3-D, the measured markers over the calibrated arm's backbone for a few postures.
+    in 3-D [mm], the measured markers over the calibrated arm's backbone for a few postures,
+    coloured by posture.
 """
 
 from __future__ import annotations
@@ -14,11 +15,12 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
-import matplotlib.pyplot as plt
 import numpy as np
 
+from optikin import plots
 from optikin.results import Drawer
 
+MM = 1e3
 FLOOR = 1e-15
 """Marker errors are drawn on a log scale; exact zeros sit at this floor [m]."""
 BACKBONES_DRAWN = 12
@@ -53,43 +55,44 @@ def figures(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -> dic
 def draw_residuals(
     path: Path, errors: np.ndarray, held_out: np.ndarray, outlier: np.ndarray, names: list[str], title: str
 ) -> None:
-    """One panel per marker: errors ``(N, M)`` [m] against the posture, fit and held out, log scale."""
+    """One panel per marker: errors ``(N, M)`` [m] against the posture, fit and held out, log scale [mm]."""
     M = errors.shape[1]
-    fig, axes = plt.subplots(M, 1, figsize=(8, 1.9 * M + 0.8), sharex=True, squeeze=False)
+    fig, axes = plots.subplots(M, 1, figsize=(9.2, 1.9 * M + 1.0), sharex=True)
     k = np.arange(len(errors))
     for j, ax in enumerate(axes[:, 0]):
-        ax.semilogy(k, np.maximum(errors[:, j], FLOOR) * 1e3, ".", ms=3, label="fit")
-        ax.semilogy(k, np.maximum(held_out[:, j], FLOOR) * 1e3, ".", ms=3, alpha=0.6, label="held out")
+        ax.semilogy(k, np.maximum(errors[:, j], FLOOR) * 1e3, ".", ms=3, color="tab:blue", label="fit")
+        ax.semilogy(
+            k, np.maximum(held_out[:, j], FLOOR) * 1e3, ".", ms=3, alpha=0.6, color="tab:orange", label="held out"
+        )
         if outlier.any():
-            ax.semilogy(k[outlier], np.maximum(errors[outlier, j], FLOOR) * 1e3, "rx", ms=6, label="rejected")
-        ax.set_ylabel(f"{names[j] if j < len(names) else j} [mm]", fontsize=8)
+            bad = np.maximum(errors[outlier, j], FLOOR) * 1e3
+            ax.semilogy(k[outlier], bad, "x", color="tab:red", ms=6, label="rejected posture")
+        ax.set_ylabel(f"{names[j] if j < len(names) else j + 1}\nerror [mm]", fontsize=8)
         ax.grid(alpha=0.3)
-    axes[0, 0].legend(fontsize=7, loc="upper right")
+    plots.legend_outside(fig, markerscale=2)
     axes[-1, 0].set_xlabel("posture")
-    fig.suptitle(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    axes[0, 0].set_title(title)
+    plots.save(fig, path)
 
 
 def draw_markers(path: Path, measured: np.ndarray, backbone: np.ndarray, outlier: np.ndarray, title: str) -> None:
-    """Measured markers ``(N, M, 3)`` [m] of every posture and the backbones ``(N, 3, K)`` of a few kept ones."""
-    fig = plt.figure(figsize=(6.5, 6))
-    ax = fig.add_subplot(projection="3d")
-    points = measured.reshape(-1, 3)
-    ax.scatter(points[:, 0], points[:, 1], points[:, 2], s=2, alpha=0.25, label="measured markers")
+    """Measured markers ``(N, M, 3)`` [m] of every posture and the backbones ``(N, 3, K)`` of a few kept ones
+    (coloured by posture), in millimetres."""
+    fig, ax = plots.figure_3d()
+    points = measured.reshape(-1, 3) * MM
+    ax.scatter(*points.T, s=2, alpha=0.25, color="0.5", label="measured markers, all postures")
     kept = np.flatnonzero(~outlier)
-    for i in kept[np.linspace(0, len(kept) - 1, min(BACKBONES_DRAWN, len(kept))).astype(int)] if len(kept) else []:
-        ax.plot(*backbone[i], lw=1.2)
-        ax.scatter(*measured[i].T, s=12, c="k")
+    drawn = kept[np.linspace(0, len(kept) - 1, min(BACKBONES_DRAWN, len(kept))).astype(int)] if len(kept) else kept
+    colours: Any = plots.colour_scale(fig, ax, drawn.astype(float), "posture") if len(drawn) else []
+    for n, (i, colour) in enumerate(zip(drawn, colours)):
+        ax.plot(*backbone[i] * MM, lw=1.4, color=colour, label="calibrated backbone" if n == 0 else None)
+        ax.scatter(
+            *measured[i].T * MM, s=14, color=colour, edgecolor="k", lw=0.4, label="its markers" if n == 0 else None
+        )
     if outlier.any():
-        bad = measured[outlier].reshape(-1, 3)
-        ax.scatter(bad[:, 0], bad[:, 1], bad[:, 2], s=14, c="r", marker="x", label="rejected postures")
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
-    ax.set_zlabel("z [m]")
-    ax.legend(fontsize=7)
+        bad = measured[outlier].reshape(-1, 3) * MM
+        ax.scatter(*bad.T, s=14, c="tab:red", marker="x", label="rejected postures")
+    plots.equal_axes_3d(ax, np.concatenate([points, *(backbone[i].T * MM for i in drawn)]))
+    ax.legend(fontsize=7, loc="upper left")
     ax.set_title(title, fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    plots.save(fig, path)
