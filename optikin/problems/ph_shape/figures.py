@@ -38,9 +38,9 @@ def figures(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -> dic
         )
 
         def draw_shapes(path: Path) -> None:
-            from optikin.problems import ph_figures
+            from optikin import plots
 
-            ph_figures.shapes_3d(
+            plots.shapes_3d(
                 path,
                 arrays["ph_points"],
                 points,
@@ -68,18 +68,18 @@ def figures(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -> dic
             labels["tube markers"] = [f"station {j + 1}" for j in range(tubes.shape[2])]  # mean of the tubes
 
         def draw_errors(path: Path) -> None:
-            from optikin.problems import ph_figures
+            from optikin import plots
 
-            ph_figures.per_sample(path, series, "[mm]", f"{name}: distance to the PH backbone", labels)
+            plots.per_sample(path, series, "[mm]", f"{name}: distance to the PH backbone", labels)
 
         drawers["errors"] = draw_errors
     seconds = prefixed(arrays, "seconds_")
     if seconds:
 
         def draw_times(path: Path) -> None:
-            from optikin.problems import ph_figures
+            from optikin import plots
 
-            ph_figures.times_per_sample(path, seconds, f"{name}: time per sample")
+            plots.times_per_sample(path, seconds, f"{name}: time per sample", plots.roles_of(summary))
 
         drawers["times"] = draw_times
     return drawers
