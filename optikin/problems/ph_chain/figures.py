@@ -38,9 +38,9 @@ def figures(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -> dic
     if all(k in arrays for k in needed):
 
         def draw_shapes(path: Path) -> None:
-            from optikin.problems import ph_figures
+            from optikin import plots
 
-            ph_figures.chains_3d(
+            plots.chains_3d(
                 path,
                 [arrays[f"{k}_ph_points"] for k in LINKS],
                 [arrays[f"{k}_markers"] for k in LINKS],
@@ -53,18 +53,18 @@ def figures(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -> dic
         series = {link: arrays[f"{k}_marker_distance"] * MM for k, link in LINKS.items()}
 
         def draw_errors(path: Path) -> None:
-            from optikin.problems import ph_figures
+            from optikin import plots
 
-            ph_figures.per_sample(path, series, "marker distance [mm]", f"{name}: marker distance per link")
+            plots.per_sample(path, series, "marker distance [mm]", f"{name}: marker distance per link")
 
         drawers["errors"] = draw_errors
     seconds = time_series(arrays)
     if seconds:
 
         def draw_times(path: Path) -> None:
-            from optikin.problems import ph_figures
+            from optikin import plots
 
-            ph_figures.times_per_sample(path, seconds, f"{name}: time per sample and link")
+            plots.times_per_sample(path, seconds, f"{name}: time per sample and link", plots.roles_of(summary))
 
         drawers["times"] = draw_times
     return drawers
