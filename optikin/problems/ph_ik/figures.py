@@ -26,18 +26,21 @@ def figures(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -> dic
     drawers: dict[str, Drawer] = {}
     if "tube_lengths" in arrays and "reference_tube_lengths" in arrays:
         reference = arrays["reference_tube_lengths"]
-        series = {"|L - L_ref|": np.abs(arrays["tube_lengths"] - reference) * MM, "L_ref": reference * MM}
+        series = {
+            "tube-length error": np.abs(arrays["tube_lengths"] - reference) * MM,
+            "reference length": reference * MM,
+        }
         frame = "euler_rodrigues" if "tube_lengths_rmf" in arrays else "rmf"
 
         def draw_errors(path: Path) -> None:
-            from optikin.problems import ph_figures
+            from optikin import plots
 
-            ph_figures.per_sample(
+            plots.per_sample(
                 path,
                 series,
                 "[mm]",
-                f"{name}: tube-length errors ({solver}, {frame} frame)",
-                {"|L - L_ref|": TUBES, "L_ref": TUBES},
+                f"{name}: tube-length errors abs(L - L_ref) ({solver}, {frame} frame)",
+                {"tube-length error": TUBES, "reference length": TUBES},
             )
 
         drawers["errors"] = draw_errors
@@ -45,9 +48,11 @@ def figures(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -> dic
     if seconds:
 
         def draw_times(path: Path) -> None:
-            from optikin.problems import ph_figures
+            from optikin import plots
 
-            ph_figures.times_per_sample(path, seconds, f"{name}: IK time per sample (shape + tubes)")
+            plots.times_per_sample(
+                path, seconds, f"{name}: IK time per sample (shape + tubes)", plots.roles_of(summary)
+            )
 
         drawers["times"] = draw_times
     return drawers
