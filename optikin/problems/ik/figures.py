@@ -17,7 +17,6 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
-import matplotlib.pyplot as plt
 import numpy as np
 
 from optikin import plots
@@ -86,13 +85,14 @@ def target_positions(targets: np.ndarray) -> np.ndarray | None:
 def draw_targets(path: Path, tips: np.ndarray, residual: np.ndarray, title: str) -> None:
     """Points ``tips (N, 3)`` [m] coloured by ``log10 residual``."""
     colour = np.log10(np.maximum(residual, 1e-18))
-    plots.scatter_3d(path, tips, title, colour=colour, colour_label="log10 residual")
+    plots.scatter_3d(path, tips, title, colour=colour, colour_label="log10 solver residual (units of r)")
 
 
 def draw_trajectory(path: Path, t: np.ndarray, residual: np.ndarray, error: np.ndarray, title: str) -> None:
-    """The residual and the error [mm] against time ``t`` [s]."""
-    series = {"residual": residual[:, None], "error [mm]": error[:, None] * 1e3}
-    plots.time_series(path, t, series, "", title, labels=("",))
+    """The solver's residual ``norm(r(q))`` (units of its residual ``r``) and the error [mm] against time ``t`` [s]."""
+    series = {"solver residual": residual[:, None], "error (fk check)": error[:, None] * 1e3}
+    units = {"solver residual": "[units of r]", "error (fk check)": "[mm]"}
+    plots.time_series(path, t, series, units, title, labels=("",))
 
 
 def draw_comparison(
@@ -109,7 +109,8 @@ def draw_comparison(
     Table I [mm]. Methods that were not applicable have no arrays and are left out."""
     names = list(errors)
     panels = 3 if margins is not None else 2
-    fig, axes = plt.subplots(1, panels, figsize=(4.6 * panels, 0.45 * len(names) + 2.2), sharey=True)
+    fig, grid = plots.subplots(1, panels, figsize=(4.6 * panels + 1.6, 0.45 * len(names) + 2.2), sharey=True)
+    axes = grid[0]
     y = np.arange(len(names))
 
     finite = [np.maximum(errors[n][np.isfinite(errors[n])], FLOOR) for n in names]
@@ -123,6 +124,7 @@ def draw_comparison(
     ok = [100.0 * np.mean(np.isin(np.asarray(status[n]), SOLVED)) for n in names]
     bars = axes[1].barh(y, median_us, color="tab:blue")
     axes[1].set_xscale("log")
+    axes[1].set_xlim(right=max(median_us) * 40)  # room for the labels
     axes[1].set_xlabel("median time per solve [us]")
     for bar, share in zip(bars, ok):
         axes[1].text(
@@ -134,13 +136,12 @@ def draw_comparison(
         axes[2].boxplot(
             values, positions=y, orientation="horizontal", widths=0.6, manage_ticks=False, flierprops={"markersize": 2}
         )
-        axes[2].axvline(0.0, color="tab:red", lw=1)
+        axes[2].axvline(0.0, label="Table I limit (margin 0)", **plots.LIMIT)
         axes[2].set_xlabel("smallest leg margin to Table I [mm]")
+        plots.legend_outside(fig)
     axes[0].set_yticks(y, names)
     axes[0].set_ylim(len(names) - 0.5, -0.5)  # first method on top
     for ax in axes:
         ax.grid(axis="x", alpha=0.3)
     fig.suptitle(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    plots.save(fig, path)
