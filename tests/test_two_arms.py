@@ -261,3 +261,67 @@ def test_solve_of_a_rope_shorter_than_its_grips_exits_2_naming_file_and_field(tm
     message = capsys.readouterr().err
     assert str(problem) in message and "options.rope.length" in message
     assert not (tmp_path / "out").exists()
+
+
+def test_obstacle_rows_are_the_derivative_of_each_bodys_clearance_and_hold_a_moving_obstacles_step():
+    from optikin.control.obstacles import Obstacle
+    from optikin.control.two_arm import rope_samples
+    from optikin.control.two_arm_obstacles import TwoArmObstacleRows
+
+    first, second = two_arms(6)
+    sensitivity = CatenarySensitivity(0.5)
+    model = TwoArmModel([first, second], "rope", Rope(sensitivity, samples=rope_samples(sensitivity, 0.07, 0.01)))
+    obstacles = [
+        Obstacle("sphere", center=(0.0, 0.05, 0.15), radius=0.03, path=((0.0, 0, 0, 0), (1.0, 0.1, 0, 0))),
+        Obstacle("box", center=(0.1, -0.1, 0.1), half_extents=(0.02, 0.03, 0.04)),
+    ]
+    rows = TwoArmObstacleRows(model, obstacles, margin=0.01, gamma=20.0, dt=DT, points_per_obstacle=2)
+    q = np.array([0.18, 0.3, 0.1, 0.18, 0.3, 0.0, 0.17, 0.25, -0.1, 0.18, 0.35, 0.2])
+    model.evaluate(q)
+    rows.step = 50  # t = 0.1 s: the sphere moves at 0.1 m/s along x
+    rows.update()
+    t = 50 * DT
+    chosen = []  # (obstacle, flat sample index) of every row, recovered from b
+    for o, (clearance, gradient) in enumerate(rows.distances(t)):
+        moved = obstacles[o].offset(t + DT) - obstacles[o].offset(t)
+        expected = -20.0 * (clearance - 0.01) + gradient @ moved / DT
+        for b in rows.b[o * 6 : o * 6 + 6]:
+            chosen.append((o, int(np.argmin(np.abs(expected - b)))))
+            assert np.min(np.abs(expected - b)) < 1e-12
+
+    def clearances(q: np.ndarray) -> np.ndarray:
+        model.evaluate(q)
+        per_obstacle = [c.copy() for c, _ in rows.distances(t)]
+        return np.array([per_obstacle[o][i] for o, i in chosen])
+
+    assert np.allclose(rows.A, central_differences(clearances, q), atol=1e-8)
+
+
+@pytest.mark.parametrize(
+    "name,center,body",
+    [("track-two-arms-shared-space", [0.0, 0.0, 0.35], "arm 1"), ("rope-skipping", [0.0, 0.04, 0.12], "rope")],
+)
+def test_obstacle_kept_off_the_arms_and_the_rope_where_the_baseline_goes_through(tmp_path, name, center, body):
+    def sphere(d):
+        d["baselines"] = ["no_collision_rows"]
+        d["options"]["obstacles"] = [{"type": "sphere", "center": center, "radius": 0.03}]
+
+    result, _ = solve(str(variant(tmp_path, name, sphere)), out=tmp_path / "out", figures=False)
+    assert result.criteria["no obstacle penetration"] and result.criteria["no collision"]
+    assert result.metrics[f"{body} to obstacles min [mm]"] >= 10.0 - 0.5  # the margin, to one step's linearisation
+    rows = {row.role: row.metrics for row in result.comparison}
+    assert rows["solver"]["obstacle steps"] == 0 and rows["baseline"]["obstacle steps"] > 0
+    assert rows["baseline"]["obstacle [mm]"] < 0
+    assert any("inside an obstacle" in note for note in result.notes)
+
+
+@pytest.mark.parametrize(
+    "center,field",
+    [([-0.15, 0.0, 0.0], "options.obstacles.0"), ([-0.12, 0.0, 0.2], "options.obstacles")],
+    ids=["base", "start"],
+)
+def test_obstacle_at_a_base_or_on_the_start_is_refused_naming_it(tmp_path, center, field):
+    def sphere(d):
+        d["options"]["obstacles"] = [{"type": "sphere", "center": center, "radius": 0.02}]
+
+    assert error_field(variant(tmp_path, "track-two-arms-shared-space", sphere)) == field

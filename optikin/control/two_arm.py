@@ -16,6 +16,7 @@ The QP of one step (``q = (q_1, q_2)``, period ``dt``)::
               dc/dq qdot <= gamma (L - slack - c)     (rope task: grips kept slack, c = |G_2 - G_1|)
               dz/dq qdot >= -gamma (z - floor - margin)  (rope task with a floor: the lowest point above it)
               D_rope qdot >= -gamma (d_rope - rope margin)  (rope task: its samples off both tubes, RopeTubes)
+              D_obs qdot >= -gamma (d_obs - margin) + ...   (obstacles off both tubes and the rope, two_arm_obstacles)
 
 The posture term (weight ``w``) settles the motions the task leaves free (the lowest point fixes 3
 of 12 rates). Keeping the grips at least ``slack`` closer than the rope's length keeps the rope
@@ -233,6 +234,10 @@ class TwoArmController:
         self.v += xdot_ref
         return self.v
 
+    def reset(self) -> None:
+        """Start a run (the simulator calls it before the first step)."""
+        self.status = "ok"
+
     def command(self, q: np.ndarray, x_ref: np.ndarray, xdot_ref: np.ndarray) -> np.ndarray:
         raise NotImplementedError
 
@@ -273,6 +278,9 @@ class TwoArmQP(TwoArmController):
         The self-collision rows; ``None``: the arms may pass through each other.
     rope_tubes:
         The rows keeping the rope off the arms' tubes (rope task); ``None``: none.
+    obstacle_rows:
+        The rows keeping both tubes and the rope off obstacles
+        (:class:`optikin.control.two_arm_obstacles.TwoArmObstacleRows`); ``None``: none.
     gamma, margin:
         Barrier rate [1/s] and the margin of the floor row [m] (rope task).
     """
@@ -294,6 +302,7 @@ class TwoArmQP(TwoArmController):
         limit_margin: float = 1e-9,
         tubes: TwoTubes | None = None,
         rope_tubes: RopeTubes | None = None,
+        obstacle_rows: Any = None,
         gamma: float = 20.0,
         margin: float = 0.01,
     ):
@@ -317,7 +326,9 @@ class TwoArmQP(TwoArmController):
         self.collision_rows = 0 if tubes is None else tubes.pairs
         self.rope_tubes = rope_tubes
         self.rope_tube_rows = 0 if rope_tubes is None else rope_tubes.rows
-        self.rows = self.collision_rows + self.rope_tube_rows + self.rope_rows
+        self.obstacle_rows = obstacle_rows
+        self.obstacle_row_count = 0 if obstacle_rows is None else int(obstacle_rows.rows)
+        self.rows = self.collision_rows + self.rope_tube_rows + self.obstacle_row_count + self.rope_rows
         J, v = np.zeros((self.task_rows, n)), np.zeros(self.task_rows)
         if self.posture_rows:
             J[model.m :, :] = self.root_weight * np.eye(n)
@@ -335,10 +346,12 @@ class TwoArmQP(TwoArmController):
         self.name = "joint QP" + ("" if tubes is not None else " without collision rows")
 
     def reset(self, posture: np.ndarray | None = None) -> None:
-        """Start a run (``posture``: a new ``q_nom``)."""
+        """Start a run at ``t = 0`` (``posture``: a new ``q_nom``)."""
         self.status = "ok"
         if posture is not None:
             self.posture[:] = posture
+        if self.obstacle_rows is not None:
+            self.obstacle_rows.reset()
 
     def command(self, q: np.ndarray, x_ref: np.ndarray, xdot_ref: np.ndarray) -> np.ndarray:
         m, d = self.model, self.data
@@ -367,6 +380,11 @@ class TwoArmQP(TwoArmController):
             d.A[start : start + self.rope_tube_rows] = self.rope_tubes.A
             d.b[start : start + self.rope_tube_rows] = self.rope_tubes.b
             start += self.rope_tube_rows
+        if self.obstacle_rows is not None:
+            self.obstacle_rows.update()
+            d.A[start : start + self.obstacle_row_count] = self.obstacle_rows.A
+            d.b[start : start + self.obstacle_row_count] = self.obstacle_rows.b
+            start += self.obstacle_row_count
         if self.rope_rows:
             self._rope_rows(d.A[start:], d.b[start:])
         try:
@@ -444,6 +462,7 @@ def simulate_two_arms(
     wrapped = np.concatenate([periodic_mask(placed.arm) for placed in plant.arms])
     notes: list[str] = []
     q = np.array(q0, dtype=float)
+    controller.reset()
     for k in range(N):
         check_interrupted()
         try:

@@ -6,7 +6,9 @@ start, tube radius); one QP per control step over both arms' rates
 (:class:`optikin.control.two_arm.TwoArmQP`) drives the task, keeps both arms' configuration and
 rate limits, and keeps the two tubes apart by self-collision barrier rows
 (:class:`optikin.control.self_collision.TwoTubes`) and, with a rope, the rope's samples off both tubes
-(:class:`optikin.control.two_arm.RopeTubes`). Tasks, by the data source (family
+(:class:`optikin.control.two_arm.RopeTubes`), and both tubes and the rope off the obstacles of
+``options.obstacles`` (the shapes of the ``tracking`` kind, in the shared frame;
+:class:`optikin.control.two_arm_obstacles.TwoArmObstacleRows`). Tasks, by the data source (family
 ``two_arm_references``, :mod:`optikin.problems.two_arms.references`):
 
 * ``rope_loop``: the tips hold a rope (``options.rope``: length, mass per length, slack, floor);
@@ -29,14 +31,18 @@ rate limits, and keeps the two tubes apart by self-collision barrier rows
       gain: 10.0
       posture_weight: 0.001
       collision: {margin: 0.02, gamma: 20.0, pairs: 4, points_per_section: null,
-                  rope_pairs: 2, rope_margin: 0.01, rope_exclusion: 0.07}
+                  rope_pairs: 2, rope_margin: 0.01, rope_exclusion: 0.07,
+                  obstacle_margin: 0.01, points_per_obstacle: 3}
+      obstacles: [{type: sphere, center: [0, 0.04, 0.12], radius: 0.03}]   # optional
 
-Baselines: ``no_collision_rows`` (the same QP without the self-collision rows) and
+Baselines: ``no_collision_rows`` (the same QP without the self-collision, rope and obstacle rows) and
 ``pseudo_inverse`` (no limits, no rows); their collisions are reported (columns ``collision steps``,
 ``depth [mm]``), not hidden. Per-step status: ``ok``, or ``failed`` where the QP found no solution
 and the arms were held. Criteria of the joint QP: ``no collision`` (the continuous tubes, between
 samples too, never touch: least sampled clearance less half the two sample spacings stays
-positive) and ``within limits``.
+positive), ``within limits`` and, with obstacles, ``no obstacle penetration`` (every body's least
+sampled clearance less half its sample spacing stays positive; the rope is checked beyond
+``collision.rope_exclusion`` of its grips).
 """
 
 from __future__ import annotations

@@ -10,6 +10,7 @@ from __future__ import annotations
 from pydantic import Field, NonNegativeFloat, PositiveFloat, field_validator
 
 from optikin.options import Options
+from optikin.problems.tracking.options import ObstacleOptions
 
 Vector3 = tuple[float, float, float]
 
@@ -60,6 +61,12 @@ class CollisionOptions(Options):
     rope_exclusion: PositiveFloat = Field(
         0.07, description="arc length of rope at each grip not kept off the tubes (it leaves the holding tube) [m]"
     )
+    obstacle_margin: PositiveFloat = Field(
+        0.01, description="clearance both tubes and the rope keep from obstacles [m]"
+    )
+    points_per_obstacle: int = Field(
+        3, ge=1, description="samples per body (arm 1, arm 2, rope) and obstacle in the QP"
+    )
 
 
 class TwoArmOptions(Options):
@@ -78,6 +85,10 @@ class TwoArmOptions(Options):
     )
     limit_margin: NonNegativeFloat = Field(1e-9, description="distance kept from the configuration limits")
     collision: CollisionOptions = Field(default_factory=CollisionOptions, description="the self-collision rows")
+    obstacles: list[ObstacleOptions] = Field(
+        default_factory=list,
+        description="obstacles in the shared frame kept off both tubes and the rope (the joint QP only)",
+    )
     compiled: bool = Field(False, description="compile the per-step CasADi Functions with a C compiler")
 
     @field_validator("arms")

@@ -23,6 +23,8 @@ COMPARED = {
     "depth [mm]": "deepest penetration [mm]",
     "outside limits": "samples outside limits",
     "step [us]": "step time median [us]",
+    "obstacle [mm]": "obstacle clearance min [mm]",
+    "obstacle steps": "steps inside an obstacle",
 }
 """Columns of the comparison table: short name -> metric of :func:`run_metrics`."""
 
@@ -69,7 +71,25 @@ def run_metrics(outcome: TwoArmOutcome, name: str) -> dict[str, Any]:
             height = tracked.x @ rope.sensitivity.up - rope.floor
             out["lowest point above the floor min [mm]"] = float(height.min() * MM)
         out["rope to the arms' tubes min [mm]"] = float(rope_clearance(outcome, tracked) * MM)
+    if outcome.obstacle_clearances is not None and outcome.obstacles is not None:
+        near = outcome.obstacle_clearances[name]
+        out["obstacle clearance min [mm]"] = float(np.nanmin(near) * MM)
+        out["obstacle clearance bound [mm]"] = float(np.nanmin(near - 0.5 * body_spacings(outcome)) * MM)
+        out["steps inside an obstacle"] = int(np.sum(np.any(near < 0, axis=1)))
+        for body, least in zip(outcome.obstacles.bodies, np.nanmin(near, axis=0)):
+            out[f"{body} to obstacles min [mm]"] = float(least * MM)
     return out
+
+
+def body_spacings(outcome: TwoArmOutcome) -> np.ndarray:
+    """The sample spacing of each body of the obstacle rows (arm 1, arm 2, rope) [m]: between samples a body
+    comes at most half of it closer to an obstacle (signed distances are 1-Lipschitz)."""
+    first, second = outcome.model.arms
+    spacings = [first.spacing, second.spacing]
+    rope = outcome.model.rope
+    if rope is not None and rope.samples is not None:
+        spacings.append(float(np.diff(rope.samples.arc_lengths).max(initial=0.0)))
+    return np.array(spacings)
 
 
 def rope_clearance(outcome: TwoArmOutcome, tracked: TwoArmRun, every: int = 10, count: int = 60) -> float:
@@ -98,7 +118,9 @@ def result(ctx: ProblemContext, outcome: TwoArmOutcome) -> Result:
     summaries = {name: run_metrics(outcome, name) for name in outcome.runs}
     comparison = [
         MethodRow(
-            r.controller, "solver" if name == "qp" else "baseline", {k: summaries[name][v] for k, v in COMPARED.items()}
+            r.controller,
+            "solver" if name == "qp" else "baseline",
+            {k: summaries[name][v] for k, v in COMPARED.items() if v in summaries[name]},
         )
         for name, r in outcome.runs.items()
     ]
@@ -113,6 +135,13 @@ def result(ctx: ProblemContext, outcome: TwoArmOutcome) -> Result:
             f"criterion no collision not met: the QP's tubes came within {qp['tube clearance bound [mm]']:.3g} mm "
             "of each other (bound between samples)"
         )
+    if outcome.obstacles is not None:
+        criteria["no obstacle penetration"] = qp["obstacle clearance bound [mm]"] > 0
+        if not criteria["no obstacle penetration"]:
+            missed.append(
+                "criterion no obstacle penetration not met: the QP came within "
+                f"{qp['obstacle clearance bound [mm]']:.3g} mm of an obstacle (bound between samples)"
+            )
     if not criteria["within limits"]:
         missed.append(f"criterion within limits not met: {qp['samples outside limits']} steps outside the limits")
     timings = {f"{name} run [s]": value for name, value in outcome.wall.items()} | {
@@ -147,6 +176,11 @@ def notes(outcome: TwoArmOutcome, summaries: dict[str, dict[str, Any]]) -> list[
             out.append(
                 f"{tracked.controller}: the arms interpenetrate on {m['collision steps']} steps (first at "
                 f"t = {first:.3g} s), {m['deepest penetration [mm]']:.3g} mm deep at most"
+            )
+        if m.get("steps inside an obstacle"):
+            out.append(
+                f"{tracked.controller}: inside an obstacle on {m['steps inside an obstacle']} steps, "
+                f"{-m['obstacle clearance min [mm]']:.3g} mm deep at most"
             )
         if m["fallback steps"]:
             out.append(f"{tracked.controller}: {m['fallback steps']} steps without a QP solution (held)")

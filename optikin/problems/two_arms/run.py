@@ -21,9 +21,13 @@ from optikin.control.two_arm import (
     rope_samples,
     simulate_two_arms,
 )
+from optikin.control.obstacles import Obstacle
+from optikin.control.two_arm_obstacles import TwoArmObstacleRows
 from optikin.curves.catenary_sensitivity import CatenarySensitivity
 from optikin.errors import InputDataError
 from optikin.problems import ProblemContext
+from optikin.problems.tracking.options import ObstacleOptions
+from optikin.problems.tracking.run import SHAPE_FIELDS
 from optikin.problems.two_arms.options import TwoArmOptions
 from optikin.problems.two_arms.references import RopeLoop, TipPaths
 from optikin.solvers.base import QPBackend
@@ -52,6 +56,10 @@ class TwoArmOutcome:
         ``"qp"`` and every baseline's name -> its run, and the seconds it took.
     clearances:
         Per run name, the least sampled clearance between the tubes at every step ``(N,)`` [m].
+    obstacles:
+        The obstacle rows (their bodies and sampling), ``None`` without obstacles.
+    obstacle_clearances:
+        Per run name, the least clearance of each body to any obstacle at every step ``(N, bodies)`` [m].
     """
 
     reference: TwoArmReference
@@ -60,6 +68,8 @@ class TwoArmOutcome:
     runs: dict[str, TwoArmRun]
     wall: dict[str, float]
     clearances: dict[str, np.ndarray]
+    obstacles: TwoArmObstacleRows | None = None
+    obstacle_clearances: dict[str, np.ndarray] | None = None
 
 
 @dataclass
@@ -78,6 +88,8 @@ class TwoArmSetup:
         ``"qp"`` and every baseline's name -> its controller.
     rope_tubes:
         The rows keeping the rope off the tubes (rope task with ``collision.rope_pairs``), or ``None``.
+    obstacle_rows:
+        The rows keeping both tubes and the rope off ``options.obstacles``, or ``None``.
     """
 
     reference: TwoArmReference
@@ -86,6 +98,7 @@ class TwoArmSetup:
     tubes: TwoTubes
     controllers: dict[str, TwoArmController]
     rope_tubes: RopeTubes | None = None
+    obstacle_rows: TwoArmObstacleRows | None = None
 
 
 def setup(ctx: ProblemContext) -> TwoArmSetup:
@@ -113,9 +126,9 @@ def setup(ctx: ProblemContext) -> TwoArmSetup:
             rope_tubes = RopeTubes(plant, c.rope_margin, c.gamma, dt, c.rope_pairs)
         except ValueError as exc:
             raise ctx.error("options.collision", str(exc)) from None
-    return TwoArmSetup(
-        reference, q0, plant, tubes, _controllers(ctx, options, plant, tubes, rope_tubes, dt, q0), rope_tubes
-    )
+    obstacle_rows = _obstacle_rows(ctx, options, plant, q0, reference)
+    controllers = _controllers(ctx, options, plant, tubes, rope_tubes, obstacle_rows, dt, q0)
+    return TwoArmSetup(reference, q0, plant, tubes, controllers, rope_tubes, obstacle_rows)
 
 
 def run(ctx: ProblemContext) -> TwoArmOutcome:
@@ -134,7 +147,77 @@ def run(ctx: ProblemContext) -> TwoArmOutcome:
             advance()
     n1 = plant.n1
     clearances = {name: tubes.clearances(r.q[:, :n1], r.q[:, n1:]) for name, r in runs.items()}
-    return TwoArmOutcome(reference, plant, tubes, runs, wall, clearances)
+    rows = built.obstacle_rows
+    near = None if rows is None else {name: _obstacle_clearances(rows, plant, r) for name, r in runs.items()}
+    return TwoArmOutcome(reference, plant, tubes, runs, wall, clearances, rows, near)
+
+
+def _obstacle_clearances(rows: TwoArmObstacleRows, plant: TwoArmModel, tracked: TwoArmRun) -> np.ndarray:
+    """The least clearance of each body to any obstacle along a run, ``(N, bodies)`` [m] (NaN where the rope
+    could not hang)."""
+    out = np.full((len(tracked.t), len(rows.bodies)), np.nan)
+    for k, (q, t) in enumerate(zip(tracked.q, tracked.t)):
+        try:
+            plant.evaluate(q)
+        except InputDataError:
+            continue
+        out[k] = rows.least(float(t))
+    return out
+
+
+def _obstacle(ctx: ProblemContext, i: int, options: ObstacleOptions) -> Obstacle:
+    """``options.obstacles.i`` as an :class:`Obstacle`; a missing or foreign field is an error naming it."""
+    where = f"options.obstacles.{i}"
+    needed = SHAPE_FIELDS[options.type]
+    given = {name: getattr(options, name) for name in ("center", "radius", "a", "b", "half_extents", "point", "normal")}
+    for name, value in given.items():
+        if value is None and name in needed:
+            raise ctx.error(f"{where}.{name}", f"required for a {options.type}")
+        if value is not None and name not in needed:
+            raise ctx.error(f"{where}.{name}", f"not a field of a {options.type} (it takes {', '.join(needed)})")
+    try:
+        return Obstacle(
+            options.type,
+            path=None if options.path is None else tuple(options.path),
+            **{name: value for name, value in given.items() if value is not None},
+        )
+    except ValueError as exc:
+        raise ctx.error(f"{where}.{'path' if 'path' in str(exc) else needed[-1]}", str(exc)) from None
+
+
+def _obstacle_rows(
+    ctx: ProblemContext, options: TwoArmOptions, plant: TwoArmModel, q0: np.ndarray, reference: TwoArmReference
+) -> TwoArmObstacleRows | None:
+    """The obstacle rows; an obstacle within the margin of a base or of the start's bodies is an error naming it."""
+    if not options.obstacles:
+        return None
+    c = options.collision
+    obstacles = [_obstacle(ctx, i, ob) for i, ob in enumerate(options.obstacles)]
+    try:
+        rows = TwoArmObstacleRows(plant, obstacles, c.obstacle_margin, c.gamma, reference.dt, c.points_per_obstacle)
+    except ValueError as exc:
+        raise ctx.error("options.collision", str(exc)) from None
+    plant.evaluate(q0)
+    times = np.unique(np.r_[reference.t, [row[0] for ob in obstacles if ob.path is not None for row in ob.path]])
+    for i, ob in enumerate(obstacles):
+        bases = np.array([placed.base for placed in plant.arms]).T
+        for t in times if ob.path is not None else [0.0]:
+            near = float(ob.distances(bases, float(t)).min()) - max(placed.radius for placed in plant.arms)
+            if near < c.obstacle_margin:
+                raise ctx.error(
+                    f"options.obstacles.{i}",
+                    f"comes within the margin of an arm's base ({near * 1e3:.3g} mm at t = {t:.3g} s, margin "
+                    f"{c.obstacle_margin * 1e3:.3g} mm): no command can keep the barrier",
+                )
+    least = rows.least(0.0)
+    if least.min() < c.obstacle_margin:
+        body = rows.bodies[int(np.argmin(least))]
+        raise ctx.error(
+            "options.obstacles",
+            f"the start's {body} lies {least.min() * 1e3:.3g} mm from an obstacle, within the margin "
+            f"({c.obstacle_margin * 1e3:.3g} mm)",
+        )
+    return rows
 
 
 def _placed(ctx: ProblemContext, options: TwoArmOptions) -> tuple[PlacedArm, PlacedArm]:
@@ -266,11 +349,12 @@ def _controllers(
     plant: TwoArmModel,
     tubes: TwoTubes,
     rope_tubes: RopeTubes | None,
+    obstacle_rows: TwoArmObstacleRows | None,
     dt: float,
     q0: np.ndarray,
 ) -> dict[str, TwoArmController]:
     """The joint QP (the preset's step solver, with the collision rows) and every baseline, by name (the QP
-    without collision rows has neither the tubes' nor the rope's)."""
+    without collision rows has none: neither the tubes', the rope's nor the obstacles')."""
     factory = ctx.backend(QPBackend)
     if not isinstance(factory, StepSolverFactory):
         raise ctx.error("solver", f"{type(factory).__name__} takes no inequality rows; two_arms needs a qp backend")
@@ -290,6 +374,7 @@ def _controllers(
             limit_margin=o.limit_margin,
             tubes=tubes if with_tubes else None,
             rope_tubes=rope_tubes if with_tubes else None,
+            obstacle_rows=obstacle_rows if with_tubes else None,
             gamma=o.collision.gamma,
             margin=o.collision.margin,
         )
