@@ -97,10 +97,48 @@ static int active_factor(${prefix}_work* w) {
   return factor(w->S, w->k);
 }
 
+/* v <- H^-1 c_j; for a bound, the column of H^-1 (each computed once per step). */
+static void inverse_times_normal(${prefix}_work* w, int j, double* v) {
+  int i, c = j % N;
+  double sign = j < N ? 1.0 : -1.0, *column = w->Hinv + N * c;
+  if (j >= 2 * N) {
+    normal(w, j, v);
+    factor_solve(w->L, N, v);
+    return;
+  }
+  if (!w->have[c]) {
+    for (i = 0; i < N; ++i) column[i] = i == c ? 1.0 : 0.0;
+    factor_solve(w->L, N, column);
+    w->have[c] = 1;
+  }
+  for (i = 0; i < N; ++i) v[i] = sign * column[i];
+}
+
+/* The factor S of the active set with c_p appended as its last constraint (v = H^-1 c_p): one new row. */
+static void append(${prefix}_work* w, int p, const double* v) {
+  int i, l, k = w->k;
+  double s, d;
+  if (!w->factored && k > 0) return;
+  d = normal_dot(w, p, v);
+  for (i = 0; i < k; ++i) {
+    s = normal_dot(w, w->W[i], v);
+    for (l = 0; l < i; ++l) s -= w->S[i + N * l] * w->S[k + N * l];
+    s /= w->S[i + N * i];
+    w->S[k + N * i] = s;
+    d -= s * s;
+  }
+  if (d > 0) {
+    w->S[k + N * k] = sqrt(d);
+    w->factored = 1;
+  } else {
+    w->factored = 0;
+  }
+}
+
 /* x, u <- the minimiser on the active set and its multipliers: x = x_u + H^-1 N_W u with N_W' x = d_W. */
 static int refine(${prefix}_work* w) {
   int i, j;
-  if (active_factor(w)) return 1;
+  if (!w->factored && active_factor(w)) return 1;
   w->factored = 1;
   for (j = 0; j < w->k; ++j) w->u[j] = rhs(w, w->W[j]) - normal_dot(w, w->W[j], w->xu);
   factor_solve(w->S, w->k, w->u);
@@ -188,6 +226,7 @@ static int dual_active_set(${prefix}_work* w, int rows, int* iterations) {
   factor_solve(w->L, N, x);
   factor_solve(w->L, N, w->xu);
   for (j = 0; j < nc; ++j) w->is_active[j] = 0;
+  for (i = 0; i < N; ++i) w->have[i] = 0;
   w->k = 0;
   w->factored = 0;
   for (it = 0; it < max_it; ++it) {
@@ -208,8 +247,7 @@ static int dual_active_set(${prefix}_work* w, int rows, int* iterations) {
     }
     for (;;) { /* add p, dropping constraints whose multiplier would turn negative */
       if (++it > max_it) break;
-      normal(w, p, v);
-      factor_solve(w->L, N, v);
+      inverse_times_normal(w, p, v);
       if (w->k > 0) {
         if (!w->factored && active_factor(w)) return ${PREFIX}_FAILED;
         for (j = 0; j < w->k; ++j) w->r[j] = normal_dot(w, w->W[j], v);
@@ -244,6 +282,7 @@ static int dual_active_set(${prefix}_work* w, int rows, int* iterations) {
       if (isfinite(t2))
         for (i = 0; i < N; ++i) x[i] += t * z[i];
       if (t2 <= t1) { /* full step: p joins the active set; x, u recomputed from it (no drift from rounding) */
+        append(w, p, v);
         w->W[w->k] = p;
         for (i = 0; i < N; ++i) w->V[i + N * w->k] = v[i];
         w->k += 1;

@@ -66,6 +66,8 @@ typedef struct {
   double z[${PREFIX}_N];
   double vp[${PREFIX}_N];
   double V[${PREFIX}_N * ${PREFIX}_N]; /* H^-1 times each active constraint's normal */
+  double Hinv[${PREFIX}_N * ${PREFIX}_N]; /* the columns of H^-1 computed so far this step */
+  int have[${PREFIX}_N];
   double S[${PREFIX}_N * ${PREFIX}_N]; /* Cholesky factor of the active normals' matrix */
   double r[${PREFIX}_N];
   double u[${PREFIX}_N]; /* multipliers of the active constraints */
