@@ -222,15 +222,16 @@ class SoAKernel:
     ------
     SolverError
         No C compiler, or neither build succeeded.
+    OSError
+        The portable library could not be loaded.
     """
 
     def __init__(self, m: int):
         self.m = int(m)
         try:
-            self.flags, library = VECTOR_FLAGS, _library(self.m, VECTOR_FLAGS, scalar=False)
-        except SolverError:
-            self.flags, library = PORTABLE_FLAGS, _library(self.m, PORTABLE_FLAGS, scalar=True)
-        lib = ctypes.CDLL(str(library))
+            self.flags, lib = VECTOR_FLAGS, ctypes.CDLL(str(_library(self.m, VECTOR_FLAGS, scalar=False)))
+        except (SolverError, OSError):
+            self.flags, lib = PORTABLE_FLAGS, ctypes.CDLL(str(_library(self.m, PORTABLE_FLAGS, scalar=True)))
         self._aos, self._soa = {}, {}
         for name in OUTPUTS:
             aos = getattr(lib, f"optikin_{name}_aos")
@@ -306,7 +307,7 @@ def kernel(m: int) -> SoAKernel | None:
         if m not in _KERNELS:
             try:
                 _KERNELS[m] = SoAKernel(m)
-            except SolverError:
+            except (SolverError, OSError):
                 _KERNELS[m] = None
         return _KERNELS[m]
 

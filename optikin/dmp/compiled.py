@@ -88,6 +88,8 @@ class CompiledRollout:
     ------
     SolverError
         No C compiler, compiling failed, or (``build`` false) the library is not built yet.
+    OSError
+        The library could not be loaded.
     """
 
     def __init__(self, space: Space, n_basis: int, build: bool = True):
@@ -219,7 +221,7 @@ def compiled_rollout(space: Space, n_basis: int, build: bool = True) -> Compiled
             return None  # looked in the per-user cache on the first call already
         try:
             runner = CompiledRollout(space, n_basis, build=build)
-        except SolverError:
+        except (SolverError, OSError):
             if not build:
                 return None
             runner = None

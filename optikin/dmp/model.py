@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Any, Callable, Sequence
 
 import casadi as ca
@@ -98,17 +99,21 @@ class RolloutPlan:
 
 @dataclass(frozen=True)
 class RegressionProblem:
-    """The weight regression of one demonstration: ``X W^T ~ F`` with the phase and activations along it,
-    the basis, and the phase below which the forcing term is off."""
+    """The weight regression of one demonstration: ``X W^T ~ F`` with the phase along it, the basis, and
+    the phase below which the forcing term is off; the activations on first use."""
 
     demo: Demonstration
     X: np.ndarray
     F: np.ndarray
     phase: np.ndarray
-    activations: np.ndarray
     centres: np.ndarray
     widths: np.ndarray
     forcing_end: float
+
+    @cached_property
+    def activations(self) -> np.ndarray:
+        """``(N-1, n_basis)`` unnormalised activations along the rows (:func:`optikin.dmp.basis.activations`)."""
+        return basis.activations(self.phase, self.centres, self.widths)
 
 
 class DMP:
@@ -200,7 +205,7 @@ class DMP:
         X, s, c, h, s_end = design_matrix(demo, self.n_basis, g.zeta, g.alpha, self.overlap, self.phase_stopping)
         amp = amplitude(self.space, demo.start, demo.goal, self.scale_by_amplitude, source, gap=demo.goal_gap[0])
         F = target_forces(demo, g.beta, g.gamma, g.alpha_s) / amp
-        return RegressionProblem(demo, X, F, s, basis.activations(s, c, h), c, h, s_end)
+        return RegressionProblem(demo, X, F, s, c, h, s_end)
 
     def imitate(
         self,
