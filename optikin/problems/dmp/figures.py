@@ -62,8 +62,8 @@ def _errors_figure(arrays: Mapping[str, np.ndarray], variants: list[str], name: 
             n = min(len(y), len(t))
             for k, v in pose_errors(variant, y[:n], position[:n], quaternion[:n]).items():
                 unit, factor = unit_of(k)
-                series[f"{variant}\n{k} error"] = v[:, None] * factor
-                units[f"{variant}\n{k} error"] = f"[{unit}]"
+                label = f"{k} error" if variant == k else f"{variant}\n{k} error"
+                series[label], units[label] = v[:, None] * factor, f"[{unit}]"
         plots.time_series(path, t[:n], series, units, f"{name}: {scenario} error", labels=("error",))
 
     return draw
