@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from matplotlib.ticker import NullFormatter
 
 from optikin import plots
 from optikin.algebra import dq_translation
@@ -118,6 +119,7 @@ def draw_comparison(
         finite, positions=y, orientation="horizontal", widths=0.6, manage_ticks=False, flierprops={"markersize": 2}
     )
     axes[0].set_xscale("log")
+    axes[0].xaxis.set_minor_formatter(NullFormatter())  # minor labels of a short log range overlap
     axes[0].set_xlabel(error_label)
 
     median_us = [np.median(seconds[n]) * 1e6 for n in names]
