@@ -32,7 +32,9 @@ def figures(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -> dic
             draw_backbones, backbone=arrays["backbone"], title=f"{name}: equilibria", t=arrays.get("t")
         )
     if "tip_position" in arrays:
-        drawers["tip"] = partial(draw_tip, tips=arrays["tip_position"], t=arrays.get("t"), title=f"{name}: tip")
+        drawers["tip"] = partial(
+            draw_tip, tips=arrays["tip_position"], t=arrays.get("t"), title=f"{name}: tip position"
+        )
     methods = [row["method"] for row in summary.get("comparison", [])]
     if "targets" in arrays and methods:
         error = arrays.get(f"tip_error_{array_key(methods[0])}")
