@@ -46,24 +46,25 @@ rate box: the QP controller's step (:mod:`optikin.control.qp`) with ``damping = 
 
 The solver. OSQP (Stellato et al. 2020), set up once: ``P`` is constant and diagonal, ``A`` keeps
 its pattern, and per step only ``A``'s values (the ``J`` and ``D`` blocks), ``l`` and ``u`` are
-written in place before a solve warm-started from the previous primal and dual solution shifted
-by one step. OSQP takes the sparse matrices as they are (a horizon's KKT system is banded), it
-detects primal infeasibility, and its per-step cost is one factorisation and a few dozen ADMM
-iterations; the per-step overhead of a modelling layer (cvxpy, qpsolvers' conversions) would
-exceed the solve. The defaults (``eps = 1e-3``, ``rho = 0.1``, no polishing) are ADMM's usual
-accuracy: the applied rate is projected onto the box (:attr:`HorizonController.slip`), and a
-barrier row may be missed by about ``eps`` [m/s], which the row's own feedback
-``-gamma (d - d_safe)`` turns into at most about ``eps / gamma`` of the margin (0.05 mm at the
-defaults), never into a penetration. Tighter tolerances with ``polishing`` give the exact QP
-solution (the tests compare it with a dense solve).
+written in place before a solve warm-started from the previous step's primal and dual solution
+(OSQP's own warm start: the answer of the last step as it is; shifting it by one step, as the
+linearisation is, took more ADMM iterations in the benchmark of ``tests/timing``). OSQP takes the
+sparse matrices as they are (a horizon's KKT system is banded), it detects primal infeasibility, and
+its per-step cost is one factorisation and a few dozen ADMM iterations; the per-step overhead of a
+modelling layer (cvxpy, qpsolvers' conversions) would exceed the solve. The defaults
+(``eps = 1e-3``, ``rho = 0.1``, no polishing) are ADMM's usual accuracy: the applied rate is projected onto
+the box (:attr:`HorizonController.slip`), and a barrier row may be missed by about ``eps`` [m/s],
+which the row's own feedback ``-gamma (d - d_safe)`` turns into at most about ``eps / gamma`` of the
+margin (0.05 mm at the defaults), never into a penetration. Tighter tolerances with ``polishing``
+give the exact QP solution (the tests compare it with a dense solve).
 
 Infeasible horizon. If the solve fails (OSQP reports the horizon infeasible, or runs out of
 iterations), the step is solved again with the configuration limits and barrier rows of the
 later steps dropped; that QP keeps the rate box and the barrier of the applied step, i.e. the QP
 controller's step with the horizon's task cost. Its status says so (``"fallback (first step):
 horizon ..."``). Should that fail too, the arm holds (the smallest rate in the box), ``"fallback
-(hold): ..."``. Either way the applied command keeps the barrier's rows of its own step: no step
-passes an obstacle silently.
+(hold): ..."``: then not even the present step's rows can be kept (an obstacle faster than the
+rates allow), and the status says that too. No step passes an obstacle silently.
 """
 
 from __future__ import annotations
@@ -342,13 +343,6 @@ class HorizonQP:
         self.P = sp.diags(diagonal, format="csc")
         self.l = np.zeros(self.rows)
         self.u = np.zeros(self.rows)
-        # Warm start: each block of z and of the rows moved one step forward, its last step repeated.
-        self.shift_x = _shifted_blocks([(0, n), (nu, n), (2 * nu, m)], N)
-        self.shift_y = _shifted_blocks(
-            [(self.row_dynamics, n), (self.row_task, m), (self.row_rates, n), (self.row_limits, n)]
-            + ([(self.row_barrier, p)] if p else []),
-            N,
-        )
 
     def set_matrix(self, J: np.ndarray, D: np.ndarray | None = None) -> None:
         """Write the task Jacobians ``J`` ``(N, m, n)`` and the barrier rows' ``D`` ``(p, n)`` into ``A``."""
@@ -366,7 +360,7 @@ class HorizonQP:
         return self.P.toarray(), self.A.toarray(), lower, upper
 
 
-def _shifted_blocks(blocks: list[tuple[int, int]], N: int) -> np.ndarray:
+def shifted_blocks(blocks: list[tuple[int, int]], N: int) -> np.ndarray:
     """Indices taking every ``(start, size)`` block of ``N`` steps one step forward (the last step repeated)."""
     total = max(start + N * size for start, size in blocks)
     index = np.arange(total)
@@ -455,14 +449,13 @@ class MPCController(HorizonController):
         self._solved = osqp.SolverStatus.OSQP_SOLVED
         self._interrupted = osqp.SolverStatus.OSQP_SIGINT
         self.z = np.zeros(qp.nz)
-        self._y = np.zeros(qp.rows)
         self.iterations = 0
         self._zeros = np.zeros(qp.nz)
+        self._no_duals = np.zeros(qp.rows)
 
     def reset(self, q: np.ndarray, x: np.ndarray) -> None:
         super().reset(q, x)
         self.z[:] = 0.0
-        self._y[:] = 0.0
 
     def command(self, q: np.ndarray, x: np.ndarray, x_ref: np.ndarray, xdot_ref: np.ndarray) -> np.ndarray:
         self.prepare(q, x, x_ref, xdot_ref)
@@ -477,10 +470,8 @@ class MPCController(HorizonController):
         solver = self._solver
         solver.update_data_mat(P_x=None, P_i=None, A_x=qp.A.data, A_i=None)
         solver.update_data_vec(q=self._zeros, l=qp.l, u=qp.u)
-        if self.shifted:
-            solver.warm_start(x=self.z[qp.shift_x], y=self._y[qp.shift_y])
-        else:
-            solver.warm_start(x=self._zeros, y=np.zeros(qp.rows))
+        if not self.shifted:  # a new run, or the arm held: start from zero, not from the last answer
+            solver.warm_start(x=self._zeros, y=self._no_duals)
         failure = self._solve()
         if failure is None:
             self.status = "ok"
@@ -531,7 +522,6 @@ class MPCController(HorizonController):
         if not np.all(np.isfinite(x)):
             return "non-finite solution"
         self.z[:] = x
-        self._y[:] = solver.solution.y
         return None
 
     def _accept(self) -> np.ndarray:

@@ -24,7 +24,7 @@ import casadi as ca
 import numpy as np
 
 from optikin.arms.base import ArmModel
-from optikin.control.mpc import HorizonController, _shifted_blocks
+from optikin.control.mpc import HorizonController, shifted_blocks
 from optikin.control.task import TASK_FUNCTIONS, Task
 from optikin.interrupt import calls_casadi
 
@@ -101,8 +101,8 @@ class NonlinearMPCController(HorizonController):
         self.solver = ca.nlpsol("mpc_ipopt", "ipopt", nlp, options)
         self.iterations = 0
         rows = [(0, n)] + ([(N * n, self.samples)] if self.samples else [])
-        self._shift_x = _shifted_blocks([(0, n), (N * n, n)], N)
-        self._shift_g = _shifted_blocks(rows, N)
+        self._shift_x = shifted_blocks([(0, n), (N * n, n)], N)
+        self._shift_g = shifted_blocks(rows, N)
         self._lam_x = np.zeros(2 * N * n)
         self._lam_g = np.zeros(N * (n + self.samples))
 
