@@ -84,9 +84,9 @@ class PlacedArm:
         ``K = 1 + sections points_per_section``.
     spacing:
         Upper bound of the arc length between consecutive samples [m].
-    P, J, tip, tip_jacobian:
+    P, J, tip, tip_jacobian, squared:
         After :meth:`evaluate`: samples ``(K, 3)``, their Jacobian ``(K, 3, n)``, the tip ``(3,)`` and its
-        Jacobian ``(3, n)``, all in the shared frame (views, valid until the next call).
+        Jacobian ``(3, n)``, all in the shared frame, and ``|p_j|^2`` ``(K,)`` (views, valid until the next call).
     """
 
     arm: ArmModel
@@ -112,9 +112,9 @@ class PlacedArm:
         self.function = ca.Function(
             "placed_arm",
             [q],
-            [points, ca.jacobian(ca.vec(points), q).T, tip, ca.jacobian(tip, q).T],
+            [points, ca.jacobian(ca.vec(points), q).T, tip, ca.jacobian(tip, q).T, ca.sum1(points * points)],
             ["q"],
-            ["P", "J", "tip", "tip_J"],
+            ["P", "J", "tip", "tip_J", "squared"],
             {"cse": True},
         )
         self._f = BufferedFunction(self.function, compiled=self.compiled)
@@ -124,6 +124,7 @@ class PlacedArm:
         self.J = out[1].reshape(K, 3, n)
         self.tip = out[2]
         self.tip_jacobian = out[3].reshape(3, n)
+        self.squared = out[4]
 
     def evaluate(self, q: np.ndarray) -> None:
         """Refresh :attr:`P`, :attr:`J`, :attr:`tip`, :attr:`tip_jacobian` at configuration ``q``."""
@@ -191,8 +192,10 @@ class TwoTubes:
         """The rows of the step from the arms' last :meth:`PlacedArm.evaluate` (both arms evaluated)."""
         P1, P2 = self.first.P, self.second.P
         # |p_i - p_j|^2 = |p_i|^2 + |p_j|^2 - 2 p_i'p_j: one matrix product instead of a (K_1, K_2, 3) difference.
-        squared = np.einsum("ik,ik->i", P1, P1)[:, None] + np.einsum("jk,jk->j", P2, P2)[None, :]
-        squared -= 2.0 * (P1 @ P2.T)
+        squared = P1 @ P2.T
+        squared *= -2.0
+        squared += self.first.squared[:, None]
+        squared += self.second.squared
         nearest = np.argmin(squared, axis=1)
         best = squared[self._rows, nearest]
         k = self.pairs

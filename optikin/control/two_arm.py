@@ -180,20 +180,23 @@ class RopeTubes:
         self.pairs = min(int(pairs), len(self.samples.arc_lengths))
         self.rows = 2 * self.pairs
         self.A, self.b = np.zeros((self.rows, model.n)), np.zeros(self.rows)
+        self._rows = np.arange(len(self.samples.arc_lengths))
 
     def update(self) -> None:
         """The rows at the model's last :meth:`TwoArmModel.evaluate`."""
         m, R, JR = self.model, self.samples.P, self.samples.J
         first, second = m.arms
-        k = self.pairs
+        k, rows_of_R = self.pairs, self._rows
         for arm, placed in enumerate(m.arms):
-            P = placed.P
-            squared = np.einsum("ik,ik->i", R, R)[:, None] + np.einsum("jk,jk->j", P, P)[None, :] - 2.0 * (R @ P.T)
+            squared = R @ placed.P.T
+            squared *= -2.0
+            squared += self.samples.squared[:, None]
+            squared += placed.squared
             nearest = np.argmin(squared, axis=1)
-            best = squared[np.arange(len(R)), nearest]
-            i = np.argpartition(best, k - 1)[:k] if k < len(best) else np.arange(len(R))
+            best = squared[rows_of_R, nearest]
+            i = np.argpartition(best, k - 1)[:k] if k < len(best) else rows_of_R
             j = nearest[i]
-            gap = R[i] - P[j]
+            gap = R[i] - placed.P[j]
             length = np.sqrt(np.einsum("rk,rk->r", gap, gap))
             normal = gap / length[:, None]
             along = np.einsum("rk,rkg->rg", normal, JR[i])  # d d / d G, (k, 6)
@@ -407,7 +410,7 @@ class TwoArmQP(TwoArmController):
         assert rope is not None and m.lowest is not None
         first, second = m.arms
         chord = second.tip - first.tip
-        c = float(np.linalg.norm(chord))
+        c = math.sqrt(float(chord @ chord))
         u = chord / c
         A[0, : m.n1] = u @ first.tip_jacobian
         A[0, m.n1 :] = -(u @ second.tip_jacobian)

@@ -234,8 +234,9 @@ class RopeSamples:
 
     Attributes
     ----------
-    P, J:
-        After :meth:`evaluate`: the points ``(M, 3)`` and ``dP/dG`` ``(M, 3, 6)`` (views, valid until the next call).
+    P, J, squared:
+        After :meth:`evaluate`: the points ``(M, 3)``, ``dP/dG`` ``(M, 3, 6)`` and ``|p_i|^2`` ``(M,)`` (views,
+        valid until the next call).
     """
 
     def __init__(self, rope: CatenarySensitivity, arc_lengths, compiled: bool = False):
@@ -254,13 +255,19 @@ class RopeSamples:
         flat = ca.vec(P)
         dP = ca.jacobian(flat, G) + ca.jacobian(flat, a) @ da
         self.function = ca.Function(
-            "rope_samples", [A, B, a], [P, dP.T], ["A", "B", "a"], ["P", "dP_dG"], {"cse": True}
+            "rope_samples",
+            [A, B, a],
+            [P, dP.T, ca.sum1(P * P)],
+            ["A", "B", "a"],
+            ["P", "dP_dG", "squared"],
+            {"cse": True},
         )
         self._f = BufferedFunction(self.function, compiled=compiled)
         self._A, self._B, self._a = self._f.inputs
         M = len(s)
         self.P = self._f.outputs[0].reshape(M, 3)
         self.J = self._f.outputs[1].reshape(M, 3, 6)
+        self.squared = self._f.outputs[2]
 
     def evaluate(self, A: np.ndarray, B: np.ndarray, a: float | None = None) -> None:
         """Refresh :attr:`P`, :attr:`J` for grips ``A``, ``B`` (``a``: the catenary parameter if known).
