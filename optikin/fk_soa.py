@@ -263,9 +263,11 @@ class SoAKernel:
         n = Q.shape[0]
         out = np.empty((n, OUTPUTS[name]))
         run = self._aos[name]
+        if n <= CHUNK:
+            run(n, Q.ctypes.data, out.ctypes.data)
+            return out
         for start in range(0, n, CHUNK):
-            size = min(CHUNK, n - start)
-            run(size, Q[start:].ctypes.data, out[start:].ctypes.data)
+            run(min(CHUNK, n - start), Q[start:].ctypes.data, out[start:].ctypes.data)
             check_interrupted()
         return out
 
@@ -298,6 +300,7 @@ class SoAKernel:
 
 
 _KERNELS: dict[int, SoAKernel | None] = {}
+_COVERED: dict[type, bool] = {}
 _LOCK = threading.Lock()
 
 
@@ -316,17 +319,19 @@ def applies(arm: Any, name: str) -> bool:
     """Whether ``arm.evaluate(name, ...)`` may use the SoA kernel: a constant-curvature arm with the
     kinematics of :class:`~optikin.arms.constant_curvature.ConstantCurvatureArm` and ``name`` in
     :data:`OUTPUTS`."""
-    from optikin.arms.base import ArmModel
-    from optikin.arms.constant_curvature import ConstantCurvatureArm
-
     cls = type(arm)
-    return (
-        name in OUTPUTS
-        and isinstance(arm, ConstantCurvatureArm)
-        and cls.section_frames is ConstantCurvatureArm.section_frames
-        and cls._chain is ConstantCurvatureArm._chain
-        and getattr(cls, name) is getattr(ArmModel, name)
-    )
+    covered = _COVERED.get(cls)
+    if covered is None:
+        from optikin.arms.base import ArmModel
+        from optikin.arms.constant_curvature import ConstantCurvatureArm
+
+        covered = _COVERED[cls] = (
+            issubclass(cls, ConstantCurvatureArm)
+            and cls.section_frames is ConstantCurvatureArm.section_frames
+            and cls._chain is ConstantCurvatureArm._chain
+            and all(getattr(cls, output) is getattr(ArmModel, output) for output in OUTPUTS)
+        )
+    return covered and name in OUTPUTS
 
 
 def soa_evaluate(arm: Any, name: str, Q: np.ndarray) -> np.ndarray | None:
