@@ -12,7 +12,9 @@ for every obstacle and every backbone sample ``i`` (not only the nearest), ``j =
 discrete-time barrier of :mod:`optikin.control.obstacles` without its linearisation. ``w_j`` is
 the MPC's target, ``x - fk(q)`` the measured tip's offset from the model, held over the horizon
 (zero on the model's own plant). The NLP is built once (``nlpsol``, IPOPT, exact Hessian), its
-data are parameters; each step starts from the previous solution shifted by one step. A step
+data are parameters; each step starts from the previous solution (primal and multipliers)
+shifted by one step, with IPOPT's warm-start settings and its adaptive barrier parameter update
+(from a warm start it takes a few iterations where the monotone update takes several times more). A step
 IPOPT does not solve is reported (``"fallback (hold): ipopt <status>"``) and the arm holds.
 """
 
@@ -38,6 +40,8 @@ class NonlinearMPCController(HorizonController):
         See :class:`optikin.control.mpc.HorizonController` (``compiled`` is not used: IPOPT calls the CasADi VM).
     tolerance, max_iter:
         IPOPT's ``tol`` and iteration limit per step.
+    ipopt_options:
+        Further IPOPT options (they override the warm-start settings).
 
     Attributes
     ----------
@@ -57,6 +61,7 @@ class NonlinearMPCController(HorizonController):
         *,
         tolerance: float = 1e-8,
         max_iter: int = 200,
+        ipopt_options: dict[str, Any] | None = None,
         **horizon: Any,
     ):
         super().__init__(arm, dt, task, gain, effort_weight, **horizon)
@@ -95,7 +100,9 @@ class NonlinearMPCController(HorizonController):
                 "mu_init": 1e-5,
                 "warm_start_bound_push": 1e-9,
                 "warm_start_mult_bound_push": 1e-9,
-            },
+                "mu_strategy": "adaptive",
+            }
+            | (ipopt_options or {}),
             "print_time": False,
         }
         self.solver = ca.nlpsol("mpc_ipopt", "ipopt", nlp, options)
