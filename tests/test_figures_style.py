@@ -10,6 +10,7 @@ fill the axes, so a legend placed inside would cover some of them.
 from __future__ import annotations
 
 import re
+from typing import Any
 
 import matplotlib
 
@@ -106,7 +107,7 @@ def data_axes(fig: Figure) -> list:
 def test_the_tracking_tip_figure_has_its_legend_clear_of_every_curve(drawn):
     arrays, summary = tracking_result()
     fig = drawn(tracking_figures.figures(arrays, summary)["tracking"])
-    renderer = fig.canvas.get_renderer()  # type: ignore[attr-defined]
+    renderer = fig.canvas.get_renderer()
     boxes = [legend.get_window_extent(renderer) for legend in legends(fig)]
     assert boxes, "the tip figure has no legend"
     for ax in data_axes(fig):
@@ -225,7 +226,7 @@ def ph_arrays() -> dict[str, np.ndarray]:
     )
 
 
-def three_d_figures() -> dict[str, object]:
+def three_d_figures() -> dict[str, Any]:
     """Every 3-D figure a kind draws, from synthetic arrays that are far flatter along z than along x and y."""
     ph = ph_arrays()
     summary = {"problem": "synthetic", "solver": "ph-newton", "comparison": [{"method": "m", "role": "solver"}]}
@@ -278,7 +279,7 @@ def test_3d_axes_have_one_scale_and_explain_their_colours(drawn, name):
             assert any(getattr(a, "_colorbar", None) is not None for a in fig.axes), f"{name}: colours unexplained"
 
 
-def two_d_figures() -> dict[str, object]:
+def two_d_figures() -> dict[str, Any]:
     """Every 2-D figure of the synthetic results."""
     arrays, summary = tracking_result()
     dmp_arrays, dmp_summary = dmp_result()
@@ -303,7 +304,7 @@ def two_d_figures() -> dict[str, object]:
 @pytest.mark.parametrize("name", list(two_d_figures()))
 def test_2d_panels_have_unit_labels_and_legends_outside_the_data(drawn, name):
     fig = drawn(two_d_figures()[name])
-    renderer = fig.canvas.get_renderer()  # type: ignore[attr-defined]
+    renderer = fig.canvas.get_renderer()
     axes = data_axes(fig)
     assert axes[-1].get_xlabel(), f"{name}: no x label"
     for ax in axes:
