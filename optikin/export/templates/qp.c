@@ -99,16 +99,25 @@ static int active_factor(${prefix}_work* w) {
 
 /* v <- H^-1 c_j; for a bound, the column of H^-1 (each computed once per step). */
 static void inverse_times_normal(${prefix}_work* w, int j, double* v) {
-  int i, c = j % N;
-  double sign = j < N ? 1.0 : -1.0, *column = w->Hinv + N * c;
+  int i, l, c = j % N;
+  double s, sign = j < N ? 1.0 : -1.0, *column = w->Hinv + N * c;
   if (j >= 2 * N) {
     normal(w, j, v);
     factor_solve(w->L, N, v);
     return;
   }
-  if (!w->have[c]) {
-    for (i = 0; i < N; ++i) column[i] = i == c ? 1.0 : 0.0;
-    factor_solve(w->L, N, column);
+  if (!w->have[c]) { /* L^-1 e_c is zero above c: the forward substitution starts there */
+    for (i = 0; i < N; ++i) column[i] = 0.0;
+    for (i = c; i < N; ++i) {
+      s = i == c ? 1.0 : 0.0;
+      for (l = c; l < i; ++l) s -= w->L[i + N * l] * column[l];
+      column[i] = s / w->L[i + N * i];
+    }
+    for (i = N - 1; i >= 0; --i) {
+      s = column[i];
+      for (l = i + 1; l < N; ++l) s -= w->L[l + N * i] * column[l];
+      column[i] = s / w->L[i + N * i];
+    }
     w->have[c] = 1;
   }
   for (i = 0; i < N; ++i) v[i] = sign * column[i];
