@@ -118,3 +118,10 @@ def test_invalid_input_is_a_status_and_the_next_sample_starts_cold(built):
     cold = setup.model.solve_newton(setup.samples[2], None, fallback=False)
     np.testing.assert_allclose(out[2, 4:6], cold.x, rtol=0, atol=1e-10)
     assert int(out[2, 1]) == cold.iterations
+
+
+def test_free_end_speeds_are_refused():
+    from optikin.errors import SolverError
+
+    with pytest.raises(SolverError, match="given end speeds only"):
+        ph_setup("cbha-ph-shape", [("options.free_speeds", True)])

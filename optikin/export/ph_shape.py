@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING
 import casadi as ca
 import numpy as np
 
-from optikin.errors import SolverError, SpecError
+from optikin.errors import SolverError
 
 if TYPE_CHECKING:
     from optikin.curves.min_energy import ShapeEnergyModel
@@ -90,7 +90,7 @@ def export_ph_shape(problem: str, setup: PHExportSetup, folder: Path, samples: i
 
     model, adapter = setup.model, setup.adapter
     if model.free_speeds:
-        raise SpecError(Path(problem), "options.free_speeds", "--what ph-shape exports given end speeds only")
+        raise SolverError(f"{problem}: --what ph-shape exports given end speeds only")
     stem = prefix = "optikin_ph_shape"
     PREFIX = prefix.upper()
     code, sizes = _generated(newton_functions(model, prefix), stem)
