@@ -54,18 +54,18 @@ def figures(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -> dic
         series = {"marker distance": distance}
         labels = {"marker distance": [f"marker {k + 1}" for k in range(distance.shape[1])]}
         if "vertebra_distance" in arrays:
-            series["model backbone"] = arrays["vertebra_distance"].max(axis=1) * MM
-            labels["model backbone"] = ["largest vertebra distance"]
+            series["model backbone distance"] = arrays["vertebra_distance"].max(axis=1) * MM
+            labels["model backbone distance"] = ["largest vertebra distance"]
         if "truth_backbone_distance" in arrays:
-            series["truth backbone"] = arrays["truth_backbone_distance"].max(axis=1) * MM
-            labels["truth backbone"] = ["largest node distance"]
+            series["truth backbone distance"] = arrays["truth_backbone_distance"].max(axis=1) * MM
+            labels["truth backbone distance"] = ["largest node distance"]
         if "c1_marker_distance" in arrays:
-            series["C1 chain"] = arrays["c1_marker_distance"] * MM
-            labels["C1 chain"] = [f"marker {k + 1}" for k in range(distance.shape[1])]
+            series["marker distance to C1 chain"] = arrays["c1_marker_distance"] * MM
+            labels["marker distance to C1 chain"] = [f"marker {k + 1}" for k in range(distance.shape[1])]
         if "tube_marker_distance" in arrays:
             tubes = arrays["tube_marker_distance"] * MM  # (N, tube, station)
-            series["tube markers"] = tubes.mean(axis=1)
-            labels["tube markers"] = [f"station {j + 1}" for j in range(tubes.shape[2])]  # mean of the tubes
+            series["tube marker distance"] = tubes.mean(axis=1)
+            labels["tube marker distance"] = [f"station {j + 1}" for j in range(tubes.shape[2])]  # mean of the tubes
 
         def draw_errors(path: Path) -> None:
             from optikin import plots
