@@ -375,12 +375,15 @@ class MPCController(HorizonController):
 
     Parameters
     ----------
-    arm, dt, task, gain, effort_weight, horizon, rate_limits, margin, periodic, limit_gain, barrier, preview, compiled:
+    arm, dt, task, gain, effort_weight:
         See :class:`HorizonController`.
     eps_abs, eps_rel, max_iter, rho, polishing:
         OSQP's tolerances, iteration limit per step, ADMM step size and active-set polishing.
     settings:
         Further OSQP settings (``osqp.OSQP.setup`` keywords).
+    **horizon:
+        The keywords of :class:`HorizonController`: ``horizon``, ``rate_limits``, ``margin``,
+        ``periodic``, ``limit_gain``, ``barrier``, ``preview``, ``compiled``.
 
     Attributes
     ----------

@@ -36,12 +36,16 @@ class NonlinearMPCController(HorizonController):
 
     Parameters
     ----------
-    arm, dt, task, gain, effort_weight, horizon, rate_limits, margin, periodic, limit_gain, barrier, preview, compiled:
-        See :class:`optikin.control.mpc.HorizonController` (``compiled`` is not used: IPOPT calls the CasADi VM).
+    arm, dt, task, gain, effort_weight:
+        See :class:`optikin.control.mpc.HorizonController`.
     tolerance, max_iter:
         IPOPT's ``tol`` and iteration limit per step.
     ipopt_options:
         Further IPOPT options (they override the warm-start settings).
+    **horizon:
+        The keywords of :class:`optikin.control.mpc.HorizonController`: ``horizon``, ``rate_limits``,
+        ``margin``, ``periodic``, ``limit_gain``, ``barrier``, ``preview``, ``compiled`` (not used:
+        IPOPT calls the CasADi VM).
 
     Attributes
     ----------
