@@ -16,7 +16,11 @@ is either the forward kinematics of a minimum-jerk configuration path (source
 ``waypoints``) or the roll-out of a pose DMP learned from the flexible-interface
 IMU demonstration (source ``dmp``: params ``task``, ``rate``, ``variant``,
 ``basis``, ``demonstration_samples``, ``hold``, ``smoothing``; the run starts
-from the interface's first configuration)::
+from the interface's first configuration), the Kinect chain (``kinect-dmp``), or a
+user's recorded demonstration file (source ``csv``: ``file``, ``content``, ``units``,
+``task``, ``rate``, ``dmp: {variant, basis, smoothing}`` -- omit it to track the
+recording as recorded -- ``hold``, ``max_step``, ``max_duration``,
+``start_tolerance``; :mod:`optikin.data.references`)::
 
     data:
       source: waypoints
