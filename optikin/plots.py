@@ -88,7 +88,7 @@ def method_styles(methods: Sequence[str], roles: Mapping[str, str] | None = None
             "color": BASELINE_COLOURS[k % len(BASELINE_COLOURS)],
             "lw": 1.3,
             "ls": DASHES[k % len(DASHES)],
-            "marker": MARKERS[k % len(MARKERS)],
+            "marker": MARKERS[(k + k // len(BASELINE_COLOURS)) % len(MARKERS)],  # colour and marker repeat apart
             "ms": 4.5,
             "markevery": (MARK_STEP * (k + 0.5) / max(len(others), 1), MARK_STEP),
             "markerfacecolor": "none",

@@ -160,8 +160,9 @@ def test_a_controller_name_never_seen_gets_a_style_of_its_own(drawn):
     ax = data_axes(fig)[0]
     looks = [(str(line.get_linestyle()), line.get_marker(), line.get_color()) for line in ax.get_lines()]
     assert len(looks) == 5 and len(set(looks)) == 5
-    styles = plots.method_styles(["a", "b", "c", "d", "e", "f", "g", "h", "i"], {"a": "solver"})
-    assert len({(str(s["ls"]), s.get("marker"), s["color"]) for s in styles.values()}) == 9
+    many = [f"model {k}" for k in range(20)]
+    styles = plots.method_styles(many, {many[0]: "solver"})
+    assert len({(s.get("marker"), s["color"]) for s in styles.values()}) == 20, "colour and marker repeat together"
 
 
 def dmp_result() -> tuple[dict[str, np.ndarray], dict]:
