@@ -6,6 +6,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
+from matplotlib.ticker import MaxNLocator
 
 from optikin.problems import nn_shared
 from optikin.results import Drawer
@@ -39,6 +40,7 @@ def draw_search(path: Path, searches: Mapping[str, np.ndarray], title: str) -> N
         style = plots.unmarked(styles[label]) | {"marker": styles[label]["marker"], "ms": 5}
         ax.semilogy(search[:, 0], search[:, 1], label=label, **style)
     ax.set_xlabel("neurons per hidden layer")
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_ylabel("validation MSE (+ eq. 11 penalty)\n[SI units squared]")
     ax.set_title(title)
     ax.grid(True, which="both", alpha=0.3)
