@@ -46,6 +46,7 @@ from optikin.algebra.quaternion import refuse_degenerate
 from optikin.arms.base import ArmModel
 from optikin.baselines.pseudo_inverse import DampedLeastSquaresController, PseudoInverseController
 from optikin.control.base import Controller
+from optikin.control.mpc import MPCController
 from optikin.control.qp import QPController
 from optikin.control.reference import Reference, minimum_jerk_path, reference_from_configurations
 from optikin.control.simulate import TrackingRun, simulate
@@ -373,6 +374,7 @@ def track(
     preset: str = "qp-osqp",
     gain: float = 10.0,
     damping: float = 1e-4,
+    horizon: int = 20,
 ) -> Tracking:
     """Track a tip reference in closed loop, as the ``tracking`` kind does (:mod:`optikin.control`).
 
@@ -390,8 +392,10 @@ def track(
         an array of tip positions ``(N, 3)`` [m] or tip dual quaternions ``(N, 8)`` sampled at ``rate``
         (rates by central differences).
     controller:
-        ``qp`` (the bounded QP of :class:`~optikin.control.qp.QPController`), ``damped_least_squares``,
-        ``pseudo_inverse``, or a ready :class:`~optikin.control.base.Controller` at the reference's period.
+        ``qp`` (the bounded QP of :class:`~optikin.control.qp.QPController`), ``mpc`` (the sparse-QP MPC of
+        :class:`~optikin.control.mpc.MPCController` over ``horizon`` steps, previewing the reference),
+        ``damped_least_squares``, ``pseudo_inverse``, or a ready :class:`~optikin.control.base.Controller` at
+        the reference's period.
     start:
         Configuration ``(n_config,)`` at ``t = 0``; default the first waypoint, else the inverse kinematics of
         the first reference sample (:func:`solve_ik`).
@@ -400,7 +404,10 @@ def track(
     preset:
         The ``qp`` solver preset of the ``qp`` controller.
     gain, damping:
-        Feedback gain ``K`` [1/s] and damping ``lambda`` of the built controllers.
+        Feedback gain ``K`` [1/s] and damping ``lambda`` of the built controllers (``lambda`` is the MPC's
+        effort weight: with ``horizon = 1`` the MPC is the QP step).
+    horizon:
+        The MPC's horizon [steps].
 
     Returns
     -------
@@ -430,12 +437,14 @@ def track(
         if loaded.backend.family != "qp":
             raise ValueError(f"preset {preset!r} is of family {loaded.backend.family}, not qp")
         made = QPController(arm, dt, task, gain, damping, solver=loaded.build().create(arm.n_config, m))
+    elif controller == "mpc":
+        made = MPCController(arm, dt, task, gain, damping, horizon=horizon, preview=ref)
     elif controller == "damped_least_squares":
         made = DampedLeastSquaresController(arm, dt, task, gain, damping)
     elif controller == "pseudo_inverse":
         made = PseudoInverseController(arm, dt, task, gain)
     else:
-        raise ValueError(f"unknown controller {controller!r}; known: qp, damped_least_squares, pseudo_inverse")
+        raise ValueError(f"unknown controller {controller!r}; known: qp, mpc, damped_least_squares, pseudo_inverse")
     run = simulate(made, ref, np.asarray(start, dtype=float))
     logger.debug("tracked %d steps with %s", len(ref.t), made.name)
     return Tracking(ref.t, run.q, run.position, run.position_error, run.orientation_error, run.status, made.name, run)

@@ -138,11 +138,23 @@ def test_track_waypoints_pose_task_converges_from_an_offset_start():
     assert result.orientation_error is not None and result.orientation_error[-1] < 1e-4
 
 
+def test_track_with_the_mpc_follows_the_path_it_previews():
+    arm = ConstantCurvatureArm()
+    waypoints = [[0.18, 0.3, 0.0, 0.18, 0.3, 0.0], [0.17, 0.6, 0.4, 0.18, 0.5, 1.0]]
+    ref = {"waypoints": waypoints, "task": "position", "rate": 100, "segment_time": 1.0, "hold": 0.5}
+    result = optikin.track(arm, ref, "mpc", horizon=10)
+    tip = arm.evaluate("fk_position", result.q)
+    path = arm.evaluate("fk_position", waypoints[-1])
+    assert result.controller.startswith("mpc")
+    assert np.linalg.norm(tip[-1] - path) < 1e-4  # on the last waypoint, by the arm's own FK
+    assert result.error.max() < 1e-3 and set(result.statuses) == {"ok"}
+
+
 def test_track_refuses_unknown_controllers_and_presets():
     arm = ConstantCurvatureArm()
     ref = {"waypoints": [[0.18, 0.3, 0.0, 0.18, 0.3, 0.0]] * 2, "task": "position", "rate": 100, "hold": 0.0}
-    with pytest.raises(ValueError, match="unknown controller 'mpc'"):
-        optikin.track(arm, ref, "mpc")
+    with pytest.raises(ValueError, match="unknown controller 'lqr'; known: qp, mpc,"):
+        optikin.track(arm, ref, "lqr")
     with pytest.raises(ValueError, match="not qp"):
         optikin.track(arm, ref, preset="gauss-newton")
     with pytest.raises(ValueError, match="\\(N, 3\\) positions or \\(N, 8\\)"):
