@@ -38,7 +38,7 @@ REFERENCE: dict[str, Any] = {"color": "0.55", "lw": 3.5, "alpha": 0.55, "solid_c
 """Style of a reference curve: a wide grey band the methods' curves are drawn over."""
 LIMIT: dict[str, Any] = {"color": "tab:red", "lw": 1.0, "ls": (0, (4, 2))}
 """Style of a limit (bound, margin) line."""
-SOLVER_COLOURS = ("tab:blue", "navy", "tab:cyan", "slateblue")
+SOLVER_COLOURS = ("tab:blue", "tab:cyan", "midnightblue", "slateblue")
 """Colours of optikin's own methods (role ``solver``), in order."""
 BASELINE_COLOURS = ("tab:orange", "tab:green", "tab:purple", "tab:brown", "tab:pink", "tab:olive", "tab:gray", "gold")
 """Colours of the other methods (baselines, comparators), in order; red is kept for limits."""
