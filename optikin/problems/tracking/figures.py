@@ -109,7 +109,7 @@ def obstacles(
     title: str,
     roles: Mapping[str, str] | None = None,
 ) -> None:
-    """3-D backbones of the QP and the first baseline at a few instants with the obstacles, coloured by
+    """3-D backbones of the first two controllers at a few instants with the obstacles, coloured by
     time, and every method's least backbone-to-obstacle distance [mm] over time against the margin."""
     shown = list(labels)[:2]
     times = arrays["snapshot_t"]
