@@ -17,8 +17,18 @@ With obstacles (``barrier``, :class:`optikin.control.obstacles.BarrierRows`) the
 ``A qdot >= b`` are the discrete-time barrier of the backbone samples nearest to each
 obstacle; the task stays a least-squares objective (its slack is free), the barrier is hard.
 
-The QP is solved by a step solver of a ``qp`` backend (:mod:`optikin.solvers.qp`,
-``solve(QPData) -> Solution``), handed to the controller ready-made.
+Which QP method. The QP is solved by a step solver (``solve(QPData) -> Solution``): a ``qp``
+backend's (:mod:`optikin.solvers.qp`) when a preset names one, e.g. ``qp-osqp``; otherwise
+(``solver=None``) it is chosen by the QP's structure (:func:`default_step_solver`). These QPs are
+small and dense (``n`` rates, ``H`` full, the box plus a few rows), so for ``n <=``
+:data:`ACTIVE_SET_MAX_RATES` and at most :data:`ACTIVE_SET_MAX_ROWS` rows the default is a
+primal-dual active-set method (DAQP, Arnstrom, Bemporad and Axehill 2022,
+:class:`ActiveSetStepSolver`): exact up to rounding once the active set is found, warm-started
+with the previous step's active set (consecutive steps rarely change it: often one iteration), a
+dense Cholesky factorisation of ``H`` per step. ADMM (OSQP) stops at its tolerance, and on the
+redundant arms (more rates than task rows, ``H`` held in the null space by ``lambda`` alone) it
+needs hundreds of iterations to reach it; it is the default only beyond those sizes, where its
+sparse factorisation pays.
 
 Failure handling. If the solver raises, answers with a status other than
 ``"ok"``, or returns a non-finite vector, the step is reported (:attr:`QPController.status` starts
@@ -38,6 +48,7 @@ solver's tolerance would otherwise have let through.
 from __future__ import annotations
 
 import math
+import time
 from typing import Literal, Sequence
 
 import numpy as np
@@ -53,6 +64,134 @@ from optikin.solvers.qp.common import QPData
 Fallback = Literal["hold", "damped_least_squares"]
 FALLBACKS = ("hold", "damped_least_squares")
 
+ACTIVE_SET_MAX_RATES = 24
+"""Up to this many rates (8 three-variable sections) the default QP method is the dense active set."""
+ACTIVE_SET_MAX_ROWS = 96
+"""Up to this many rows ``A qdot >= b`` besides the box the default QP method is the dense active set."""
+
+_DAQP_INFINITY = 1e30
+"""daqp's ``DAQP_INF``: a bound at or beyond it is no bound."""
+
+
+class ActiveSetStepSolver:
+    """The per-step QP by DAQP's dual active-set method on the controller's own buffers, warm-started.
+
+    DAQP (Arnstrom, Bemporad and Axehill 2022, "A dual active-set solver for embedded
+    quadratic programming using recursive LDL' updates", IEEE TAC 67(8), doi:10.1109/TAC.2022.3176430)
+    solves ``min 1/2 x'Hx + g'x`` s.t. ``lb <= x <= ub`` (simple bounds) and ``b <= A x``.
+    One ``daqp.Model`` is set up at the first :meth:`solve` on the arrays of that
+    :class:`~optikin.solvers.qp.common.QPData`: ``H`` (its transpose, the same symmetric
+    matrix, C-ordered), ``g``, ``lb``, ``ub`` and ``A`` are handed over without a copy, so daqp
+    reads the buffers the task Function writes. Each step then refreshes the model
+    (``update``: the Cholesky factor of the new ``H``, the new bounds) and solves from the
+    previous step's active set. With rows, the bounds go through two buffers ``[lb; b]``,
+    ``[ub; inf]`` filled in place (``b`` clipped at daqp's infinity). After a failed solve the
+    next one starts from the empty active set.
+
+    The answer (:meth:`solve`) is one :class:`~optikin.solvers.base.Solution` updated in place
+    every step: ``x`` a preallocated array, overwritten by the next call (copy what you keep);
+    ``status`` ``"ok"`` or ``"failed"`` (``message`` daqp's exit flag, e.g. ``-1`` infeasible).
+
+    Parameters
+    ----------
+    n:
+        Number of rates.
+    m:
+        Number of task rows (unused; the signature of a ``qp`` step-solver factory).
+    rows:
+        Number of rows ``A qdot >= b``.
+    """
+
+    name = "daqp-active-set"
+
+    def __init__(self, n: int, m: int = 0, rows: int = 0):
+        import daqp
+
+        self.n, self.rows = n, rows
+        self._model = daqp.Model()
+        self._data: QPData | None = None
+        self._sense = np.zeros(n + rows, dtype=np.intc)
+        self._x = np.full(n, np.nan)
+        self.solution = Solution(self._x, "ok")
+        if rows:
+            self._lower, self._upper = np.empty(n + rows), np.full(n + rows, _DAQP_INFINITY)
+            self._lower_box, self._lower_rows, self._upper_box = self._lower[:n], self._lower[n:], self._upper[:n]
+
+    def _setup(self, data: QPData) -> int:
+        """Bind a daqp model to ``data``'s arrays; its exit flag (1 on success)."""
+        if data.H.shape != (self.n, self.n) or data.A.shape[0] != self.rows:
+            raise ValueError(
+                f"{self.name}: QP of {data.n} rates and {data.A.shape[0]} rows, set up for {self.n}, {self.rows}"
+            )
+        self._H = data.H.T  # H is symmetric and column-major: its transpose is the same matrix, C-ordered, no copy
+        if not (self._H.flags.c_contiguous and data.g.flags.c_contiguous):
+            raise ValueError(f"{self.name}: H and g must be contiguous buffers")
+        self._A = data.A if self.rows else np.zeros((0, self.n))
+        if self.rows:
+            self._fill_bounds(data)
+            upper, lower = self._upper, self._lower
+        else:
+            upper, lower = data.ub, data.lb
+        self._data, self._upper_now, self._lower_now = data, upper, lower
+        self._sense.fill(0)  # no constraint assumed active
+        flag, _ = self._model.setup(self._H, data.g, self._A, upper, lower, self._sense)
+        return int(flag)
+
+    def _fill_bounds(self, data: QPData) -> None:
+        np.copyto(self._lower_box, data.lb)
+        np.copyto(self._upper_box, data.ub)
+        np.maximum(data.b, -_DAQP_INFINITY, out=self._lower_rows)
+
+    def solve(self, data: QPData) -> Solution:
+        """One warm-started solve of this step's QP (``data`` the same object every step)."""
+        start = time.perf_counter()
+        solution = self.solution
+        if data is not self._data:
+            flag = self._setup(data)
+        else:
+            if self.rows:
+                self._fill_bounds(data)
+                flag = self._model.update(H=self._H, f=data.g, A=self._A, bupper=self._upper, blower=self._lower)
+            else:
+                flag = self._model.update(H=self._H, f=data.g, bupper=self._upper_now, blower=self._lower_now)
+            flag = 1 if flag >= 0 else flag
+        iterations = -1
+        if flag == 1:
+            x, _, flag, info = self._model.solve()
+            iterations = info["iterations"]
+        if flag == 1:
+            np.copyto(self._x, x)
+            solution.status, solution.message = "ok", ""
+        else:
+            self._x.fill(np.nan)
+            solution.status, solution.message = "failed", f"daqp exit flag {flag}"
+            self._data = None  # the next step sets the model up afresh: empty active set, new factorisation
+        solution.iterations, solution.seconds = iterations, time.perf_counter() - start
+        return solution
+
+
+def default_step_solver(n: int, m: int, rows: int = 0) -> QPStepSolver:
+    """The QP method chosen by structure (module docstring): dense active set when small, else OSQP.
+
+    Parameters
+    ----------
+    n, m, rows:
+        Rates, task rows and rows ``A qdot >= b`` of the per-step QP.
+
+    Returns
+    -------
+    QPStepSolver
+        :class:`ActiveSetStepSolver` for ``n <=`` :data:`ACTIVE_SET_MAX_RATES` and ``rows <=``
+        :data:`ACTIVE_SET_MAX_ROWS`; otherwise the ``qp_osqp`` backend's step solver at its defaults.
+    """
+    if n <= ACTIVE_SET_MAX_RATES and rows <= ACTIVE_SET_MAX_ROWS:
+        return ActiveSetStepSolver(n, m, rows)
+    from optikin.solvers import preset_of
+    from optikin.spec import SolverSpec
+
+    factory = preset_of(SolverSpec(name="qp-osqp", backend="qp_osqp", options={})).build()
+    return factory.create(n, m, rows)
+
 
 class QPController(Controller):
     """Tracking by a bounded least-squares QP per step.
@@ -65,7 +204,8 @@ class QPController(Controller):
         ``lambda``, weight of ``||qdot||^2`` (keeps ``H`` positive definite at singular configurations).
     solver:
         The step solver (``solve(QPData) -> Solution``), e.g. a ``qp`` preset's
-        ``create(arm.n_config, task rows)`` or :func:`optikin.solvers.qp.step_solver`.
+        ``create(arm.n_config, task rows)`` or :func:`optikin.solvers.qp.step_solver`;
+        ``None``: chosen by the QP's structure (:func:`default_step_solver`, module docstring).
     rate_limits, margin, periodic, limit_gain:
         See :class:`optikin.control.limits.RateBounds` (``limit_gain`` is its ``gain``).
     fallback:
@@ -86,7 +226,7 @@ class QPController(Controller):
         gain: float | Sequence[float] = 10.0,
         damping: float = 1e-4,
         *,
-        solver: QPStepSolver,
+        solver: QPStepSolver | None = None,
         rate_limits=None,
         margin: float | Sequence[float] = 1e-9,
         periodic: Sequence[str] | None = None,
@@ -108,9 +248,12 @@ class QPController(Controller):
         self.barrier = barrier
         if barrier is not None:
             self.data.A, self.data.b = barrier.A, barrier.b
+        if solver is None:
+            solver = default_step_solver(arm.n_config, m.m, 0 if barrier is None else barrier.rows)
         self.solver = solver
         self.name = f"qp ({getattr(solver, 'name', type(solver).__name__)})"
         self.qdot = np.zeros(arm.n_config)
+        self._removed = np.zeros(arm.n_config)
         self.slip = 0.0
         self.solution: Solution | None = None
 
@@ -131,12 +274,14 @@ class QPController(Controller):
         except Exception as exc:  # noqa: BLE001 - a solver crash must stop neither the loop nor the arm
             self.solution, failure = None, f"solver raised {type(exc).__name__}: {exc}"
         if failure is None:
-            qdot = self.qdot
+            qdot, removed = self.qdot, self._removed
             np.maximum(solution.x, lb, out=qdot)
             np.minimum(qdot, ub, out=qdot)
-            removed = [abs(d) for d in (qdot - solution.x).tolist()]
-            if math.isfinite(sum(removed)):  # NaN or inf anywhere in the solution makes the sum non-finite
-                self.slip = max(removed)
+            np.subtract(qdot, solution.x, out=removed)
+            np.abs(removed, out=removed)
+            slip = float(removed.max())
+            if math.isfinite(slip):  # NaN or inf anywhere in the solution makes the largest difference non-finite
+                self.slip = slip
                 self.status = "ok"
                 return qdot
             failure = "non-finite solution"

@@ -1,0 +1,212 @@
+"""The structure-chosen QP step (dense active set on the controller's buffers) against a slow, obvious reference.
+
+The reference builds the same QP from scratch for every step: the Jacobian and the tip
+pose from the arm's own CasADi ``jac_dq``/``fk_dq`` called the ordinary way, ``v``, ``H`` and
+``g`` in numpy, the rate box written out by hand, and solves it with quadprog (Goldfarb-Idnani
+dual active set, exact up to rounding) through ``qpsolvers.solve_qp``. The controller's default
+path is daqp (another active-set method) warm-started on preallocated buffers; both answers are
+exact, so they agree to 1e-9 rad/s or m/s. Cases: random states stepped through in sequence (the
+warm start then starts from an unrelated active set), states next to the configuration limits (rate
+bounds active), rows ``A qdot >= b`` cutting the box-only optimum (rows active), and rows that no rate
+in the box satisfies (infeasible: the hold fallback and its status, then recovery).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import qpsolvers
+
+from optikin.arms.constant_curvature import ConstantCurvatureArm
+from optikin.control.qp import (
+    ACTIVE_SET_MAX_RATES,
+    ACTIVE_SET_MAX_ROWS,
+    ActiveSetStepSolver,
+    QPController,
+    default_step_solver,
+)
+from optikin.solvers.qp import step_solver
+from optikin.solvers.qp.qp_osqp import OSQPStepSolver
+
+DT, GAIN, DAMPING, MARGIN = 0.01, 20.0, 1e-4, 1e-9
+TOLERANCE = 1e-9
+ROWS = 3
+
+
+def arm_of(sections: int) -> ConstantCurvatureArm:
+    return ConstantCurvatureArm(section_lengths=(0.18,) * sections)
+
+
+def rates_of(arm: ConstantCurvatureArm) -> np.ndarray:
+    return np.array([0.1, np.pi, 2 * np.pi] * arm.n_sections)
+
+
+class GivenRows:
+    """Rows ``A qdot >= b`` set by the test before each step (the controller's barrier interface)."""
+
+    def __init__(self, n: int, rows: int):
+        self.rows = rows
+        self.A, self.b = np.zeros((rows, n)), np.full(rows, -np.inf)
+        self.next = (self.A.copy(), self.b.copy())
+
+    def reset(self) -> None:
+        pass
+
+    def update(self, q: np.ndarray) -> None:
+        self.A[:], self.b[:] = self.next
+
+
+def controller(arm, rows=None):
+    return QPController(
+        arm, DT, "pose", gain=GAIN, damping=DAMPING, rate_limits=rates_of(arm), margin=MARGIN, barrier=rows
+    )
+
+
+def tip(arm, q):
+    return np.asarray(arm.fk_dq(q)).ravel()
+
+
+def box(arm, q):
+    """The rate box by hand: every limit reached in one step at most, clipped to the rates; phi free."""
+    rate = rates_of(arm)
+    lb = np.clip((arm.lower + MARGIN - q) / DT, -rate, rate)
+    ub = np.clip((arm.upper - MARGIN - q) / DT, -rate, rate)
+    free = arm.periodic
+    lb[free], ub[free] = -rate[free], rate[free]
+    return lb, ub
+
+
+def reference_qp(arm, q, x, x_ref, xdot_ref):
+    """``H``, ``g`` of ``min ||J qdot - v||^2 + lambda ||qdot||^2`` from the arm's Jacobian, the short way round."""
+    J = np.asarray(arm.jac_dq(q))
+    sign = -1.0 if x_ref[:4] @ x[:4] < 0 else 1.0
+    v = sign * xdot_ref + GAIN * (sign * x_ref - x)
+    return J.T @ J + DAMPING * np.eye(arm.n_config), -J.T @ v
+
+
+def reference_step(arm, q, x, x_ref, xdot_ref, A=None, b=None):
+    """quadprog's answer (None when infeasible), the box and ``(H, g)``."""
+    H, g = reference_qp(arm, q, x, x_ref, xdot_ref)
+    lb, ub = box(arm, q)
+    G = h = None
+    if A is not None:
+        active = np.isfinite(b)
+        G, h = -A[active], -b[active]
+    return qpsolvers.solve_qp(H, g, G, h, lb=lb, ub=ub, solver="quadprog"), lb, ub
+
+
+def random_states(arm, count, rng, near_limits=False):
+    """Configurations (optionally next to their limits), their tips and references pulling away from them."""
+    n = arm.n_config
+    out = []
+    for _ in range(count):
+        q = arm.sample_configurations(1, rng)[0]
+        if near_limits:
+            pick = rng.random(n) < 0.5
+            side = np.where(rng.random(n) < 0.5, arm.lower + 1e-3, arm.upper - 1e-3)
+            q = np.where(pick & ~arm.periodic, side, q)
+        q_ref = q + rng.normal(size=n) * np.tile([0.01, 0.3, 0.3], arm.n_sections)
+        xdot_ref = rng.normal(size=8) * 0.1
+        out.append((q, tip(arm, q), tip(arm, q_ref) * rng.choice([-1.0, 1.0]), xdot_ref))
+    return out
+
+
+def at_bound(qdot, lb, ub):
+    return int(np.count_nonzero((np.abs(qdot - lb) < 1e-12) | (np.abs(qdot - ub) < 1e-12)))
+
+
+@pytest.fixture(scope="module", params=[2, 4, 8], ids=lambda s: f"{s}-sections")
+def arm(request):
+    return arm_of(request.param)
+
+
+def test_default_is_the_active_set_and_agrees_with_quadprog(arm):
+    rng = np.random.default_rng(arm.n_sections)
+    qp = controller(arm)
+    assert isinstance(qp.solver, ActiveSetStepSolver) and qp.name == "qp (daqp-active-set)"
+    states = random_states(arm, 12, rng) + random_states(arm, 12, rng, near_limits=True)
+    qp.reset(states[0][0], states[0][1])
+    bounded = 0
+    for state in states:  # one controller through all: each warm start begins at an unrelated active set
+        qdot = qp.command(*state)
+        expected, lb, ub = reference_step(arm, *state)
+        assert qp.status == "ok" and qp.solution is not None and qp.solution.status == "ok"
+        assert np.abs(qdot - expected).max() < TOLERANCE
+        assert qp.slip < 1e-10  # a bound overshot by rounding only
+        bounded += at_bound(expected, lb, ub)
+    assert bounded >= len(states)  # rate bounds are active: on average at least one per step
+
+
+def test_a_smooth_sequence_is_solved_from_the_previous_active_set(arm):
+    """Along a slowly moving reference the active set rarely changes: daqp then needs one iteration, and is exact."""
+    rng = np.random.default_rng(10 + arm.n_sections)
+    qp = controller(arm)
+    q, x, x_ref, xdot_ref = random_states(arm, 1, rng, near_limits=True)[0]
+    qp.reset(q, x)
+    iterations = []
+    for k in range(20):
+        state = (q, x, x_ref + 1e-4 * k, xdot_ref)
+        qdot = qp.command(*state)
+        assert np.abs(qdot - reference_step(arm, *state)[0]).max() < TOLERANCE
+        iterations.append(qp.solution.iterations)
+    assert np.median(iterations[1:]) <= 1 < iterations[0]
+
+
+def test_active_rows_and_the_infeasible_step(arm):
+    rng = np.random.default_rng(20 + arm.n_sections)
+    n = arm.n_config
+    rows = GivenRows(n, ROWS)
+    qp = controller(arm, rows)
+    assert isinstance(qp.solver, ActiveSetStepSolver)
+    states = random_states(arm, 16, rng, near_limits=True)
+    qp.reset(states[0][0], states[0][1])
+    active_rows = infeasible = 0
+    for k, state in enumerate(states):
+        box_only, lb, ub = reference_step(arm, *state)
+        inside = lb + rng.uniform(0.2, 0.8, n) * (ub - lb)  # a rate in the box that every row admits
+        A = rng.normal(size=(ROWS, n))
+        A *= np.sign(A @ inside - A @ box_only)[:, None]  # each row cuts the box-only optimum off
+        b = A @ inside
+        b[2] = -np.inf  # an inactive row
+        reach = np.maximum(A * lb, A * ub).sum(axis=1)  # the largest A qdot over the box, row by row
+        if k % 4 == 3:
+            b[0] = reach[0] + 1.0  # no rate in the box satisfies row 0
+        rows.next = (A, b)
+        qdot = qp.command(*state)
+        expected = reference_step(arm, *state, A, b)[0]
+        if k % 4 == 3:
+            infeasible += 1
+            assert expected is None
+            assert qp.status.startswith("fallback (hold): no solution (daqp exit flag")
+            assert qp.solution is not None and qp.solution.status == "failed"
+            assert np.array_equal(qdot, np.clip(0.0, lb, ub))  # hold: stop inside the limits, steer back outside
+            continue
+        assert qp.status == "ok", qp.status
+        assert np.abs(qdot - expected).max() < TOLERANCE  # also on the step after an infeasible one
+        active_rows += int(np.count_nonzero(np.abs(A[:2] @ expected - b[:2]) < 1e-9))
+    assert infeasible == 4 and active_rows >= len(states) - infeasible
+
+
+def test_damped_least_squares_fallback_on_an_infeasible_step():
+    arm = arm_of(4)
+    rows = GivenRows(arm.n_config, 1)
+    qp = QPController(
+        arm, DT, gain=GAIN, damping=DAMPING, rate_limits=rates_of(arm), fallback="damped_least_squares", barrier=rows
+    )
+    state = random_states(arm, 1, np.random.default_rng(5))[0]
+    lb, ub = box(arm, state[0])
+    rows.next = (np.ones((1, arm.n_config)), np.array([ub.sum() + 1.0]))
+    qdot = qp.command(*state)
+    H, g = reference_qp(arm, *state)
+    assert qp.status.startswith("fallback (damped_least_squares): no solution")
+    assert np.abs(qdot - np.clip(np.linalg.solve(H, -g), lb, ub)).max() < 1e-9
+
+
+def test_the_method_is_chosen_by_structure():
+    assert isinstance(default_step_solver(ACTIVE_SET_MAX_RATES, 8), ActiveSetStepSolver)
+    assert isinstance(default_step_solver(6, 8, ACTIVE_SET_MAX_ROWS), ActiveSetStepSolver)
+    assert isinstance(default_step_solver(ACTIVE_SET_MAX_RATES + 3, 8), OSQPStepSolver)
+    assert isinstance(default_step_solver(6, 8, ACTIVE_SET_MAX_ROWS + 1), OSQPStepSolver)
+    arm = arm_of(2)
+    explicit = QPController(arm, DT, solver=step_solver("qp_osqp", arm.n_config, 8))
+    assert explicit.name == "qp (osqp)"  # a preset's solver is used as given
