@@ -226,14 +226,81 @@ static void polish(${prefix}_work* w) {
   for (a = 0; a < nf; ++a) w->x[F[a]] = y[a];
 }
 
-/* min 1/2 x'Hx + g'x over the constraints (Goldfarb and Idnani 1983, the dual method, with the active
-   set's normal matrix re-factored at each change). Returns an enum ${prefix}_status; x in w->x. */
+/* min 1/2 x'Hx + g'x over the box only, by the primal active-set method (Nocedal and Wright 2006, Algorithm
+   16.3) from the unconstrained minimiser clipped into the box: the free rates' reduced system solved, a step to
+   the nearest bound it meets, a bound with a negative multiplier released. A rate with lb = ub stays on it.
+   Returns ${PREFIX}_OK, or ${PREFIX}_NOT_CONVERGED after max_it changes (the dual method then takes over). */
+static int box_active_set(${prefix}_work* w, int* iterations) {
+  int i, a, c, nf, it, blocking, max_it = 4 * N + 10, *F = w->F, *state = w->fixed;
+  double s, alpha, worst, scale = 0.0, *x = w->x, *y = w->y, *P = w->P;
+  for (i = 0; i < N; ++i) {
+    x[i] = w->xu[i];
+    state[i] = w->lb[i] == w->ub[i] ? 2 : x[i] < w->lb[i] ? -1 : x[i] > w->ub[i] ? 1 : 0;
+    if (state[i]) x[i] = state[i] > 0 ? w->ub[i] : w->lb[i];
+    scale = fmax(scale, fabs(w->g[i]));
+  }
+  for (it = 0; it < max_it; ++it) {
+    nf = 0;
+    for (i = 0; i < N; ++i)
+      if (!state[i]) F[nf++] = i;
+    for (c = 0; c < nf; ++c) /* y <- the minimiser over the free rates, the others held */
+      for (a = 0; a < nf; ++a) P[a + N * c] = w->H[F[a] + N * F[c]];
+    if (nf && factor(P, nf)) return ${PREFIX}_FAILED;
+    for (a = 0; a < nf; ++a) {
+      s = -w->g[F[a]];
+      for (i = 0; i < N; ++i)
+        if (state[i]) s -= w->H[F[a] + N * i] * x[i];
+      y[a] = s;
+    }
+    factor_solve(P, nf, y);
+    alpha = 1.0;
+    blocking = -1;
+    for (a = 0; a < nf; ++a) {
+      i = F[a];
+      if (y[a] < w->lb[i] && (w->lb[i] - x[i]) / (y[a] - x[i]) < alpha) {
+        alpha = (w->lb[i] - x[i]) / (y[a] - x[i]);
+        blocking = i;
+      } else if (y[a] > w->ub[i] && (w->ub[i] - x[i]) / (y[a] - x[i]) < alpha) {
+        alpha = (w->ub[i] - x[i]) / (y[a] - x[i]);
+        blocking = i;
+      }
+    }
+    if (blocking >= 0) { /* a step to the bound met first, which joins the working set */
+      for (a = 0; a < nf; ++a) x[F[a]] += alpha * (y[a] - x[F[a]]);
+      for (a = 0; a < nf; ++a)
+        if (F[a] == blocking) state[blocking] = y[a] < w->lb[blocking] ? -1 : 1;
+      x[blocking] = state[blocking] > 0 ? w->ub[blocking] : w->lb[blocking];
+      continue;
+    }
+    for (a = 0; a < nf; ++a) x[F[a]] = y[a];
+    worst = -1e-13 * (1.0 + scale); /* the most negative multiplier of a bound, grad_i (lower) or -grad_i (upper) */
+    c = -1;
+    for (i = 0; i < N; ++i) {
+      if (state[i] != 1 && state[i] != -1) continue;
+      s = w->g[i];
+      for (a = 0; a < N; ++a) s += w->H[i + N * a] * x[a];
+      s *= state[i] < 0 ? 1.0 : -1.0;
+      if (s < worst) {
+        worst = s;
+        c = i;
+      }
+    }
+    if (c < 0) {
+      *iterations = it;
+      return ${PREFIX}_OK;
+    }
+    state[c] = 0;
+  }
+  *iterations = it;
+  return ${PREFIX}_NOT_CONVERGED;
+}
+
+/* min 1/2 x'Hx + g'x over the constraints (Goldfarb and Idnani 1983, the dual method; the active set's normal
+   matrix factor extended by a row when a constraint joins, re-factored after one leaves). Returns an enum ${prefix}_status; x in w->x. */
 static int dual_active_set(${prefix}_work* w, int rows, int* iterations) {
   int i, j, p, l, it, nc = 2 * N + rows, max_it = 10 * (N + rows) + 10;
   double worst, s, t1, t2, t, rmax, zn, *x = w->x, *z = w->z, *v = w->vp;
-  for (i = 0; i < N; ++i) x[i] = w->xu[i] = -w->g[i];
-  factor_solve(w->L, N, x);
-  factor_solve(w->L, N, w->xu);
+  for (i = 0; i < N; ++i) x[i] = w->xu[i];
   for (j = 0; j < nc; ++j) w->is_active[j] = 0;
   for (i = 0; i < N; ++i) w->have[i] = 0;
   w->k = 0;
@@ -308,7 +375,7 @@ static int dual_active_set(${prefix}_work* w, int rows, int* iterations) {
 
 int ${prefix}_step(${prefix}_work* w, const double* q, const double* x, const double* x_ref, const double* xdot_ref,
                    const double* A, const double* b, int rows, double* qdot, int* iterations) {
-  int i, status, dls, its = 0;
+  int i, status, dls, active_rows, its = 0;
   double limit;
   if (!w || !w->ready || !q || !x || !x_ref || !xdot_ref || !qdot || rows < 0 || rows > NROWS || (rows && (!A || !b)))
     return ${PREFIX}_INVALID_INPUT;
@@ -346,7 +413,13 @@ int ${prefix}_step(${prefix}_work* w, const double* q, const double* x, const do
   w->res[5] = w->g;
   ${prefix}_task(w->arg, w->res, w->iw, w->w, 0);
   status = ${PREFIX}_FAILED;
-  if (!cholesky(w->H, w->L)) status = dual_active_set(w, rows, &its);
+  for (i = 0, active_rows = 0; i < rows; ++i) active_rows += !isinf(b[i]);
+  if (!cholesky(w->H, w->L)) {
+    for (i = 0; i < N; ++i) w->xu[i] = -w->g[i];
+    factor_solve(w->L, N, w->xu);
+    status = active_rows ? ${PREFIX}_NOT_CONVERGED : box_active_set(w, &its);
+    if (status == ${PREFIX}_NOT_CONVERGED) status = dual_active_set(w, rows, &its);
+  }
   if (iterations) *iterations = its;
   if (status == ${PREFIX}_OK)
     for (i = 0; i < N; ++i)

@@ -9,9 +9,10 @@
    K = diag(${gain_note}) [1/s], lambda = ${damping}, and the rate box of optikin.control.limits.RateBounds
    at control period dt = ${dt} s: lb = min(max(${limit_gain} (lower - q)/dt, -r), r),
    ub = min(max(${limit_gain} (upper - q)/dt, -r), r), r the rate limits${periodic_note}.
-   The QP is solved by the dual active-set method of Goldfarb and Idnani (1983) on the Cholesky factor
-   of H, exactly (no iteration tolerance: the optimum of the final active set, constraints met to
-   ${primal_tolerance} (1 + |bound|)). The command is the solution clipped into the box (a no-op for the
+   The QP is solved exactly (no iteration tolerance: the optimum of the final active set): with the box
+   alone by the primal active-set method (Nocedal and Wright 2006, Algorithm 16.3) from the unconstrained
+   step clipped into the box, with rows (or should that not finish) by the dual active-set method of
+   Goldfarb and Idnani (1983) on the Cholesky factor of H, constraints met to ${primal_tolerance} (1 + |bound|). The command is the solution clipped into the box (a no-op for the
    exact solution); where the QP has no solution, the controller's fallback (${fallback}): ${fallback_note}.
 
    Sizes (compile-time constants):
@@ -26,7 +27,7 @@
    Status codes (enum ${prefix}_status); qdot is always written:
      ${PREFIX}_OK             the QP's solution
      ${PREFIX}_INFEASIBLE     the rows contradict each other or the box (the dual is unbounded): fallback
-     ${PREFIX}_NOT_CONVERGED  the active-set iteration limit (10 (N + rows) + 10 changes) was reached: fallback
+     ${PREFIX}_NOT_CONVERGED  the dual method's limit of 10 (N + rows) + 10 active-set changes was reached: fallback
      ${PREFIX}_INVALID_INPUT  a null pointer, rows outside [0, MAX_ROWS], a non-finite q, x, x_ref,
                               xdot_ref or A, a NaN or +inf in b: qdot = 0
      ${PREFIX}_FAILED         H not positive definite or a non-finite solution: fallback
