@@ -109,6 +109,7 @@ class ActiveSetStepSolver:
 
         self.n, self.rows = n, rows
         self._model = daqp.Model()
+        self._update, self._solve = self._model.update, self._model.solve
         self._data: QPData | None = None
         self._sense = np.zeros(n + rows, dtype=np.intc)
         self._x = np.full(n, np.nan)
@@ -118,7 +119,7 @@ class ActiveSetStepSolver:
             self._lower_box, self._lower_rows, self._upper_box = self._lower[:n], self._lower[n:], self._upper[:n]
 
     def _setup(self, data: QPData) -> int:
-        """Bind a daqp model to ``data``'s arrays; its exit flag (1 on success)."""
+        """Bind a daqp model to ``data``'s arrays; its exit flag (negative on failure)."""
         if data.H.shape != (self.n, self.n) or data.A.shape[0] != self.rows:
             raise ValueError(
                 f"{self.name}: QP of {data.n} rates and {data.A.shape[0]} rows, set up for {self.n}, {self.rows}"
@@ -148,16 +149,14 @@ class ActiveSetStepSolver:
         solution = self.solution
         if data is not self._data:
             flag = self._setup(data)
+        elif self.rows:
+            self._fill_bounds(data)
+            flag = self._update(H=self._H, f=data.g, A=self._A, bupper=self._upper, blower=self._lower)
         else:
-            if self.rows:
-                self._fill_bounds(data)
-                flag = self._model.update(H=self._H, f=data.g, A=self._A, bupper=self._upper, blower=self._lower)
-            else:
-                flag = self._model.update(H=self._H, f=data.g, bupper=self._upper_now, blower=self._lower_now)
-            flag = 1 if flag >= 0 else flag
+            flag = self._update(H=self._H, f=data.g, bupper=self._upper_now, blower=self._lower_now)
         iterations = -1
-        if flag == 1:
-            x, _, flag, info = self._model.solve()
+        if flag >= 0:  # set up or updated (the factorisation of H succeeded)
+            x, _, flag, info = self._solve()
             iterations = info["iterations"]
         if flag == 1:
             np.copyto(self._x, x)
@@ -278,10 +277,9 @@ class QPController(Controller):
             np.maximum(solution.x, lb, out=qdot)
             np.minimum(qdot, ub, out=qdot)
             np.subtract(qdot, solution.x, out=removed)
-            np.abs(removed, out=removed)
-            slip = float(removed.max())
-            if math.isfinite(slip):  # NaN or inf anywhere in the solution makes the largest difference non-finite
-                self.slip = slip
+            amounts = np.abs(removed, out=removed).tolist()  # n floats: quicker than a numpy reduction
+            if math.isfinite(sum(amounts)):  # NaN or inf anywhere in the solution makes the sum non-finite
+                self.slip = max(amounts)
                 self.status = "ok"
                 return qdot
             failure = "non-finite solution"
