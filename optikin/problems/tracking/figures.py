@@ -197,7 +197,10 @@ def _styles(view: TrackingView, field: str) -> tuple[dict[str, np.ndarray], dict
 def reference_vs_actual(path: Path, view: TrackingView, title: str) -> None:
     """Tip position x, y, z [mm] of every method against the reference (Seleem et al. 2020, Fig. 26)."""
     positions, styles = _styles(view, "position")
-    on = plots.coincident([{m: p[:, j] for m, p in positions.items()} for j in range(3)])
+    panels = [
+        {"reference": view.reference_position[:, j]} | {m: p[:, j] for m, p in positions.items()} for j in range(3)
+    ]
+    on = plots.coincident(panels)  # a method on the reference says so: the band under it is hidden
     labels = plots.labelled(list(positions), on)
     fig, axes = plots.subplots(3, 1, figsize=(8.6, 7.0), sharex=True)
     for j, (ax, axis) in enumerate(zip(axes[:, 0], "xyz")):
