@@ -166,6 +166,29 @@ class OutputError(OptikinError):
     """The output folder cannot take a result: names the folder, or the entry in the way."""
 
 
+def check_output_folder(out_dir: Path, name: str) -> None:
+    """Refuse, before a run starts, an output folder :func:`write_result` could not write into.
+
+    Nothing is created: the folder is made when the result is written.
+
+    Raises
+    ------
+    OutputError
+        ``out_dir`` (or the nearest existing folder above it) is a file, or is not writable, or a file or
+        symlink is at ``out_dir/<name>``.
+    """
+    out_dir = Path(out_dir)
+    existing = out_dir
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    if not existing.is_dir():
+        where = out_dir if existing == out_dir else existing
+        raise OutputError(f"{where}: the output folder is not a folder")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise OutputError(f"{existing}: cannot write the result '{name}': permission denied")
+    _refuse_non_folder(out_dir / name)
+
+
 def write_result(
     result: Result,
     out_dir: Path,

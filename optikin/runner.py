@@ -28,7 +28,7 @@ from optikin.progress import SILENT, Progress
 from optikin.provenance import now, provenance_of
 from optikin.registry import PROBLEM_KINDS
 from optikin.resources import check_memory
-from optikin.results import Result, write_result
+from optikin.results import Result, check_output_folder, write_result
 from optikin.solvers import LoadedPreset, load_backends, load_preset
 from optikin.spec import ProblemSpec, available, load_problem, provenance
 
@@ -187,6 +187,8 @@ def solve(
     kind, ctx = prepare(problem, solver, progress, notify, overrides, arms)
     preset = ctx.preset.spec.name if ctx.preset is not None else "none"
     logger.debug("%s: kind %s, preset %s, prepared in %.3g s", ctx.path, kind.name, preset, time.perf_counter() - clock)
+    if out is not None:
+        check_output_folder(Path(out), ctx.spec.name)
     try:
         started, clock = now(), time.perf_counter()
         result = kind.run(ctx) if chunks is None else chunks.run(kind, ctx, overrides)

@@ -144,7 +144,7 @@ def test_out_that_is_a_file_exits_2_naming_it(tmp_path, capsys):
     out.write_text("not a folder")
     assert main(["solve", str(problem), "--out", str(out), "--no-figures"]) == EXIT_BAD_INPUT
     error = capsys.readouterr().err.strip().splitlines()
-    assert error == [f"optikin: error: {out}: the output folder is not a folder"]
+    assert error == [f"optikin: error: {out}: the output folder is not a folder"]  # refused before the run
     assert out.read_text() == "not a folder"
 
 
@@ -163,13 +163,23 @@ def test_read_only_out_exits_2_naming_it(tmp_path, capsys, monkeypatch):
             return real_mkdir(path, mode, **kwargs)
 
         monkeypatch.setattr(os, "mkdir", read_only_mkdir)
-    try:
-        assert main(["solve", str(problem), "--out", str(out), "--no-figures"]) == EXIT_BAD_INPUT
+    try:  # -q: as root the refusal comes after the run, whose progress lines would precede it
+        assert main(["-q", "solve", str(problem), "--out", str(out), "--no-figures"]) == EXIT_BAD_INPUT
     finally:
         out.chmod(0o755)
     error = capsys.readouterr().err.strip().splitlines()
     assert len(error) == 1 and error[0].startswith(f"optikin: error: {out}: cannot write the result 'small'")
     assert entries(out) == set()
+
+
+def test_an_output_folder_under_a_file_is_refused_before_the_run(tmp_path, capsys):
+    problem = tmp_path / "small.yaml"
+    problem.write_text(PROBLEM)
+    (tmp_path / "afile").write_text("x")
+    out = tmp_path / "afile" / "results"
+    assert main(["solve", str(problem), "--out", str(out), "--no-figures"]) == EXIT_BAD_INPUT
+    error = capsys.readouterr().err.strip().splitlines()
+    assert error == [f"optikin: error: {tmp_path / 'afile'}: the output folder is not a folder"]
 
 
 def test_a_full_file_system_keeps_the_previous_result_and_leaves_nothing(tmp_path, monkeypatch):
