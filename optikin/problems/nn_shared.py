@@ -549,20 +549,24 @@ def searches_of(arrays: Mapping[str, np.ndarray], networks: list[str]) -> dict[s
 
 
 def draw_search(path: Path, searches: Mapping[str, np.ndarray], title: str) -> None:
-    """Validation criterion against width, one line per model (``(widths, 2)`` arrays)."""
-    import matplotlib.pyplot as plt
+    """Validation criterion against width, one line per model (``(widths, 2)`` arrays), legend beside the axes."""
+    from matplotlib.ticker import MaxNLocator
 
-    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    from optikin import plots
+
+    fig, axes = plots.subplots(1, 1, figsize=(8.8, 4.2))
+    ax = axes[0, 0]
+    styles = plots.method_styles(list(searches), {})
     for label, search in searches.items():
-        ax.semilogy(search[:, 0], search[:, 1], "o-", label=label)
+        style = plots.unmarked(styles[label]) | {"marker": styles[label]["marker"], "ms": 5}
+        ax.semilogy(search[:, 0], search[:, 1], label=label, **style)
     ax.set_xlabel("neurons per hidden layer")
-    ax.set_ylabel("validation criterion (MSE, + eq. 11 penalty), SI units")
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+    ax.set_ylabel("validation MSE (+ eq. 11 penalty)\n[SI units squared]")
     ax.set_title(title)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    plots.legend_outside(fig)
+    plots.save(fig, path)
 
 
 def draw_tip_errors(path: Path, errors: Mapping[str, np.ndarray], title: str) -> None:

@@ -6,10 +6,10 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from optikin.problems.nn_fkm.figures import hybrid_figures
+from optikin.problems import nn_shared
 from optikin.results import Drawer
 
 
 def figures(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -> dict[str, Drawer]:
-    """``search`` and ``tip_errors`` (:func:`optikin.problems.nn_fkm.figures.hybrid_figures`)."""
-    return hybrid_figures(arrays, summary, "IKM")
+    """``search`` and ``tip_errors`` (:func:`optikin.problems.nn_shared.figures`)."""
+    return nn_shared.figures(arrays, summary, "IKM")
