@@ -22,13 +22,13 @@ backend's (:mod:`optikin.solvers.qp`) when a preset names one, e.g. ``qp-osqp``;
 (``solver=None``) it is chosen by the QP's structure (:func:`default_step_solver`). These QPs are
 small and dense (``n`` rates, ``H`` full, the box plus a few rows), so for ``n <=``
 :data:`ACTIVE_SET_MAX_RATES` and at most :data:`ACTIVE_SET_MAX_ROWS` rows the default is a
-primal-dual active-set method (DAQP, Arnstrom, Bemporad and Axehill 2022,
+dual active-set method (DAQP, Arnstrom, Bemporad and Axehill 2022,
 :class:`ActiveSetStepSolver`): exact up to rounding once the active set is found, warm-started
-with the previous step's active set (consecutive steps rarely change it: often one iteration), a
+with the previous step's active set (consecutive steps rarely change it: often one iteration), one
 dense Cholesky factorisation of ``H`` per step. ADMM (OSQP) stops at its tolerance, and on the
-redundant arms (more rates than task rows, ``H`` held in the null space by ``lambda`` alone) it
-needs hundreds of iterations to reach it; it is the default only beyond those sizes, where its
-sparse factorisation pays.
+redundant arms (more rates than task rows: the null space of ``J`` is held by ``lambda`` alone) its
+error there is about the tolerance over ``lambda``; it is the default only beyond those sizes, where
+a dense factorisation per step grows as ``n^3`` and OSQP's sparse one pays.
 
 Failure handling. If the solver raises, answers with a status other than
 ``"ok"``, or returns a non-finite vector, the step is reported (:attr:`QPController.status` starts
@@ -81,12 +81,12 @@ class ActiveSetStepSolver:
     solves ``min 1/2 x'Hx + g'x`` s.t. ``lb <= x <= ub`` (simple bounds) and ``b <= A x``.
     One ``daqp.Model`` is set up at the first :meth:`solve` on the arrays of that
     :class:`~optikin.solvers.qp.common.QPData`: ``H`` (its transpose, the same symmetric
-    matrix, C-ordered), ``g``, ``lb``, ``ub`` and ``A`` are handed over without a copy, so daqp
-    reads the buffers the task Function writes. Each step then refreshes the model
-    (``update``: the Cholesky factor of the new ``H``, the new bounds) and solves from the
-    previous step's active set. With rows, the bounds go through two buffers ``[lb; b]``,
-    ``[ub; inf]`` filled in place (``b`` clipped at daqp's infinity). After a failed solve the
-    next one starts from the empty active set.
+    matrix, C-ordered), ``g``, ``lb``, ``ub`` and ``A`` are handed over without a copy (daqp copies
+    only arrays that are not contiguous ``float64``), so daqp reads the buffers the task Function
+    writes. Each step then refreshes the model (``update``: the Cholesky factor of the new ``H``,
+    the new bounds) and solves from the previous step's active set. With rows, the bounds go
+    through two buffers ``[lb; b]``, ``[ub; inf]`` filled in place (``b`` clipped at daqp's
+    infinity). After a failed solve the next one starts from the empty active set.
 
     The answer (:meth:`solve`) is one :class:`~optikin.solvers.base.Solution` updated in place
     every step: ``x`` a preallocated array, overwritten by the next call (copy what you keep);
@@ -125,8 +125,6 @@ class ActiveSetStepSolver:
                 f"{self.name}: QP of {data.n} rates and {data.A.shape[0]} rows, set up for {self.n}, {self.rows}"
             )
         self._H = data.H.T  # H is symmetric and column-major: its transpose is the same matrix, C-ordered, no copy
-        if not (self._H.flags.c_contiguous and data.g.flags.c_contiguous):
-            raise ValueError(f"{self.name}: H and g must be contiguous buffers")
         self._A = data.A if self.rows else np.zeros((0, self.n))
         if self.rows:
             self._fill_bounds(data)
