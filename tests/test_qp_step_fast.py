@@ -7,8 +7,9 @@ dual active set, exact up to rounding) through ``qpsolvers.solve_qp``. The contr
 path is daqp (another active-set method) warm-started on preallocated buffers; both answers are
 exact, so they agree to 1e-9 rad/s or m/s. Cases: random states stepped through in sequence (the
 warm start then starts from an unrelated active set), states next to the configuration limits (rate
-bounds active), rows ``A qdot >= b`` cutting the box-only optimum (rows active), and rows that no rate
-in the box satisfies (infeasible: the hold fallback and its status, then recovery).
+bounds active), rows ``A qdot >= b`` cutting the box-only optimum (rows active), rows that no rate
+in the box satisfies (infeasible: the hold fallback and its status, then recovery), and the backbone
+barrier rows of three obstacles along a closed-loop run.
 """
 
 from __future__ import annotations
@@ -66,11 +67,11 @@ def tip(arm, q):
     return np.asarray(arm.fk_dq(q)).ravel()
 
 
-def box(arm, q):
+def box(arm, q, dt=DT):
     """The rate box by hand: every limit reached in one step at most, clipped to the rates; phi free."""
     rate = rates_of(arm)
-    lb = np.clip((arm.lower + MARGIN - q) / DT, -rate, rate)
-    ub = np.clip((arm.upper - MARGIN - q) / DT, -rate, rate)
+    lb = np.clip((arm.lower + MARGIN - q) / dt, -rate, rate)
+    ub = np.clip((arm.upper - MARGIN - q) / dt, -rate, rate)
     free = arm.periodic
     lb[free], ub[free] = -rate[free], rate[free]
     return lb, ub
@@ -210,3 +211,42 @@ def test_the_method_is_chosen_by_structure():
     arm = arm_of(2)
     explicit = QPController(arm, DT, solver=step_solver("qp_osqp", arm.n_config, 8))
     assert explicit.name == "qp (osqp)"  # a preset's solver is used as given
+
+
+def test_backbone_barrier_rows_from_obstacles():
+    """Real barrier rows (a sphere on the reference path, a capsule, a box) along a closed-loop run: some are active."""
+    from optikin.control.obstacles import BarrierRows, Obstacle
+    from optikin.control.reference import minimum_jerk_path, reference_from_configurations
+    from optikin.control.simulate import simulate
+
+    arm, dt = arm_of(2), 1e-3
+    obstacles = [
+        Obstacle("sphere", center=(0.1554, 0.1544, 0.2668), radius=0.02),
+        Obstacle("capsule", a=(-0.1, 0.05, 0.1), b=(-0.1, -0.05, 0.3), radius=0.02),
+        Obstacle("box", center=(0.0, -0.15, 0.2), half_extents=(0.03, 0.03, 0.05)),
+    ]
+
+    def barrier_qp():
+        barrier = BarrierRows(arm, dt, obstacles, margin=0.01, gamma=20.0)
+        return QPController(arm, dt, gain=GAIN, damping=DAMPING, rate_limits=rates_of(arm), barrier=barrier)
+
+    start, end = np.array([0.18, 0.6, 0.3, 0.18, 0.5, -1.0]), np.array([0.17, 1.0, 0.8, 0.19, -0.4, -0.5])
+    t, Q, Qdot = minimum_jerk_path(np.array([start, end]), 1.5, 1 / dt)
+    ref = reference_from_configurations(arm, t, Q, Qdot, "pose")
+    run = simulate(barrier_qp(), ref, start)
+    qp = barrier_qp()
+    assert isinstance(qp.solver, ActiveSetStepSolver) and qp.barrier is not None
+    qp.reset(run.q[600], run.x[600])
+    active = 0
+    for k in range(600, 900, 3):
+        qp.barrier.step = k
+        state = (run.q[k], run.x[k], ref.value[k], ref.rate[k])
+        qdot = qp.command(*state)
+        A, b = qp.barrier.A, qp.barrier.b  # the rows as the barrier made them for this step
+        H, g = reference_qp(arm, *state)
+        lb, ub = box(arm, run.q[k], dt)
+        rows = np.isfinite(b)
+        expected = qpsolvers.solve_qp(H, g, -A[rows], -b[rows], lb=lb, ub=ub, solver="quadprog")
+        assert qp.status == "ok" and np.abs(qdot - expected).max() < TOLERANCE
+        active += int(np.any(np.abs(A[rows] @ expected - b[rows]) < 1e-9))
+    assert active >= 20, active  # the sphere holds the backbone back in about a quarter of these steps
