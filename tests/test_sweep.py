@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import itertools
+import logging
 import json
 import os
 import signal
@@ -74,6 +75,17 @@ def test_product_and_zip_cells(tmp_path):
     assert [dict(c.axes) for c in expand(spec, path)] == [
         {"data.seed": s, "solver": v} for s, v in zip(range(3), "abc")
     ]
+
+
+def test_a_piped_sweep_logs_its_progress(tmp_path, caplog):
+    with caplog.at_level(logging.INFO, logger="optikin.progress"):
+        report = run_sweep(str(_write(tmp_path)), out=tmp_path / "out", jobs=1, figures=False, progress=True)
+    lines = [r.getMessage() for r in caplog.records if r.name == "optikin.progress"]
+    assert report.ran == 4
+    assert lines[0].endswith(": 4 cells, 0 done before: started")
+    assert any("4 done, 0 failed" in line and "(4/4)" in line for line in lines)  # every tenth of 4 cells
+    assert sum("(" in line and "/4)" in line for line in lines) == 4
+    assert ": 4 done, 0 failed, 0 running: finished in " in lines[-1]
 
 
 def test_cell_equals_solve_and_resume_runs_only_missing_cells(tmp_path):
