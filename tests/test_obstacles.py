@@ -84,7 +84,7 @@ def test_barrier_rows_with_osqp_match_daqp_and_hold_the_linearised_barrier():
 def test_bad_obstacles_are_errors_naming_the_field(obstacle, words):
     from optikin.runner import solve
 
-    with pytest.raises(OptikinError, match=r"options\.obstacles\[0\]") as info:
+    with pytest.raises(OptikinError, match=r"options\.obstacles\.0") as info:
         solve("track-obstacle-sphere", figures=False, overrides=[("options.obstacles", [obstacle])])
     assert words in str(info.value)
 

@@ -221,9 +221,9 @@ SHAPE_FIELDS = {
 """The geometry fields each obstacle shape needs."""
 
 
-def _obstacle(ctx: ProblemContext, i: int, options: ObstacleOptions) -> Obstacle:
-    """``options.obstacles[i]`` as an :class:`Obstacle`; a missing or foreign field is an error naming it."""
-    where = f"options.obstacles[{i}]"
+def obstacle_from_options(ctx: ProblemContext, i: int, options: ObstacleOptions) -> Obstacle:
+    """``options.obstacles.i`` as an :class:`Obstacle`; a missing or foreign field is an error naming it."""
+    where = f"options.obstacles.{i}"
     needed = SHAPE_FIELDS[options.type]
     given = {name: getattr(options, name) for name in ("center", "radius", "a", "b", "half_extents", "point", "normal")}
     for name, value in given.items():
@@ -249,7 +249,7 @@ def _barrier(
         return None
     if plant.rod is not None:
         raise ctx.error("options.obstacles", "obstacles need the kinematic plant (the rod plant has no backbone here)")
-    obstacles = [_obstacle(ctx, i, ob) for i, ob in enumerate(options.obstacles)]
+    obstacles = [obstacle_from_options(ctx, i, ob) for i, ob in enumerate(options.obstacles)]
     o = options.barrier
     try:
         barrier = BarrierRows(
@@ -269,7 +269,7 @@ def _barrier(
         near_base = min(float(ob.distances(points[:, :1], t)[0]) for t in _path_times(ob, reference))
         if near_base < o.margin:
             raise ctx.error(
-                f"options.obstacles[{i}]",
+                f"options.obstacles.{i}",
                 f"contains the arm's base or comes within the margin of it ({near_base * 1e3:.3g} mm, margin "
                 f"{o.margin * 1e3:.3g} mm): no command can keep the barrier",
             )
@@ -277,7 +277,7 @@ def _barrier(
         if start.min() < o.margin:
             j = int(np.argmin(start))
             raise ctx.error(
-                f"options.obstacles[{i}]",
+                f"options.obstacles.{i}",
                 f"contains the start configuration's backbone or lies within the margin of it: sample {j} of "
                 f"{points.shape[1]} at {start[j] * 1e3:.3g} mm (margin {o.margin * 1e3:.3g} mm)",
             )

@@ -21,13 +21,11 @@ from optikin.control.two_arm import (
     rope_samples,
     simulate_two_arms,
 )
-from optikin.control.obstacles import Obstacle
 from optikin.control.two_arm_obstacles import TwoArmObstacleRows
 from optikin.curves.catenary_sensitivity import CatenarySensitivity
 from optikin.errors import InputDataError
 from optikin.problems import ProblemContext
-from optikin.problems.tracking.options import ObstacleOptions
-from optikin.problems.tracking.run import SHAPE_FIELDS
+from optikin.problems.tracking.run import obstacle_from_options
 from optikin.problems.two_arms.options import TwoArmOptions
 from optikin.problems.two_arms.references import RopeLoop, TipPaths
 from optikin.solvers.base import QPBackend
@@ -165,26 +163,6 @@ def _obstacle_clearances(rows: TwoArmObstacleRows, plant: TwoArmModel, tracked: 
     return out
 
 
-def _obstacle(ctx: ProblemContext, i: int, options: ObstacleOptions) -> Obstacle:
-    """``options.obstacles.i`` as an :class:`Obstacle`; a missing or foreign field is an error naming it."""
-    where = f"options.obstacles.{i}"
-    needed = SHAPE_FIELDS[options.type]
-    given = {name: getattr(options, name) for name in ("center", "radius", "a", "b", "half_extents", "point", "normal")}
-    for name, value in given.items():
-        if value is None and name in needed:
-            raise ctx.error(f"{where}.{name}", f"required for a {options.type}")
-        if value is not None and name not in needed:
-            raise ctx.error(f"{where}.{name}", f"not a field of a {options.type} (it takes {', '.join(needed)})")
-    try:
-        return Obstacle(
-            options.type,
-            path=None if options.path is None else tuple(options.path),
-            **{name: value for name, value in given.items() if value is not None},
-        )
-    except ValueError as exc:
-        raise ctx.error(f"{where}.{'path' if 'path' in str(exc) else needed[-1]}", str(exc)) from None
-
-
 def _obstacle_rows(
     ctx: ProblemContext, options: TwoArmOptions, plant: TwoArmModel, q0: np.ndarray, reference: TwoArmReference
 ) -> TwoArmObstacleRows | None:
@@ -192,7 +170,7 @@ def _obstacle_rows(
     if not options.obstacles:
         return None
     c = options.collision
-    obstacles = [_obstacle(ctx, i, ob) for i, ob in enumerate(options.obstacles)]
+    obstacles = [obstacle_from_options(ctx, i, ob) for i, ob in enumerate(options.obstacles)]
     try:
         rows = TwoArmObstacleRows(plant, obstacles, c.obstacle_margin, c.gamma, reference.dt, c.points_per_obstacle)
     except ValueError as exc:
