@@ -316,16 +316,49 @@ def cached_library(f: ca.Function, flags: Iterable[str] = ("-O3",), compiler: st
     SolverError
         No such compiler, or compiling failed.
     """
-    checked = check_flags(flags)
+    return source_library(f.name(), _source(f), check_flags(flags), compiler)
+
+
+def source_library(name: str, source: str, flags: tuple[str, ...], compiler: str = "gcc", build: bool = True) -> Path:
+    """The shared library of the C ``source`` in the per-user cache, compiled unless a valid one is there.
+
+    The library is keyed, like :func:`cached_library`'s, by a hash of the source, the compiler and its
+    version, the flags and CasADi's version, and loaded only if its recorded hash and bytes match.
+
+    Parameters
+    ----------
+    name:
+        The library's name stem (a C identifier).
+    source:
+        The whole C translation unit.
+    flags:
+        Compiler flags. Not checked against :data:`ALLOWED_FLAGS`: this is for optikin's own generated
+        sources and flags; user-given flags go through :func:`cached_library`.
+    compiler:
+        One of :data:`COMPILERS`, found on ``PATH``.
+    build:
+        Compile when no valid library is cached; otherwise raise :class:`SolverError`.
+
+    Returns
+    -------
+    Path
+        ``<cache>/<name>_<hash>.so``, beside its record ``<name>_<hash>.json``.
+
+    Raises
+    ------
+    SolverError
+        No such compiler, compiling failed, or (``build=False``) no valid library is cached.
+    """
     path = find_compiler(compiler)
-    source = _source(f)
-    record = _record(source, path, checked)
+    record = _record(source, path, flags)
     key = str(record["hash"])
     cache = cache_dir()
-    stem = f"{f.name()}_{key[:16]}"
+    stem = f"{name}_{key[:16]}"
     library, sidecar = cache / f"{stem}.so", cache / f"{stem}.json"
     if not _is_valid(library, sidecar, key):
-        _build(f.name(), source, path, checked, record, library, sidecar)
+        if not build:
+            raise SolverError(f"{stem} is not built yet")
+        _build(name, source, path, flags, record, library, sidecar)
     return library
 
 

@@ -193,16 +193,7 @@ def source(m: int, scalar: bool = False) -> str:
 
 def _library(m: int, flags: tuple[str, ...], scalar: bool, compiler: str = "gcc") -> Path:
     """The cached shared library of :func:`source` built with ``flags`` (compiled unless valid)."""
-    text = source(m, scalar)
-    path = codegen.find_compiler(compiler)
-    record = codegen._record(text, path, flags)
-    key = str(record["hash"])
-    stem = f"optikin_fk_soa_{m}_{key[:16]}"
-    cache = codegen.cache_dir()
-    library, sidecar = cache / f"{stem}.so", cache / f"{stem}.json"
-    if not codegen._is_valid(library, sidecar, key):
-        codegen._build(stem, text, path, flags, record, library, sidecar)
-    return library
+    return codegen.source_library(f"optikin_fk_soa_{m}", source(m, scalar), flags, compiler)
 
 
 class SoAKernel:
