@@ -38,6 +38,8 @@ lies above the threshold).
 from __future__ import annotations
 
 import math
+import threading
+from collections import OrderedDict
 
 import casadi as ca
 import numpy as np
@@ -119,3 +121,56 @@ def features(s: Array, c: Array, h: Array) -> Array:
 def activations(s: np.ndarray, c: np.ndarray, h: np.ndarray) -> np.ndarray:
     """Unnormalised ``psi_j(s_k)``, ``(K, n)``: the local weights of locally weighted regression."""
     return np.exp(-h[None, :] * (np.asarray(s, dtype=float)[:, None] - c[None, :]) ** 2)
+
+
+CACHED_TABLES = 8
+"""Feature tables of :func:`rollout_features` kept per process (least recently used dropped first)."""
+_TABLES: OrderedDict[tuple, np.ndarray] = OrderedDict()
+_TABLES_LOCK = threading.Lock()
+
+
+def rollout_features(
+    steps: int, dt: float, tau: float, zeta: float, c: np.ndarray, h: np.ndarray, s_end: float
+) -> np.ndarray:
+    """The forcing term's features at the steps of a roll-out whose phase is eq. (15) alone (no phase stopping).
+
+    The phase is the roll-out's recurrence ``s_0 = 1``, ``s_{k+1} = s_k exp(-zeta dt / tau)``
+    (:mod:`optikin.dmp.canonical` with ``alpha = 0``), so the features depend only on the step count, the
+    time constants and the basis: they are computed once per process (cached, read-only) and passed to the
+    compiled roll-out (:mod:`optikin.dmp.compiled`) instead of ``n`` exponentials per step.
+
+    Parameters
+    ----------
+    steps:
+        Roll-out steps ``K``.
+    dt, tau:
+        Step and time constant [s].
+    zeta:
+        Phase decay rate (eq. 15).
+    c, h:
+        ``(n,)`` centres and widths.
+    s_end:
+        Phase below which the forcing term is off (:func:`forcing_end`).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(K, n)`` rows ``(s_k > s_end) s_k psi(s_k) / sum psi(s_k)`` (:func:`features`), ``k = 0 .. K-1``.
+    """
+    c, h = np.ascontiguousarray(c, dtype=float), np.ascontiguousarray(h, dtype=float)
+    key = (int(steps), float(dt), float(tau), float(zeta), float(s_end), c.tobytes(), h.tobytes())
+    with _TABLES_LOCK:
+        table = _TABLES.get(key)
+        if table is not None:
+            _TABLES.move_to_end(key)
+            return table
+    s = np.full(int(steps), math.exp(-float(zeta) * float(dt) / float(tau)))
+    s[0] = 1.0
+    s = np.cumprod(s)  # sequential products: the roll-out's own recurrence
+    table = features(s, c, h) * (s > s_end)[:, None]
+    table.flags.writeable = False
+    with _TABLES_LOCK:
+        _TABLES[key] = table
+        while len(_TABLES) > CACHED_TABLES:
+            _TABLES.popitem(last=False)
+    return table

@@ -29,7 +29,10 @@ take CasADi symbols too (gain tuning differentiates through the regression).
 
 from __future__ import annotations
 
+import threading
+from collections import OrderedDict
 from dataclasses import dataclass
+from typing import Callable
 
 import casadi as ca
 import numpy as np
@@ -67,8 +70,17 @@ class Demonstration:
         return self.Y[-1]
 
 
+GapKernel = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
+"""``(goal (size,), Y (N, size)) -> (lifted goal gaps (N, dim), steps (N - 1, dim))``."""
+
+
 def prepare(
-    space: Space, t: np.ndarray, Y: np.ndarray, source: str = "demonstration", smoothing: float | None = None
+    space: Space,
+    t: np.ndarray,
+    Y: np.ndarray,
+    source: str = "demonstration",
+    smoothing: float | None = None,
+    gaps: GapKernel | None = None,
 ) -> Demonstration:
     """Check a demonstration (finite, fixed step, at least 3 samples) and compute its gap data.
 
@@ -76,6 +88,9 @@ def prepare(
     time constant ``tau`` is its duration. ``smoothing``: the cutoff [Hz] of
     the low-pass of :mod:`optikin.dmp.smoothing` applied first (``None``: the
     samples as given); start and goal are then the smoothed end samples.
+    ``gaps``: computes :func:`~optikin.dmp.spaces.lifted_gaps` and
+    :meth:`~optikin.dmp.spaces.Space.step_gaps` at once
+    (:meth:`optikin.dmp.compiled.CompiledRollout.prepare`); ``None``: those two in numpy (the reference).
     """
     t = np.asarray(t, dtype=float)
     Y = np.asarray(Y, dtype=float)
@@ -109,15 +124,19 @@ def prepare(
         except ValueError as exc:
             raise InputDataError(str(exc), source=source, field="smoothing") from None
     tau = float(t[-1] - t[0])
-    gaps = lifted_gaps(space, Y[-1], Y)
+    if gaps is None:
+        goal_gaps = lifted_gaps(space, Y[-1], Y)
+        steps = space.step_gaps(Y, goal_gaps)
+    else:
+        goal_gaps, steps = gaps(Y[-1], Y)
     return Demonstration(
         space=space,
         t=t - t[0],
         Y=Y,
         dt=dt,
         tau=tau,
-        goal_gap=gaps[:-1],
-        step_rate=space.step_gaps(Y, gaps) * (tau / dt),
+        goal_gap=goal_gaps[:-1],
+        step_rate=steps * (tau / dt),
     )
 
 
@@ -209,9 +228,36 @@ def design_matrix(
     phase_stopping: str = "tracking",
 ) -> tuple[Array, Array, Array, Array, Array]:
     """``(X, s, c, h, s_end)``: the ``(N - 1, n)`` design matrix of eq. (13), the phase of its rows, centres,
-    widths, and the phase below which the forcing term is off (:func:`optikin.dmp.basis.forcing_end`)."""
+    widths, and the phase below which the forcing term is off (:func:`optikin.dmp.basis.forcing_end`).
+
+    Without phase stopping along the demonstration (``alpha = 0``, or ``tracking`` phase stopping) the
+    phase depends only on the number of samples, ``dt``, ``tau`` and ``zeta``: for numeric gains the
+    result is then computed once per process and returned read-only from a cache (:data:`CACHED_DESIGNS`).
+    """
+    numeric = not B.any_casadi(zeta, alpha)
+    key = None
+    if numeric and goal_stopping_weight(phase_stopping) * float(alpha) == 0.0:
+        key = (demo.goal_gap.shape[0], demo.dt, demo.tau, float(zeta), int(n_basis), float(overlap))
+        with _DESIGNS_LOCK:
+            if key in _DESIGNS:
+                _DESIGNS.move_to_end(key)
+                return _DESIGNS[key]
     log_s = demonstration_log_phase(demo, zeta, alpha, phase_stopping)
     c = basis.centres_along(log_s, n_basis)
     h = basis.widths(c, overlap)
     s = ca.exp(log_s[:-1, :]) if B.is_casadi(log_s) else np.exp(log_s[:-1])
-    return basis.features(s, c, h), s, c, h, basis.forcing_end(log_s)
+    design = (basis.features(s, c, h), s, c, h, basis.forcing_end(log_s))
+    if key is not None:
+        for part in design[:4]:
+            part.flags.writeable = False
+        with _DESIGNS_LOCK:
+            _DESIGNS[key] = design
+            while len(_DESIGNS) > CACHED_DESIGNS:
+                _DESIGNS.popitem(last=False)
+    return design
+
+
+CACHED_DESIGNS = 8
+"""Design matrices of :func:`design_matrix` kept per process (least recently used dropped first)."""
+_DESIGNS: OrderedDict[tuple, tuple] = OrderedDict()
+_DESIGNS_LOCK = threading.Lock()

@@ -28,14 +28,16 @@ import numpy as np
 from optikin.algebra import backend as B
 from optikin.dmp import basis, regression
 from optikin.dmp.canonical import goal_stopping_weight
-from optikin.dmp.compiled import ENGINES, compiled_rollout
-from optikin.dmp.gains import Gains
+from optikin.dmp.compiled import ENGINES, CompiledRollout, compiled_rollout
+from optikin.dmp.gains import GAIN_NAMES, Gains
 from optikin.dmp.imitation import Demonstration, amplitude, design_matrix, prepare, target_forces
 from optikin.dmp.rollout import input_size, rollout_function
 from optikin.dmp.spaces import Space
 from optikin.errors import InputDataError
 
 PerStep = np.ndarray | Callable[[np.ndarray], np.ndarray] | None
+IMITATION_ENGINES = ("auto", "compiled", "numpy")
+"""Where :meth:`DMP.imitate` computes the demonstration's gaps."""
 
 
 @dataclass(frozen=True)
@@ -181,7 +183,9 @@ class DMP:
         self.fit: regression.Fit | None = None
 
     # ------------------------------------------------------------------ learning
-    def regression_problem(self, t: np.ndarray, Y: np.ndarray, source: str = "demonstration") -> RegressionProblem:
+    def regression_problem(
+        self, t: np.ndarray, Y: np.ndarray, source: str = "demonstration", engine: str = "numpy"
+    ) -> RegressionProblem:
         """Design matrix and target forces of a demonstration under this DMP's gains (eqs. 13, 16, 21-22).
 
         Parameters
@@ -192,6 +196,9 @@ class DMP:
             ``(N, size)`` samples in the space's layout.
         source:
             Names the data in errors.
+        engine:
+            Where the demonstration's gaps are computed: ``numpy`` (the reference), ``compiled`` (one C call,
+            :meth:`optikin.dmp.compiled.CompiledRollout.prepare`, built now if needed) or ``auto`` (C once built).
 
         Returns
         -------
@@ -200,7 +207,10 @@ class DMP:
             phase ``(N-1,)`` and activations ``(N-1, n_basis)`` along the rows, the
             basis and its end phase.
         """
-        demo = prepare(self.space, t, Y, source, self.smoothing)
+        if engine not in IMITATION_ENGINES:
+            raise ValueError(f"unknown imitation engine {engine!r}; choose from {IMITATION_ENGINES}")
+        kernels = self._kernels(engine)
+        demo = prepare(self.space, t, Y, source, self.smoothing, None if kernels is None else kernels.prepare)
         g = self.gains
         X, s, c, h, s_end = design_matrix(demo, self.n_basis, g.zeta, g.alpha, self.overlap, self.phase_stopping)
         amp = amplitude(self.space, demo.start, demo.goal, self.scale_by_amplitude, source, gap=demo.goal_gap[0])
@@ -217,6 +227,7 @@ class DMP:
         upper: float | np.ndarray | None = None,
         source: str = "demonstration",
         factorisation: str = "cholesky",
+        engine: str = "auto",
     ) -> regression.Fit:
         """Learn the weights from a demonstration (eqs. 16, 21-22) and keep them, with the demonstration and basis.
 
@@ -238,6 +249,9 @@ class DMP:
         factorisation:
             How ``lstsq`` solves: ``cholesky`` (one factorisation for every gap component) or ``svd``
             (the reference; :func:`optikin.dmp.regression.fit_lstsq`).
+        engine:
+            Where the demonstration's gaps are computed (:meth:`regression_problem`): ``auto`` (the compiled
+            library of the roll-out once built), ``compiled`` or ``numpy`` (the reference).
 
         Returns
         -------
@@ -249,7 +263,7 @@ class DMP:
         InputDataError
             A demonstration that is not finite, not on a fixed step or too short.
         """
-        problem = self.regression_problem(t, Y, source)
+        problem = self.regression_problem(t, Y, source, engine)
         if method == "lstsq":
             if lower is not None or upper is not None:
                 raise ValueError("bounds on the weights need method='cvxpy'")
@@ -284,6 +298,12 @@ class DMP:
         if self.centres is None or self.widths is None or self.forcing_end is None:
             raise RuntimeError("the DMP has not learned a demonstration yet: call imitate() first")
         return self.centres, self.widths, self.forcing_end
+
+    def _kernels(self, engine: str) -> CompiledRollout | None:
+        """The compiled library for ``engine`` (``compiled``: built now if needed; ``auto``: if built), or ``None``."""
+        if engine in ("numpy", "casadi"):
+            return None
+        return compiled_rollout(self.space, self.n_basis, build=engine == "compiled")
 
     def _learned(self) -> Demonstration:
         if self.demo is None or self.weights is None:
@@ -337,9 +357,10 @@ class DMP:
         gains, weights:
             Override the learned gains and weights ``(dim, n_basis)`` (tuning).
         engine:
-            ``compiled``: the step as generated C in one C loop (:mod:`optikin.dmp.compiled`), built
-            now if needed (where no C compiler is found, the CasADi Function); ``casadi``: the CasADi
-            Function of :func:`optikin.dmp.rollout.rollout_function` (the reference, same arithmetic);
+            ``compiled``: the step as generated C in one C loop (:mod:`optikin.dmp.compiled`; the
+            features of every step from a table where ``alpha = 0``), built now if needed (where no C
+            compiler is found, the CasADi Function); ``casadi``: the CasADi Function of
+            :func:`optikin.dmp.rollout.rollout_function` and the start's gaps in numpy (the reference);
             ``auto``: the C loop once built (by an earlier ``compiled`` call, in the per-user cache, or
             after :data:`optikin.dmp.compiled.AUTO_BUILD_AFTER` roll-outs in this process), else CasADi.
 
@@ -360,20 +381,23 @@ class DMP:
             disturbance=disturbance,
             reference=reference,
             offset=offset,
-        )  # checks that the DMP has learned
+            engine=engine,
+        )  # checks that the DMP has learned and the engine
         W = np.asarray(self.weights if weights is None else weights, dtype=float)
         space, size, dim = self.space, self.space.size, self.space.dim
-        if engine not in ENGINES:
-            raise ValueError(f"unknown roll-out engine {engine!r}; choose from {ENGINES}")
         x0 = plan.initial_state(gains.alpha_s)
-        compiled = None if engine == "casadi" else compiled_rollout(space, self.n_basis, build=engine == "compiled")
+        compiled = self._kernels(engine)
         f = rollout_function(space, self.n_basis, plan.steps) if compiled is None else None
         begin = time.perf_counter()
         c, h, s_end = self._basis()
         rates = np.minimum(gains.goal_rates(dim), 1e300)
-        params = (W, c, h, plan.amplitude, gains.vector(), plan.tau, plan.dt, s_end, self.goal_stopping, rates)
+        vector = gains.vector()
+        params = (W, c, h, plan.amplitude, vector, plan.tau, plan.dt, s_end, self.goal_stopping, rates)
         if compiled is not None:
-            X = compiled(x0, plan.inputs, *params)
+            # without phase stopping (alpha = 0) the phase of every step is known: its features in advance
+            zeta, alpha = vector[GAIN_NAMES.index("zeta")], vector[GAIN_NAMES.index("alpha")]
+            table = basis.rollout_features(plan.steps, plan.dt, plan.tau, zeta, c, h, s_end) if alpha == 0 else None
+            X = compiled(x0, plan.inputs, *params, features=table)
         else:
             assert f is not None
             X = np.asarray(f(x0, plan.inputs.T, *params)).T
@@ -399,8 +423,12 @@ class DMP:
         disturbance: PerStep = None,
         reference: PerStep = None,
         offset: PerStep = None,
+        engine: str = "auto",
     ) -> "RolloutPlan":
         """The checked inputs of a roll-out (parameters as :meth:`rollout`), before the gains and weights are chosen.
+
+        ``engine`` (as :meth:`rollout`) also says where the few gaps of the start are computed: in the compiled
+        library (``compiled``, ``auto`` once built) or in numpy (``casadi``, the reference).
 
         Returns
         -------
@@ -410,6 +438,9 @@ class DMP:
             start coupling ``(dim,)`` and the amplitude ``(dim,)``.
         """
         demo = self._learned()
+        if engine not in ENGINES:
+            raise ValueError(f"unknown roll-out engine {engine!r}; choose from {ENGINES}")
+        kernels = self._kernels(engine)
         space = self.space
         tau = demo.tau if tau is None else float(tau)
         dt = demo.dt if dt is None else float(dt)
@@ -441,8 +472,14 @@ class DMP:
             U[:, dim : dim + size] = self._per_step(reference, t[:-1], size, "reference")
             U[:, dim + size] = 1.0
         # At rest: the velocity eta + alpha_s (e + r) of eqs. (26)-(27) vanishes at the start.
-        start_gap = np.asarray(space.lift(space.gap(goal, y0), demo.goal_gap[0]), dtype=float)
-        coupling = start_gap + U[0, dim + size] * np.asarray(space.gap(U[0, dim : dim + size], y0))
+        if kernels is None:
+            start_gap = np.asarray(space.lift(space.gap(goal, y0), demo.goal_gap[0]), dtype=float)
+            coupling = start_gap + U[0, dim + size] * np.asarray(space.gap(U[0, dim : dim + size], y0))
+            final_gap = np.asarray(space.lift(space.gap(current, y0), start_gap), dtype=float)
+        else:
+            start_gap = kernels.gap(goal, y0, demo.goal_gap[0])
+            coupling = start_gap + U[0, dim + size] * kernels.gap(U[0, dim : dim + size], y0)
+            final_gap = kernels.gap(current, y0, start_gap)
         return RolloutPlan(
             t=t,
             steps=steps,
@@ -459,7 +496,7 @@ class DMP:
                 current,
                 self.scale_by_amplitude,
                 "rollout",
-                gap=np.asarray(space.lift(space.gap(current, y0), start_gap), dtype=float),
+                gap=final_gap,
             ),
             start_gap=start_gap,
         )

@@ -18,7 +18,9 @@ with the same residual measure and the wall time:
 
 from __future__ import annotations
 
+import threading
 import time
+from collections import OrderedDict
 from dataclasses import dataclass
 from typing import Literal, get_args
 
@@ -110,9 +112,8 @@ def fit_lstsq(X: np.ndarray, F: np.ndarray, ridge: float = 0.0, factorisation: s
     return Fit("lstsq", W, _residual(X, F, W), seconds)
 
 
-def _normal_equations(X: np.ndarray, F: np.ndarray, ridge: float) -> np.ndarray | None:
-    """``W (dim, n)`` from one Cholesky factorisation of ``X^T X + ridge I`` and one refinement step, or
-    ``None`` when the Gram matrix is not safely positive definite (see :data:`CONDITION_LIMIT`)."""
+def _cholesky(X: np.ndarray, ridge: float) -> np.ndarray | None:
+    """The upper Cholesky factor of ``X^T X + ridge I``, or ``None`` when it is not safely positive definite."""
     G = X.T @ X
     if ridge > 0:
         G[np.diag_indices_from(G)] += ridge
@@ -122,6 +123,41 @@ def _normal_equations(X: np.ndarray, F: np.ndarray, ridge: float) -> np.ndarray 
         return None
     rcond, info = scipy.linalg.lapack.dpocon(factor, norm, uplo="U")
     if info != 0 or not rcond * CONDITION_LIMIT >= 1.0:
+        return None
+    return factor
+
+
+CACHED_FACTORS = 8
+"""Cholesky factors of read-only design matrices (the cached ones of :func:`optikin.dmp.imitation.design_matrix`)
+kept per process."""
+_FACTORS: OrderedDict[tuple[int, float], tuple[np.ndarray, np.ndarray | None]] = OrderedDict()
+_FACTORS_LOCK = threading.Lock()
+
+
+def _shared_cholesky(X: np.ndarray, ridge: float) -> np.ndarray | None:
+    """:func:`_cholesky`, computed once per read-only ``X`` (the cache holds ``X``, so its id stays its own)."""
+    if X.flags.writeable:
+        return _cholesky(X, ridge)
+    key = (id(X), float(ridge))
+    with _FACTORS_LOCK:
+        entry = _FACTORS.get(key)
+        if entry is not None and entry[0] is X:
+            _FACTORS.move_to_end(key)
+            return entry[1]
+    factor = _cholesky(X, ridge)
+    with _FACTORS_LOCK:
+        _FACTORS[key] = (X, factor)
+        while len(_FACTORS) > CACHED_FACTORS:
+            _FACTORS.popitem(last=False)
+    return factor
+
+
+def _normal_equations(X: np.ndarray, F: np.ndarray, ridge: float) -> np.ndarray | None:
+    """``W (dim, n)`` from one Cholesky factorisation of ``X^T X + ridge I`` (shared by every read-only ``X``) and
+    one refinement step, or ``None`` when the Gram matrix is not safely positive definite (see
+    :data:`CONDITION_LIMIT`)."""
+    factor = _shared_cholesky(X, ridge)
+    if factor is None:
         return None
     Wt = scipy.linalg.cho_solve((factor, False), X.T @ F, check_finite=False)
     correction = X.T @ (F - X @ Wt) - ridge * Wt

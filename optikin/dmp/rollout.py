@@ -56,12 +56,20 @@ def input_size(space: Space) -> int:
 
 
 @lru_cache(maxsize=32)
-def step_function(space: Space, n_basis: int) -> ca.Function:
+def step_function(space: Space, n_basis: int, tabulated: bool = False, plain: bool = False) -> ca.Function:
     """One step of the roll-out, ``(x, u, W, c, h, amplitude, gains, tau, dt, s_end, w, goal_rates) -> x_next`` (SX).
 
     ``gains`` are the six of :data:`~optikin.dmp.gains.GAIN_NAMES` (its ``beta_g0`` unused) and ``goal_rates``
-    the ``(dim,)`` diagonal of eq. (24) (:meth:`~optikin.dmp.Gains.goal_rates`).
+    the ``(dim,)`` diagonal of eq. (24) (:meth:`~optikin.dmp.Gains.goal_rates`). ``tabulated``: a thirteenth
+    input ``phi (n_basis,)`` holds the forcing term's features ``(s > s_end) s psi(s) / sum psi(s)`` of the step
+    (:func:`optikin.dmp.basis.features`, computed in advance where the phase does not depend on the state,
+    ``alpha = 0``), and ``c``, ``h`` and ``s_end`` are unused. ``plain`` (tabulated only): the step of an
+    undisturbed stretch, valid where ``m = 0``, ``o = 0`` and ``g_new = g``: no reference gap (``r = 0``), no
+    output displacement, and the goal held (``g_next = g``, where the full step moves it by the rounding of
+    ``gap(g, g)``).
     """
+    if plain and not tabulated:
+        raise ValueError("the plain step is a tabulated step")
     size, dim = space.size, space.dim
     x = ca.SX.sym("x", state_size(space))
     u = ca.SX.sym("u", input_size(space))
@@ -83,19 +91,45 @@ def step_function(space: Space, n_basis: int) -> ca.Function:
     g_new, o = u[dim + size + 1 : dim + 2 * size + 1], u[dim + 2 * size + 1 :]
 
     e = space.lift(space.gap(g, y), e_prev)
-    r = m * space.gap(ref, y)
-    psi = ca.exp(-h * (s - c) ** 2)
-    f = amp * ca.mtimes(W, psi) * (s / ca.sum1(psi)) * (s > s_end)
+    r = ca.SX.zeros(dim) if plain else m * space.gap(ref, y)
+    inputs = [x, u, W, c, h, amp, gains, tau, dt, s_end, w, beta_g0]
+    names = ["x", "u", "W", "c", "h", "amplitude", "gains", "tau", "dt", "s_end", "goal_stopping", "goal_rates"]
+    if tabulated:
+        phi = ca.SX.sym("phi", n_basis)
+        inputs, names = inputs + [phi], names + ["phi"]
+        f = amp * ca.mtimes(W, phi)
+    else:
+        psi = ca.exp(-h * (s - c) ** 2)
+        f = amp * ca.mtimes(W, psi) * (s / ca.sum1(psi)) * (s > s_end)
     eta_next = eta + dt / tau * (beta * (gamma * e - eta) + f + d)
-    y_next = space.advance(space.toward(y, dt / tau * (eta_next + alpha_s * (e + r)), g, e), o)
+    y_next = space.toward(y, dt / tau * (eta_next + alpha_s * (e + r)), g, e)
     s_next = s * ca.exp(-zeta * dt / (tau * (1.0 + alpha * (w * smooth_norm(e) + smooth_norm(r)))))
-    g_next = space.advance(g, (1.0 - ca.exp(-beta_g0 * dt / tau)) * space.gap(g_new, g))
-    return ca.Function(
-        f"dmp_step_{n_basis}",
-        [x, u, W, c, h, amp, gains, tau, dt, s_end, w, beta_g0],
-        [ca.vertcat(y_next, eta_next, s_next, g_next, e)],
-        ["x", "u", "W", "c", "h", "amplitude", "gains", "tau", "dt", "s_end", "goal_stopping", "goal_rates"],
-        ["x_next"],
+    if plain:
+        g_next = g
+    else:
+        y_next = space.advance(y_next, o)
+        g_next = space.advance(g, (1.0 - ca.exp(-beta_g0 * dt / tau)) * space.gap(g_new, g))
+    name = f"dmp_step_{'plain' if plain else 'tab' if tabulated else 'full'}_{n_basis}"
+    return ca.Function(name, inputs, [ca.vertcat(y_next, eta_next, s_next, g_next, e)], names, ["x_next"])
+
+
+@lru_cache(maxsize=32)
+def gap_functions(space: Space) -> tuple[ca.Function, ca.Function, ca.Function]:
+    """The gaps of a demonstration as SX Functions (generated as C with the roll-out, :mod:`optikin.dmp.compiled`).
+
+    Returns
+    -------
+    tuple
+        ``dmp_gap(target, y) -> gap(target, y)``, ``dmp_lift(e, previous) -> lift(e, previous)`` and
+        ``dmp_step_gap(y_next, y, e_next, e) -> step_gap(...)`` (:class:`~optikin.dmp.spaces.Space`).
+    """
+    size, dim = space.size, space.dim
+    target, y, y_next = ca.SX.sym("target", size), ca.SX.sym("y", size), ca.SX.sym("y_next", size)
+    e, previous, e_next = ca.SX.sym("e", dim), ca.SX.sym("previous", dim), ca.SX.sym("e_next", dim)
+    return (
+        ca.Function("dmp_gap", [target, y], [space.gap(target, y)]),
+        ca.Function("dmp_lift", [e, previous], [space.lift(e, previous)]),
+        ca.Function("dmp_step_gap", [y_next, y, e_next, e], [space.step_gap(y_next, y, e_next, e)]),
     )
 
 

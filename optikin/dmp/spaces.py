@@ -132,10 +132,27 @@ class Space:
         """
         return self.advance(y, v)
 
+    def step_gap(self, y_next: Array, y: Array, e_next: Array, e: Array) -> Array:
+        """One step of a demonstration in the units :meth:`toward` takes: ``gap(y_next, y)``.
+
+        Parameters
+        ----------
+        y_next, y:
+            ``(..., size)`` consecutive samples (numpy, broadcast) or ``size x 1`` CasADi columns.
+        e_next, e:
+            ``(..., dim)`` their lifted goal gaps (:func:`lifted_gaps`).
+
+        Returns
+        -------
+        Array
+            ``(..., dim)`` (or ``dim x 1``). :class:`GoalLogQuaternion` returns ``e - e_next``.
+        """
+        return self.gap(y_next, y)
+
     def step_gaps(self, Y: np.ndarray, goal_gaps: np.ndarray) -> np.ndarray:
-        """The steps ``(N - 1, dim)`` of a demonstration ``Y (N, size)`` in the units :meth:`toward` takes:
-        ``gap(y_{k+1}, y_k)``; ``goal_gaps (N, dim)`` are its lifted goal gaps (:func:`lifted_gaps`)."""
-        return np.asarray(self.gap(Y[1:], Y[:-1]), dtype=float)
+        """The steps ``(N - 1, dim)`` of a demonstration ``Y (N, size)`` (:meth:`step_gap` along it);
+        ``goal_gaps (N, dim)`` are its lifted goal gaps (:func:`lifted_gaps`)."""
+        return np.asarray(self.step_gap(Y[1:], Y[:-1], goal_gaps[1:], goal_gaps[:-1]), dtype=float)
 
     def lift(self, e: Array, previous: Array) -> Array:
         """The gap ``e`` on the branch nearest ``previous`` (the module docstring).
@@ -254,8 +271,8 @@ class GoalLogQuaternion(UnitQuaternion):
     def toward(self, y: Array, v: Array, goal: Array, e: Array) -> Array:
         return quat_multiply(quat_exp(-0.5 * (e - v)), goal)
 
-    def step_gaps(self, Y: np.ndarray, goal_gaps: np.ndarray) -> np.ndarray:
-        return goal_gaps[:-1] - goal_gaps[1:]
+    def step_gap(self, y_next: Array, y: Array, e_next: Array, e: Array) -> Array:
+        return e - e_next
 
 
 @dataclass(frozen=True, repr=False)
@@ -355,10 +372,10 @@ class Product(Space):
         ys, vs, gs, es = self._split(y, sizes), self._split(v, dims), self._split(goal, sizes), self._split(e, dims)
         return _join([p.toward(*parts) for p, *parts in zip(self.parts, ys, vs, gs, es)])
 
-    def step_gaps(self, Y: np.ndarray, goal_gaps: np.ndarray) -> np.ndarray:
+    def step_gap(self, y_next: Array, y: Array, e_next: Array, e: Array) -> Array:
         sizes, dims = [p.size for p in self.parts], [p.dim for p in self.parts]
-        pairs = zip(self.parts, self._split(Y, sizes), self._split(goal_gaps, dims))
-        return np.asarray(_join([p.step_gaps(a, b) for p, a, b in pairs]), dtype=float)
+        split = (self._split(y_next, sizes), self._split(y, sizes), self._split(e_next, dims), self._split(e, dims))
+        return _join([p.step_gap(*parts) for p, *parts in zip(self.parts, *split)])
 
     def lift(self, e: Array, previous: Array) -> Array:
         dims = [p.dim for p in self.parts]
