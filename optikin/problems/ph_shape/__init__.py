@@ -28,7 +28,7 @@ Problem file::
       samples: 100
       params: {noise: 0.0003, rate: 240.0, stride: 24}
     solver: ph-newton       # any ph preset
-    baselines: [ph-ipopt, ph-ipopt-cold, ph-grid, cosserat-wrench]
+    baselines: [ph-ipopt, ph-ipopt-cold, ph-grid, cosserat-wrench, cc-arc]
 
 Options: :class:`~optikin.problems.ph_shared.PHOptions` (``twist_weight``, ``nodes``,
 ``free_speeds``, ``length``, ``fixed_base``), ``c1_joint`` and ``cosserat_wrench`` (the rod of
@@ -46,11 +46,17 @@ Baseline ``cosserat-wrench`` (:mod:`optikin.problems.ph_shape.wrench`): the back
 is the Cosserat rod clamped at the measured base pose whose fitted tip wrench brings
 its tip to the measured tip pose, at the PH methods' backbone length.
 
+Baseline ``cc-arc`` (:mod:`optikin.problems.ph_shape.cc`): the backbone is the
+constant-curvature arc tangent to the measured base pose through the measured tip
+point (closed form), measured against the markers and the truth like the PH curves.
+
 Per-sample status: the solver's (``ok``, ``not_converged``, ``failed``). The
 comparison has one row per method (solver and ``ph`` baselines): energy gap to
 the best energy found for the sample, time per sample, mean marker distance; the
 ``cosserat-wrench`` row has marker (and truth-backbone) distances, time per sample
-and its failed fits instead of energies.
+and its failed fits instead of energies; the ``cc-arc`` row the same distances, time per sample, its
+tip-tangent error and arc length against the PH length. Every row with a truth backbone reports the
+mean and largest distance of its nodes to the method's curve.
 Figures: shapes against markers in 3-D, distances per sample, time per sample.
 """
 
@@ -59,7 +65,7 @@ from __future__ import annotations
 import optikin.data.markers  # noqa: F401 - registers the sources of data family "markers"
 import optikin.data.cosserat_markers  # noqa: F401 - registers source "cosserat" of data family "markers"
 from optikin.problems import ProblemContext, ProblemKind, register_kind
-from optikin.problems.ph_shape import figures
+from optikin.problems.ph_shape import cc, figures
 from optikin.problems.ph_shape.options import PHShapeOptions
 from optikin.problems.ph_shape.report import report
 from optikin.problems.ph_shape.run import ShapeOutcome, run
@@ -81,10 +87,15 @@ register_kind(
         run=solve,
         backend_families=("ph",),
         default_solver="ph-newton",
-        baselines=(NAME,),
+        baselines=(NAME, cc.NAME),
         options=PHShapeOptions,
         data_family="markers",
         figures=figures.figures,
+        headline=(
+            "mean marker distance [mm]",
+            "truth backbone: mean of the largest node distance [mm]",
+            "median time per sample [us]",
+        ),
         arm_optional=True,
     )
 )

@@ -9,6 +9,7 @@ import numpy as np
 from optikin.data.configurations import skipped_rows_notes
 from optikin.data.cosserat_markers import CosseratRecording, CosseratTruth
 from optikin.problems import ProblemContext
+from optikin.problems.ph_shape import cc
 from optikin.problems.ph_shape.c1 import SECTIONS
 from optikin.problems.ph_shape.run import ShapeOutcome
 from optikin.problems.ph_shape.wrench import NAME, distances_to_polylines
@@ -109,10 +110,53 @@ def wrench_row(outcome: ShapeOutcome) -> tuple[MethodRow, dict[str, np.ndarray]]
     if truth is not None:
         backbone = distances_to_polylines(wrench.backbones, truth.vertebrae) * MM  # (N, nodes)
         if converged.any():
-            metrics["truth backbone: mean of the largest node distance [mm]"] = float(np.nanmean(backbone.max(1)))
-            metrics["truth backbone: largest node distance [mm]"] = float(np.nanmax(backbone))
+            metrics.update(backbone_metrics(backbone))
         arrays[f"truth_backbone_distance_{NAME}"] = backbone / MM
     return MethodRow(NAME, "baseline", metrics), arrays
+
+
+def backbone_metrics(distance_mm: np.ndarray) -> dict[str, float]:
+    """The truth-backbone metrics of a row from each node's distance to the method's curve ``(N, nodes)`` [mm]."""
+    return {
+        "truth backbone: mean of the largest node distance [mm]": float(np.nanmean(distance_mm.max(1))),
+        "truth backbone: largest node distance [mm]": float(np.nanmax(distance_mm)),
+    }
+
+
+def cc_row(outcome: ShapeOutcome) -> tuple[MethodRow, dict[str, np.ndarray]]:
+    """The comparison row and arrays of baseline ``cc-arc`` (:mod:`optikin.problems.ph_shape.cc`).
+
+    Marker distances like the PH rows', the truth backbone's distance where the recording
+    has a truth, time per sample; the angle between the arc's tip tangent and the measured
+    one, and the arc length against the PH methods' backbone length.
+    """
+    arcs = outcome.arcs
+    assert arcs is not None
+    distance = outcome.distances[cc.NAME] * MM  # (N, K)
+    measured = outcome.recording.tip_direction
+    cosine = np.clip(np.sum(arcs.tip_tangent * measured, axis=1), -1.0, 1.0)
+    used = np.array([s.length for s in outcome.samples], dtype=float)
+    metrics: dict[str, Any] = {
+        "ok": f"{len(distance)}/{len(distance)}",
+        "mean marker distance [mm]": float(np.mean(distance)),
+        "mean distance per marker [mm]": np.mean(distance, axis=0),
+        "max distance per marker [mm]": np.max(distance, axis=0),
+        "median time per sample [us]": float(np.median(arcs.seconds) * 1e6),
+        "mean time per sample [us]": float(np.mean(arcs.seconds) * 1e6),
+        "mean tip tangent error [deg]": float(np.degrees(np.mean(np.arccos(cosine)))),
+        "mean |arc length - PH length| [mm]": float(np.mean(np.abs(arcs.arc_length - used)) * MM),
+    }
+    arrays = {
+        f"seconds_{cc.NAME}": arcs.seconds,
+        f"marker_distance_{cc.NAME}": distance / MM,
+        f"points_{cc.NAME}": arcs.points,
+    }
+    truth = outcome.recording.truth
+    if truth is not None:
+        backbone = arcs.distances(truth.vertebrae) * MM  # (N, nodes)
+        metrics.update(backbone_metrics(backbone))
+        arrays[f"truth_backbone_distance_{cc.NAME}"] = backbone / MM
+    return MethodRow(cc.NAME, "baseline", metrics), arrays
 
 
 def c1_report(outcome: ShapeOutcome) -> tuple[dict[str, Any], list[MethodRow], dict[str, np.ndarray]]:
@@ -190,10 +234,19 @@ def report(ctx: ProblemContext, outcome: ShapeOutcome) -> Result:
     truth, truth_arrays = truth_metrics(outcome)
     metrics.update(truth)
     extra = {name: {"mean marker distance [mm]": float(np.nanmean(d) * MM)} for name, d in outcome.distances.items()}
+    if outcome.recording.truth is not None:
+        for name, method in outcome.runs.items():
+            extra[name].update(
+                backbone_metrics(distances_to_curves(method.curves, outcome.recording.truth.vertebrae) * MM)
+            )
     comparison = method_rows(outcome.runs, extra)
     wrench_arrays: dict[str, np.ndarray] = {}
     if outcome.wrench is not None:
         row, wrench_arrays = wrench_row(outcome)
+        comparison.append(row)
+    cc_arrays: dict[str, np.ndarray] = {}
+    if outcome.arcs is not None:
+        row, cc_arrays = cc_row(outcome)
         comparison.append(row)
     chain_arrays: dict[str, np.ndarray] = {}
     if outcome.chain is not None:
@@ -212,7 +265,7 @@ def report(ctx: ProblemContext, outcome: ShapeOutcome) -> Result:
         },
         metrics=metrics,
         comparison=comparison,
-        arrays={**shape_arrays(outcome), **truth_arrays, **wrench_arrays, **chain_arrays},
+        arrays={**shape_arrays(outcome), **truth_arrays, **wrench_arrays, **cc_arrays, **chain_arrays},
         notes=skipped_rows_notes(outcome.recording.skipped_rows, ctx.data_params)
         + [
             f"{len(outcome.recording)} postures from {outcome.recording.source or spec.data.source}; residual = "

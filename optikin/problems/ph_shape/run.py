@@ -9,10 +9,14 @@ import numpy as np
 from optikin.curves import ShapeData
 from optikin.data.markers import MarkerRecording
 from optikin.problems import ProblemContext
+from optikin.problems.ph_shape import cc
 from optikin.problems.ph_shape.c1 import SECTIONS, C1Chain, c1_chain_data, joint_poses, joint_tangents
 from optikin.problems.ph_shape.options import PHShapeOptions
 from optikin.problems.ph_shape.wrench import NAME, WrenchRun, distances_to_polylines, run_wrench
 from optikin.problems.ph_shared import MethodRun, distances_to_curves, shape_samples, solve_methods, solver_name
+
+OTHERS = (NAME, cc.NAME)
+"""The baselines the kind runs itself (not ``ph`` presets)."""
 
 
 @dataclass
@@ -31,7 +35,7 @@ class ShapeOutcome:
         Every method (the solver first), by preset name.
     distances:
         Per method, distance of each intermediate marker to its curve ``(N, K)`` [m] (``cosserat-wrench``
-        included when listed).
+        and ``cc-arc`` included when listed).
     solver:
         The solver's preset name.
     options:
@@ -40,6 +44,8 @@ class ShapeOutcome:
         The ``cosserat-wrench`` fits, when listed.
     chain:
         The C1 chain of every method, with ``c1_joint``.
+    arcs:
+        The ``cc-arc`` arcs, when listed.
     """
 
     recording: MarkerRecording
@@ -51,6 +57,7 @@ class ShapeOutcome:
     options: PHShapeOptions
     wrench: WrenchRun | None = None
     chain: C1Chain | None = None
+    arcs: cc.CCRun | None = None
 
     @property
     def main(self) -> MethodRun:
@@ -63,7 +70,7 @@ def run(ctx: ProblemContext) -> ShapeOutcome:
     options: PHShapeOptions = ctx.options
     source = f"{ctx.path.name}: data"
     recording, lengths, samples = shape_samples(ctx.load_data(), options, source)
-    runs = solve_methods(ctx, options.energy, options.free_speeds, samples, others=(NAME,))
+    runs = solve_methods(ctx, options.energy, options.free_speeds, samples, others=OTHERS)
     distances = {name: distances_to_curves(method.curves, recording.markers) for name, method in runs.items()}
     wrench = None
     if NAME in ctx.spec.baselines:
@@ -72,8 +79,12 @@ def run(ctx: ProblemContext) -> ShapeOutcome:
             wrench = run_wrench(recording, used, options.cosserat_wrench)
             advance()
         distances[NAME] = distances_to_polylines(wrench.backbones, recording.markers)
+    arcs = None
+    if cc.NAME in ctx.spec.baselines:
+        arcs = cc.run_cc(recording)
+        distances[cc.NAME] = arcs.distances(recording.markers)
     chain = c1_chain(ctx, recording, options, source) if options.c1_joint else None
-    return ShapeOutcome(recording, lengths, samples, runs, distances, solver_name(ctx), options, wrench, chain)
+    return ShapeOutcome(recording, lengths, samples, runs, distances, solver_name(ctx), options, wrench, chain, arcs)
 
 
 def c1_chain(ctx: ProblemContext, recording: MarkerRecording, options: PHShapeOptions, source: str) -> C1Chain:
@@ -86,7 +97,7 @@ def c1_chain(ctx: ProblemContext, recording: MarkerRecording, options: PHShapeOp
         source,
     )
     runs = {
-        name: solve_methods(ctx, options.energy, False, links[name], f" (C1 {name})", others=(NAME,))
+        name: solve_methods(ctx, options.energy, False, links[name], f" (C1 {name})", others=OTHERS)
         for name in SECTIONS
     }
     return C1Chain(position, orientation, marker, links, runs)
