@@ -10,8 +10,9 @@ arithmetic is the virtual machine's and the tests hold the two within 1e-12.
 
 Without phase stopping (``alpha = 0``) the phase of every step is known before the
 roll-out, so its features ``s psi(s) / sum psi(s)`` come from a table computed once
-(:func:`optikin.dmp.basis.rollout_features`) instead of ``n_basis`` exponentials per
-step, and the loop takes a shorter step wherever nothing couples, displaces or moves
+(:func:`optikin.dmp.basis.rollout_features`) and the forcing term of every step is one
+matrix product with the weights before the loop (no exponentials and no ``dim x n_basis``
+product per step), and the loop takes a shorter step wherever nothing couples, displaces or moves
 the goal (:func:`~optikin.dmp.rollout.step_function`'s ``plain``). The same library
 computes the demonstration's gaps for the imitation (:meth:`CompiledRollout.prepare`:
 the goal gaps lifted from the last sample back and the steps, one C call) and the few
@@ -84,8 +85,8 @@ static void optikin_close_{f}(optikin_work* s) {{
 """
 
 _LOOP = r"""
-/* ---- optikin: steps of {step} in one call; X holds nx x (steps + 1) states, column-major. With Phi
-   (n_basis x steps, column-major) the tabulated step {tab} takes the forcing term's features from it, and
+/* ---- optikin: steps of {step} in one call; X holds nx x (steps + 1) states, column-major. With Fk
+   (dim x steps, column-major) the tabulated step {tab} takes the forcing term from it, and
    {plain} runs the steps without reference (m = 0), output displacement (o = 0) or goal change (g_new = g) ---- */
 static int optikin_plain(const casadi_real* x, const casadi_real* u) {{
   int i;
@@ -96,33 +97,33 @@ static int optikin_plain(const casadi_real* x, const casadi_real* u) {{
 }}
 
 CASADI_SYMBOL_EXPORT int optikin_dmp_loop(const casadi_real** p, const casadi_real* U, long long steps,
-                                          casadi_real* X, const casadi_real* Phi) {{
+                                          casadi_real* X, const casadi_real* Fk) {{
   optikin_work s, t;
   long long k, j;
   int status = 0, failed;
-  if (Phi ? optikin_open_{tab}(&s) : optikin_open_{step}(&s)) return -1;
-  if (Phi && optikin_open_{plain}(&t)) {{ optikin_close_{tab}(&s); return -1; }}
+  if (Fk ? optikin_open_{tab}(&s) : optikin_open_{step}(&s)) return -1;
+  if (Fk && optikin_open_{plain}(&t)) {{ optikin_close_{tab}(&s); return -1; }}
   for (j = 2; j < {n_args}; ++j) s.arg[j] = p[j];
-  if (Phi) for (j = 2; j < {n_args}; ++j) t.arg[j] = p[j];
+  if (Fk) for (j = 2; j < {n_args}; ++j) t.arg[j] = p[j];
   for (k = 0; k < steps; ++k) {{
     s.arg[0] = X + k * {nx};
     s.arg[1] = U + k * {nu};
     s.res[0] = X + (k + 1) * {nx};
-    if (!Phi) {{
+    if (!Fk) {{
       failed = {step}(s.arg, s.res, s.iw, s.w, s.mem);
     }} else if (optikin_plain(s.arg[0], s.arg[1])) {{
       t.arg[0] = s.arg[0];
       t.arg[1] = s.arg[1];
-      t.arg[{n_args}] = Phi + k * {n_basis};
+      t.arg[{n_args}] = Fk + k * {dim};
       t.res[0] = s.res[0];
       failed = {plain}(t.arg, t.res, t.iw, t.w, t.mem);
     }} else {{
-      s.arg[{n_args}] = Phi + k * {n_basis};
+      s.arg[{n_args}] = Fk + k * {dim};
       failed = {tab}(s.arg, s.res, s.iw, s.w, s.mem);
     }}
     if (failed) {{ status = (int) (k + 1); break; }}
   }}
-  if (Phi) {{ optikin_close_{tab}(&s); optikin_close_{plain}(&t); }} else optikin_close_{step}(&s);
+  if (Fk) {{ optikin_close_{tab}(&s); optikin_close_{plain}(&t); }} else optikin_close_{step}(&s);
   return status;
 }}
 
@@ -202,7 +203,6 @@ def _source(space: Space, n_basis: int) -> str:
         n_args=N_ARGS,
         nx=state_size(space),
         nu=input_size(space),
-        n_basis=n_basis,
         dim=space.dim,
         size=space.size,
         m=space.dim + space.size,
@@ -236,17 +236,9 @@ class CompiledRollout:
     def __init__(self, space: Space, n_basis: int, build: bool = True):
         self.space, self.n_basis = space, int(n_basis)
         self.nx, self.nu = state_size(space), input_size(space)
-        text = _source(space, self.n_basis)
-        path = codegen.find_compiler("gcc")
-        record = codegen._record(text, path, FLAGS)
-        key = str(record["hash"])
-        stem = f"optikin_dmp_{self.n_basis}_{key[:16]}"
-        cache = codegen.cache_dir()
-        library, sidecar = cache / f"{stem}.so", cache / f"{stem}.json"
-        if not codegen._is_valid(library, sidecar, key):
-            if not build:
-                raise SolverError(f"{stem} is not built yet")
-            codegen._build(stem, text, path, FLAGS, record, library, sidecar)
+        library = codegen.source_library(
+            f"optikin_dmp_{self.n_basis}", _source(space, self.n_basis), FLAGS, build=build
+        )
         handle = ctypes.CDLL(str(library))
         pointer, int64 = ctypes.c_void_p, ctypes.c_longlong
         loop = handle.optikin_dmp_loop
@@ -311,7 +303,7 @@ class CompiledRollout:
         s_end: float,
         goal_stopping: float,
         goal_rates: np.ndarray,
-        features: np.ndarray | None = None,
+        forcing: np.ndarray | None = None,
     ) -> np.ndarray:
         """The states of the roll-out, the arguments of :func:`~optikin.dmp.rollout.rollout_function` in numpy.
 
@@ -333,9 +325,10 @@ class CompiledRollout:
             Time constant and step [s], end phase of the forcing term, weight of the goal gap in phase stopping.
         goal_rates:
             ``(dim,)`` goal-filter rates (eq. 24).
-        features:
-            ``(steps, n_basis)`` the forcing term's features per step (:func:`optikin.dmp.basis.rollout_features`),
-            valid only where the phase does not depend on the state (``alpha = 0``); ``None``: computed per step.
+        forcing:
+            ``(steps, dim)`` the forcing term of every step, ``amplitude * (features @ W.T)`` with the features of
+            :func:`optikin.dmp.basis.rollout_features`: valid only where the phase does not depend on the state
+            (``alpha = 0``); ``None``: computed in each step.
 
         Returns
         -------
@@ -364,10 +357,10 @@ class CompiledRollout:
         pointers = [p.ctypes.data for p in parts[:7]] + [scalars + 8 * i for i in range(4)] + [parts[8].ctypes.data]
         args = (ctypes.c_void_p * N_ARGS)(*pointers)
         table = None
-        if features is not None:
-            table = np.ascontiguousarray(features, dtype=np.float64)
-            if table.shape != (steps, self.n_basis):
-                raise ValueError(f"features: expected shape ({steps}, {self.n_basis}), got {table.shape}")
+        if forcing is not None:
+            table = np.ascontiguousarray(forcing, dtype=np.float64)
+            if table.shape != (steps, dim):
+                raise ValueError(f"forcing: expected shape ({steps}, {dim}), got {table.shape}")
         X = np.empty((steps + 1, self.nx))
         X[0] = parts[0]
         status = self._loop(args, U.ctypes.data, steps, X.ctypes.data, None if table is None else table.ctypes.data)

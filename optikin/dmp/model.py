@@ -358,7 +358,7 @@ class DMP:
             Override the learned gains and weights ``(dim, n_basis)`` (tuning).
         engine:
             ``compiled``: the step as generated C in one C loop (:mod:`optikin.dmp.compiled`; the
-            features of every step from a table where ``alpha = 0``), built now if needed (where no C
+            forcing term of every step in advance where ``alpha = 0``), built now if needed (where no C
             compiler is found, the CasADi Function); ``casadi``: the CasADi Function of
             :func:`optikin.dmp.rollout.rollout_function` and the start's gaps in numpy (the reference);
             ``auto``: the C loop once built (by an earlier ``compiled`` call, in the per-user cache, or
@@ -394,10 +394,13 @@ class DMP:
         vector = gains.vector()
         params = (W, c, h, plan.amplitude, vector, plan.tau, plan.dt, s_end, self.goal_stopping, rates)
         if compiled is not None:
-            # without phase stopping (alpha = 0) the phase of every step is known: its features in advance
+            # without phase stopping (alpha = 0) the phase of every step is known: its forcing term in advance
             zeta, alpha = vector[GAIN_NAMES.index("zeta")], vector[GAIN_NAMES.index("alpha")]
-            table = basis.rollout_features(plan.steps, plan.dt, plan.tau, zeta, c, h, s_end) if alpha == 0 else None
-            X = compiled(x0, plan.inputs, *params, features=table)
+            forcing = None
+            if alpha == 0:
+                table = basis.rollout_features(plan.steps, plan.dt, plan.tau, zeta, c, h, s_end)
+                forcing = (table @ W.T) * plan.amplitude
+            X = compiled(x0, plan.inputs, *params, forcing=forcing)
         else:
             assert f is not None
             X = np.asarray(f(x0, plan.inputs.T, *params)).T

@@ -61,12 +61,12 @@ def step_function(space: Space, n_basis: int, tabulated: bool = False, plain: bo
 
     ``gains`` are the six of :data:`~optikin.dmp.gains.GAIN_NAMES` (its ``beta_g0`` unused) and ``goal_rates``
     the ``(dim,)`` diagonal of eq. (24) (:meth:`~optikin.dmp.Gains.goal_rates`). ``tabulated``: a thirteenth
-    input ``phi (n_basis,)`` holds the forcing term's features ``(s > s_end) s psi(s) / sum psi(s)`` of the step
-    (:func:`optikin.dmp.basis.features`, computed in advance where the phase does not depend on the state,
-    ``alpha = 0``), and ``c``, ``h`` and ``s_end`` are unused. ``plain`` (tabulated only): the step of an
-    undisturbed stretch, valid where ``m = 0``, ``o = 0`` and ``g_new = g``: no reference gap (``r = 0``), no
-    output displacement, and the goal held (``g_next = g``, where the full step moves it by the rounding of
-    ``gap(g, g)``).
+    input ``forcing (dim,)`` holds the step's forcing term ``f = a * W (s > s_end) s psi(s) / sum psi(s)``
+    (computed in advance where the phase does not depend on the state, ``alpha = 0``:
+    :func:`optikin.dmp.basis.rollout_features`), and ``W``, ``c``, ``h``, ``amplitude`` and ``s_end`` are unused.
+    ``plain`` (tabulated only): the step of an undisturbed stretch, valid where ``m = 0``, ``o = 0`` and
+    ``g_new = g``: no reference gap (``r = 0``), no output displacement, and the goal held (``g_next = g``,
+    where the full step moves it by the rounding of ``gap(g, g)``).
     """
     if plain and not tabulated:
         raise ValueError("the plain step is a tabulated step")
@@ -95,9 +95,8 @@ def step_function(space: Space, n_basis: int, tabulated: bool = False, plain: bo
     inputs = [x, u, W, c, h, amp, gains, tau, dt, s_end, w, beta_g0]
     names = ["x", "u", "W", "c", "h", "amplitude", "gains", "tau", "dt", "s_end", "goal_stopping", "goal_rates"]
     if tabulated:
-        phi = ca.SX.sym("phi", n_basis)
-        inputs, names = inputs + [phi], names + ["phi"]
-        f = amp * ca.mtimes(W, phi)
+        f = ca.SX.sym("forcing", dim)
+        inputs, names = inputs + [f], names + ["forcing"]
     else:
         psi = ca.exp(-h * (s - c) ** 2)
         f = amp * ca.mtimes(W, psi) * (s / ca.sum1(psi)) * (s > s_end)
