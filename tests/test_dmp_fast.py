@@ -93,6 +93,7 @@ def test_ridge_and_ill_conditioned_designs():
     for ridge in (0.0, 1e-3, 10.0):
         fast, reference = fit_lstsq(X, F, ridge, factorisation="cholesky"), fit_lstsq(X, F, ridge)
         assert np.abs(fast.weights - reference.weights).max() <= 1e-12
+        assert fast.residual == pytest.approx(np.sqrt(np.mean((X @ reference.weights.T - F) ** 2)), rel=1e-12)
         # stationarity of the ridge objective: X^T (X W^T - F) + ridge W^T = 0
         assert np.abs(X.T @ (X @ fast.weights.T - F) + ridge * fast.weights.T).max() <= 1e-10
     # two equal columns: the Gram matrix is singular; the SVD fallback gives the minimum-norm solution

@@ -99,15 +99,17 @@ def fit_lstsq(X: np.ndarray, F: np.ndarray, ridge: float = 0.0, factorisation: s
     if factorisation not in ("cholesky", "svd"):
         raise ValueError(f"unknown factorisation {factorisation!r}; choose cholesky or svd")
     start = time.perf_counter()
-    W = _normal_equations(X, F, ridge) if factorisation == "cholesky" else None
-    if W is None:
-        if ridge > 0:
-            n = X.shape[1]
-            A = np.vstack([X, np.sqrt(ridge) * np.eye(n)])
-            b = np.vstack([F, np.zeros((n, F.shape[1]))])
-        else:
-            A, b = X, F
-        W = np.linalg.lstsq(A, b, rcond=None)[0].T
+    solved = _normal_equations(X, F, ridge) if factorisation == "cholesky" else None
+    if solved is not None:
+        W, residual = solved
+        return Fit("lstsq", W, residual, time.perf_counter() - start)
+    if ridge > 0:
+        n = X.shape[1]
+        A = np.vstack([X, np.sqrt(ridge) * np.eye(n)])
+        b = np.vstack([F, np.zeros((n, F.shape[1]))])
+    else:
+        A, b = X, F
+    W = np.linalg.lstsq(A, b, rcond=None)[0].T
     seconds = time.perf_counter() - start
     return Fit("lstsq", W, _residual(X, F, W), seconds)
 
@@ -152,17 +154,24 @@ def _shared_cholesky(X: np.ndarray, ridge: float) -> np.ndarray | None:
     return factor
 
 
-def _normal_equations(X: np.ndarray, F: np.ndarray, ridge: float) -> np.ndarray | None:
-    """``W (dim, n)`` from one Cholesky factorisation of ``X^T X + ridge I`` (shared by every read-only ``X``) and
-    one refinement step, or ``None`` when the Gram matrix is not safely positive definite (see
-    :data:`CONDITION_LIMIT`)."""
+def _normal_equations(X: np.ndarray, F: np.ndarray, ridge: float) -> tuple[np.ndarray, float] | None:
+    """``W (dim, n)`` from one Cholesky factorisation ``R^T R = X^T X + ridge I`` (shared by every read-only ``X``)
+    and one refinement step, with ``rms(X W^T - F)``; ``None`` when the Gram matrix is not safely positive
+    definite (see :data:`CONDITION_LIMIT`).
+
+    The residual of the refined weights ``W0 + D`` comes from the refinement's own products, without another
+    pass over ``X``: ``r1 = r0 - X D``, so ``|r1|^2 = |r0|^2 - 2 <D, X^T r0> + <D, X^T X D>`` with
+    ``X^T X D = R^T (R D) - ridge D`` (the corrections are small against ``|r0|^2``: no cancellation)."""
     factor = _shared_cholesky(X, ridge)
     if factor is None:
         return None
     Wt = scipy.linalg.cho_solve((factor, False), X.T @ F, check_finite=False)
-    correction = X.T @ (F - X @ Wt) - ridge * Wt
-    Wt = Wt + scipy.linalg.cho_solve((factor, False), correction, check_finite=False)
-    return np.ascontiguousarray(Wt.T)
+    r0 = F - X @ Wt
+    c0 = X.T @ r0
+    D = scipy.linalg.cho_solve((factor, False), c0 - ridge * Wt, check_finite=False)
+    gram_D = factor.T @ (factor @ D) - ridge * D
+    squares = float(np.sum(r0 * r0)) - 2.0 * float(np.sum(D * c0)) + float(np.sum(D * gram_D))
+    return np.ascontiguousarray((Wt + D).T), float(np.sqrt(max(squares, 0.0) / F.size))
 
 
 def fit_cvxpy(
