@@ -250,3 +250,25 @@ def test_caches_follow_the_demonstration_timing(demo):
         assert np.abs(dmp.weights - reference.weights).max() <= 1e-10 * np.abs(reference.weights).max()
     with pytest.raises(ValueError, match="imitation engine"):
         dmp.imitate(demo.t, demo.position, engine="casadi")
+
+
+def test_only_shared_designs_keep_their_factor():
+    """A read-only view of a changing matrix is factorised on every fit; a shared design only once."""
+    rng = np.random.default_rng(5)
+    base, F = rng.normal(size=(120, 8)), rng.normal(size=(120, 2))
+    view = base.view()
+    view.flags.writeable = False
+    first = fit_lstsq(view, F, factorisation="cholesky")
+    base[:, 0] *= 3.0
+    second = fit_lstsq(view, F, factorisation="cholesky")
+    assert np.abs(second.weights - fit_lstsq(base, F).weights).max() <= 1e-12
+    assert np.abs(second.weights - first.weights).max() > 1e-3
+    with pytest.raises(ValueError, match="read-only"):
+        regression.share_design(base)
+    shared = base.copy()
+    shared.flags.writeable = False
+    regression.share_design(shared)
+    for ridge in (0.0, 0.5, 0.0):
+        fit = fit_lstsq(shared, F, ridge, factorisation="cholesky")
+        assert np.abs(fit.weights - fit_lstsq(shared, F, ridge).weights).max() <= 1e-12
+    assert set(regression._FACTORS[id(shared)][1]) == {0.0, 0.5}

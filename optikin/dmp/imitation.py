@@ -39,7 +39,7 @@ import numpy as np
 
 from optikin.algebra import backend as B
 from optikin.algebra.backend import Array
-from optikin.dmp import basis
+from optikin.dmp import basis, regression
 from optikin.dmp.canonical import goal_stopping_weight, stopped_log_phase
 from optikin.dmp.smoothing import smooth_demonstration
 from optikin.dmp.spaces import Space, lifted_gaps, smooth_norm
@@ -232,7 +232,8 @@ def design_matrix(
 
     Without phase stopping along the demonstration (``alpha = 0``, or ``tracking`` phase stopping) the
     phase depends only on the number of samples, ``dt``, ``tau`` and ``zeta``: for numeric gains the
-    result is then computed once per process and returned read-only from a cache (:data:`CACHED_DESIGNS`).
+    result is then computed once per process and returned read-only from a cache (:data:`CACHED_DESIGNS`),
+    its Cholesky factor kept by :func:`optikin.dmp.regression.share_design`.
     """
     numeric = not B.any_casadi(zeta, alpha)
     key = None
@@ -250,6 +251,7 @@ def design_matrix(
     if key is not None:
         for part in design[:4]:
             part.flags.writeable = False
+        regression.share_design(design[0])
         with _DESIGNS_LOCK:
             _DESIGNS[key] = design
             while len(_DESIGNS) > CACHED_DESIGNS:

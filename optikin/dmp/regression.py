@@ -130,32 +130,49 @@ def _cholesky(X: np.ndarray, ridge: float) -> np.ndarray | None:
 
 
 CACHED_FACTORS = 8
-"""Cholesky factors of read-only design matrices (the cached ones of :func:`optikin.dmp.imitation.design_matrix`)
-kept per process."""
-_FACTORS: OrderedDict[tuple[int, float], tuple[np.ndarray, np.ndarray | None]] = OrderedDict()
+"""Shared design matrices (:func:`share_design`) whose Cholesky factors are kept per process."""
+_FACTORS: OrderedDict[int, tuple[np.ndarray, dict[float, np.ndarray | None]]] = OrderedDict()
 _FACTORS_LOCK = threading.Lock()
 
 
-def _shared_cholesky(X: np.ndarray, ridge: float) -> np.ndarray | None:
-    """:func:`_cholesky`, computed once per read-only ``X`` (the cache holds ``X``, so its id stays its own)."""
+def share_design(X: np.ndarray) -> None:
+    """Mark a read-only design matrix as shared: :func:`fit_lstsq` factorises it once per ridge weight.
+
+    For the design matrices :func:`optikin.dmp.imitation.design_matrix` caches. The cache holds ``X``
+    (so its id stays its own) and drops the least recently used beyond :data:`CACHED_FACTORS`.
+
+    Raises
+    ------
+    ValueError
+        ``X`` is writeable (a factor kept for it could go stale).
+    """
     if X.flags.writeable:
-        return _cholesky(X, ridge)
-    key = (id(X), float(ridge))
+        raise ValueError("only a read-only design matrix can be shared")
     with _FACTORS_LOCK:
-        entry = _FACTORS.get(key)
-        if entry is not None and entry[0] is X:
-            _FACTORS.move_to_end(key)
-            return entry[1]
-    factor = _cholesky(X, ridge)
-    with _FACTORS_LOCK:
-        _FACTORS[key] = (X, factor)
+        if _FACTORS.get(id(X), (None,))[0] is not X:
+            _FACTORS[id(X)] = (X, {})
+        _FACTORS.move_to_end(id(X))
         while len(_FACTORS) > CACHED_FACTORS:
             _FACTORS.popitem(last=False)
+
+
+def _shared_cholesky(X: np.ndarray, ridge: float) -> np.ndarray | None:
+    """:func:`_cholesky`, computed once per ridge weight for a shared ``X`` (:func:`share_design`)."""
+    with _FACTORS_LOCK:
+        entry = _FACTORS.get(id(X))
+        if entry is None or entry[0] is not X:
+            entry = None
+        elif float(ridge) in entry[1]:
+            return entry[1][float(ridge)]
+    factor = _cholesky(X, ridge)
+    if entry is not None:
+        with _FACTORS_LOCK:
+            entry[1][float(ridge)] = factor
     return factor
 
 
 def _normal_equations(X: np.ndarray, F: np.ndarray, ridge: float) -> tuple[np.ndarray, float] | None:
-    """``W (dim, n)`` from one Cholesky factorisation ``R^T R = X^T X + ridge I`` (shared by every read-only ``X``)
+    """``W (dim, n)`` from one Cholesky factorisation ``R^T R = X^T X + ridge I`` (kept for a shared ``X``)
     and one refinement step, with ``rms(X W^T - F)``; ``None`` when the Gram matrix is not safely positive
     definite (see :data:`CONDITION_LIMIT`).
 
