@@ -371,7 +371,7 @@ def track(
     *,
     start: np.ndarray | None = None,
     rate: float = 500.0,
-    preset: str = "qp-osqp",
+    preset: str = "qp-active-set",
     gain: float = 10.0,
     damping: float = 1e-4,
     horizon: int = 20,
@@ -402,7 +402,8 @@ def track(
     rate:
         Sample rate of an array reference [Hz].
     preset:
-        The ``qp`` solver preset of the ``qp`` controller.
+        The ``qp`` solver preset of the ``qp`` controller (default: DAQP's active set, warm-started, exact;
+        ``qp-osqp`` for ADMM).
     gain, damping:
         Feedback gain ``K`` [1/s] and damping ``lambda`` of the built controllers (``lambda`` is the MPC's
         effort weight: with ``horizon = 1`` the MPC is the QP step).

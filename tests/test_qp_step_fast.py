@@ -19,14 +19,10 @@ import pytest
 import qpsolvers
 
 from optikin.arms.constant_curvature import ConstantCurvatureArm
-from optikin.control.qp import (
-    ACTIVE_SET_MAX_RATES,
-    ACTIVE_SET_MAX_ROWS,
-    ActiveSetStepSolver,
-    QPController,
-    default_step_solver,
-)
+from optikin.control.qp import ACTIVE_SET_MAX_RATES, ACTIVE_SET_MAX_ROWS, QPController, default_step_solver
+from optikin.solvers import load_preset
 from optikin.solvers.qp import step_solver
+from optikin.solvers.qp.qp_daqp import ActiveSetStepSolver
 from optikin.solvers.qp.qp_osqp import OSQPStepSolver
 
 DT, GAIN, DAMPING, MARGIN = 0.01, 20.0, 1e-4, 1e-9
@@ -250,3 +246,10 @@ def test_backbone_barrier_rows_from_obstacles():
         assert qp.status == "ok" and np.abs(qdot - expected).max() < TOLERANCE
         active += int(np.any(np.abs(A[rows] @ expected - b[rows]) < 1e-9))
     assert active >= 20, active  # the sphere holds the backbone back in about a quarter of these steps
+
+
+def test_the_qp_active_set_preset_builds_the_structural_default():
+    factory = load_preset("qp-active-set").build()
+    solver = factory.create(6, 8, 3)
+    assert isinstance(solver, ActiveSetStepSolver) and (solver.n, solver.rows) == (6, 3)
+    assert isinstance(step_solver("qp_daqp", 6, 8), ActiveSetStepSolver)

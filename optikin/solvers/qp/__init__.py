@@ -1,6 +1,8 @@
 """Backends of family ``qp``: the per-step tracking QP of :mod:`optikin.control.qp`, one module per backend.
 
 ==========================  ====================================================
+``qp_daqp``                 DAQP's dual active set on the controller's buffers,
+                            warm-started from the previous step's active set
 ``qp_osqp``                 OSQP set up once; each step updates ``P``'s values,
                             ``q``, ``l``, ``u`` in place and solves warm-started
 ``qp_qpsolvers``            ``qpsolvers.solve_qp`` with bounds as bounds (daqp,
@@ -35,7 +37,7 @@ def step_solver(backend: str, n: int, m: int, **options: Any) -> QPStepSolver:
     Parameters
     ----------
     backend:
-        A registered ``qp`` backend (``qp_osqp``, ``qp_qpsolvers``, ``qp_cvxpy``, ``qp_cvxpy_rebuild``).
+        A registered ``qp`` backend (``qp_daqp``, ``qp_osqp``, ``qp_qpsolvers``, ``qp_cvxpy``, ``qp_cvxpy_rebuild``).
     n, m:
         Number of joint rates and of task rows.
     **options:
