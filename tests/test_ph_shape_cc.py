@@ -1,9 +1,9 @@
-"""Baseline ``cc-arc`` of ``ph_shape`` (optikin.problems.ph_shape.cc) and its place in sweep ``ph-noise``.
+"""Baselines ``cc-arc`` and ``cc-two-arcs`` of ``ph_shape`` (optikin.problems.ph_shape.cc), sweep ``ph-noise``.
 
-Independent references: recordings whose backbones are exact circular arcs (and a
-straight one), built here from the arc's own equation, on which the constant-curvature
-reconstruction must be exact; brute-force closest points on densely sampled arcs for
-the closed-form distance.
+Independent references: recordings whose backbones are exact circular arcs (and straight
+ones), one per section, built here from the arc's own equation and the frame carried
+along it, on which the constant-curvature reconstructions must be exact; brute-force
+closest points on densely sampled arcs for the closed-form distance.
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ import yaml
 
 from optikin.algebra import quat_from_matrix
 from optikin.data.markers import CBHATruth, MarkerRecording, write_marker_csv
+from optikin.errors import InputDataError
 from optikin.physics.comparison import cc_arc_points
 from optikin.problems.ph_shape import cc
 from optikin.problems.ph_shape.wrench import distances_to_polylines
@@ -31,6 +32,12 @@ ARCS = (  # (length [m], turning angle [rad], bending-plane azimuth [rad])
     (0.3, math.pi / 2, -1.0),
     (0.2, 4.0, 0.7),  # more than half a turn: the tip behind the base plane
 )
+TWO_SECTIONS = (  # two such arcs, the second in its own plane, joined with C1 continuity
+    ((0.15, 0.8, 0.3), (0.17, 1.3, 2.2)),
+    ((0.2, 0.0, 0.0), (0.15, 1.0, 1.0)),
+    ((0.15, 1.2, 0.5), (0.15, 0.0, 0.0)),
+    ((0.16, 2.0, -0.4), (0.18, 1.5, math.pi)),  # section 2 bends back
+)
 
 
 def rotation(axis: np.ndarray, angle: float) -> np.ndarray:
@@ -39,38 +46,49 @@ def rotation(axis: np.ndarray, angle: float) -> np.ndarray:
     return np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * K @ K
 
 
-def arc_recording(rng: np.random.Generator) -> MarkerRecording:
-    """One posture per entry of :data:`ARCS`: a circular-arc backbone of a random base pose, noise-free."""
-    t, p0s, q0s, p1s, q1s, markers, nodes = [], [], [], [], [], [], []
-    for i, (length, angle, azimuth) in enumerate(ARCS):
+def on_arc(p0: np.ndarray, R0: np.ndarray, section: tuple[float, float, float], s: np.ndarray):
+    """Points at arc lengths ``s`` of the arc leaving ``p0`` along the z axis of frame ``R0``, and its end frame."""
+    length, angle, azimuth = section
+    t0, n = R0[:, 2], R0 @ np.array([np.cos(azimuth), np.sin(azimuth), 0.0])
+    kappa = angle / length
+    if kappa == 0.0:
+        points = p0 + np.outer(s, t0)
+    else:  # 1 - cos(x) as 2 sin(x / 2)^2: exact at small turns
+        points = p0 + np.outer(np.sin(kappa * s) / kappa, t0) + np.outer(2 * np.sin(kappa * s / 2) ** 2 / kappa, n)
+    return points, rotation(np.cross(t0, n), angle) @ R0  # the frame carried along the arc: z stays tangent
+
+
+def arc_recording(rng: np.random.Generator, postures=None) -> MarkerRecording:
+    """One posture per entry of ``postures`` (default: :data:`ARCS` as two halves of one arc), a random base pose,
+    noise-free: markers at the middle of section 1, the joint (vertebra 9) and the middle of section 2."""
+    if postures is None:
+        postures = [((a[0] / 2, a[1] / 2, a[2]),) * 2 for a in ARCS]
+    base, base_q, tip, tip_q, markers, nodes = [], [], [], [], [], []
+    for first, second in postures:
         R0 = rotation(np.array([0.6, -0.48, 0.64]), rng.uniform(-np.pi, np.pi))
-        p0, t0 = rng.normal(size=3) * 0.1, R0[:, 2]
-        n = R0 @ np.array([np.cos(azimuth), np.sin(azimuth), 0.0])
-        kappa = angle / length
-
-        def point(s: np.ndarray) -> np.ndarray:  # 1 - cos(x) as 2 sin(x / 2)^2: exact at small turns
-            if kappa == 0.0:
-                return p0 + np.outer(s, t0)
-            return p0 + np.outer(np.sin(kappa * s) / kappa, t0) + np.outer(2 * np.sin(kappa * s / 2) ** 2 / kappa, n)
-
-        R1 = rotation(np.cross(t0, n), angle) @ R0  # the frame carried along the arc: z stays tangent
-        t.append(float(i))
-        p0s.append(p0)
-        q0s.append(quat_from_matrix(R0))
-        p1s.append(point(np.array([length]))[0])
-        q1s.append(quat_from_matrix(R1))
-        markers.append(point(length * np.array([0.25, 0.5, 0.75])))
-        nodes.append(point(np.linspace(0.0, length, VERTEBRAE)))
-    N = len(ARCS)
-    truth = CBHATruth(np.zeros((N, 48)), np.array(nodes), np.array([a[0] for a in ARCS]), np.array(markers))
+        p0 = rng.normal(size=3) * 0.1
+        ends = np.array([0.5, 1.0]) * first[0]
+        points1, R1 = on_arc(p0, R0, first, np.concatenate([np.linspace(0.0, first[0], 9), ends]))
+        pm = points1[-1]
+        points2, R2 = on_arc(pm, R1, second, np.concatenate([np.linspace(0.0, second[0], 9)[1:], [0.5 * second[0]]]))
+        base.append(p0)
+        base_q.append(quat_from_matrix(R0))
+        tip.append(points2[-2])
+        tip_q.append(quat_from_matrix(R2))
+        markers.append([points1[-2], pm, points2[-1]])
+        nodes.append(np.concatenate([points1[:9], points2[:8]]))
+    N = len(postures)
+    lengths = np.array([first[0] + second[0] for first, second in postures])
+    truth = CBHATruth(np.zeros((N, 48)), np.array(nodes), lengths, np.array(markers))
     return MarkerRecording(
-        t=np.array(t),
-        base_position=np.array(p0s),
-        base_orientation=np.array(q0s),
-        tip_position=np.array(p1s),
-        tip_orientation=np.array(q1s),
+        t=np.arange(N, dtype=float),
+        base_position=np.array(base),
+        base_orientation=np.array(base_q),
+        tip_position=np.array(tip),
+        tip_orientation=np.array(tip_q),
         markers=np.array(markers),
         truth=truth,
+        marker_vertebrae=(5, 9, 13),
     )
 
 
@@ -84,6 +102,22 @@ def test_cc_arc_is_exact_on_circular_arcs():
     np.testing.assert_allclose(arcs.tip_tangent, recording.tip_direction, atol=1e-12)
     np.testing.assert_allclose(arcs.angle, [a[1] for a in ARCS], atol=1e-9)
     assert np.all(arcs.seconds > 0)
+
+
+def test_two_arcs_are_exact_on_two_section_arcs():
+    """Piecewise constant curvature, C1 at the joint: both arcs rebuilt from the base pose, the joint marker
+    and the tip point (the tip tangent too, which they do not use)."""
+    recording = arc_recording(np.random.default_rng(3), TWO_SECTIONS)
+    assert recording.truth is not None
+    two = cc.run_two_arcs(recording, "test")
+    assert two.joint_marker == 1
+    assert np.max(two.distances(recording.markers)) < 1e-12
+    assert np.max(two.distances(recording.truth.vertebrae)) < 1e-12
+    lengths = [(a[0], b[0]) for a, b in TWO_SECTIONS]
+    np.testing.assert_allclose(np.stack([arc.arc_length for arc in two.sections], 1), lengths, rtol=1e-12)
+    np.testing.assert_allclose(two.sections[1].tip_tangent, recording.tip_direction, atol=1e-12)
+    single = cc.run_cc(recording)  # one arc cannot follow them
+    assert np.min(single.distances(recording.truth.vertebrae).max(axis=1)) > 1e-3
 
 
 def test_closed_form_distance_is_the_closest_point_of_the_arc():
@@ -106,54 +140,78 @@ def test_closed_form_distance_is_the_closest_point_of_the_arc():
     np.testing.assert_allclose(arcs.distances(points), brute, rtol=0, atol=1e-9)
 
 
-def test_cc_row_is_exact_through_a_csv_problem_file(tmp_path):
-    """A recorded file whose backbones are circular arcs: the ``cc-arc`` row's marker distances vanish."""
-    write_marker_csv(arc_recording(np.random.default_rng(7)), tmp_path / "arcs.csv")
-    path = problem_variant("cbha-ph-shape", tmp_path, baselines=["cc-arc"], data_params={"file": "arcs.csv"})
+def csv_problem(tmp_path, baselines: list[str], intermediate: list[int] | None):
+    """A problem file reading ``arcs.csv`` (written by the caller) with ``baselines``."""
+    path = problem_variant("cbha-ph-shape", tmp_path, baselines=baselines)
     raw = yaml.safe_load(path.read_text())
     raw["data"] = {"source": "csv", "params": {"file": "arcs.csv"}}
+    if intermediate is not None:
+        raw["data"]["params"]["intermediate"] = intermediate
     raw["options"]["fixed_base"] = False
     path.write_text(yaml.safe_dump(raw, sort_keys=False))
-    result, _ = solve(str(path), out=tmp_path / "out")
+    return path
+
+
+def test_cc_rows_are_exact_through_a_csv_problem_file(tmp_path):
+    """A recorded file whose backbones are circular arcs: both arc rows' marker distances vanish."""
+    write_marker_csv(arc_recording(np.random.default_rng(7)), tmp_path / "arcs.csv")
+    result, _ = solve(str(csv_problem(tmp_path, ["cc-arc", "cc-two-arcs"], [5, 9, 13])), out=tmp_path / "out")
     rows = {row.method: row for row in result.comparison}
-    row = rows["cc-arc"]
-    assert row.role == "baseline" and row.metrics["ok"] == f"{len(ARCS)}/{len(ARCS)}"
-    assert row.metrics["mean marker distance [mm]"] < 1e-9
-    assert np.max(row.metrics["max distance per marker [mm]"]) < 1e-9
-    assert row.metrics["mean tip tangent error [deg]"] < 1e-6
-    assert "truth backbone: largest node distance [mm]" not in row.metrics  # a recorded file has no truth
+    for name in ("cc-arc", "cc-two-arcs"):
+        row = rows[name]
+        assert row.role == "baseline" and row.metrics["ok"] == f"{len(ARCS)}/{len(ARCS)}"
+        assert np.max(row.metrics["max distance per marker [mm]"]) < 1e-9
+        assert row.metrics["mean tip tangent error [deg]"] < 1e-6
+        assert "truth backbone: largest node distance [mm]" not in row.metrics  # a recorded file has no truth
+    assert rows["cc-arc"].metrics["mean marker distance [mm]"] < 1e-9
+    assert rows["cc-two-arcs"].metrics["mean marker distance off the joint [mm]"] < 1e-9
+
+
+def test_two_arcs_need_a_marker_at_the_joint(tmp_path):
+    write_marker_csv(arc_recording(np.random.default_rng(7)), tmp_path / "arcs.csv")
+    with pytest.raises(InputDataError, match="end of section 1") as error:
+        solve(str(csv_problem(tmp_path, ["cc-two-arcs"], None)), out=tmp_path / "out")
+    assert error.value.field == "baselines"
 
 
 @pytest.mark.parametrize("name", ["cbha-ph-shape", "cbha-ph-shape-cosserat"])
-def test_shipped_problem_reports_the_cc_row(tmp_path, name):
-    problem = problem_variant(name, tmp_path / "problems", samples=3, baselines=["ph-ipopt", "cc-arc"])
+def test_shipped_problem_reports_the_cc_rows(tmp_path, name):
+    problem = problem_variant(name, tmp_path / "problems", samples=3, baselines=["ph-ipopt", "cc-arc", "cc-two-arcs"])
     result, _ = solve(str(problem), out=tmp_path / "out")
     rows = {row.method: row for row in result.comparison}
-    assert list(rows) == ["ph-newton", "ph-ipopt", "cc-arc"] and rows["cc-arc"].role == "baseline"
-    metrics = rows["cc-arc"].metrics
-    per_marker = np.asarray(metrics["mean distance per marker [mm]"])
-    assert per_marker.shape == (3,) and np.all(np.isfinite(per_marker)) and np.all(per_marker > 0)
-    assert metrics["median time per sample [us]"] > 0
-    assert result.arrays["seconds_cc-arc"].shape == (3,)
-    # the closed-form distance is the distance to the sampled arc's polyline within the sagitta of one of its
-    # chords (bounded by the sagitta of two chords: the middle point's distance to its neighbours' midpoint)
+    assert list(rows) == ["ph-newton", "ph-ipopt", "cc-arc", "cc-two-arcs"]
     truth = result.arrays.get("vertebrae", result.arrays.get("truth_backbone"))
-    points = result.arrays["points_cc-arc"]
-    polyline = distances_to_polylines(points, truth)
-    exact = result.arrays["truth_backbone_distance_cc-arc"]
-    sagitta = np.linalg.norm(points[:, 1:-1] - 0.5 * (points[:, :-2] + points[:, 2:]), axis=-1).max(axis=1)
-    assert np.all(np.abs(polyline - exact) <= sagitta[:, None]) and np.all(sagitta < 1e-4)
-    assert metrics["truth backbone: mean of the largest node distance [mm]"] == pytest.approx(
-        np.mean(exact.max(axis=1)) * 1e3, rel=1e-12
-    )
+    for method in ("cc-arc", "cc-two-arcs"):
+        metrics = rows[method].metrics
+        assert rows[method].role == "baseline"
+        per_marker = np.asarray(metrics["mean distance per marker [mm]"])
+        assert per_marker.shape == (3,) and np.all(np.isfinite(per_marker))
+        assert metrics["median time per sample [us]"] > 0
+        assert result.arrays[f"seconds_{method}"].shape == (3,)
+        # the closed-form distance is the distance to the sampled arcs' polyline within the sagitta of one of
+        # its chords (bounded by the sagitta of two chords: the middle point's distance to its neighbours' midpoint;
+        # not at the joint of two arcs, whose chords differ)
+        points = result.arrays[f"points_{method}"]
+        polyline = distances_to_polylines(points, truth)
+        exact = result.arrays[f"truth_backbone_distance_{method}"]
+        middle = np.linalg.norm(points[:, 1:-1] - 0.5 * (points[:, :-2] + points[:, 2:]), axis=-1)
+        if method == "cc-two-arcs":
+            middle = np.delete(middle, cc.CURVE_POINTS - 2, axis=1)  # points[CURVE_POINTS - 1]: the joint
+        sagitta = middle.max(axis=1)
+        assert np.all(np.abs(polyline - exact) <= sagitta[:, None]) and np.all(sagitta < 1e-4)
+        assert metrics["truth backbone: mean of the largest node distance [mm]"] == pytest.approx(
+            np.mean(exact.max(axis=1)) * 1e3, rel=1e-12
+        )
+    assert np.all(np.asarray(rows["cc-arc"].metrics["mean distance per marker [mm]"]) > 0)
+    assert rows["cc-two-arcs"].metrics["mean distance per marker [mm]"][1] < 1e-9  # the joint marker: its own
     for method in ("ph-newton", "ph-ipopt"):
         assert np.isfinite(rows[method].metrics["truth backbone: mean of the largest node distance [mm]"])
 
 
-def test_ph_noise_sweep_lists_the_cc_arc_and_collects_its_row(tmp_path):
+def test_ph_noise_sweep_lists_the_cc_baselines_and_collects_their_rows(tmp_path):
     spec, path = load_sweep("ph-noise")
     cells = expand(spec, path)
-    assert all(dict(cell.overrides)["baselines"] == ["ph-ipopt", "cc-arc"] for cell in cells)
+    assert all(dict(cell.overrides)["baselines"] == ["ph-ipopt", "cc-arc", "cc-two-arcs"] for cell in cells)
     assert "truth backbone: mean of the largest node distance [mm]" in spec.metrics
     raw = yaml.safe_load(path.read_text())
     raw["problem"] = "cbha-ph-shape"
@@ -164,6 +222,9 @@ def test_ph_noise_sweep_lists_the_cc_arc_and_collects_its_row(tmp_path):
     report = run_sweep(str(small), out=tmp_path / "out", figures=False, progress=False)
     assert (report.cells, report.failed) == (2, 0)
     for row in report.rows:
+        for method in ("solver", "ph-ipopt", "cc-arc", "cc-two-arcs"):
+            assert math.isfinite(row[f"{method}: truth backbone: mean of the largest node distance [mm]"])
+            assert math.isfinite(row[f"{method}: median time per sample [us]"])
         for method in ("solver", "ph-ipopt", "cc-arc"):
-            for metric in ("mean marker distance [mm]", "truth backbone: mean of the largest node distance [mm]"):
-                assert math.isfinite(row[f"{method}: {metric}"])
+            assert math.isfinite(row[f"{method}: mean marker distance [mm]"])
+        assert math.isfinite(row["cc-two-arcs: mean marker distance off the joint [mm]"])

@@ -28,7 +28,7 @@ Problem file::
       samples: 100
       params: {noise: 0.0003, rate: 240.0, stride: 24}
     solver: ph-newton       # any ph preset
-    baselines: [ph-ipopt, ph-ipopt-cold, ph-grid, cosserat-wrench, cc-arc]
+    baselines: [ph-ipopt, ph-ipopt-cold, ph-grid, cosserat-wrench, cc-arc, cc-two-arcs]
 
 Options: :class:`~optikin.problems.ph_shared.PHOptions` (``twist_weight``, ``nodes``,
 ``free_speeds``, ``length``, ``fixed_base``), ``c1_joint`` and ``cosserat_wrench`` (the rod of
@@ -48,14 +48,17 @@ its tip to the measured tip pose, at the PH methods' backbone length.
 
 Baseline ``cc-arc`` (:mod:`optikin.problems.ph_shape.cc`): the backbone is the
 constant-curvature arc tangent to the measured base pose through the measured tip
-point (closed form), measured against the markers and the truth like the PH curves.
+point (closed form), measured against the markers and the truth like the PH curves;
+``cc-two-arcs`` the two-section constant-curvature backbone, section 1 through the
+marker at the end of section 1, section 2 from there, C1-joined, through the tip point.
 
 Per-sample status: the solver's (``ok``, ``not_converged``, ``failed``). The
 comparison has one row per method (solver and ``ph`` baselines): energy gap to
 the best energy found for the sample, time per sample, mean marker distance; the
 ``cosserat-wrench`` row has marker (and truth-backbone) distances, time per sample
 and its failed fits instead of energies; the ``cc-arc`` row the same distances, time per sample, its
-tip-tangent error and arc length against the PH length. Every row with a truth backbone reports the
+tip-tangent error and arc length against the PH length (``cc-two-arcs``: its marker distance
+off the joint marker, its own). Every row with a truth backbone reports the
 mean and largest distance of its nodes to the method's curve.
 Figures: shapes against markers in 3-D, distances per sample, time per sample.
 """
@@ -87,7 +90,7 @@ register_kind(
         run=solve,
         backend_families=("ph",),
         default_solver="ph-newton",
-        baselines=(NAME, cc.NAME),
+        baselines=(NAME, cc.NAME, cc.TWO_ARCS),
         options=PHShapeOptions,
         data_family="markers",
         figures=figures.figures,

@@ -16,14 +16,21 @@ uses of them only ``p0``, ``t0`` and ``p1``: a single-section arc is fixed by th
 neither the tip tangent nor the backbone length ``L`` of the PH methods enters it. Both
 show how far the recording is from constant curvature, and are reported: the angle
 between the arc's tip tangent ``cos(theta) t0 + sin(theta) n`` and the measured one, and
-``|S - L|``. One arc per posture, whatever the arm's number of sections: the piecewise
-constant-curvature fit of a two-section arm needs the pose at the end of section 1, which
-only a ``cosserat`` recording with ``c1_joint`` measures, and is not built here.
+``|S - L|``. One arc per posture, whatever the arm's number of sections.
+
+Baseline ``cc-two-arcs``: the piecewise constant-curvature backbone of the CBHA's two
+sections (Webster & Jones section 3), for a recording with a marker at the end of
+section 1 (vertebra 9 of the vertebra model, :data:`~optikin.problems.ph_shape.c1.JOINT_VERTEBRA`):
+section 1 is the arc of ``(p0, t0)`` through that marker ``pm``, and section 2 the arc of
+``(pm, t_m)`` through ``p1``, with ``t_m = cos(theta_1) t0 + sin(theta_1) n_1`` the first arc's end
+tangent (the two are joined with C1 continuity). It uses one marker more than the PH methods,
+so that marker is its own and left out of its marker distance (``mean marker distance off the
+joint``); its truth-backbone distance compares like with like.
 
 Its distances are those of the PH rows: the distance of each point to the whole curve,
 here in closed form (:meth:`CCRun.distances`), not to a sampled polyline. The time per
 sample is that of :func:`~optikin.physics.comparison.cc_arc_points` for the sampled backbone
-(``CURVE_POINTS`` points), the reconstruction itself.
+(``CURVE_POINTS`` points per arc, both arcs for ``cc-two-arcs``), the reconstruction itself.
 """
 
 from __future__ import annotations
@@ -34,10 +41,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from optikin.data.markers import MarkerRecording
+from optikin.errors import InputDataError
 from optikin.physics.comparison import cc_arc_points
+from optikin.problems.ph_shape.c1 import JOINT_VERTEBRA
 
 NAME = "cc-arc"
-"""The baseline's name in ``baselines``."""
+"""The single-arc baseline's name in ``baselines``."""
+TWO_ARCS = "cc-two-arcs"
+"""The two-section baseline's name in ``baselines``."""
 CURVE_POINTS = 101
 """Points of each sampled arc, at equal fractions of its arc length."""
 STRAIGHT = 1e-15
@@ -106,15 +117,14 @@ class CCRun:
         return np.where((self.curvature <= 0.0)[:, None], segment, on_arc)
 
 
-def run_cc(recording: MarkerRecording) -> CCRun:
-    """The arc of each posture of ``recording`` (module docstring).
+def cc_arcs(p0: np.ndarray, t0: np.ndarray, p1: np.ndarray) -> CCRun:
+    """The arc from ``p0`` tangent to ``t0`` through ``p1`` of each posture (module docstring).
 
     Parameters
     ----------
-    recording:
-        End poses (base already averaged when the kind's ``fixed_base`` is set).
+    p0, t0, p1:
+        Start points [m], unit start tangents and end points [m], each ``(N, 3)``.
     """
-    p0, t0, p1 = recording.base_position, recording.base_direction, recording.tip_position
     chord = p1 - p0
     c = np.linalg.norm(chord, axis=1)
     along = np.sum(chord * t0, axis=1)
@@ -127,7 +137,7 @@ def run_cc(recording: MarkerRecording) -> CCRun:
     curvature = np.where(straight, 0.0, 2.0 * np.sin(alpha) / c)
     fractions = np.linspace(0.0, 1.0, CURVE_POINTS)
     points, lengths, seconds = [], [], []
-    for i in range(len(recording)):
+    for i in range(len(p0)):
         tic = time.perf_counter()
         arc, S = cc_arc_points(p0[i], t0[i], p1[i], fractions)
         seconds.append(time.perf_counter() - tic)
@@ -135,3 +145,73 @@ def run_cc(recording: MarkerRecording) -> CCRun:
         lengths.append(S)
     angle = np.where(straight, 0.0, 2.0 * alpha)
     return CCRun(p0, t0, n, p1, curvature, angle, np.array(lengths), np.stack(points), np.array(seconds))
+
+
+def run_cc(recording: MarkerRecording) -> CCRun:
+    """Baseline ``cc-arc``: the arc of the base pose through the tip point of each posture of ``recording``.
+
+    Parameters
+    ----------
+    recording:
+        End poses (base already averaged when the kind's ``fixed_base`` is set).
+    """
+    return cc_arcs(recording.base_position, recording.base_direction, recording.tip_position)
+
+
+@dataclass
+class TwoArcs:
+    """The two-section arcs of every posture (baseline ``cc-two-arcs``, module docstring).
+
+    Attributes
+    ----------
+    sections:
+        Section 1's arcs, then section 2's.
+    joint_marker:
+        Index of the intermediate marker at the end of section 1 (the joint).
+    """
+
+    sections: tuple[CCRun, CCRun]
+    joint_marker: int
+
+    @property
+    def seconds(self) -> np.ndarray:
+        """Time to sample both arcs of each posture ``(N,)`` [s]."""
+        return self.sections[0].seconds + self.sections[1].seconds
+
+    @property
+    def points(self) -> np.ndarray:
+        """Both arcs, the joint once: ``(N, 2 CURVE_POINTS - 1, 3)`` [m]."""
+        return np.concatenate([self.sections[0].points, self.sections[1].points[:, 1:]], axis=1)
+
+    def distances(self, points: np.ndarray) -> np.ndarray:
+        """Distance of each point ``(N, K, 3)`` to the nearer arc of its posture: ``(N, K)`` [m]."""
+        return np.minimum(self.sections[0].distances(points), self.sections[1].distances(points))
+
+
+def run_two_arcs(recording: MarkerRecording, source: str) -> TwoArcs:
+    """Baseline ``cc-two-arcs`` on every posture of ``recording`` (module docstring).
+
+    Parameters
+    ----------
+    recording:
+        End poses and intermediate markers whose ``marker_vertebrae`` hold the end of section 1.
+    source:
+        Names the data in errors.
+
+    Raises
+    ------
+    InputDataError
+        No marker is known to sit at the end of section 1.
+    """
+    if JOINT_VERTEBRA not in recording.marker_vertebrae:
+        raise InputDataError(
+            f"baseline {TWO_ARCS} needs a marker at the end of section 1 (vertebra {JOINT_VERTEBRA}); the "
+            f"markers' vertebrae: {recording.marker_vertebrae or 'unknown (data.params.intermediate)'}",
+            source=source,
+            field="baselines",
+        )
+    k = recording.marker_vertebrae.index(JOINT_VERTEBRA)
+    joint = recording.markers[:, k]
+    first = cc_arcs(recording.base_position, recording.base_direction, joint)
+    second = cc_arcs(joint, first.tip_tangent, recording.tip_position)
+    return TwoArcs((first, second), k)

@@ -159,6 +159,40 @@ def cc_row(outcome: ShapeOutcome) -> tuple[MethodRow, dict[str, np.ndarray]]:
     return MethodRow(cc.NAME, "baseline", metrics), arrays
 
 
+def two_arcs_row(outcome: ShapeOutcome) -> tuple[MethodRow, dict[str, np.ndarray]]:
+    """The comparison row and arrays of baseline ``cc-two-arcs`` (:mod:`optikin.problems.ph_shape.cc`).
+
+    The marker distances leave out the joint marker (the arcs pass through it), the truth
+    backbone's distance where the recording has a truth, time per sample, the angle
+    between section 2's tip tangent and the measured one.
+    """
+    two = outcome.two_arcs
+    assert two is not None
+    distance = outcome.distances[cc.TWO_ARCS] * MM  # (N, K)
+    others = [k for k in range(distance.shape[1]) if k != two.joint_marker]
+    cosine = np.clip(np.sum(two.sections[1].tip_tangent * outcome.recording.tip_direction, axis=1), -1.0, 1.0)
+    metrics: dict[str, Any] = {
+        "ok": f"{len(distance)}/{len(distance)}",
+        "mean marker distance off the joint [mm]": float(np.mean(distance[:, others])),
+        "mean distance per marker [mm]": np.mean(distance, axis=0),
+        "max distance per marker [mm]": np.max(distance, axis=0),
+        "median time per sample [us]": float(np.median(two.seconds) * 1e6),
+        "mean time per sample [us]": float(np.mean(two.seconds) * 1e6),
+        "mean tip tangent error [deg]": float(np.degrees(np.mean(np.arccos(cosine)))),
+    }
+    arrays = {
+        f"seconds_{cc.TWO_ARCS}": two.seconds,
+        f"marker_distance_{cc.TWO_ARCS}": distance / MM,
+        f"points_{cc.TWO_ARCS}": two.points,
+    }
+    truth = outcome.recording.truth
+    if truth is not None:
+        backbone = two.distances(truth.vertebrae) * MM  # (N, nodes)
+        metrics.update(backbone_metrics(backbone))
+        arrays[f"truth_backbone_distance_{cc.TWO_ARCS}"] = backbone / MM
+    return MethodRow(cc.TWO_ARCS, "baseline", metrics), arrays
+
+
 def c1_report(outcome: ShapeOutcome) -> tuple[dict[str, Any], list[MethodRow], dict[str, np.ndarray]]:
     """Metrics, comparison rows (one per method and section) and arrays of the C1 chain
     (:mod:`optikin.problems.ph_shape.c1`), side by side with the single curve's."""
@@ -248,6 +282,10 @@ def report(ctx: ProblemContext, outcome: ShapeOutcome) -> Result:
     if outcome.arcs is not None:
         row, cc_arrays = cc_row(outcome)
         comparison.append(row)
+    if outcome.two_arcs is not None:
+        row, two_arrays = two_arcs_row(outcome)
+        comparison.append(row)
+        cc_arrays.update(two_arrays)
     chain_arrays: dict[str, np.ndarray] = {}
     if outcome.chain is not None:
         chain_metrics, chain_rows, chain_arrays = c1_report(outcome)

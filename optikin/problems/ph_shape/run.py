@@ -15,7 +15,7 @@ from optikin.problems.ph_shape.options import PHShapeOptions
 from optikin.problems.ph_shape.wrench import NAME, WrenchRun, distances_to_polylines, run_wrench
 from optikin.problems.ph_shared import MethodRun, distances_to_curves, shape_samples, solve_methods, solver_name
 
-OTHERS = (NAME, cc.NAME)
+OTHERS = (NAME, cc.NAME, cc.TWO_ARCS)
 """The baselines the kind runs itself (not ``ph`` presets)."""
 
 
@@ -35,7 +35,7 @@ class ShapeOutcome:
         Every method (the solver first), by preset name.
     distances:
         Per method, distance of each intermediate marker to its curve ``(N, K)`` [m] (``cosserat-wrench``
-        and ``cc-arc`` included when listed).
+        ``cc-arc`` and ``cc-two-arcs`` included when listed).
     solver:
         The solver's preset name.
     options:
@@ -46,6 +46,8 @@ class ShapeOutcome:
         The C1 chain of every method, with ``c1_joint``.
     arcs:
         The ``cc-arc`` arcs, when listed.
+    two_arcs:
+        The ``cc-two-arcs`` arcs, when listed.
     """
 
     recording: MarkerRecording
@@ -58,6 +60,7 @@ class ShapeOutcome:
     wrench: WrenchRun | None = None
     chain: C1Chain | None = None
     arcs: cc.CCRun | None = None
+    two_arcs: cc.TwoArcs | None = None
 
     @property
     def main(self) -> MethodRun:
@@ -83,8 +86,14 @@ def run(ctx: ProblemContext) -> ShapeOutcome:
     if cc.NAME in ctx.spec.baselines:
         arcs = cc.run_cc(recording)
         distances[cc.NAME] = arcs.distances(recording.markers)
+    two_arcs = None
+    if cc.TWO_ARCS in ctx.spec.baselines:
+        two_arcs = cc.run_two_arcs(recording, source)
+        distances[cc.TWO_ARCS] = two_arcs.distances(recording.markers)
     chain = c1_chain(ctx, recording, options, source) if options.c1_joint else None
-    return ShapeOutcome(recording, lengths, samples, runs, distances, solver_name(ctx), options, wrench, chain, arcs)
+    return ShapeOutcome(
+        recording, lengths, samples, runs, distances, solver_name(ctx), options, wrench, chain, arcs, two_arcs
+    )
 
 
 def c1_chain(ctx: ProblemContext, recording: MarkerRecording, options: PHShapeOptions, source: str) -> C1Chain:
