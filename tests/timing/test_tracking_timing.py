@@ -184,3 +184,9 @@ def test_obstacles_osqp_updated_in_place(benchmark, obstacle_steps, compiled):
 def test_obstacles_daqp_direct(benchmark, obstacle_steps, compiled):
     controller = obstacle_qp("qp_qpsolvers", compiled=compiled, solver="daqp")
     _bench_obstacles(benchmark, f"daqp {compiled}", controller, obstacle_steps)
+
+
+@pytest.mark.parametrize("compiled", [False, True], ids=["casadi-vm", "compiled"])
+def test_obstacles_active_set(benchmark, obstacle_steps, compiled):
+    controller = obstacle_qp("qp_daqp", compiled=compiled)
+    _bench_obstacles(benchmark, f"active set {compiled}", controller, obstacle_steps)
