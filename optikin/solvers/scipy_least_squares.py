@@ -15,6 +15,18 @@ that leaves ``||r||`` at about ``regularisation`` times the weighted distance
 and slows convergence (off by default). MINPACK needs as many rows as
 variables; an underdetermined residual is padded with rows of zeros.
 
+Reproducibility: the C translation of MINPACK's QR factorisation (``qrfac``)
+in scipy 1.17.1 recomputes the norm of a column whose norm has collapsed,
+which every rank-deficient Jacobian (a padded redundant problem) triggers,
+over one entry too many: for the last column, the double just past the
+Jacobian buffer, whatever the heap held there, so the same solve gave
+different iterates in different processes. ``lm`` therefore appends a guard:
+a zero column (a dummy variable, fixed at 0; plus a zero row if needed for
+MINPACK's rows >= variables). A zero column is never pivoted ahead of
+another and its norm is never recomputed, so it stays last, and the entry
+read past the column before it is the guard's first entry, 0: the answers
+are bit-identical whatever the process did before.
+
 Residual and Jacobian come from one zero-copy CasADi call per new ``x``. The
 iteration limit is scipy's ``max_nfev`` (``limits.max_iterations``); the time
 limit is enforced inside the residual callback, which stops the solve and
@@ -92,8 +104,10 @@ class _Residual:
         regularisation: float,
         deadline: float,
         transform: bool = False,
+        guard: bool = False,
     ):
         self.call = problem.fast("residual_jacobian")
+        self.guard = guard
         self.transformed = ~problem.periodic if transform else np.zeros(problem.n, dtype=bool)
         self.problem, self.p, self.x_ref, self.deadline = problem, np.ravel(p), x_ref, deadline
         n, m = problem.n, problem.m
@@ -110,14 +124,17 @@ class _Residual:
         self.best_cost = np.inf
 
     def to_x(self, z: np.ndarray) -> np.ndarray:
-        """Solver variables -> configuration (the sine map on bounded variables)."""
+        """Solver variables -> configuration (the sine map on bounded variables; the guard variable dropped)."""
+        z = z[: self.problem.n]
         lo, span = self.problem.lower, self.problem.upper - self.problem.lower
         return np.where(self.transformed, lo + 0.5 * span * (1.0 + np.sin(z)), z)
 
     def to_z(self, x: np.ndarray) -> np.ndarray:
+        """Configuration -> solver variables (with the guard variable, 0, last)."""
         lo, span = self.problem.lower, self.problem.upper - self.problem.lower
         ratio = np.clip(2.0 * (x - lo) / span - 1.0, -1.0, 1.0)
-        return np.where(self.transformed, np.arcsin(ratio), x)
+        z = np.where(self.transformed, np.arcsin(ratio), x)
+        return np.append(z, 0.0) if self.guard else z
 
     def _evaluate(self, z: np.ndarray) -> None:
         if self.z is not None and np.array_equal(z, self.z):
@@ -130,7 +147,9 @@ class _Residual:
         self.z = z.copy()
         self.r = r.copy()
         self.J = J.reshape(self.problem.n, self.problem.m).T.copy()  # column-major m x n
-        dx_dz = np.where(self.transformed, 0.5 * (self.problem.upper - self.problem.lower) * np.cos(z), 1.0)
+        dx_dz = np.where(
+            self.transformed, 0.5 * (self.problem.upper - self.problem.lower) * np.cos(z[: self.problem.n]), 1.0
+        )
         self.J *= dx_dz
         cost = float(self.r @ self.r)
         if cost < self.best_cost:
@@ -140,6 +159,12 @@ class _Residual:
             d = np.where(self.problem.periodic, np.arctan2(np.sin(d), np.cos(d)), d)
             self.r = np.concatenate([self.r, self.rows * d])
             self.J = np.vstack([self.J, np.diag(self.rows * dx_dz)])
+        if self.guard:  # a zero column, and zero rows up to MINPACK's rows >= variables
+            rows = max(len(self.r), self.problem.n + 1)
+            guarded = np.zeros((rows, self.problem.n + 1))
+            guarded[: len(self.r), : self.problem.n] = self.J
+            self.J = guarded
+            self.r = np.concatenate([self.r, np.zeros(rows - len(self.r))])
 
     def fun(self, x: np.ndarray) -> np.ndarray:
         self._evaluate(x)
@@ -155,19 +180,21 @@ class ScipyLeastSquares(NonlinearAdapter):
 
     method = ""
     transform_bounds = False
+    guard = False
     options: LeastSquaresOptions
 
     def extra(self, problem: LeastSquaresProblem) -> dict:
         return {}
 
     def x_scale(self, residual: _Residual) -> np.ndarray | str | float:
-        """Scale of the solver variables: the variables' ranges (``1/W``), 1 for sine-mapped ones."""
+        """Scale of the solver variables: the variables' ranges (``1/W``), 1 for sine-mapped ones and the guard."""
         scale = self.options.x_scale
         if scale != "weights":
             return scale
         problem = residual.problem
         ranges = np.ones(problem.n) if problem.weights is None else 1.0 / problem.weights
-        return np.where(residual.transformed, 1.0, ranges)
+        scales = np.where(residual.transformed, 1.0, ranges)
+        return np.append(scales, 1.0) if residual.guard else scales
 
     def solve_free(
         self, problem: LeastSquaresProblem, x0: np.ndarray, p: np.ndarray, x_ref: np.ndarray | None = None
@@ -182,6 +209,7 @@ class ScipyLeastSquares(NonlinearAdapter):
             self.options.regularisation,
             started + self.limits.time_limit,
             transform=self.transform_bounds,
+            guard=self.guard,
         )
         try:
             result = least_squares(
@@ -210,6 +238,7 @@ class LevenbergMarquardt(ScipyLeastSquares):
 
     method = "lm"
     transform_bounds = True
+    guard = True
 
 
 class TrustRegionReflective(ScipyLeastSquares):
