@@ -72,6 +72,18 @@ def test_cc_arc_is_the_quarter_circle():
     np.testing.assert_allclose(points, [[0, 0, 0], [R * (1 - c), 0, R * c], [R, 0, R]], atol=1e-15)
 
 
+@pytest.mark.parametrize("alpha", [1e-7, 1e-4, 0.3, 1.5])
+def test_cc_arc_ends_on_the_tip_point_at_any_bend(alpha):
+    c = 0.2  # the chord, at angle alpha to the base tangent: the arc must end exactly on it
+    t0 = np.array([0.0, 0.0, 1.0])
+    p1 = c * np.array([np.sin(alpha), 0.0, np.cos(alpha)])
+    points, S = cc_arc_points(np.zeros(3), t0, p1, np.array([0.0, 0.5, 1.0]))
+    np.testing.assert_allclose(points[[0, 2]], [np.zeros(3), p1], rtol=0, atol=1e-16)
+    R = c / (2 * np.sin(alpha))  # the middle point lies on the circle of radius R centred at (R, 0, 0)
+    assert abs(np.linalg.norm(points[1] - [R, 0.0, 0.0]) - R) <= 1e-15 * max(R, 1.0) / alpha
+    assert S == pytest.approx(2 * alpha * R, rel=1e-15)
+
+
 def test_ph_points_at_fractions_of_arc_length():
     p0, t0, p1, t1 = np.zeros(3), np.array([0.0, 0.0, 1.0]), np.array([0.15, 0.05, 0.2]), np.array([1.0, 0.0, 0.0])
     model = ShapeEnergyModel(free_speeds=False)

@@ -207,7 +207,7 @@ def cc_arc_points(p0: np.ndarray, t0: np.ndarray, p1: np.ndarray, fractions: np.
     In the plane of ``t0`` and the chord ``c = p1 - p0``, with ``alpha`` the angle between
     them, the arc has curvature ``kappa = 2 sin(alpha) / |c|``, turns by ``2 alpha`` and is
     ``S = alpha |c| / sin(alpha)`` long; its point at arc length ``sigma`` is
-    ``p0 + sin(kappa sigma) / kappa t0 + (1 - cos(kappa sigma)) / kappa n`` with ``n`` the unit
+    ``p0 + sin(kappa sigma) / kappa t0 + 2 sin(kappa sigma / 2)^2 / kappa n`` with ``n`` the unit
     part of ``c`` normal to ``t0`` (the constant-curvature arc: Webster & Jones,
     Int. J. Robot. Res. 29(13), pp. 1661-1683, 2010).
 
@@ -237,7 +237,8 @@ def cc_arc_points(p0: np.ndarray, t0: np.ndarray, p1: np.ndarray, fractions: np.
     S = alpha * c / np.sin(alpha)
     kappa = 2.0 * np.sin(alpha) / c
     sigma = fractions * S
-    points = p0 + np.outer(np.sin(kappa * sigma) / kappa, t0) + np.outer((1.0 - np.cos(kappa * sigma)) / kappa, n)
+    bend = np.sin(0.5 * kappa * sigma)  # 1 - cos(x) = 2 sin(x/2)^2, without cancellation on nearly straight arcs
+    points = p0 + np.outer(np.sin(kappa * sigma) / kappa, t0) + np.outer(2.0 * bend**2 / kappa, n)
     return points, float(S)
 
 
