@@ -21,11 +21,14 @@ which every rank-deficient Jacobian (a padded redundant problem) triggers,
 over one entry too many: for the last column, the double just past the
 Jacobian buffer, whatever the heap held there, so the same solve gave
 different iterates in different processes. ``lm`` therefore appends a guard:
-a zero column (a dummy variable, fixed at 0; plus a zero row if needed for
-MINPACK's rows >= variables). A zero column is never pivoted ahead of
-another and its norm is never recomputed, so it stays last, and the entry
-read past the column before it is the guard's first entry, 0: the answers
-are bit-identical whatever the process did before.
+a dummy variable ``g`` (starting at 0) with its own residual row
+``GUARD g``, ``GUARD = 1e-150`` far below the nonzero column norms of any
+double-precision Jacobian met in practice. That column is orthogonal to the others, so its norm
+never collapses and is never recomputed, and it is pivoted last; the entry
+read past the column before it is the guard's first entry, 0. Its step is
+exactly 0 (its component of ``Q^T r`` is 0) and it changes no other
+operation: the iterates are those MINPACK computes when that double is 0,
+bit-identical whatever the process did before.
 
 Residual and Jacobian come from one zero-copy CasADi call per new ``x``. The
 iteration limit is scipy's ``max_nfev`` (``limits.max_iterations``); the time
@@ -51,6 +54,7 @@ from optikin.solvers.base import Solution
 from optikin.solvers.nonlinear import LeastSquaresProblem, NonlinearAdapter
 
 EPS = float(np.finfo(float).eps)
+GUARD = 1e-150
 
 
 class LeastSquaresOptions(Options):
@@ -159,12 +163,13 @@ class _Residual:
             d = np.where(self.problem.periodic, np.arctan2(np.sin(d), np.cos(d)), d)
             self.r = np.concatenate([self.r, self.rows * d])
             self.J = np.vstack([self.J, np.diag(self.rows * dx_dz)])
-        if self.guard:  # a zero column, and zero rows up to MINPACK's rows >= variables
-            rows = max(len(self.r), self.problem.n + 1)
-            guarded = np.zeros((rows, self.problem.n + 1))
-            guarded[: len(self.r), : self.problem.n] = self.J
+        if self.guard:  # the row GUARD g of the guard variable g (module docstring)
+            rows, n = len(self.r), self.problem.n
+            guarded = np.zeros((rows + 1, n + 1))
+            guarded[:rows, :n] = self.J
+            guarded[rows, n] = GUARD
             self.J = guarded
-            self.r = np.concatenate([self.r, np.zeros(rows - len(self.r))])
+            self.r = np.append(self.r, GUARD * z[n])
 
     def fun(self, x: np.ndarray) -> np.ndarray:
         self._evaluate(x)
