@@ -49,8 +49,10 @@ import numpy as np
 
 from optikin.arms.base import ArmModel
 from optikin.fastcall import BufferedFunction
+from optikin.interrupt import calls_casadi
 
 Shape = Literal["sphere", "capsule", "box", "halfspace"]
+_TABLE_STEPS = 1 << 15  # moving obstacles' offsets tabulated per control step, at most this many
 _TINY = 1e-12  # keeps the gradient of a Euclidean norm finite at zero; shifts distances by at most 1e-12 m
 
 
@@ -241,13 +243,22 @@ class BackboneDistances:
             out[:, i] = self.obstacles[i].offset(t)
         return out
 
+    @calls_casadi
     def evaluate(self, q: np.ndarray, offsets: np.ndarray) -> None:
         """Refresh :attr:`d`, :attr:`G_rows`, :attr:`D` (views, valid until the next call)."""
         self._q[:] = q
         if offsets is not self._static or not self._holds_static:  # static obstacles: written once
             self._offsets[:] = offsets.ravel(order="F")
             self._holds_static = offsets is self._static
-        self._f()
+        self._f._trigger()
+
+    @calls_casadi
+    def evaluate_flat(self, q: np.ndarray, offsets_flat: np.ndarray) -> None:
+        """:meth:`evaluate` with the offsets given column-major flattened, ``(3 n_obstacles,)`` [m]."""
+        self._q[:] = q
+        self._offsets[:] = offsets_flat
+        self._holds_static = False
+        self._f._trigger()
 
     def jacobian(self, flat: np.ndarray) -> np.ndarray:
         """``d d / d q`` of the (obstacle, sample) pairs ``flat`` (``i K + j``), ``(len(flat), n)``."""
@@ -315,27 +326,84 @@ class BarrierRows:
         self.A = np.zeros((self.rows, arm.n_config))
         self.b = np.full(self.rows, -np.inf)
         self._base = (np.arange(count) * self.distances.samples)[:, None]
+        self._flat = np.empty((count, self.points_per_obstacle), dtype=np.intp)
+        self._flat_rows = self._flat.reshape(-1)
+        if self.points_per_obstacle == self.distances.samples:
+            self._flat[:] = self._base + np.arange(self.distances.samples)
+        self._h = np.empty(self.rows)
+        self._G = np.empty((self.rows, 3))
+        self._G_by_obstacle = self._G.reshape(count, self.points_per_obstacle, 3)
+        self._moved = np.empty((count, self.points_per_obstacle))
+        self._moved_rows = self._moved.reshape(-1)
+        self._table_offsets, self._table_steps, self._settled = self._offset_table()
         self.step = 0
+
+    def _offset_table(self) -> tuple[np.ndarray, np.ndarray, int]:
+        """The moving obstacles' offsets per control step, tabulated once.
+
+        Returns
+        -------
+        offsets:
+            ``(S + 1, 3 n_obstacles)`` [m]: row ``s < S`` the offsets at ``t = s dt`` (column-major),
+            the last row those held beyond every path's end.
+        changes:
+            ``(S + 1, n_obstacles, 3)`` [m]: ``offset(s dt + dt) - offset(s dt)``, zero in the last row.
+        settled:
+            The first step from which every path is held. ``S = min(settled, _TABLE_STEPS)``; steps
+            from ``S`` to ``settled`` are left to :meth:`update` to compute.
+        """
+        d = self.distances
+        count = len(d.obstacles)
+        if not d.moving:
+            return np.zeros((0, 3 * count)), np.zeros((0, count, 3)), 0
+        end = max(float(d.obstacles[i].path[-1][0]) for i in d.moving)
+        settled = max(0, int(np.ceil(end / self.dt)) + 1)
+        stored = min(settled, _TABLE_STEPS) + 1  # the extra row: the held offsets
+        t = np.arange(stored) * self.dt
+        t[-1] = max(end, t[-1])
+        now = np.zeros((stored, 3, count))
+        after = np.zeros((stored, 3, count))
+        for i in d.moving:
+            now[:, :, i] = d.obstacles[i].offset(t)
+            after[:, :, i] = d.obstacles[i].offset(t + self.dt)
+        change = np.ascontiguousarray((after - now).transpose(0, 2, 1))
+        change[-1] = 0.0
+        return np.ascontiguousarray(now.transpose(0, 2, 1)).reshape(stored, 3 * count), change, settled
 
     def reset(self) -> None:
         """Start a run at ``t = 0``."""
         self.step = 0
 
     def update(self, q: np.ndarray) -> None:
-        """The rows for the step from ``q`` at ``t = step dt`` to the next instant (then counts the step)."""
-        dt, d = self.dt, self.distances
-        t = self.step * dt
+        """The rows for the step from ``q`` at ``t = step dt`` to the next instant (then counts the step).
+
+        The ``points_per_obstacle`` nearest samples of each obstacle, in the order of
+        ``np.argpartition(distances.d, points_per_obstacle - 1, axis=1)``; written in place into
+        :attr:`A` and :attr:`b`.
+        """
+        dt, d, s = self.dt, self.distances, self.step
         self.step += 1
-        now = d.offsets(t)
-        d.evaluate(q, now)
-        k = self.points_per_obstacle
-        nearest = np.argpartition(d.d, k - 1, axis=1)[:, :k] if k < d.samples else np.indices(d.d.shape)[1]
-        flat = (self._base + nearest).ravel()
-        h = d.d_flat[flat] - self.margin
-        self.A[:] = d.jacobian(flat)
-        if d.moving:
+        change = None
+        if not d.moving:
+            d.evaluate(q, d._static)
+        elif 0 <= s < len(self._table_offsets) - 1 or s >= self._settled:
+            row = min(s, len(self._table_offsets) - 1)
+            d.evaluate_flat(q, self._table_offsets[row])
+            change = self._table_steps[row]
+        else:  # before the paths' end but beyond the table, or a negative step
+            now = d.offsets(s * dt)
+            d.evaluate(q, now)
+            change = np.ascontiguousarray((d.offsets(s * dt + dt) - now).T)
+        k, flat = self.points_per_obstacle, self._flat_rows
+        if k < d.samples:
+            np.add(d.d.argpartition(k - 1, axis=1)[:, :k], self._base, out=self._flat)
+        np.take(d.D, flat, axis=0, out=self.A)
+        h = np.take(d.d_flat, flat, out=self._h)
+        np.subtract(h, self.margin, out=h)
+        np.multiply(h, -self.gamma, out=self.b)
+        if change is not None:
             # The obstacle's own step: d(q, t + dt) - d(q, t) = -G' (c(t + dt) - c(t)) to first order.
-            moved = np.repeat(d.offsets(t + dt) - now, k, axis=1)
-            self.b[:] = -self.gamma * h + np.einsum("ri,ir->r", d.G_rows[flat], moved) / dt
-        else:
-            self.b[:] = -self.gamma * h
+            np.take(d.G_rows, flat, axis=0, out=self._G)
+            np.einsum("ikj,ij->ik", self._G_by_obstacle, change, out=self._moved)
+            np.divide(self._moved_rows, dt, out=self._moved_rows)
+            np.add(self.b, self._moved_rows, out=self.b)
