@@ -8,8 +8,9 @@
 * ``running/KEY.PID``: a marker a worker holds while it runs a cell; one whose process is gone counts a
   try of that cell that died;
 * ``table.csv``, ``table.json``: one row per cell in sweep order (axes, status, collected metrics);
-* ``figures/METRIC--vs--AXIS.png``: each metric against each swept axis, the median over the seeds
-  (axes whose field ends in ``seed``) with their min-max band, one line per value of the other axes.
+* ``figures/METRIC--vs--AXIS.png``: each metric against each swept axis, one line per method (the
+  cell's solver and every baseline that reports the metric), the median over the seeds (axes whose
+  field ends in ``seed``) with their min-max band; one panel per value of the other swept axes.
 """
 
 from __future__ import annotations
@@ -20,11 +21,16 @@ import math
 import os
 import re
 import secrets
+import textwrap
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from optikin.results import process_alive
 from optikin.sweep.spec import Cell, SweepSpec
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 TIMING = re.compile(r"time|elapsed|\[(s|ms|us)\]")
 """Column names that hold timings: left out when two runs' tables are compared."""
@@ -133,6 +139,18 @@ def comparable(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
     return [{k: v for k, v in row.items() if not TIMING.search(k)} for row in rows]
 
 
+MAX_PANELS = 6
+"""Most panels of a figure (one per combination of the other swept axes); beyond, those axes are pooled."""
+DECADE = 10.0
+"""An axis whose positive values span this ratio or more (a decade) is drawn on a log scale."""
+LOG_Y = 30.0
+"""A y axis whose positive medians span more than this ratio (about a decade and a half) is logarithmic."""
+WRAP = 42
+"""Characters per line of a y label (long metric names are wrapped)."""
+MAX_TICKS = 8
+"""A numeric axis with at most this many values gets a tick at each value (and no others)."""
+
+
 def _slug(text: str) -> str:
     return re.sub(r"[^a-z0-9]+", "-", text.lower()).strip("-") or "metric"
 
@@ -143,62 +161,187 @@ def _number(value: Any) -> float | None:
     return float(value) if math.isfinite(value) else None
 
 
-def write_figures(folder: Path, spec: SweepSpec, rows: list[dict[str, Any]]) -> list[Path]:
-    """Each numeric metric against each swept axis: median over the seed axes, min-max band, one line
-    per combination of the other axes. Returns the files drawn."""
-    import matplotlib
+def _token(value: Any) -> str:
+    return json.dumps(value, default=str)
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+
+@dataclass(frozen=True)
+class Curve:
+    """One method's line in a panel: per value of the swept axis, the median and the min-max of the metric
+    over the cells that share it (the seeds, and the pooled axes); NaN where no cell has a number."""
+
+    median: tuple[float, ...]
+    low: tuple[float, ...]
+    high: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class FigurePlan:
+    """What one figure of a sweep draws: ``metric`` against the swept ``axis``.
+
+    ``values`` are the axis values in sweep order (x positions when all are numbers, else tick labels);
+    ``panels`` holds per combination of the other swept axes (``"a=1, b=2"``; ``""`` for one panel) the
+    :class:`Curve` of each method; ``pooled`` names the axes gathered with the seeds.
+    """
+
+    metric: str
+    axis: str
+    values: tuple[Any, ...]
+    panels: tuple[tuple[str, dict[str, Curve]], ...]
+    spread: tuple[str, ...]
+    pooled: tuple[str, ...]
+
+
+def metric_columns(metric: str, columns: list[str], solver: str) -> dict[str, str]:
+    """``{method: column}`` of one collected metric: ``METHOD: metric`` columns (``solver: ...`` drawn as
+    ``solver``), and the bare ``metric`` column as the solver's when no ``solver: metric`` column exists."""
+    found: dict[str, str] = {}
+    for column in columns:
+        if column.endswith(f": {metric}"):
+            method = column[: -len(metric) - 2]
+            if ": " not in method:
+                found[solver if method == "solver" else method] = column
+    if metric in columns and solver not in found:
+        found = {solver: metric} | found
+    return found
+
+
+def figure_plans(spec: SweepSpec, rows: list[dict[str, Any]]) -> list[FigurePlan]:
+    """One :class:`FigurePlan` per (collected metric with a number, swept axis other than the seeds).
+
+    Parameters
+    ----------
+    spec:
+        The sweep (its axes, metrics and solver name the lines).
+    rows:
+        :func:`table_rows` output; cells without a number for a method are left out of its median.
+
+    Returns
+    -------
+    list of FigurePlan
+        In the order of ``spec.metrics`` and ``spec.axes``.
+    """
     import numpy as np
 
     axes = list(spec.axes)
     seeds = [a for a in axes if a.endswith("seed")]
     plotted = [a for a in axes if a not in seeds] or axes
-    fixed = {"index", "key", "status", "tries", "succeeded", "reason", *axes}
-    metrics = [c for c in (rows[0] if rows else {}) if c not in fixed and not TIMING.search(c)]
-    metrics = [m for m in metrics if any(_number(r[m]) is not None for r in rows)]
+    columns = list(rows[0]) if rows else []
+    solver = spec.solver or "solver"
+    plans = []
+    for metric in spec.metrics:
+        methods = metric_columns(metric, columns, solver)
+        methods = {m: c for m, c in methods.items() if any(_number(r[c]) is not None for r in rows)}
+        if not methods:
+            continue
+        for axis in plotted:
+            others = [a for a in plotted if a != axis]
+            combos = list(dict.fromkeys(_token([r[a] for a in others]) for r in rows))
+            pooled = others if len(combos) > MAX_PANELS else []
+            split = [a for a in others if a not in pooled]
+            values = list(dict.fromkeys(_token(r[axis]) for r in rows))
+            panels = []
+            for combo in dict.fromkeys(_token([r[a] for a in split]) for r in rows):
+                members = [r for r in rows if _token([r[a] for a in split]) == combo]
+                curves = {}
+                for method, column in methods.items():
+                    med, low, high = [], [], []
+                    for value in values:
+                        ys = [_number(r[column]) for r in members if _token(r[axis]) == value]
+                        finite = [y for y in ys if y is not None]
+                        med.append(float(np.median(finite)) if finite else math.nan)
+                        low.append(min(finite) if finite else math.nan)
+                        high.append(max(finite) if finite else math.nan)
+                    curves[method] = Curve(tuple(med), tuple(low), tuple(high))
+                label = ", ".join(f"{a}={v}" for a, v in zip(split, json.loads(combo)))
+                panels.append((label, curves))
+            plans.append(
+                FigurePlan(
+                    metric=metric,
+                    axis=axis,
+                    values=tuple(json.loads(v) for v in values),
+                    panels=tuple(panels),
+                    spread=tuple(seeds) if axis not in seeds else (),
+                    pooled=tuple(pooled),
+                )
+            )
+    return plans
+
+
+def _line_styles(methods: list[str], solver: str) -> dict[str, dict[str, Any]]:
+    """:func:`optikin.plots.method_styles` with a marker on every swept value (the solver's filled)."""
+    from optikin.plots import method_styles
+
+    styles = method_styles(methods, {solver: "solver"})
+    for method, style in styles.items():
+        style["markevery"] = None
+        style.setdefault("marker", "o")
+        style.setdefault("ms", 4.5)
+    return styles
+
+
+def draw_figure(spec: SweepSpec, plan: FigurePlan) -> Figure:
+    """The figure of one :class:`FigurePlan`: a panel per combination of the other axes (shared y), in each
+    one line per method (its median) with a shaded min-max band over the seeds (none for a method whose
+    medians and band lie on an earlier method's, :func:`optikin.plots.coincident`), the legend outside.
+
+    The x axis is logarithmic when the axis values are positive numbers spanning :data:`DECADE` or more;
+    non-numeric values (preset names, lists) are evenly spaced tick labels. The y label is the metric's
+    name with its unit; its axis is logarithmic when its positive medians span more than :data:`LOG_Y`.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import numpy as np
+    from matplotlib.ticker import NullLocator
+
+    from optikin.plots import coincident, labelled, legend_outside, subplots
+
+    numeric = all(_number(v) is not None for v in plan.values)
+    x = np.array([float(v) for v in plan.values]) if numeric else np.arange(len(plan.values), dtype=float)
+    solver = spec.solver or "solver"
+    methods = list(plan.panels[0][1]) if plan.panels else []
+    styles = _line_styles(methods, solver)
+    on = coincident([{m: np.array(c.median) for m, c in p.items()} for _, p in plan.panels])
+    labels = labelled(methods, on)
+    same_band = coincident([{m: np.array([c.median, c.low, c.high]) for m, c in p.items()} for _, p in plan.panels])
+    count = len(plan.panels)
+    fig, grid = subplots(1, count, figsize=(2.4 + 3.6 * count, 3.8), sharey=True)
+    log_x = numeric and x.min() > 0 and x.max() / x.min() >= DECADE
+    medians: list[float] = []
+    for ax, (title, curves) in zip(grid[0], plan.panels):
+        for method, curve in curves.items():
+            ax.plot(x, curve.median, label=labels[method], **styles[method])
+            medians.extend(curve.median)
+            if plan.spread and method not in same_band:
+                ax.fill_between(x, curve.low, curve.high, color=styles[method]["color"], alpha=0.15, lw=0)
+        if log_x:
+            ax.set_xscale("log")
+        if not numeric or len(x) <= MAX_TICKS:
+            ax.set_xticks(x, [f"{v:g}" if numeric else str(v) for v in plan.values], rotation=0 if numeric else 20)
+            ax.xaxis.set_minor_locator(NullLocator())
+        ax.set_xlabel(plan.axis)
+        ax.set_title(title, fontsize=9)
+        ax.grid(alpha=0.3)
+    positive = [m for m in medians if m > 0]
+    if positive and all(m > 0 for m in medians if math.isfinite(m)) and max(positive) / min(positive) > LOG_Y:
+        grid[0, 0].set_yscale("log")
+    grid[0, 0].set_ylabel(textwrap.fill(plan.metric, WRAP))
+    spread = ", ".join([*plan.spread, *plan.pooled])
+    legend_outside(fig, title=f"{spec.name}\nmedian" + (f", band min-max\nover {spread}" if spread else ""))
+    return fig
+
+
+def write_figures(folder: Path, spec: SweepSpec, rows: list[dict[str, Any]]) -> list[Path]:
+    """``figures/METRIC--vs--AXIS.png`` of every :func:`figure_plans` plan (:func:`draw_figure`); returns the
+    files drawn."""
+    from optikin.plots import save
+
     out = folder / "figures"
     out.mkdir(exist_ok=True)
     drawn = []
-    for metric in metrics:
-        for axis in plotted:
-            others = [a for a in plotted if a != axis]
-            xs = list(dict.fromkeys(json.dumps(r[axis], default=str) for r in rows))
-            numeric = all(_number(json.loads(x)) is not None for x in xs)
-            positions = [float(json.loads(x)) for x in xs] if numeric else list(range(len(xs)))
-            groups = list(dict.fromkeys(json.dumps([r[a] for a in others], default=str) for r in rows))
-            fig, ax = plt.subplots(figsize=(6.4, 4.0))
-            for group in groups[:8]:
-                med, low, high = [], [], []
-                for x in xs:
-                    ys = [
-                        _number(r[metric])
-                        for r in rows
-                        if json.dumps(r[axis], default=str) == x
-                        and json.dumps([r[a] for a in others], default=str) == group
-                    ]
-                    finite = [y for y in ys if y is not None]
-                    med.append(float(np.median(finite)) if finite else math.nan)
-                    low.append(min(finite) if finite else math.nan)
-                    high.append(max(finite) if finite else math.nan)
-                label = ", ".join(f"{a}={v}" for a, v in zip(others, json.loads(group))) or metric
-                (line,) = ax.plot(positions, med, marker="o", label=label)
-                if seeds:
-                    ax.fill_between(positions, low, high, color=line.get_color(), alpha=0.2)
-            if numeric and min(positions) > 0 and max(positions) / min(positions) >= 10:
-                ax.set_xscale("log")
-            if not numeric:
-                ax.set_xticks(positions, [str(json.loads(x)) for x in xs], rotation=20)
-            ax.set_xlabel(axis)
-            ax.set_ylabel(metric)
-            spread = f"; median and min-max over {', '.join(seeds)}" if seeds else ""
-            ax.set_title(f"{spec.name}{spread}", fontsize=9)
-            if len(groups) > 1 or others:
-                ax.legend(fontsize=7)
-            fig.tight_layout()
-            path = out / f"{_slug(metric)}--vs--{_slug(axis)}.png"
-            fig.savefig(path, dpi=90)
-            plt.close(fig)
-            drawn.append(path)
+    for plan in figure_plans(spec, rows):
+        path = out / f"{_slug(plan.metric)}--vs--{_slug(plan.axis)}.png"
+        save(draw_figure(spec, plan), path)
+        drawn.append(path)
     return drawn
