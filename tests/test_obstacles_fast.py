@@ -40,7 +40,7 @@ def reference_rows(barrier: BarrierRows, q: np.ndarray, step: int) -> tuple[np.n
         return out
 
     now = offsets(t)
-    d, G, D = (np.asarray(value) for value in dist.function(q, now))
+    d, G, D = (np.asarray(value) for value in dist.function(q, now)[:3])
     d = d.T  # (n_obstacles, K)
     D = D.T  # (n_obstacles K, n)
     G = G.T  # (n_obstacles K, 3)

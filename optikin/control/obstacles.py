@@ -179,13 +179,17 @@ class BackboneDistances:
     its column of ``offsets`` ``(3, n_obstacles)``; :attr:`G_rows` ``(n_obstacles K, 3)`` their
     gradients with respect to the sample's position (row ``i K + j``: obstacle ``i``,
     sample ``j``); :attr:`D` ``(n_obstacles K, n)`` the distance Jacobian, row ``i K + j``
-    being ``G_rows[iK+j] d p_j / d q`` (chain rule through the backbone Jacobian).
+    being ``G_rows[iK+j] d p_j / d q`` (chain rule through the backbone Jacobian);
+    :attr:`b_static` ``(n_obstacles K,)`` the barrier bound ``-gamma (d - margin)`` of every pair
+    (the rows' ``b`` without the obstacles' motion; zero with the default ``gamma``).
     """
 
     arm: ArmModel
     obstacles: Sequence[Obstacle]
     points_per_section: int
     compiled: bool = False
+    margin: float = 0.0
+    gamma: float = 0.0
     function: ca.Function = field(init=False)
 
     def __post_init__(self):
@@ -212,9 +216,14 @@ class BackboneDistances:
         self.function = ca.Function(
             "backbone_distances",
             [q, offsets],
-            [ca.vertcat(*d_rows).T, gradients, distance_jacobian.T],
+            [
+                ca.vertcat(*d_rows).T,
+                gradients,
+                distance_jacobian.T,
+                -self.gamma * (ca.vertcat(*d_rows).T - self.margin),
+            ],
             ["q", "offsets"],
-            ["d", "G", "D"],
+            ["d", "G", "D", "b_static"],
             {"cse": True},
         )
         self._f = BufferedFunction(self.function, compiled=self.compiled)
@@ -225,6 +234,7 @@ class BackboneDistances:
         self.d = self.d_flat.reshape(count, K)
         self.G_rows = self._f.outputs[1].reshape(count * K, 3)
         self.D = self._f.outputs[2].reshape(count * K, n)
+        self.b_static = self._f.outputs[3]
         self.moving = [i for i, ob in enumerate(self.obstacles) if ob.path is not None]
         self._static = np.zeros((3, count))
         self._offsets[:] = 0.0
@@ -317,7 +327,7 @@ class BarrierRows:
         self.dt, self.margin, self.gamma = float(dt), float(margin), float(gamma)
         pps = sampling_density(arm, margin) if points_per_section is None else int(points_per_section)
         self.spacing = max_section_length(arm) / pps
-        self.distances = BackboneDistances(arm, obstacles, pps, compiled)
+        self.distances = BackboneDistances(arm, obstacles, pps, compiled, self.margin, self.gamma)
         self.points_per_obstacle = min(int(points_per_obstacle), self.distances.samples)
         if self.points_per_obstacle < 1:
             raise ValueError("points_per_obstacle must be at least 1")
@@ -330,10 +340,9 @@ class BarrierRows:
         self._flat_rows = self._flat.reshape(-1)
         if self.points_per_obstacle == self.distances.samples:
             self._flat[:] = self._base + np.arange(self.distances.samples)
-        self._h = np.empty(self.rows)
         self._G = np.empty((self.rows, 3))
         self._G_by_obstacle = self._G.reshape(count, self.points_per_obstacle, 3)
-        self._moved = np.empty((count, self.points_per_obstacle))
+        self._moved = np.empty((count, self.points_per_obstacle, 1))
         self._moved_rows = self._moved.reshape(-1)
         self._table_offsets, self._table_steps, self._settled = self._offset_table()
         self.step = 0
@@ -347,7 +356,8 @@ class BarrierRows:
             ``(S + 1, 3 n_obstacles)`` [m]: row ``s < S`` the offsets at ``t = s dt`` (column-major),
             the last row those held beyond every path's end.
         changes:
-            ``(S + 1, n_obstacles, 3)`` [m]: ``offset(s dt + dt) - offset(s dt)``, zero in the last row.
+            ``(S + 1, n_obstacles, 3, 1)`` [m/s]: ``(offset(s dt + dt) - offset(s dt)) / dt``, zero in the
+            last row.
         settled:
             The first step from which every path is held. ``S = min(settled, _TABLE_STEPS)``; steps
             from ``S`` to ``settled`` are left to :meth:`update` to compute.
@@ -355,7 +365,7 @@ class BarrierRows:
         d = self.distances
         count = len(d.obstacles)
         if not d.moving:
-            return np.zeros((0, 3 * count)), np.zeros((0, count, 3)), 0
+            return np.zeros((0, 3 * count)), np.zeros((0, count, 3, 1)), 0
         end = max(float(d.obstacles[i].path[-1][0]) for i in d.moving)
         settled = max(0, int(np.ceil(end / self.dt)) + 1)
         stored = min(settled, _TABLE_STEPS) + 1  # the extra row: the held offsets
@@ -366,7 +376,7 @@ class BarrierRows:
         for i in d.moving:
             now[:, :, i] = d.obstacles[i].offset(t)
             after[:, :, i] = d.obstacles[i].offset(t + self.dt)
-        change = np.ascontiguousarray((after - now).transpose(0, 2, 1))
+        change = np.ascontiguousarray(((after - now) / self.dt).transpose(0, 2, 1))[:, :, :, None]
         change[-1] = 0.0
         return np.ascontiguousarray(now.transpose(0, 2, 1)).reshape(stored, 3 * count), change, settled
 
@@ -393,17 +403,14 @@ class BarrierRows:
         else:  # before the paths' end but beyond the table, or a negative step
             now = d.offsets(s * dt)
             d.evaluate(q, now)
-            change = np.ascontiguousarray((d.offsets(s * dt + dt) - now).T)
+            change = ((d.offsets(s * dt + dt) - now) / dt).T[:, :, None]
         k, flat = self.points_per_obstacle, self._flat_rows
         if k < d.samples:
             np.add(d.d.argpartition(k - 1, axis=1)[:, :k], self._base, out=self._flat)
         np.take(d.D, flat, axis=0, out=self.A)
-        h = np.take(d.d_flat, flat, out=self._h)
-        np.subtract(h, self.margin, out=h)
-        np.multiply(h, -self.gamma, out=self.b)
+        np.take(d.b_static, flat, out=self.b)
         if change is not None:
             # The obstacle's own step: d(q, t + dt) - d(q, t) = -G' (c(t + dt) - c(t)) to first order.
             np.take(d.G_rows, flat, axis=0, out=self._G)
-            np.einsum("ikj,ij->ik", self._G_by_obstacle, change, out=self._moved)
-            np.divide(self._moved_rows, dt, out=self._moved_rows)
+            np.matmul(self._G_by_obstacle, change, out=self._moved)
             np.add(self.b, self._moved_rows, out=self.b)
