@@ -248,13 +248,7 @@ class HorizonBarrier:
         if not distances.moving:
             return
         k = barrier.points_per_obstacle
-        # The rows' samples, as BarrierRows chose them from the distances it just evaluated at q.
-        if k < distances.samples:
-            nearest = np.argpartition(distances.d, k - 1, axis=1)[:, :k]
-        else:
-            nearest = np.indices(distances.d.shape)[1]
-        base = (np.arange(len(distances.obstacles)) * distances.samples)[:, None]
-        G = distances.G_rows[(base + nearest).ravel()]
+        G = distances.G_rows[barrier.selected]  # the rows' samples, as BarrierRows chose them at q
         offsets = np.stack([distances.offsets(t + j * barrier.dt) for j in range(N + 1)])  # (N + 1, 3, count)
         moved = np.repeat(offsets - offsets[:1], k, axis=2)  # c_{k+j} - c_k per row
         step = np.repeat(np.diff(offsets, axis=0), k, axis=2)  # c_{k+j+1} - c_{k+j} per row

@@ -307,6 +307,9 @@ class BarrierRows:
     ----------
     A, b:
         ``(rows, n)`` and ``(rows,)``, ``rows = n_obstacles points_per_obstacle``, refreshed by :meth:`update`.
+    selected:
+        ``(rows,)`` the row's sample as an index into :attr:`BackboneDistances.D` (``obstacle samples +
+        sample``), refreshed by :meth:`update`.
     """
 
     def __init__(
@@ -337,7 +340,7 @@ class BarrierRows:
         self.b = np.full(self.rows, -np.inf)
         self._base = (np.arange(count) * self.distances.samples)[:, None]
         self._flat = np.empty((count, self.points_per_obstacle), dtype=np.intp)
-        self._flat_rows = self._flat.reshape(-1)
+        self.selected = self._flat.reshape(-1)
         if self.points_per_obstacle == self.distances.samples:
             self._flat[:] = self._base + np.arange(self.distances.samples)
         self._G = np.empty((self.rows, 3))
@@ -404,7 +407,7 @@ class BarrierRows:
             now = d.offsets(s * dt)
             d.evaluate(q, now)
             change = ((d.offsets(s * dt + dt) - now) / dt).T[:, :, None]
-        k, flat = self.points_per_obstacle, self._flat_rows
+        k, flat = self.points_per_obstacle, self.selected
         if k < d.samples:
             np.add(d.d.argpartition(k - 1, axis=1)[:, :k], self._base, out=self._flat)
         np.take(d.D, flat, axis=0, out=self.A)
