@@ -146,17 +146,7 @@ def cc_row(outcome: ShapeOutcome) -> tuple[MethodRow, dict[str, np.ndarray]]:
         "mean tip tangent error [deg]": float(np.degrees(np.mean(np.arccos(cosine)))),
         "mean |arc length - PH length| [mm]": float(np.mean(np.abs(arcs.arc_length - used)) * MM),
     }
-    arrays = {
-        f"seconds_{cc.NAME}": arcs.seconds,
-        f"marker_distance_{cc.NAME}": distance / MM,
-        f"points_{cc.NAME}": arcs.points,
-    }
-    truth = outcome.recording.truth
-    if truth is not None:
-        backbone = arcs.distances(truth.vertebrae) * MM  # (N, nodes)
-        metrics.update(backbone_metrics(backbone))
-        arrays[f"truth_backbone_distance_{cc.NAME}"] = backbone / MM
-    return MethodRow(cc.NAME, "baseline", metrics), arrays
+    return _arc_row(cc.NAME, metrics, arcs, distance, outcome)
 
 
 def two_arcs_row(outcome: ShapeOutcome) -> tuple[MethodRow, dict[str, np.ndarray]]:
@@ -180,17 +170,25 @@ def two_arcs_row(outcome: ShapeOutcome) -> tuple[MethodRow, dict[str, np.ndarray
         "mean time per sample [us]": float(np.mean(two.seconds) * 1e6),
         "mean tip tangent error [deg]": float(np.degrees(np.mean(np.arccos(cosine)))),
     }
+    return _arc_row(cc.TWO_ARCS, metrics, two, distance, outcome)
+
+
+def _arc_row(
+    name: str, metrics: dict[str, Any], arcs: cc.CCRun | cc.TwoArcs, distance_mm: np.ndarray, outcome: ShapeOutcome
+) -> tuple[MethodRow, dict[str, np.ndarray]]:
+    """A constant-curvature baseline's row and arrays: its times, marker distances ``(N, K)`` [mm] and
+    sampled arcs, and its truth-backbone distance (into ``metrics`` too) where the recording has a truth."""
     arrays = {
-        f"seconds_{cc.TWO_ARCS}": two.seconds,
-        f"marker_distance_{cc.TWO_ARCS}": distance / MM,
-        f"points_{cc.TWO_ARCS}": two.points,
+        f"seconds_{name}": arcs.seconds,
+        f"marker_distance_{name}": distance_mm / MM,
+        f"points_{name}": arcs.points,
     }
     truth = outcome.recording.truth
     if truth is not None:
-        backbone = two.distances(truth.vertebrae) * MM  # (N, nodes)
+        backbone = arcs.distances(truth.vertebrae) * MM  # (N, nodes)
         metrics.update(backbone_metrics(backbone))
-        arrays[f"truth_backbone_distance_{cc.TWO_ARCS}"] = backbone / MM
-    return MethodRow(cc.TWO_ARCS, "baseline", metrics), arrays
+        arrays[f"truth_backbone_distance_{name}"] = backbone / MM
+    return MethodRow(name, "baseline", metrics), arrays
 
 
 def c1_report(outcome: ShapeOutcome) -> tuple[dict[str, Any], list[MethodRow], dict[str, np.ndarray]]:
