@@ -97,7 +97,7 @@ class Progress:
                 task_id = bar.add_task(description, total=total)
                 yield _Advance(lambda n: bar.advance(task_id, n))
             return
-        lines = _Lines(description, total, self.interval)
+        lines = ProgressLines(description, total, self.interval)
         try:
             yield _Advance(lines.advance)
         except BaseException:
@@ -125,18 +125,35 @@ def _duration(seconds: float) -> str:
     return f"{minutes} min {rest:02d} s"
 
 
-class _Lines:
+class ProgressLines:
     """The progress lines of one task off a terminal (module docstring), with the thread that writes the
-    periodic ones."""
+    periodic ones.
 
-    def __init__(self, description: str, total: int, interval: float) -> None:
+    Parameters
+    ----------
+    description:
+        The task's name at the start of each line; a caller may change :attr:`description` between steps
+        (``optikin sweep`` puts its counts of failed and running cells there).
+    total:
+        Steps of the whole task, those done before included.
+    interval:
+        Seconds between lines when no tenth of the steps was passed.
+    completed:
+        Steps done before this run (a resumed sweep's finished cells): counted as done, left out of the
+        estimate of the time left.
+    unit:
+        What a step is, for the opening line.
+    """
+
+    def __init__(self, description: str, total: int, interval: float, completed: int = 0, unit: str = "steps") -> None:
         self.description, self.total, self.interval = description, max(int(total), 0), interval
-        self.done = 0
+        self.done = self.completed = min(max(int(completed), 0), self.total)
         self.started = self.last = time.monotonic()
         self.parts = 0
         self._lock = threading.Lock()
         self._stop = threading.Event()
-        logger.info("%s: started, %d steps", description, self.total)
+        before = f", {self.completed} done before" if self.completed else ""
+        logger.info("%s: started, %d %s%s", description, self.total, unit, before)
         self._thread = threading.Thread(target=self._periodic, name="optikin-progress", daemon=True)
         self._thread.start()
 
@@ -144,7 +161,9 @@ class _Lines:
         """One line of the current state (the caller holds the lock)."""
         elapsed = now - self.started
         fraction = self.done / self.total if self.total else 0.0
-        left = f", about {_duration(elapsed * (1 - fraction) / fraction)} left" if 0 < fraction < 1 else ""
+        remaining = self.total - self.completed
+        ran = (self.done - self.completed) / remaining if remaining else 0.0
+        left = f", about {_duration(elapsed * (1 - ran) / ran)} left" if 0 < ran < 1 else ""
         logger.info(
             "%s: %d/%d (%.0f %%), %s%s",
             self.description,
@@ -157,11 +176,13 @@ class _Lines:
         self.last = now
 
     def advance(self, n: int) -> None:
+        """``n`` more steps done: a line if another tenth of the steps run here was passed or the interval went by."""
         with self._lock:
             self.done += n
             if self.done >= self.total:
                 return  # the closing line says so
-            now, parts = time.monotonic(), LINE_PARTS * self.done // self.total
+            remaining = max(self.total - self.completed, 1)
+            now, parts = time.monotonic(), LINE_PARTS * (self.done - self.completed) // remaining
             if parts > self.parts or now - self.last >= self.interval:
                 self.parts = parts
                 self._line(now)
@@ -174,6 +195,7 @@ class _Lines:
                     self._line(now)
 
     def close(self, finished: bool) -> None:
+        """Stop the periodic lines and write the closing one (``finished``: the task ran to its end)."""
         self._stop.set()
         self._thread.join()
         elapsed = _duration(time.monotonic() - self.started)

@@ -18,7 +18,8 @@ import pytest
 import optikin
 from optikin.cli import main
 from optikin.errors import SpecError
-from optikin.progress import INTERVAL_VARIABLE, Progress
+from optikin import progress
+from optikin.progress import INTERVAL_VARIABLE, Progress, ProgressLines
 from optikin.runner import solve
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -63,6 +64,23 @@ def test_progress_lines_every_tenth_and_every_interval_during_a_long_step(caplog
             advance()
     waiting = [r.getMessage() for r in caplog.records if r.getMessage().startswith("slow: 0/2 (0 %)")]
     assert len(waiting) >= 3
+
+
+def test_steps_done_before_a_resumed_run_are_left_out_of_the_time_left(caplog, monkeypatch):
+    now = [0.0]
+    monkeypatch.setattr(progress.time, "monotonic", lambda: now[0])
+    with caplog.at_level(logging.INFO, logger="optikin.progress"):
+        lines = ProgressLines("resumed", total=10, interval=60.0, completed=5, unit="cells")
+        now[0] = 2.0
+        lines.advance(1)  # 1 of the 5 cells run here in 2 s: 4 more to go
+        now[0] = 3.0
+        lines.close(finished=False)
+    messages = [r.getMessage() for r in caplog.records]
+    assert messages == [
+        "resumed: started, 10 cells, 5 done before",
+        "resumed: 6/10 (60 %), 2.0 s, about 8.0 s left",
+        "resumed: stopped at 6/10 after 3.0 s",
+    ]
 
 
 def test_an_interrupted_task_says_where_it_stopped(caplog):

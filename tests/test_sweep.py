@@ -82,10 +82,10 @@ def test_a_piped_sweep_logs_its_progress(tmp_path, caplog):
         report = run_sweep(str(_write(tmp_path)), out=tmp_path / "out", jobs=1, figures=False, progress=True)
     lines = [r.getMessage() for r in caplog.records if r.name == "optikin.progress"]
     assert report.ran == 4
-    assert lines[0].endswith(": 4 cells, 0 done before: started")
-    assert any("4 done, 0 failed" in line and "(4/4)" in line for line in lines)  # every tenth of 4 cells
-    assert sum("(" in line and "/4)" in line for line in lines) == 4
-    assert ": 4 done, 0 failed, 0 running: finished in " in lines[-1]
+    assert lines[0].endswith(": 0 done, 0 failed, 0 running: started, 4 cells")
+    # a line for each of the first three cells (each passes another tenth of 4), the fourth in the closing line
+    assert [line.split(": ")[-1].split(" (")[0] for line in lines[1:-1]] == ["1/4", "2/4", "3/4"]
+    assert ": 4 done, 0 failed, 0 running: done, 4/4 in " in lines[-1]
 
 
 def test_cell_equals_solve_and_resume_runs_only_missing_cells(tmp_path):

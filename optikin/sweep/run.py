@@ -18,8 +18,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import logging
-import math
 import sys
 import time
 from contextlib import contextmanager
@@ -28,7 +26,7 @@ from pathlib import Path
 from typing import Any, Callable, Iterator
 
 from optikin.errors import SpecError
-from optikin.progress import LINE_PARTS, progress_interval
+from optikin.progress import ProgressLines, progress_interval
 from optikin.sweep.cell import run_cell
 from optikin.sweep.spec import Cell, expand, load_sweep
 from optikin.sweep.store import dead_tries, markers_dir, read_cells, table_rows, write_cell, write_figures, write_table
@@ -52,23 +50,20 @@ class SweepReport:
     figures: list[Path] = field(default_factory=list)
 
 
-progress_log = logging.getLogger("optikin.progress")
-
-
 class _Bar:
     """One aggregated progress report: cells done / failed / running, with the ETA.
 
-    On a terminal a rich bar on stderr; otherwise lines on the ``optikin.progress`` logger (as
-    :class:`optikin.progress.Progress` writes them): at the start, whenever another tenth of the cells
-    finished or :func:`optikin.progress.progress_interval` seconds went by, and at the end.
+    On a terminal a rich bar on stderr; otherwise the lines of :class:`optikin.progress.ProgressLines` on
+    the ``optikin.progress`` logger, the cells finished before a resumed run counted as done.
     """
 
     def __init__(self, name: str, total: int, completed: int, enabled: bool) -> None:
-        self.name, self.total, self.done, self.failed, self.running = name, total, completed, 0, 0
-        self.first, self.started = completed, time.perf_counter()
+        self.name, self.done, self.failed, self.running = name, completed, 0, 0
         self._bar: Any = None
-        self._lines = enabled and not sys.stderr.isatty()
-        if enabled and not self._lines:
+        self._lines: ProgressLines | None = None
+        if enabled and not sys.stderr.isatty():
+            self._lines = ProgressLines(self._text(), total, progress_interval(), completed, unit="cells")
+        elif enabled:
             from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
             self._bar = Progress(
@@ -76,9 +71,6 @@ class _Bar:
             )
             self._bar.start()
             self._task = self._bar.add_task(self._text(), total=total, completed=completed)
-        if self._lines:
-            self.interval, self.last, self.next_part = progress_interval(), self.started, 1
-            progress_log.info("%s: %d cells, %d done before: started", name, total, completed)
 
     def _text(self) -> str:
         return f"{self.name}: {self.done} done, {self.failed} failed, {self.running} running"
@@ -90,21 +82,16 @@ class _Bar:
         self.running = running
         if self._bar is not None:
             self._bar.update(self._task, description=self._text(), completed=self.done + self.failed)
-        if self._lines:
-            now, finished = time.perf_counter(), self.done + self.failed
-            part = (finished - self.first) * LINE_PARTS // max(self.total - self.first, 1)
-            if part >= self.next_part or now - self.last >= self.interval:
-                self.next_part, self.last = part + 1, now
-                ran = finished - self.first
-                left = (now - self.started) / ran * (self.total - finished) if ran else math.nan
-                eta = f", about {left:.0f} s left" if math.isfinite(left) and finished < self.total else ""
-                progress_log.info("%s (%d/%d) in %.1f s%s", self._text(), finished, self.total, now - self.started, eta)
+        if self._lines is not None:
+            self._lines.description = self._text()
+            self._lines.advance(record is not None)
 
     def close(self) -> None:
         if self._bar is not None:
             self._bar.stop()
-        if self._lines:
-            progress_log.info("%s: finished in %.1f s", self._text(), time.perf_counter() - self.started)
+        if self._lines is not None:
+            self._lines.description = self._text()
+            self._lines.close(finished=self.done + self.failed >= self._lines.total)
 
 
 def _killed(cell: Cell, tries: int, reason: str) -> Record:
