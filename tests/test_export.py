@@ -82,7 +82,21 @@ def test_trajectory_agrees_with_warm_started_gauss_newton(tmp_path):
     out = numeric(run_example(export("cc-ik-trajectory", "ik-trajectory", tmp_path), P, tmp_path))
     batch = setup.adapter.solve_many(setup.problem, setup.start, P, warm_start=True)
     assert [STATUS[int(s)] for s in out[:, 0]] == list(batch.status)
+    assert list(out[:, 1].astype(int)) == list(batch.iterations)
     np.testing.assert_allclose(out[:, 3:], batch.x, rtol=0, atol=1e-10)
+
+
+def test_the_example_times_a_given_number_of_rounds(tmp_path):
+    """``./example targets.txt ROUNDS``: the timing loop runs ROUNDS times (0: none, nothing timed)."""
+    setup = ik_setup("cc-ik-trajectory")
+    executable = build(export("cc-ik-trajectory", "ik-trajectory", tmp_path))
+    data = tmp_path / "targets.txt"
+    np.savetxt(data, setup.targets[:5], fmt="%.17g")
+    for rounds, timed in (("0", False), ("2", True)):
+        run = subprocess.run([str(executable), str(data), rounds], capture_output=True, text=True, check=True)
+        assert len(run.stdout.splitlines()) == 5
+        times = dict(line.split() for line in run.stderr.splitlines())
+        assert set(times) == ({"per_call_us", "cpu_us"} if timed else set())
 
 
 def test_invalid_input_is_a_status(tmp_path, unreachable_setup):

@@ -18,7 +18,8 @@ What is exported (``--what``):
     by CasADi. The step's linear system is solved by LU with partial pivoting in C (CasADi's
     symbolic QR in Python), so iterates agree to rounding; where the Jacobian has a null
     direction at the solution (pose targets of a two-section CC arm, rank 5) rounding sets
-    where along it either path lands. ``ik-step`` solves each target from
+    where along it either path lands, and along a trajectory each path continues from its own
+    previous solution. ``ik-step`` solves each target from
     the problem's start; ``ik-trajectory`` warm-starts each from the previous solution.
 ``ph-shape``
     the minimum-energy PH quintic backbones of a ``ph_shape`` problem (given end speeds), a
@@ -295,8 +296,10 @@ class IkExportSetup:
     targets: np.ndarray
 
 
-def ik_setup(problem: str) -> IkExportSetup:
+def ik_setup(problem: str, overrides: Sequence[tuple[str, Any]] = ()) -> IkExportSetup:
     """The least-squares problem of ``ik`` problem ``problem``, its ``gauss-newton`` adapter, start and targets.
+
+    ``overrides`` are ``(dotted field, value)`` pairs set in the problem file before it is validated.
 
     Raises
     ------
@@ -308,7 +311,7 @@ def ik_setup(problem: str) -> IkExportSetup:
     from optikin.problems.ik.run import load_targets, setup_of
     from optikin.solvers.gauss_newton import GaussNewton
 
-    ctx = context(problem, ("ik",), "--what ik-step/ik-trajectory", (), ("optikin.solvers.gauss_newton",))
+    ctx = context(problem, ("ik",), "--what ik-step/ik-trajectory", overrides, ("optikin.solvers.gauss_newton",))
     setup = setup_of(ctx)
     least_squares = build_problem(ctx.arm, setup.formulation)
     if isinstance(least_squares, list):
@@ -344,8 +347,8 @@ def export(
         configurations drawn uniformly inside the bounds with the problem's seed; PH: its first
         samples; QP: steps spread along the reference).
     overrides:
-        ``(dotted field, value)`` pairs set in the problem file before it is validated (``ph-shape``
-        and ``qp-step``), e.g. ``("arm.params.section_lengths", [0.18] * 4)``.
+        ``(dotted field, value)`` pairs set in the problem file before it is validated, e.g.
+        ``("arm.params.section_lengths", [0.18] * 4)``.
 
     Returns
     -------
@@ -376,7 +379,7 @@ def export(
         from optikin.export.qp_step import export_qp_step, qp_setup
 
         return export_qp_step(problem, qp_setup(problem, overrides), folder, samples)
-    setup = ik_setup(problem)
+    setup = ik_setup(problem, overrides)
     return export_ik(what, problem, setup.problem, setup.adapter, setup.start, folder, setup.targets[:samples])
 
 

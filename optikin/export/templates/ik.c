@@ -96,7 +96,7 @@ static void direction(${prefix}_work* w, int newton, double lam) {
 /* One step from x: x_new, returns ||r(x)||, *stationarity of x (the step Function of gauss_newton). */
 static double step(${prefix}_work* w, const double* x, const double* p, double mu, int newton, double* x_new,
                    double* stationarity) {
-  int i, j, la, ua, blocked[NX];
+  int i, j, la, ua, blocked, any_blocked = 0;
   double rn = 0.0, trace = 0.0, fro = 0.0, gs = 0.0, lam, s, moved;
   w->arg[0] = x;
   w->arg[1] = p;
@@ -121,10 +121,10 @@ static double step(${prefix}_work* w, const double* x, const double* p, double m
     ${prefix}_hess(w->arg, w->res, w->iw, w->w, 0);
   } else if (NR >= NX) {
     for (i = 0; i < NX; ++i)
-      for (j = 0; j < NX; ++j) {
+      for (j = i; j < NX; ++j) { /* J^T J is symmetric: each product J_li J_lj, summed in the same order */
         s = 0.0;
         for (la = 0; la < NR; ++la) s += w->J[la + NR * i] * w->J[la + NR * j];
-        w->H[i + NX * j] = s;
+        w->H[i + NX * j] = w->H[j + NX * i] = s;
       }
   }
   for (i = 0; i < NX; ++i) w->free_[i] = 1.0;
@@ -132,11 +132,12 @@ static double step(${prefix}_work* w, const double* x, const double* p, double m
   for (i = 0; i < NX; ++i) {
     la = !periodic[i] && x[i] <= lower_margin[i];
     ua = !periodic[i] && x[i] >= upper_margin[i];
-    blocked[i] = (la && w->d[i] < 0) || (ua && w->d[i] > 0);
-    w->free_[i] = 1.0 - blocked[i];
+    blocked = (la && w->d[i] < 0) || (ua && w->d[i] > 0);
+    any_blocked |= blocked;
+    w->free_[i] = 1.0 - blocked;
     if (!((la && w->g[i] > 0) || (ua && w->g[i] < 0))) gs += w->g[i] * w->g[i];
   }
-  direction(w, newton, lam);
+  if (any_blocked) direction(w, newton, lam); /* else the restricted step is the one just computed */
   for (i = 0; i < NX; ++i) {
     moved = x[i] + w->d[i];
     if (periodic[i])
@@ -204,16 +205,18 @@ int ${prefix}_solve(${prefix}_work* w, const double* x0, const double* p, double
 }
 
 long ${prefix}_trajectory(${prefix}_work* w, const double* x0, const double* P, long n, double* X,
-                          double* residuals, int* status) {
+                          double* residuals, int* status, int* iterations) {
   long k, failures = 0;
-  int s, i, finite;
+  int s, i, finite, calls;
   double rn;
   const double* start = x0 ? x0 : ${prefix}_start;
   for (k = 0; k < n; ++k) {
     rn = NAN;
-    s = ${prefix}_solve(w, start, P + k * ${PREFIX}_NP, X + k * NFULL, &rn, 0);
+    calls = 0;
+    s = ${prefix}_solve(w, start, P + k * ${PREFIX}_NP, X + k * NFULL, &rn, &calls);
     if (residuals) residuals[k] = rn;
     if (status) status[k] = s;
+    if (iterations) iterations[k] = calls;
     if (s != ${PREFIX}_OK) failures += 1;
     finite = s != ${PREFIX}_INVALID_INPUT;
     for (i = 0; i < NFULL && finite; ++i) finite = isfinite(X[k * NFULL + i]);

@@ -80,10 +80,10 @@ int ${prefix}_solve(${prefix}_work* work, const double* x0, const double* p, dou
 
 /* A trajectory: target k (row k of the row-major n x NP array P) is solved from the solution of
    target k - 1 (the first from x0, NULL: the problem's start), as optikin's warm-started solves.
-   X (n x N, row-major) receives the solutions, residuals (n) and status (n) may be NULL.
-   Returns the number of targets whose status is not ${PREFIX}_OK. */
+   X (n x N, row-major) receives the solutions; residuals (n), status (n) and iterations (n, step
+   evaluations per target) may be NULL. Returns the number of targets whose status is not ${PREFIX}_OK. */
 long ${prefix}_trajectory(${prefix}_work* work, const double* x0, const double* P, long n, double* X,
-                          double* residuals, int* status);
+                          double* residuals, int* status, int* iterations);
 
 /* The problem's start configuration (N entries). */
 extern const double ${prefix}_start[${PREFIX}_N];
