@@ -117,3 +117,49 @@ def test_qp_step(benchmark, tmp_path, sections, active):
         controller.command(*arguments[next(position) % len(arguments)])
 
     benchmark(step)
+
+
+@pytest.mark.parametrize("problem", ["cc-ik-trajectory", "cc-ik-pose-trajectory"])
+def test_ik_trajectory(benchmark, tmp_path, problem):
+    """``ik-trajectory``: 1000 targets of the problem's 10 s, 100 Hz trajectory (``data.samples``
+    overridden), one C call for the whole chain. Python: ``GaussNewton.solve_many(warm_start=True)``
+    (preset ``gauss-newton``), per target in ``python_us``. With valgrind on PATH, ``c_instructions``:
+    instructions per target of one ``optikin_ik_trajectory_trajectory`` call (callgrind, no timing loop)."""
+    import re
+
+    from optikin.export import ik_setup
+
+    overrides = [("data.samples", 1000)]
+    setup = ik_setup(problem, overrides)
+    data = tmp_path / "targets.txt"
+    np.savetxt(data, setup.targets, fmt="%.17g")
+    executable = build(export(problem, "ik-trajectory", tmp_path, overrides=overrides))
+    benchmark.extra_info.update(c_times(executable, data))
+    iterations = [
+        int(line.split()[1])
+        for line in subprocess.check_output([str(executable), str(data), "0"], text=True).splitlines()
+    ]
+    benchmark.extra_info.update({"targets": len(setup.targets), "median iterations": float(np.median(iterations))})
+    if shutil.which("valgrind"):
+        run = subprocess.run(
+            [
+                "valgrind",
+                "--tool=callgrind",
+                "--toggle-collect=optikin_ik_trajectory_trajectory",
+                f"--callgrind-out-file={tmp_path / 'callgrind.out'}",
+                str(executable),
+                str(data),
+                "0",
+            ],
+            capture_output=True,
+            text=True,
+            check=True,
+        )
+        refs = re.search(r"I\s+refs:\s+([\d,]+)", run.stderr)
+        assert refs is not None
+        benchmark.extra_info["c_instructions"] = round(int(refs.group(1).replace(",", "")) / len(setup.targets))
+    problem_, adapter, start, P = setup.problem, setup.adapter, setup.start, setup.targets
+    adapter.solve_many(problem_, start, P[:3], warm_start=True)  # build the step Function outside the timing
+    batch = benchmark.pedantic(lambda: adapter.solve_many(problem_, start, P, warm_start=True), rounds=5)
+    benchmark.extra_info["python_us"] = round(1e6 * benchmark.stats.stats.median / len(P), 1)
+    assert batch.status.count("ok") == len(P)
