@@ -1,9 +1,12 @@
 """``optikin export --what ph-shape``: the C trajectory call against the Python ``ph_newton`` path.
 
-The C library runs modified Newton on CasADi-generated code; the Python path runs the same
-Function in CasADi's virtual machine (:meth:`ShapeEnergyModel.solve_newton` in the warm-start loop of
-the ``ph`` adapters). Statuses and Newton step counts must agree sample by sample, solutions and
-energies to 1e-10, also where Newton fails (a small iteration budget) and with the basin check.
+The C library runs modified Newton on CasADi-generated code: the energy's gradient and Hessian through
+the 13 Bernstein coefficients of the bending energy (``bending_newton_outputs``), the data-only part
+of the Hermite family once per sample. The Python path runs CasADi's reverse-mode derivatives of the
+model's energy in CasADi's virtual machine (:meth:`ShapeEnergyModel.solve_newton` in the warm-start
+loop of the ``ph`` adapters). Statuses and Newton step counts must agree sample by sample, solutions,
+energies and lengths to 1e-12, also where Newton fails (a small iteration budget), after coarse-grid
+restarts and with the basin check.
 """
 
 from __future__ import annotations
@@ -15,7 +18,9 @@ import numpy as np
 import pytest
 
 from optikin.export import build, export
-from optikin.export.ph_shape import ph_setup
+from optikin.curves.energy import shape_energy
+from optikin.curves.newton import modified_newton_function
+from optikin.export.ph_shape import newton_functions, ph_setup
 
 pytestmark = pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler cc on PATH")
 
@@ -55,8 +60,8 @@ def adapter_with(setup, max_iterations: int, fallback: bool, basin_check: bool =
 def compare(out: np.ndarray, solutions) -> None:
     assert [STATUS[int(s)] for s in out[:, 0]] == [s.status for s in solutions]
     assert list(out[:, 1].astype(int)) == [s.iterations for s in solutions]
-    np.testing.assert_allclose(out[:, 4:6], [s.x for s in solutions], rtol=0, atol=1e-10)
-    np.testing.assert_allclose(out[:, 2], [s.energy for s in solutions], rtol=1e-10, atol=0)
+    np.testing.assert_allclose(out[:, 4:6], [s.x for s in solutions], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(out[:, 2], [s.energy for s in solutions], rtol=1e-12, atol=0)
     np.testing.assert_allclose(out[:, 3], [s.arc_length for s in solutions], rtol=0, atol=1e-12)
 
 
@@ -116,7 +121,7 @@ def test_invalid_input_is_a_status_and_the_next_sample_starts_cold(built):
     assert [STATUS[int(s)] for s in out[:, 0]] == ["ok", "invalid_input", "ok"]
     assert np.isnan(out[1, 2:]).all()
     cold = setup.model.solve_newton(setup.samples[2], None, fallback=False)
-    np.testing.assert_allclose(out[2, 4:6], cold.x, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(out[2, 4:6], cold.x, rtol=0, atol=1e-12)
     assert int(out[2, 1]) == cold.iterations
 
 
@@ -125,3 +130,37 @@ def test_free_end_speeds_are_refused():
 
     with pytest.raises(SolverError, match="given end speeds only"):
         ph_setup("cbha-ph-shape", [("options.free_speeds", True)])
+
+
+def test_the_cut_after_the_family_keeps_the_models_energy(built):
+    """The grid energy of (x, family(P)) is the model's energy of (x, P), rounding included."""
+    setup = built[0]
+    (family, _), grid = newton_functions(setup.model, "cut")
+    rng = np.random.default_rng(3)
+    for k in (0, 50, 99):
+        P = setup.parameters[k]
+        F = family(P)
+        for x in rng.uniform(-np.pi, np.pi, (25, 2)):
+            assert float(grid(x, F)) == float(setup.model.energy_function(x, P)[0])
+
+
+def test_the_structured_derivatives_agree_with_reverse_mode(built):
+    """The Newton outputs from the coefficient chain rule against CasADi's gradient and Hessian of the
+    model's energy, near the solutions (where Newton runs) and at random angles."""
+    setup = built[0]
+    model = setup.model
+    (family, newton), _ = newton_functions(model, "chain")
+    x, P, curve = model.symbols()
+    energy = shape_energy(curve, model.settings.twist_weight, model.settings.nodes, model.settings.curvature_floor)
+    reference = modified_newton_function(energy, curve.arc_length(), x, P)
+    solutions = setup.adapter.solve(model, setup.samples[:20])
+    rng = np.random.default_rng(4)
+    for k, sol in enumerate(solutions):
+        P_k = setup.parameters[k]
+        for point in (sol.x + rng.normal(0, 0.05, 2), rng.uniform(-np.pi, np.pi, 2)):
+            got = np.array(newton(point, family(P_k))).ravel()
+            want = np.array(reference(point, P_k)).ravel()
+            assert got[0] == want[0] and got[1] == want[1]  # E, S: the same operations
+            scale = 1.0 + abs(want[0])
+            np.testing.assert_allclose(got[2:4], want[2:4], rtol=1e-10, atol=1e-12 * scale)  # max|g|, lambda_min
+            np.testing.assert_allclose(got[4:6], want[4:6], rtol=1e-9, atol=1e-12)  # the step

@@ -26,6 +26,9 @@ from optikin.fastcall import BufferedFunction
 ENERGY_NOISE = 1e-14
 """Relative rounding noise of an energy value: a line search accepts a step that raises E by less."""
 
+SX = ca.SX | ca.DM
+"""A CasADi expression (operations on SX may be typed DM)."""
+
 MAX_ANGLE_STEP = 1.0
 """Largest change of the free angles in one Newton step (radians)."""
 
@@ -34,7 +37,18 @@ def modified_newton_function(energy: ca.SX, length: ca.SX, x: ca.SX, P: ca.SX) -
     """``(x, P) -> [E, S, max|g|, lambda_min(H), p0, p1, g.p]`` for two variables ``x``."""
     g = ca.gradient(energy, x)
     H = ca.hessian(energy, x)[0]
-    h00, h01, h11 = H[0, 0], H[0, 1], H[1, 1]
+    return ca.Function(
+        "ph_modified_newton", [x, P], [modified_newton_outputs(energy, length, g, H[0, 0], H[0, 1], H[1, 1])]
+    )
+
+
+def modified_newton_outputs(energy: SX, length: SX, g: SX, h00: SX, h01: SX, h11: SX) -> ca.SX:
+    """``[E, S, max|g|, lambda_min(H), p0, p1, g.p]`` from the energy, length, gradient ``g`` (2) and Hessian.
+
+    The modified Newton step ``p = -(H + shift I)^-1 g``: the shift lifts the smaller eigenvalue
+    of the symmetric ``H = [[h00, h01], [h01, h11]]`` (closed form) to ``1e-6 (|mean| + radius + 1)``
+    where it is below, and ``p`` is cut to :data:`MAX_ANGLE_STEP`.
+    """
     mean, half = 0.5 * (h00 + h11), 0.5 * (h00 - h11)
     radius = ca.sqrt(half * half + h01 * h01)
     lmin = mean - radius
@@ -43,8 +57,7 @@ def modified_newton_function(energy: ca.SX, length: ca.SX, x: ca.SX, P: ca.SX) -
     det = a * d - h01 * h01
     p = ca.vertcat(-(d * g[0] - h01 * g[1]) / det, -(a * g[1] - h01 * g[0]) / det)
     p = p * ca.fmin(1.0, MAX_ANGLE_STEP / ca.norm_2(p))
-    out = ca.vertcat(energy, length, ca.mmax(ca.fabs(g)), lmin, p, ca.dot(g, p))
-    return ca.Function("ph_modified_newton", [x, P], [out])
+    return ca.vertcat(energy, length, ca.mmax(ca.fabs(g)), lmin, p, ca.dot(g, p))
 
 
 def modified_newton(fn: BufferedFunction, x0, tol: float, max_iterations: int):

@@ -13,9 +13,9 @@ IPOPT, the C library reports ``NOT_CONVERGED``. Given end speeds only (the seed'
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import casadi as ca
 import numpy as np
@@ -24,6 +24,7 @@ from optikin.errors import SolverError
 
 if TYPE_CHECKING:
     from optikin.curves.min_energy import ShapeEnergyModel
+    from optikin.curves.ph_quintic import PHQuintic
     from optikin.export import Export
     from optikin.solvers.ph_backends import NewtonAdapter
 
@@ -66,20 +67,239 @@ def ph_setup(problem: str, overrides=()) -> PHExportSetup:
     return PHExportSetup(model, adapter, samples, np.array([s.parameters() for s in samples]))
 
 
-def newton_functions(model: ShapeEnergyModel, prefix: str) -> list[ca.Function]:
-    """The Newton Function and the energy of ``model`` (a given-speeds ShapeEnergyModel), named for ``prefix``."""
+FAMILY_FIELDS = ("A0_bar", "A2_bar", "center", "pole", "pole_root")
+"""The fields of :class:`optikin.curves.ph_quintic.HermiteFamily` a member needs besides the angles."""
+
+
+@dataclass(frozen=True)
+class SplitModel:
+    """A given-speeds model cut into its data-only part and the rest.
+
+    ``family`` (an SX of the parameter vector ``P``) holds the :data:`FAMILY_FIELDS` of the
+    Hermite family, one sample's constants; ``curve`` is the family member at the angles ``x``
+    built on the symbols ``F`` that stand for them. The cut changes no operation: the energy of
+    ``curve`` at ``(x, family(P))`` is the model's, rounding included.
+    """
+
+    x: ca.SX
+    P: ca.SX
+    F: ca.SX
+    family: ca.SX
+    curve: PHQuintic
+
+
+def split_model(model: ShapeEnergyModel) -> SplitModel:
+    """The model's curve ``hermite_family(p0, s0 t0, p1, s1 t1).member(phi0, phi2)`` cut after the family."""
+    from optikin.curves.min_energy import ShapeParameters
+    from optikin.curves.ph_quintic import hermite_family
+
+    x, P, _ = model.symbols()
+    p = ShapeParameters.of(P)
+    family = hermite_family(p.p0, p.s0 * p.t0, p.p1, p.s1 * p.t1)
+    values = [getattr(family, name) for name in FAMILY_FIELDS]
+    offsets = np.cumsum([0] + [v.numel() for v in values]).tolist()
+    F = ca.SX.sym("F", offsets[-1])
+    fields = dict(zip(FAMILY_FIELDS, ca.vertsplit(F, offsets)))
+    curve = replace(family, **fields).member(x[0], x[1], 0.0)
+    return SplitModel(x, P, F, ca.vertcat(*values), curve)
+
+
+def bending_newton_outputs(curve: PHQuintic, x: ca.SX, nodes: int) -> ca.SX:
+    """The outputs of :func:`optikin.curves.newton.modified_newton_outputs` for ``E = int kappa^2 ds``.
+
+    ``E = sum_n w_n f(u_n, v_n, s_n)`` with ``f = 4 (u^2 + v^2) / s^3`` at the Gauss-Legendre
+    nodes, where ``u, v`` (cubic) and ``s = sigma`` (quartic) are Bernstein polynomials of the
+    13 coefficients ``c(x)`` (:func:`optikin.curves.energy.bending_energy`, whose operations give
+    ``E``). The derivatives go through ``c``: with ``J = dc/dx`` (forward mode twice, also for
+    the second derivatives ``c_ab``) and the node values' derivatives ``D_n = B_n J`` (3 x 2),
+
+        g = J' G,   H = sum_n w_n D_n' h_n D_n + sum_i G_i c_i,xx,   G = sum_n w_n B_n' grad f_n,
+
+    ``h_n`` the 3 x 3 Hessian of ``f``. Reverse mode through the whole graph costs about
+    half as much again.
+    """
+    from optikin.curves.bernstein import bernstein_basis, gauss_legendre_unit
+    from optikin.curves.energy import rotation_rate_coefficients
+    from optikin.curves.newton import modified_newton_outputs
+
+    t, w = gauss_legendre_unit(nodes)
+    B3, B4 = (ca.DM(np.stack(bernstein_basis(degree, t), axis=-1)) for degree in (3, 4))
+    W = ca.DM(w)
+    _, gj, gk = rotation_rate_coefficients(curve)
+    sigma = curve.speed_coefficients()
+    c = ca.vertcat(*gj, *gk, *sigma)
+
+    def at_nodes(coefficients: Any) -> list[ca.SX]:
+        """``(u, v, s)`` at the nodes of coefficients laid out as ``c``."""
+        parts = ca.vertsplit(coefficients, [0, 4, 8, 13])
+        return [ca.mtimes(B, part) for B, part in zip((B3, B3, B4), parts)]
+
+    u, v, s = at_nodes(c)
+    energy = ca.dot(4.0 * (u * u + v * v) / (s * s * s), W)
+    length = (sigma[0] + sigma[1] + sigma[2] + sigma[3] + sigma[4]) / 5.0
+    e = [ca.DM([1.0, 0.0]), ca.DM([0.0, 1.0])]
+    dc = [ca.jtimes(c, x, e[0]), ca.jtimes(c, x, e[1])]
+    ddc = {(a, b): ca.jtimes(dc[a], x, e[b]) for a, b in ((0, 0), (0, 1), (1, 1))}
+    du, dv, ds = zip(*(at_nodes(d) for d in dc))
+    r = 1.0 / s
+    r3 = r * r * r
+    q = u * u + v * v
+    G = ca.vertcat(
+        ca.mtimes(B3.T, W * (8.0 * u * r3)),
+        ca.mtimes(B3.T, W * (8.0 * v * r3)),
+        ca.mtimes(B4.T, W * (-12.0 * q * r3 * r)),
+    )
+    g = ca.vertcat(ca.dot(G, dc[0]), ca.dot(G, dc[1]))
+    k1, k2, k3 = W * (8.0 * r3), W * (-24.0 * r3 * r), W * (48.0 * q * r3 * r * r)
+    m = [u * du[a] + v * dv[a] for a in (0, 1)]
+    h = {
+        (a, b): ca.sum1(k1 * (du[a] * du[b] + dv[a] * dv[b]) + k2 * (m[a] * ds[b] + m[b] * ds[a]) + k3 * ds[a] * ds[b])
+        + ca.dot(G, ddc[a, b])
+        for a, b in ddc
+    }
+    return modified_newton_outputs(energy, length, g, h[0, 0], h[0, 1], h[1, 1])
+
+
+def newton_functions(model: ShapeEnergyModel, prefix: str) -> tuple[list[ca.Function], ca.Function]:
+    """The generated Functions of ``model`` (a given-speeds ShapeEnergyModel), named for ``prefix``.
+
+    ``[family: P -> F, newton: (x, F) -> (see modified_newton_outputs)]`` and the grid energy
+    ``(x, F) -> E`` (written as a loop by :func:`grid_source`). Bending energy alone goes through
+    :func:`bending_newton_outputs`; with twist, CasADi's gradient and Hessian of the energy.
+    """
     from optikin.curves.energy import shape_energy
     from optikin.curves.newton import modified_newton_function
 
-    x, P, curve = model.symbols()
+    split = split_model(model)
+    x, F, curve = split.x, split.F, split.curve
     settings = model.settings
     energy = shape_energy(curve, settings.twist_weight, settings.nodes, settings.curvature_floor)
-    length = curve.arc_length()
-    newton = modified_newton_function(energy, length, x, P)
+    if settings.twist_weight:
+        newton = modified_newton_function(energy, curve.arc_length(), x, F).call([x, F])[0]
+    else:
+        newton = bending_newton_outputs(curve, x, settings.nodes)
     return [
-        ca.Function(f"{prefix}_newton", [x, P], [ca.cse(newton.call([x, P])[0])]),
-        ca.Function(f"{prefix}_energy", [x, P], ca.vertsplit(ca.cse(ca.vertcat(energy, length)))),
-    ]
+        ca.Function(f"{prefix}_family", [split.P], [ca.cse(split.family)]),
+        ca.Function(f"{prefix}_newton", [x, F], [ca.cse(newton)]),
+    ], ca.Function(f"{prefix}_grid_energy", [x, F], [ca.cse(energy)])
+
+
+_C_OPERATIONS = {
+    ca.OP_ASSIGN: "{0}",
+    ca.OP_ADD: "{0} + {1}",
+    ca.OP_SUB: "{0} - {1}",
+    ca.OP_MUL: "{0} * {1}",
+    ca.OP_DIV: "{0} / {1}",
+    ca.OP_NEG: "-{0}",
+    ca.OP_SQ: "{0} * {0}",
+    ca.OP_TWICE: "{0} + {0}",
+    ca.OP_INV: "1. / {0}",
+    ca.OP_SQRT: "sqrt({0})",
+    ca.OP_FABS: "fabs({0})",
+    ca.OP_FMAX: "({0} > {1}) | ({1} != {1}) ? {0} : {1}",
+    ca.OP_FMIN: "({0} < {1}) | ({1} != {1}) ? {0} : {1}",
+    ca.OP_SIN: "sin({0})",
+    ca.OP_COS: "cos({0})",
+    ca.OP_EXP: "exp({0})",
+    ca.OP_LOG: "log({0})",
+    ca.OP_POW: "pow({0}, {1})",
+    ca.OP_CONSTPOW: "pow({0}, {1})",
+    ca.OP_LT: "{0} < {1}",
+    ca.OP_LE: "{0} <= {1}",
+    ca.OP_EQ: "{0} == {1}",
+    ca.OP_NE: "{0} != {1}",
+    ca.OP_NOT: "!{0}",
+    ca.OP_AND: "{0} && {1}",
+    ca.OP_OR: "{0} || {1}",
+    ca.OP_IF_ELSE_ZERO: "{0} ? {1} : 0.",
+}
+"""C of the SX operations a grid energy may hold, each one IEEE operation as in CasADi's own code."""
+
+
+def grid_source(fn: ca.Function, n: int, name: str) -> str:
+    """C function ``void name(const double* F, double* E)``: ``fn(x, F)`` on the ``n x n`` angle grid.
+
+    ``E[i n + j]`` is the value at ``x = (-pi + 2 pi i / n, -pi + 2 pi j / n)`` (the grid of
+    :meth:`optikin.curves.min_energy.ShapeEnergyModel.coarse_starts`, ``phi0``-major). Each SX
+    instruction of ``fn`` is written once, placed by what it depends on: ``F`` alone before the
+    loops, ``phi2`` alone in a first loop over ``j`` (kept in arrays of ``n``), ``phi0`` alone in
+    the loop over ``i``, the rest in loops over ``j`` inside it. Those hold arithmetic only (the
+    trigonometry of the angles is hoisted) so that the compiler may run them in SIMD lanes; the
+    square roots, which C's ``errno`` keeps out of vector code, get loops of their own (stages),
+    the values passed between stages kept in arrays of ``n``. Every value is the one IEEE
+    operation CasADi does, in its order (``fmax`` and ``fmin`` as selects with C99's NaN rule),
+    so the energies are CasADi's.
+    """
+    nodes: list[tuple[int, str, list[int]]] = []  # (instruction, C template or constant text, argument instructions)
+    depends: dict[int, int] = {}  # bit 1: phi0, bit 2: phi2
+    stage: dict[int, int] = {}  # loops over j in the order written: even stages arithmetic, odd square roots
+    kept: dict[int, int] = {}  # work slot -> the instruction whose value it holds
+    result: int | None = None
+    for k in range(fn.n_instructions()):
+        op = fn.instruction_id(k)
+        inputs, outputs = fn.instruction_input(k), fn.instruction_output(k)
+        if op == ca.OP_OUTPUT:
+            result = kept[inputs[0]]
+            continue
+        args: list[int] = []
+        if op == ca.OP_INPUT:
+            which, entry = inputs
+            depends[k] = (1 << entry) if which == 0 else 0
+            text = f"-pi + two_pi * {'ij'[entry]} / {n}" if which == 0 else f"F[{entry}]"
+        elif op == ca.OP_CONST:
+            constant = float(fn.instruction_constant(k))
+            depends[k] = 0
+            text = (
+                repr(constant)
+                if np.isfinite(constant)
+                else "NAN"
+                if np.isnan(constant)
+                else "-INFINITY"[constant > 0 :]
+            )
+        elif op in _C_OPERATIONS:
+            args = [kept[i] for i in inputs]
+            depends[k] = 0
+            for a in args:
+                depends[k] |= depends[a]
+            text = _C_OPERATIONS[op]
+        else:
+            raise SolverError(f"--what ph-shape: the grid energy holds CasADi operation {op}, not written to C")
+        latest = max([stage[a] for a in args if depends[a] == 3], default=0)
+        if depends[k] == 3 and op == ca.OP_SQRT:
+            stage[k] = latest + 1 if latest % 2 == 0 else latest + 2
+        else:
+            stage[k] = latest + latest % 2
+        kept[outputs[0]] = k
+        nodes.append((k, text, args))
+    if result is None:
+        raise SolverError("--what ph-shape: the grid energy has no output")
+    arrays: set[int] = set()
+
+    def ref(a: int, where: int) -> str:
+        """The value of instruction ``a`` in a statement of class-3 stage ``where`` (-1: after the stages)."""
+        if depends[a] == 2 or (depends[a] == 3 and stage[a] != where):
+            arrays.add(a)
+            return f"a{a}[j]"
+        return f"t{a}"
+
+    blocks: dict[tuple[int, int], list[str]] = {}
+    for k, text, args in nodes:
+        where = stage[k] if depends[k] == 3 else 0
+        value = text.format(*(ref(a, where) if depends[k] == 3 else f"t{a}" for a in args)) if args else text
+        blocks.setdefault((depends[k], where), []).append(f"const double t{k} = {value};")
+    final = ref(result, -1) if depends[result] == 3 else f"t{result}"
+    stages = sorted(w for d, w in blocks if d == 3)
+    lines = [f"static void {name}(const double* F, double* E) {{", "  int i, j;"]
+    lines += [f"  double a{k}[{n}];" for k in sorted(arrays)]
+    lines += [f"  {c}" for c in blocks.get((0, 0), [])]
+    lines += [f"  for (j = 0; j < {n}; ++j) {{"] + [f"    {c}" for c in blocks.get((2, 0), [])]
+    lines += [f"    a{k}[j] = t{k};" for k in sorted(arrays) if depends[k] == 2] + ["  }"]
+    lines += [f"  for (i = 0; i < {n}; ++i) {{"] + [f"    {c}" for c in blocks.get((1, 0), [])]
+    for w in stages:
+        lines += [f"    for (j = 0; j < {n}; ++j) {{"] + [f"      {c}" for c in blocks[3, w]]
+        lines += [f"      a{k}[j] = t{k};" for k in sorted(arrays) if depends[k] == 3 and stage[k] == w] + ["    }"]
+    lines += [f"    for (j = 0; j < {n}; ++j) E[i * {n} + j] = {final};", "  }", "}"]
+    return "\n".join(lines) + "\n"
 
 
 def export_ph_shape(problem: str, setup: PHExportSetup, folder: Path, samples: int) -> "Export":
@@ -93,13 +313,15 @@ def export_ph_shape(problem: str, setup: PHExportSetup, folder: Path, samples: i
         raise SolverError(f"{problem}: --what ph-shape exports given end speeds only")
     stem = prefix = "optikin_ph_shape"
     PREFIX = prefix.upper()
-    code, sizes = _generated(newton_functions(model, prefix), stem)
+    functions, grid = newton_functions(model, prefix)
+    code, sizes = _generated(functions, stem)
     options, limits = adapter.options, adapter.preset.limits
     settings = model.settings
     common = dict(stem=stem, prefix=prefix, PREFIX=PREFIX, problem=problem, n_p=N_PARAMETERS)
     header = _template("ph.h").substitute(
         common,
         **sizes,
+        n_family=functions[0].nnz_out(0),
         twist_note=f" + {settings.twist_weight!r} int tau^2 ds" if settings.twist_weight else "",
         nodes=settings.nodes,
         coarse_grid=model.coarse_grid,
@@ -114,6 +336,7 @@ def export_ph_shape(problem: str, setup: PHExportSetup, folder: Path, samples: i
         restart=int(options.fallback),
         basin_check=int(options.basin_check),
         coarse_grid=model.coarse_grid,
+        grid_energy=grid_source(grid, model.coarse_grid, f"{prefix}_grid_energy"),
     )
     rows = setup.parameters[:samples]
     main = _template("ph_main.c").substitute(

@@ -31,20 +31,21 @@ static double wrap(double a) {
   return m - pi;
 }
 
-/* out <- [E, S, max|g|, lambda_min, p0, p1, g.p] at x (the Function of newton.modified_newton_function). */
-static void evaluate(${prefix}_work* w, const double* x, const double* P, double* out) {
+${grid_energy}
+/* out <- [E, S, max|g|, lambda_min, p0, p1, g.p] at x (newton.modified_newton_outputs) of the sample's family. */
+static void evaluate(${prefix}_work* w, const double* x, double* out) {
   w->arg[0] = x;
-  w->arg[1] = P;
+  w->arg[1] = w->family;
   w->res[0] = out;
   ${prefix}_newton(w->arg, w->res, w->iw, w->w, 0);
 }
 
 /* Modified Newton from x (in place): Armijo backtracking on E, as newton.modified_newton. Returns 1 when
    converged; *E, *S of the last iterate, *iterations the Newton steps taken. */
-static int newton(${prefix}_work* w, double* x, const double* P, double* E, double* S, int* iterations) {
+static int newton(${prefix}_work* w, double* x, double* E, double* S, int* iterations) {
   int it, k, accepted;
   double step, noise, *now = w->now, *trial = w->trial, *t;
-  evaluate(w, x, P, now);
+  evaluate(w, x, now);
   for (it = 0; it <= w->max_iterations; ++it) {
     if (now[2] <= w->tolerance * (1.0 + fabs(now[0])) && now[3] > 0) {
       *E = now[0];
@@ -59,7 +60,7 @@ static int newton(${prefix}_work* w, double* x, const double* P, double* E, doub
     for (k = 0; k < 30; ++k) {
       w->xt[0] = x[0] + step * now[4];
       w->xt[1] = x[1] + step * now[5];
-      evaluate(w, w->xt, P, trial);
+      evaluate(w, w->xt, trial);
       if (trial[0] <= now[0] + 1e-4 * step * now[6] + noise) {
         accepted = 1;
         break;
@@ -80,26 +81,18 @@ static int newton(${prefix}_work* w, double* x, const double* P, double* E, doub
 }
 
 /* The best point of the coarse angle grid (energy at the grid's phi0-major order; the first lowest kept). */
-static void coarse_start(${prefix}_work* w, const double* P, double* x) {
-  int i, j;
-  double e, s, best = INFINITY, a[2];
+static void coarse_start(${prefix}_work* w, double* x) {
+  int k;
+  double best = INFINITY;
   const int n = ${coarse_grid};
   x[0] = -pi;
   x[1] = -pi;
-  w->arg[0] = a;
-  w->arg[1] = P;
-  w->res[0] = &e;
-  w->res[1] = &s;
-  for (i = 0; i < n; ++i)
-    for (j = 0; j < n; ++j) {
-      a[0] = -pi + two_pi * i / n;
-      a[1] = -pi + two_pi * j / n;
-      ${prefix}_energy(w->arg, w->res, w->iw, w->w, 0);
-      if (isfinite(e) && e < best) {
-        best = e;
-        x[0] = a[0];
-        x[1] = a[1];
-      }
+  ${prefix}_grid_energy(w->family, w->grid);
+  for (k = 0; k < n * n; ++k)
+    if (isfinite(w->grid[k]) && w->grid[k] < best) {
+      best = w->grid[k];
+      x[0] = -pi + two_pi * (k / n) / n;
+      x[1] = -pi + two_pi * (k % n) / n;
     }
 }
 
@@ -115,21 +108,24 @@ int ${prefix}_solve(${prefix}_work* w, const double* P, const double* x0, double
     if (!isfinite(P[i])) return ${PREFIX}_INVALID_INPUT;
   if (!(P[12] > 0 && P[13] > 0)) return ${PREFIX}_INVALID_INPUT;
   if (x0 && !(isfinite(x0[0]) && isfinite(x0[1]))) return ${PREFIX}_INVALID_INPUT;
+  w->arg[0] = P;
+  w->res[0] = w->family;
+  ${prefix}_family(w->arg, w->res, w->iw, w->w, 0);
   if (x0) {
     x[0] = x0[0];
     x[1] = x0[1];
   } else {
-    coarse_start(w, P, x);
+    coarse_start(w, x);
   }
-  ok = newton(w, x, P, &E, &S, &total);
+  ok = newton(w, x, &E, &S, &total);
   if (!ok && w->restart && x0) { /* warm start failed: restart from the coarse grid */
-    coarse_start(w, P, x);
-    ok = newton(w, x, P, &E, &S, &more);
+    coarse_start(w, x);
+    ok = newton(w, x, &E, &S, &more);
     total += more;
   }
   if (ok && w->basin_check && x0) { /* also from the coarse grid; the lower minimum kept */
-    coarse_start(w, P, x2);
-    ok2 = newton(w, x2, P, &E2, &S2, &more);
+    coarse_start(w, x2);
+    ok2 = newton(w, x2, &E2, &S2, &more);
     total += more;
     if (ok2 && E2 < E - 1e-9 * fabs(E)) {
       x[0] = x2[0];

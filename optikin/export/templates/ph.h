@@ -5,7 +5,8 @@
    phi0, phi2); the member of least energy int kappa^2 ds${twist_note} (${nodes} Gauss-Legendre nodes)
    is the backbone. Minimised by modified Newton (Hessian eigenvalues floored, Armijo backtracking;
    optikin.curves.newton.modified_newton) on the CasADi-generated energy, gradient and Hessian,
-   as the ph_newton fast path of optikin.solvers.ph_backends does.
+   as the ph_newton fast path of optikin.solvers.ph_backends does. The data-only part of the
+   family (its roots and pole) is computed once per sample.
 
    Sizes (compile-time constants):
      ${PREFIX}_NX  free parameters x = (phi0, phi2) [rad], returned wrapped into [-pi, pi)
@@ -56,6 +57,8 @@ typedef struct {
   double* res[${sz_res}];
   long long iw[${sz_iw}];
   double w[${sz_w}];
+  double family[${n_family}]; /* the sample's Hermite family (optikin.export.ph_shape.FAMILY_FIELDS) */
+  double grid[${coarse_grid} * ${coarse_grid}];
   double buffers[2][7];
   double* now;
   double* trial;
