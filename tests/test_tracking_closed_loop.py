@@ -27,11 +27,14 @@ INSIDE = np.array([0.17, 1.0, 0.8, 0.19, -0.4, -0.5])
 
 
 def OSQPController(arm, dt, task="pose"):
-    """The QP controller with the default OSQP step solver."""
+    """The QP controller with OSQP updated in place (preset ``qp-osqp``'s backend at its defaults)."""
     return QPController(arm, dt, task, solver=step_solver("qp_osqp", arm.n_config, 8 if task == "pose" else 3))
 
 
-CONTROLLERS = (OSQPController, PseudoInverseController, DampedLeastSquaresController, MRACController)
+QP_CONTROLLERS = (QPController, OSQPController)
+"""The QP by its default step solver (the warm-started active set) and by OSQP."""
+CONTROLLERS = (*QP_CONTROLLERS, PseudoInverseController, DampedLeastSquaresController, MRACController)
+CLASSICAL = CONTROLLERS[len(QP_CONTROLLERS) :]
 PHI = [2, 5]
 
 
@@ -89,18 +92,19 @@ def test_every_controller_converges_on_a_reachable_reference(Controller):
     assert metrics["position error max [mm]"] > 3.0  # it did start off the reference
 
 
+@pytest.mark.parametrize("QP", QP_CONTROLLERS)
 @pytest.mark.parametrize("task", ["pose", "position"])
-def test_qp_never_leaves_the_limits_while_the_classical_controllers_do(task):
+def test_qp_never_leaves_the_limits_while_the_classical_controllers_do(task, QP):
     """A reference driving theta_1 to 1.3 theta_max and S_2 beyond its range (outside the workspace)."""
     beyond = START.copy()
     beyond[1], beyond[3] = 1.3 * ARM.theta_max, 1.2 * ARM.upper[3]
     ref = reference([START, beyond], task)
-    qp = simulate(OSQPController(ARM, DT, task), ref, START)
+    qp = simulate(QP(ARM, DT, task), ref, START)
     assert np.all(qp.q >= ARM.lower) and np.all(qp.q[:, [0, 1, 3, 4]] <= ARM.upper[[0, 1, 3, 4]])
     assert qp.metrics()["fallback steps"] == 0
     qp_rate = np.abs(qp.qdot).max(axis=0)
     assert np.all(qp_rate <= np.array([0.1, np.pi, 2 * np.pi] * 2) + 1e-12)
-    for Controller in CONTROLLERS[1:]:
+    for Controller in CLASSICAL:
         run = simulate(Controller(ARM, DT, task), ref, START)
         excess = outside_by(run.q)
         # they reach the unreachable pose by stretching the sections far past their length range
@@ -109,11 +113,12 @@ def test_qp_never_leaves_the_limits_while_the_classical_controllers_do(task):
         assert run.metrics()["samples outside limits"] == int(np.any(excess > 0, axis=1).sum())
 
 
-def test_qp_steers_back_from_outside_the_limits_at_the_rate_limit_and_never_farther():
+@pytest.mark.parametrize("QP", QP_CONTROLLERS)
+def test_qp_steers_back_from_outside_the_limits_at_the_rate_limit_and_never_farther(QP):
     q0 = START.copy()
     q0[1] = ARM.theta_max + 0.3  # theta_1 17 deg past its limit
     q0[3] = ARM.lower[3] - 0.004  # S_2 4 mm short of its range
-    run = simulate(OSQPController(ARM, DT, "pose"), reference([START, INSIDE]), q0)
+    run = simulate(QP(ARM, DT, "pose"), reference([START, INSIDE]), q0)
     excess = outside_by(run.q)
     assert np.all(np.diff(excess, axis=0) <= 1e-15)  # never farther out
     rate = np.array([0.1, np.pi, 2 * np.pi] * 2)

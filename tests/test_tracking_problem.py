@@ -73,8 +73,10 @@ def test_dmp_reference_starts_at_the_demonstration_and_is_tracked_within_limits(
         assert np.linalg.norm(dq_translation(ref) - dq_translation(pose)) < metres
         assert quat_angle(quat_multiply(quat_conjugate(dq_rotation(pose)), dq_rotation(ref))) < radians
     rows = {row.method: row.metrics for row in result.comparison}
-    assert rows["qp (osqp)"]["outside limits"] == 0
-    assert rows["qp (osqp)"]["rms [mm]"] < 10.0  # 100 Hz on a 3 s demonstration; the shipped 500 Hz run: ~1 mm
+    assert rows["qp (daqp-active-set)"]["outside limits"] == 0
+    assert (
+        rows["qp (daqp-active-set)"]["rms [mm]"] < 10.0
+    )  # 100 Hz on a 3 s demonstration; the shipped 500 Hz run: ~1 mm
 
 
 def test_kinect_chain_reference_is_the_dmp_of_the_filtered_wrist_and_the_arm_starts_on_it(tmp_path):
@@ -97,7 +99,7 @@ def test_kinect_chain_reference_is_the_dmp_of_the_filtered_wrist_and_the_arm_sta
     assert filtered < 0.3 * raw
     tip = ConstantCurvatureArm().evaluate("fk_position", result.arrays["q_qp"][:1])[0]
     np.testing.assert_allclose(tip, reference[0], atol=1e-6)
-    assert [row.method for row in result.comparison][:3] == ["qp (osqp)", "mrac", "mrac (seed gains)"]
+    assert [row.method for row in result.comparison][:3] == ["qp (daqp-active-set)", "mrac", "mrac (seed gains)"]
     assert result.metrics["steps the controller kept or took outside"] == 0
 
 
@@ -115,7 +117,7 @@ def test_mrac_starts_from_the_task_gain_and_mrac_seed_from_the_seeds_optimised_g
     np.testing.assert_allclose(first["mrac"], 10.0, rtol=1e-3)  # options.gain, after one adaptation step
     np.testing.assert_allclose(first["mrac_seed"], [7.45, 3.43, 3.70, 3.02, 9.62, 5.06, 4.69, 8.15], rtol=1e-3)
     methods = [row.method for row in result.comparison]
-    assert methods == ["qp (osqp)", "mrac", "mrac (seed gains)", "pseudo-inverse", "damped least squares"]
+    assert methods == ["qp (daqp-active-set)", "mrac", "mrac (seed gains)", "pseudo-inverse", "damped least squares"]
 
 
 def test_every_method_settles_after_the_disturbance_and_the_settling_times_are_reported(tmp_path):
@@ -150,10 +152,11 @@ def test_nominal_scenario_compares_the_qp_with_every_baseline_and_draws_its_figu
     assert "gains_mrac" in result.arrays and result.arrays["gains_mrac"].shape[1] == 8
 
 
-@pytest.mark.parametrize("preset", ["qp-daqp", "qp-cvxpy"])
+@pytest.mark.parametrize("preset", ["qp-osqp", "qp-daqp", "qp-cvxpy"])
 def test_other_qp_presets_give_the_same_run(tmp_path, preset):
     problem = str(shortened(tmp_path, "track-into-limits"))
     reference, _ = solve(problem)
+    assert reference.comparison[0].method == "qp (daqp-active-set)"  # the shipped preset: qp-active-set
     other, _ = solve(problem, solver=preset)
     np.testing.assert_allclose(other.arrays["q_qp"], reference.arrays["q_qp"], atol=1e-5)
 

@@ -124,6 +124,33 @@ def test_shipped_scenario_has_no_collision_for_the_joint_qp_and_reports_the_base
     assert any("interpenetrate" in note for note in result.notes)
 
 
+def test_joint_qp_of_the_shipped_rope_problem_is_the_exact_qp_warm_started_where_its_rows_bind():
+    """The kind's step solver (qp_daqp on the controller's buffers) against quadprog (Goldfarb-Idnani) on every
+    step of the rope loop at 100 Hz, rows and bounds as the QP has them; warm-started, a step rarely iterates."""
+    qpsolvers = pytest.importorskip("qpsolvers")
+    from optikin.control.limits import periodic_mask, wrap_periodic
+    from optikin.problems.two_arms.run import setup
+    from optikin.solvers.qp.qp_daqp import ActiveSetStepSolver
+
+    _, ctx = prepare("rope-skipping", overrides=[("data.params.rate", 100), ("data.params.cycles", 1)])
+    problem = setup(ctx)
+    qp, reference = problem.controllers["qp"], problem.reference
+    assert isinstance(qp.solver, ActiveSetStepSolver)
+    wrapped = np.concatenate([periodic_mask(placed.arm) for placed in problem.plant.arms])
+    q, d, binding, iterations = problem.q0.copy(), qp.data, 0, []
+    qp.reset()
+    for k in range(len(reference.t)):
+        qdot = qp.command(q, reference.value[k], reference.rate[k])
+        assert qp.status == "ok"
+        exact = qpsolvers.solve_qp(d.H, d.g, -d.A, -d.b, lb=d.lb, ub=d.ub, solver="quadprog")
+        np.testing.assert_allclose(qdot, exact, atol=1e-9)
+        binding += bool(np.any(d.A @ exact <= d.b + 1e-9))
+        iterations.append(qp.solver.solution.iterations)
+        q = wrap_periodic(q + qp.dt * qdot, wrapped)
+    assert binding > 5  # the tube and rope rows hold in the deep part of the loop
+    assert np.median(iterations) == 1
+
+
 def variant(tmp_path: Path, name: str, change) -> Path:
     _, path = load_problem(name)
     data = yaml.safe_load(path.read_text())

@@ -49,7 +49,7 @@ from optikin.solvers.qp.common import QPData, StepSolverFactory, upper_triangle_
 TwoArmTask = Literal["rope", "tips"]
 
 
-def qp_factory(backend: str = "qp_qpsolvers", **options: Any) -> StepSolverFactory:
+def qp_factory(backend: str = "qp_daqp", **options: Any) -> StepSolverFactory:
     """The step-solver factory of ``qp`` backend ``backend`` with ``options`` (as a preset's), for code and tests."""
     from optikin.solvers import preset_of
     from optikin.spec import SolverSpec
@@ -271,6 +271,9 @@ class TwoArmQP(TwoArmController):
     factory:
         A ``qp`` backend's factory (:class:`optikin.solvers.qp.common.StepSolverFactory`, e.g. :func:`qp_factory`):
         the step solver is created for ``n_1 + n_2`` rates, :attr:`task_rows` task rows and :attr:`rows` rows.
+        Every step writes the one :attr:`data` in place (``H`` column-major), so ``qp_daqp``
+        (:class:`~optikin.solvers.qp.qp_daqp.ActiveSetStepSolver`) binds daqp to its arrays once and solves
+        warm-started from the previous step's active set.
     damping:
         ``lambda``.
     posture, posture_weight, posture_gain:
@@ -335,7 +338,7 @@ class TwoArmQP(TwoArmController):
         J, v = np.zeros((self.task_rows, n)), np.zeros(self.task_rows)
         if self.posture_rows:
             J[model.m :, :] = self.root_weight * np.eye(n)
-        H = np.zeros((n, n))
+        H = np.zeros((n, n), order="F")  # column-major like the task Functions' H: qp_daqp reads it without a copy
         self._upper = upper_triangle_csc_indices(n)
         A, b = np.zeros((self.rows, n)), np.zeros(self.rows)
         self.data = QPData(

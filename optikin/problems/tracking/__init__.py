@@ -1,11 +1,13 @@
 """Problem kind ``tracking``: a continuum arm follows a tip reference in closed loop (Seleem et al. 2020, V-VI).
 
 The solver under study is the constrained QP per control step
-(:mod:`optikin.control.qp`, any ``qp`` backend preset of :mod:`optikin.solvers.qp`);
-the baselines, run on the same reference, plant and noise draws, are the paper's
-MRAC (``mrac``, :mod:`optikin.baselines.mrac`) started from the same task gain as
-every other controller, the same MRAC started from the paper's optimised gains
-(``mrac_seed``), the plain pseudo-inverse (``pseudo_inverse``) and damped least
+(:mod:`optikin.control.qp`, any ``qp`` backend preset of :mod:`optikin.solvers.qp`): by default
+``qp-active-set`` (DAQP's dual active set on the controller's own buffers, warm-started from the
+previous step's active set: the exact QP solution up to rounding), or e.g. ``qp-osqp`` (OSQP updated
+in place, which stops at its tolerance) or ``qp-clarabel``; the baselines, run on the same
+reference, plant and noise draws, are the paper's MRAC (``mrac``, :mod:`optikin.baselines.mrac`)
+started from the same task gain as every other controller, the same MRAC started from the paper's
+optimised gains (``mrac_seed``), the plain pseudo-inverse (``pseudo_inverse``) and damped least
 squares (``damped_least_squares``); two more controllers on the same footing, listed there too,
 are the MPC (``mpc``, :mod:`optikin.control.mpc`: a horizon of ``options.mpc.horizon`` steps, one
 sparse QP per step by OSQP) and its nonlinear reference by IPOPT (``mpc_ipopt``,
@@ -95,7 +97,7 @@ register_kind(
         summary="closed-loop tip tracking: a bounded QP per control step vs MRAC, pseudo-inverse, DLS",
         run=solve,
         backend_families=("qp",),
-        default_solver="qp-osqp",
+        default_solver="qp-active-set",
         baselines=tuple(BASELINES),
         options=TrackingOptions,
         data_family="references",

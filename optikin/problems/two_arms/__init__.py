@@ -21,7 +21,7 @@ rate limits, and keeps the two tubes apart by self-collision barrier rows
     data:
       source: rope_loop             # or tip_waypoints: {rate, waypoints: [[q, ...], [q, ...]], segment_time, hold}
       params: {rate: 500, period: 1.0, cycles: 2, radii: [0.05, 0.07], sideways: [0, 1, 0], ramp: 0.5}
-    solver: qp-daqp
+    solver: qp-active-set
     baselines: [no_collision_rows, pseudo_inverse]
     options:
       arms:
@@ -65,7 +65,7 @@ register_kind(
         summary="two arms by one QP per step: a rope's lowest point or both tips, with self-collision barriers",
         run=solve,
         backend_families=("qp",),
-        default_solver="qp-daqp",
+        default_solver="qp-active-set",
         baselines=tuple(BASELINES),
         options=TwoArmOptions,
         data_family="two_arm_references",
