@@ -1,7 +1,7 @@
 """``optikin export --what ph-shape``: the C trajectory call against the Python ``ph_newton`` path.
 
 The C library runs modified Newton on CasADi-generated code: the energy's gradient and Hessian through
-the 13 Bernstein coefficients of the bending energy (``bending_newton_outputs``), the data-only part
+the 13 Bernstein coefficients of the bending energy (``bending_derivatives``), the data-only part
 of the Hermite family once per sample. The Python path runs CasADi's reverse-mode derivatives of the
 model's energy in CasADi's virtual machine (:meth:`ShapeEnergyModel.solve_newton` in the warm-start
 loop of the ``ph`` adapters). Statuses and Newton step counts must agree sample by sample, solutions,
@@ -135,7 +135,7 @@ def test_free_end_speeds_are_refused():
 def test_the_cut_after_the_family_keeps_the_models_energy(built):
     """The grid energy of (x, family(P)) is the model's energy of (x, P), rounding included."""
     setup = built[0]
-    (family, _), grid = newton_functions(setup.model, "cut")
+    (family, _, _), grid = newton_functions(setup.model, "cut")
     rng = np.random.default_rng(3)
     for k in (0, 50, 99):
         P = setup.parameters[k]
@@ -149,7 +149,7 @@ def test_the_structured_derivatives_agree_with_reverse_mode(built):
     model's energy, near the solutions (where Newton runs) and at random angles."""
     setup = built[0]
     model = setup.model
-    (family, newton), _ = newton_functions(model, "chain")
+    (family, newton, _), _ = newton_functions(model, "chain")
     x, P, curve = model.symbols()
     energy = shape_energy(curve, model.settings.twist_weight, model.settings.nodes, model.settings.curvature_floor)
     reference = modified_newton_function(energy, curve.arc_length(), x, P)
@@ -164,3 +164,21 @@ def test_the_structured_derivatives_agree_with_reverse_mode(built):
             scale = 1.0 + abs(want[0])
             np.testing.assert_allclose(got[2:4], want[2:4], rtol=1e-10, atol=1e-12 * scale)  # max|g|, lambda_min
             np.testing.assert_allclose(got[4:6], want[4:6], rtol=1e-9, atol=1e-12)  # the step
+
+
+def test_every_converged_sample_is_a_minimum(built):
+    """Where a full step predicted to converge ends Newton without the Hessian there (C and Python alike),
+    the returned point still passes the whole test: CasADi's gradient within the tolerance and its Hessian
+    positive definite, on every sample of the trajectory and of the basin-checked run."""
+    setup = built[0]
+    model = setup.model
+    x, P, curve = model.symbols()
+    energy = shape_energy(curve, model.settings.twist_weight, model.settings.nodes, model.settings.curvature_floor)
+    reference = modified_newton_function(energy, curve.arc_length(), x, P)
+    tolerance = setup.adapter.preset.limits.tolerance
+    for out in (run(built, setup.parameters), run(built, setup.parameters, 50, 1, 1)):
+        assert (out[:, 0] == 0).all()
+        for row, P_k in zip(out, setup.parameters):
+            E, S, gmax, lmin = np.array(reference(row[4:6], P_k)).ravel()[:4]
+            assert gmax <= tolerance * (1.0 + abs(E)) and lmin > 0
+            assert abs(E - row[2]) <= 1e-12 * abs(E)

@@ -32,6 +32,12 @@ SX = ca.SX | ca.DM
 MAX_ANGLE_STEP = 1.0
 """Largest change of the free angles in one Newton step (radians)."""
 
+PREDICTION_SAFETY = 0.1
+"""Factor on the tolerance a predicted gradient must meet (:func:`converging_step`)."""
+
+CURVATURE_SAFETY = 20.0
+"""Factor on the predicted change of the Hessian its smaller eigenvalue must exceed (:func:`converging_step`)."""
+
 
 def modified_newton_function(energy: ca.SX, length: ca.SX, x: ca.SX, P: ca.SX) -> ca.Function:
     """``(x, P) -> [E, S, max|g|, lambda_min(H), p0, p1, g.p]`` for two variables ``x``."""
@@ -60,10 +66,29 @@ def modified_newton_outputs(energy: SX, length: SX, g: SX, h00: SX, h01: SX, h11
     return ca.vertcat(energy, length, ca.mmax(ca.fabs(g)), lmin, p, ca.dot(g, p))
 
 
+def converging_step(gmax: float, lmin: float, step: float, previous: float, tol: float, E: float) -> bool:
+    """Whether the next full step lands where ``max|g| <= tol (1 + |E|)``, by quadratic convergence.
+
+    ``gmax = max|g|`` and ``lmin`` (the Hessian's smaller eigenvalue) at the iterate, ``step`` the
+    largest entry of its Newton step, ``previous`` that of the step that led to it. Newton's gradient
+    falls as ``|g_next| ~ rho |p|^2``; ``rho = gmax / previous^2`` is measured on the last step (an
+    overestimate where that step was not a pure Newton step). The step converges when
+    ``rho step^2 <= PREDICTION_SAFETY tol (1 + |E|)``, and the Hessian stays positive definite over
+    it when ``lmin > CURVATURE_SAFETY rho step`` (its change is about ``2 rho step``).
+    """
+    if not previous > 0:
+        return False
+    rho = gmax / (previous * previous)
+    return rho * step * step <= PREDICTION_SAFETY * tol * (1.0 + abs(E)) and lmin > CURVATURE_SAFETY * rho * step
+
+
 def modified_newton(fn: BufferedFunction, x0, tol: float, max_iterations: int):
     """Minimise from ``x0``; returns ``(x, E, S, iterations, converged)``.
 
-    Converged: ``max|g| <= tol (1 + |E|)`` with a positive definite Hessian.
+    Converged: ``max|g| <= tol (1 + |E|)`` with a positive definite Hessian. Where the full step
+    just taken was predicted to converge (:func:`converging_step`), the Hessian is taken as
+    positive definite without a look at the new one: the exported C library then evaluates only
+    ``E``, ``S`` and ``g`` there.
     """
     xin = fn.inputs[0]
     out = fn.outputs[0]
@@ -71,11 +96,14 @@ def modified_newton(fn: BufferedFunction, x0, tol: float, max_iterations: int):
     xin[0], xin[1] = x0_, x1_
     fn()
     E, S, gmax, lmin, p0, p1, slope = out.tolist()
+    previous, predicted = 0.0, False
     for it in range(max_iterations + 1):
-        if gmax <= tol * (1.0 + abs(E)) and lmin > 0:
+        if gmax <= tol * (1.0 + abs(E)) and (predicted or lmin > 0):
             return np.array([x0_, x1_]), E, S, it, True
         if it == max_iterations:
             break
+        size = max(abs(p0), abs(p1))
+        predicted = converging_step(gmax, lmin, size, previous, tol, E)
         noise = ENERGY_NOISE * (1.0 + abs(E))
         step = 1.0
         for _ in range(30):
@@ -85,8 +113,10 @@ def modified_newton(fn: BufferedFunction, x0, tol: float, max_iterations: int):
             if trial[0] <= E + 1e-4 * step * slope + noise:
                 break
             step *= 0.5
+            predicted = False
         else:
             break
+        previous = step * size
         x0_, x1_ = x0_ + step * p0, x1_ + step * p1
         E, S, gmax, lmin, p0, p1, slope = trial
     return np.array([x0_, x1_]), E, S, it, False

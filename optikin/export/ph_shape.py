@@ -104,8 +104,8 @@ def split_model(model: ShapeEnergyModel) -> SplitModel:
     return SplitModel(x, P, F, ca.vertcat(*values), curve)
 
 
-def bending_newton_outputs(curve: PHQuintic, x: ca.SX, nodes: int) -> ca.SX:
-    """The outputs of :func:`optikin.curves.newton.modified_newton_outputs` for ``E = int kappa^2 ds``.
+def bending_derivatives(curve: PHQuintic, x: ca.SX, nodes: int) -> tuple[ca.SX, ...]:
+    """``(E, S, g, h00, h01, h11)``: ``E = int kappa^2 ds``, the arc length, gradient (2) and Hessian.
 
     ``E = sum_n w_n f(u_n, v_n, s_n)`` with ``f = 4 (u^2 + v^2) / s^3`` at the Gauss-Legendre
     nodes, where ``u, v`` (cubic) and ``s = sigma`` (quartic) are Bernstein polynomials of the
@@ -120,7 +120,6 @@ def bending_newton_outputs(curve: PHQuintic, x: ca.SX, nodes: int) -> ca.SX:
     """
     from optikin.curves.bernstein import bernstein_basis, gauss_legendre_unit
     from optikin.curves.energy import rotation_rate_coefficients
-    from optikin.curves.newton import modified_newton_outputs
 
     t, w = gauss_legendre_unit(nodes)
     B3, B4 = (ca.DM(np.stack(bernstein_basis(degree, t), axis=-1)) for degree in (3, 4))
@@ -157,30 +156,35 @@ def bending_newton_outputs(curve: PHQuintic, x: ca.SX, nodes: int) -> ca.SX:
         + ca.dot(G, ddc[a, b])
         for a, b in ddc
     }
-    return modified_newton_outputs(energy, length, g, h[0, 0], h[0, 1], h[1, 1])
+    return energy, length, g, h[0, 0], h[0, 1], h[1, 1]
 
 
 def newton_functions(model: ShapeEnergyModel, prefix: str) -> tuple[list[ca.Function], ca.Function]:
     """The generated Functions of ``model`` (a given-speeds ShapeEnergyModel), named for ``prefix``.
 
-    ``[family: P -> F, newton: (x, F) -> (see modified_newton_outputs)]`` and the grid energy
-    ``(x, F) -> E`` (written as a loop by :func:`grid_source`). Bending energy alone goes through
-    :func:`bending_newton_outputs`; with twist, CasADi's gradient and Hessian of the energy.
+    ``[family: P -> F, newton: (x, F) -> (modified_newton_outputs), gradient: (x, F) -> (E, S, max|g|)]``
+    and the grid energy ``(x, F) -> E`` (written as loops by :func:`grid_source`). Bending energy
+    alone goes through :func:`bending_derivatives`; with twist, CasADi's gradient and Hessian of
+    the energy. ``gradient`` shares the operations of the first three outputs of ``newton``.
     """
     from optikin.curves.energy import shape_energy
-    from optikin.curves.newton import modified_newton_function
+    from optikin.curves.newton import modified_newton_outputs
 
     split = split_model(model)
     x, F, curve = split.x, split.F, split.curve
     settings = model.settings
     energy = shape_energy(curve, settings.twist_weight, settings.nodes, settings.curvature_floor)
     if settings.twist_weight:
-        newton = modified_newton_function(energy, curve.arc_length(), x, F).call([x, F])[0]
+        length, g = curve.arc_length(), ca.gradient(energy, x)
+        H = ca.hessian(energy, x)[0]
+        derivatives = (energy, length, g, H[0, 0], H[0, 1], H[1, 1])
     else:
-        newton = bending_newton_outputs(curve, x, settings.nodes)
+        derivatives = bending_derivatives(curve, x, settings.nodes)
+    E, S, g = derivatives[:3]
     return [
         ca.Function(f"{prefix}_family", [split.P], [ca.cse(split.family)]),
-        ca.Function(f"{prefix}_newton", [x, F], [ca.cse(newton)]),
+        ca.Function(f"{prefix}_newton", [x, F], [ca.cse(modified_newton_outputs(*derivatives))]),
+        ca.Function(f"{prefix}_gradient", [x, F], [ca.cse(ca.vertcat(E, S, ca.mmax(ca.fabs(g))))]),
     ], ca.Function(f"{prefix}_grid_energy", [x, F], [ca.cse(energy)])
 
 
@@ -305,7 +309,7 @@ def grid_source(fn: ca.Function, n: int, name: str) -> str:
 def export_ph_shape(problem: str, setup: PHExportSetup, folder: Path, samples: int) -> "Export":
     """Write the PH library of ``setup`` into ``folder``; its first ``samples`` samples go into the example."""
     from optikin.curves.min_energy import N_PARAMETERS
-    from optikin.curves.newton import ENERGY_NOISE
+    from optikin.curves.newton import CURVATURE_SAFETY, ENERGY_NOISE, PREDICTION_SAFETY
     from optikin.export import MAX_FILE_SAMPLES, Export, _generated, _rows, _template, _write
 
     model, adapter = setup.model, setup.adapter
@@ -330,6 +334,8 @@ def export_ph_shape(problem: str, setup: PHExportSetup, folder: Path, samples: i
     source = _template("ph.c").substitute(
         common,
         energy_noise=repr(ENERGY_NOISE),
+        prediction_safety=repr(PREDICTION_SAFETY),
+        curvature_safety=repr(CURVATURE_SAFETY),
         tolerance=repr(float(limits.tolerance)),
         max_iterations=int(limits.max_iterations),
         warm_start=int(options.warm_start),

@@ -53,6 +53,10 @@ def c_times(executable: Path, data: Path, *args: str, runs: int = 5) -> dict[str
 
 @pytest.mark.parametrize("basin", [False, True], ids=["warm", "basin"])
 def test_ph_shape_trajectory(benchmark, tmp_path, basin):
+    """With valgrind on PATH, ``c_instructions``: instructions per sample of one ``optikin_ph_shape_trajectory``
+    call (callgrind, no timing loop)."""
+    import re
+
     from optikin.export.context import registered_preset
     from optikin.export.ph_shape import ph_setup
 
@@ -60,11 +64,31 @@ def test_ph_shape_trajectory(benchmark, tmp_path, basin):
     data = tmp_path / "samples.txt"
     np.savetxt(data, setup.parameters, fmt="%.17g")
     executable = build(export("cbha-ph-shape", "ph-shape", tmp_path))
-    benchmark.extra_info.update(c_times(executable, data, *(("50", "1", "1") if basin else ())))
+    options = ("50", "1", "1" if basin else "0")
+    benchmark.extra_info.update(c_times(executable, data, *options))
+    if shutil.which("valgrind"):
+        run = subprocess.run(
+            [
+                "valgrind",
+                "--tool=callgrind",
+                "--toggle-collect=optikin_ph_shape_trajectory",
+                f"--callgrind-out-file={tmp_path / 'callgrind.out'}",
+                str(executable),
+                str(data),
+                *options,
+                "0",
+            ],
+            capture_output=True,
+            text=True,
+            check=True,
+        )
+        refs = re.search(r"I\s+refs:\s+([\d,]+)", run.stderr)
+        assert refs is not None
+        benchmark.extra_info["c_instructions"] = round(int(refs.group(1).replace(",", "")) / len(setup.parameters))
     preset = registered_preset("ph-newton-compiled")
     assert preset is not None
-    options = preset.options.model_copy(update={"basin_check": basin})
-    adapter = type(setup.adapter)(preset.spec, options)
+    newton_options = preset.options.model_copy(update={"basin_check": basin})
+    adapter = type(setup.adapter)(preset.spec, newton_options)
     model = adapter.model(setup.model.settings, False)
     adapter.solve(model, setup.samples[:2])  # compile (cached on disk) outside the timing
     benchmark.extra_info["samples"] = len(setup.samples)

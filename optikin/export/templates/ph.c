@@ -6,6 +6,8 @@
 #define NOUT 7 /* E, S, max|g|, lambda_min(H), step p (2), g.p */
 
 static const double energy_noise = ${energy_noise}; /* a trial raising E by less is accepted */
+static const double prediction_safety = ${prediction_safety};
+static const double curvature_safety = ${curvature_safety};
 static const double two_pi = 6.283185307179586;
 static const double pi = 3.141592653589793;
 
@@ -40,34 +42,60 @@ static void evaluate(${prefix}_work* w, const double* x, double* out) {
   ${prefix}_newton(w->arg, w->res, w->iw, w->w, 0);
 }
 
+/* out <- [E, S, max|g|] at x (the first three entries of evaluate's, by the same operations). */
+static void evaluate_gradient(${prefix}_work* w, const double* x, double* out) {
+  w->arg[0] = x;
+  w->arg[1] = w->family;
+  w->res[0] = out;
+  ${prefix}_gradient(w->arg, w->res, w->iw, w->w, 0);
+}
+
+/* newton.converging_step: the next full step is predicted to meet the tolerance (quadratic convergence). */
+static int converging_step(double gmax, double lmin, double step, double previous, double tol, double E) {
+  double rho;
+  if (!(previous > 0)) return 0;
+  rho = gmax / (previous * previous);
+  return rho * step * step <= prediction_safety * tol * (1.0 + fabs(E)) && lmin > curvature_safety * rho * step;
+}
+
 /* Modified Newton from x (in place): Armijo backtracking on E, as newton.modified_newton. Returns 1 when
-   converged; *E, *S of the last iterate, *iterations the Newton steps taken. */
+   converged; *E, *S of the last iterate, *iterations the Newton steps taken. A full step predicted to
+   converge is evaluated without the Hessian (evaluate_gradient); where it does not converge after all,
+   the full evaluation follows. */
 static int newton(${prefix}_work* w, double* x, double* E, double* S, int* iterations) {
-  int it, k, accepted;
-  double step, noise, *now = w->now, *trial = w->trial, *t;
+  int it, k, accepted, predicted = 0;
+  double step, noise, size, previous = 0.0, *now = w->now, *trial = w->trial, *t;
   evaluate(w, x, now);
   for (it = 0; it <= w->max_iterations; ++it) {
-    if (now[2] <= w->tolerance * (1.0 + fabs(now[0])) && now[3] > 0) {
+    if (now[2] <= w->tolerance * (1.0 + fabs(now[0])) && (predicted || now[3] > 0)) {
       *E = now[0];
       *S = now[1];
       *iterations = it;
       return 1;
     }
     if (it == w->max_iterations) break;
+    if (predicted) evaluate(w, x, now);
+    size = fabs(now[5]) > fabs(now[4]) ? fabs(now[5]) : fabs(now[4]); /* Python's max(|p0|, |p1|) */
+    predicted = converging_step(now[2], now[3], size, previous, w->tolerance, now[0]);
     noise = energy_noise * (1.0 + fabs(now[0]));
     step = 1.0;
     accepted = 0;
     for (k = 0; k < 30; ++k) {
       w->xt[0] = x[0] + step * now[4];
       w->xt[1] = x[1] + step * now[5];
-      evaluate(w, w->xt, trial);
+      if (predicted)
+        evaluate_gradient(w, w->xt, trial);
+      else
+        evaluate(w, w->xt, trial);
       if (trial[0] <= now[0] + 1e-4 * step * now[6] + noise) {
         accepted = 1;
         break;
       }
       step *= 0.5;
+      predicted = 0;
     }
     if (!accepted) break;
+    previous = step * size;
     x[0] = x[0] + step * now[4];
     x[1] = x[1] + step * now[5];
     t = now;

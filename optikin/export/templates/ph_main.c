@@ -1,9 +1,10 @@
 /* Example: ${prefix}_trajectory on samples read from a file (or the ${n_samples} samples below), then a timing loop.
 
-   usage: ./example [samples.txt [max_iterations restart basin_check]]
-          (one sample per line: the ${n_p} entries of P, see ${stem}.h; the options override the preset's)
-   prints per sample: status iterations E S phi0 phi2; then "per_call_us <wall microseconds per sample>" and
-   "cpu_us <process CPU microseconds per sample>" on stderr. */
+   usage: ./example [samples.txt [max_iterations restart basin_check [seconds]]]
+          (one sample per line: the ${n_p} entries of P, see ${stem}.h; the options override the preset's;
+          seconds: length of the timing loop, 0.2 unless given, 0 for none)
+   prints per sample: status iterations E S phi0 phi2; then, after the timing loop, "per_call_us <wall
+   microseconds per sample>" and "cpu_us <process CPU microseconds per sample>" on stderr. */
 #define _POSIX_C_SOURCE 199309L
 #include <stdio.h>
 #include <stdlib.h>
@@ -22,7 +23,7 @@ int main(int argc, char** argv) {
   long n = 0, k, rounds = 0;
   int i;
   struct timespec t0, t1, c0, c1;
-  double elapsed = 0.0;
+  double elapsed = 0.0, seconds = 0.2;
   if (argc > 1) {
     FILE* f = fopen(argv[1], "r");
     if (!f) { perror(argv[1]); return 2; }
@@ -43,12 +44,13 @@ int main(int argc, char** argv) {
     work.restart = atoi(argv[3]);
     work.basin_check = atoi(argv[4]);
   }
+  if (argc > 5) seconds = atof(argv[5]);
   ${prefix}_trajectory(&work, &P[0][0], n, &X[0][0], &ES[0][0], iterations, status);
   for (k = 0; k < n; ++k)
     printf("%d %d %.17g %.17g %.17g %.17g\n", status[k], iterations[k], ES[k][0], ES[k][1], X[k][0], X[k][1]);
   clock_gettime(CLOCK_MONOTONIC, &t0);
   clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &c0);
-  while (n > 0 && elapsed < 0.2) {
+  while (n > 0 && elapsed < seconds) {
     ${prefix}_trajectory(&work, &P[0][0], n, &X[0][0], &ES[0][0], iterations, status);
     ++rounds;
     clock_gettime(CLOCK_MONOTONIC, &t1);
