@@ -23,13 +23,12 @@ from optikin.arms.base import ArmModel
 from optikin.data.sources import source_of
 from optikin.errors import SpecError, UnknownNameError
 from optikin.options import validate_options
-from optikin.problems import ProblemContext, ProblemKind, load_kinds
+from optikin.problems import ProblemContext, ProblemKind, load_kind
 from optikin.progress import SILENT, Progress
 from optikin.provenance import now, provenance_of
-from optikin.registry import PROBLEM_KINDS
 from optikin.resources import check_memory
 from optikin.results import Result, check_output_folder, write_result
-from optikin.solvers import LoadedPreset, load_backends, load_preset
+from optikin.solvers import LoadedPreset, load_preset
 from optikin.spec import ProblemSpec, available, load_problem, provenance
 
 if TYPE_CHECKING:
@@ -39,14 +38,12 @@ logger = logging.getLogger(__name__)
 
 
 def kind_of(spec: ProblemSpec, path: Path) -> ProblemKind:
-    """The registered kind a problem file names; an unknown one names the file's ``kind`` field."""
-    load_kinds()
+    """The registered kind a problem file names, importing that kind's package only (:func:`load_kind`);
+    an unknown one names the file's ``kind`` field."""
     try:
-        kind = PROBLEM_KINDS.get(spec.kind)
+        return load_kind(spec.kind)
     except UnknownNameError as exc:
         raise SpecError(path, "kind", str(exc)) from None
-    assert isinstance(kind, ProblemKind)
-    return kind
 
 
 def _check_baselines(spec: ProblemSpec, path: Path, kind: ProblemKind) -> None:
@@ -111,12 +108,31 @@ def prepare(
     (:func:`optikin.spec.provenance`); ``overrides`` are ``(dotted field, value)`` pairs set in the
     problem file before it is validated (:func:`optikin.spec.apply_overrides`); ``arms`` builds the arm
     as :func:`optikin.arms.build_arm` does (a sweep worker's cache: :func:`optikin.sweep.cell.cached_arm`).
+    Only the problem's own kind and the modules of the backends its presets name are imported
+    (:func:`optikin.problems.load_kind`, :func:`optikin.solvers.load_backend`).
     """
-    load_backends()
     spec, path = load_problem(problem, overrides)
     _tell(notify, provenance(problem, path, "problems"))
+    return prepare_spec(spec, path, solver, progress, notify, arms)
+
+
+def prepare_spec(
+    spec: ProblemSpec,
+    path: Path,
+    solver: str | None = None,
+    progress: Progress = SILENT,
+    notify: Callable[[str], None] | None = None,
+    arms: Callable[[str, dict[str, Any], Path], ArmModel] = build_arm,
+    run: bool = True,
+) -> tuple[ProblemKind, ProblemContext]:
+    """:func:`prepare` of a problem file already read (:func:`optikin.spec.load_problem`) from ``path``.
+
+    ``run=False`` builds a context that is not run (an export, :mod:`optikin.export.context`): the
+    baselines and the memory of the run are not checked, and no baseline's backend is imported.
+    """
     kind = kind_of(spec, path)
-    _check_baselines(spec, path, kind)
+    if run:
+        _check_baselines(spec, path, kind)
     options = validate_options(kind.options, spec.options, path, "options")
     data_source = source_of(kind.data_family, spec.data.source, path)
     data_params = validate_options(data_source.params, spec.data.params, path, "data.params")
@@ -128,7 +144,8 @@ def prepare(
     if spec.arm is None and not kind.arm_optional:
         raise SpecError(path, "arm", f"missing: kind {kind.name!r} needs an arm (arm: {{type: ..., params: ...}})")
     arm = None if spec.arm is None else arms(spec.arm.type, spec.arm.params, path)
-    check_memory(kind.name, arm, 1 + len(spec.baselines), spec.data.samples, path)
+    if run:
+        check_memory(kind.name, arm, 1 + len(spec.baselines), spec.data.samples, path)
     ctx = ProblemContext(
         spec=spec,
         path=path,

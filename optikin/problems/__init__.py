@@ -24,6 +24,8 @@ model and a progress reporter.
 
 from __future__ import annotations
 
+import importlib
+import importlib.util
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Protocol, Sequence, TypeVar
@@ -200,6 +202,24 @@ class ProblemKind:
 def register_kind(kind: ProblemKind) -> ProblemKind:
     PROBLEM_KINDS.register(kind.name)(kind)
     return kind
+
+
+def load_kind(name: str) -> ProblemKind:
+    """The kind registered as ``name``, importing its package ``optikin.problems.<name>`` only.
+
+    A kind no package of that name registers is looked for among every kind (:func:`load_kinds`).
+
+    Raises
+    ------
+    UnknownNameError
+        No module registers ``name``; the message lists every kind.
+    """
+    if name not in PROBLEM_KINDS and name.isidentifier() and not name.startswith("_"):
+        if importlib.util.find_spec(f"{__name__}.{name}") is not None:
+            importlib.import_module(f"{__name__}.{name}")
+    if name not in PROBLEM_KINDS:
+        load_kinds()
+    return PROBLEM_KINDS.get(name)
 
 
 def load_kinds() -> None:

@@ -24,6 +24,28 @@ from optikin.spec import SolverSpec, load_solver
 FAMILIES = ("evaluation", "nonlinear", "ph", "qp")
 """Backend families; their calling conventions are the protocols of :mod:`optikin.solvers.base`."""
 
+BACKEND_MODULES: dict[str, str] = {
+    "casadi_call": "optikin.solvers.evaluation",
+    "casadi_compiled": "optikin.solvers.evaluation",
+    "casadi_map": "optikin.solvers.evaluation",
+    "gauss_newton": "optikin.solvers.gauss_newton",
+    "ipopt": "optikin.solvers.nlpsol",
+    "lm": "optikin.solvers.scipy_least_squares",
+    "newton": "optikin.solvers.newton",
+    "ph_grid": "optikin.solvers.ph_backends",
+    "ph_ipopt": "optikin.solvers.ph_backends",
+    "ph_newton": "optikin.solvers.ph_backends",
+    "qp_cvxpy": "optikin.solvers.qp.qp_cvxpy",
+    "qp_cvxpy_rebuild": "optikin.solvers.qp.qp_cvxpy_rebuild",
+    "qp_daqp": "optikin.solvers.qp.qp_daqp",
+    "qp_osqp": "optikin.solvers.qp.qp_osqp",
+    "qp_qpsolvers": "optikin.solvers.qp.qp_qpsolvers",
+    "sqpmethod": "optikin.solvers.nlpsol",
+    "trf": "optikin.solvers.scipy_least_squares",
+}
+"""Backend name -> the module whose import registers it, so that a preset imports its own backend's module only
+(:func:`load_backend`); a test checks it against the registrations of every module (:func:`load_backends`)."""
+
 
 @dataclass(frozen=True)
 class Backend:
@@ -78,10 +100,9 @@ def preset_of(spec: SolverSpec, path: str | Path | None = None) -> LoadedPreset:
 
     ``path`` is where errors say the preset came from (default: ``solver preset NAME``).
     """
-    load_backends()
     where = Path(path) if path is not None else Path(f"solver preset {spec.name}")
     try:
-        backend = BACKENDS.get(spec.backend)
+        backend = load_backend(spec.backend)
     except UnknownNameError as exc:
         raise SpecError(where, "backend", str(exc)) from None
     options = validate_options(backend.options, spec.options, where, "options")
@@ -91,6 +112,24 @@ def preset_of(spec: SolverSpec, path: str | Path | None = None) -> LoadedPreset:
 def build_preset(name_or_path: str) -> Any:
     """The adapter of a named solver preset (e.g. a baseline listed in a problem file)."""
     return load_preset(name_or_path).build()
+
+
+def load_backend(name: str) -> Backend:
+    """The backend registered as ``name``, importing its module of :data:`BACKEND_MODULES` only.
+
+    A name the table lacks, or one its module does not register, is looked for among every backend
+    (:func:`load_backends`).
+
+    Raises
+    ------
+    UnknownNameError
+        No module registers ``name``; the message lists every backend.
+    """
+    if name not in BACKENDS and name in BACKEND_MODULES:
+        importlib.import_module(BACKEND_MODULES[name])
+    if name not in BACKENDS:
+        load_backends()
+    return BACKENDS.get(name)
 
 
 def load_backends() -> None:

@@ -1,0 +1,85 @@
+"""Start-up: a problem imports its own kind and the modules of its presets' backends, not every kind and backend."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import pkgutil
+import sys
+
+from optikin import problems
+from optikin.registry import BACKENDS
+from optikin.solvers import BACKEND_MODULES, load_backends
+
+# Run in a fresh interpreter: what an export's context, then a solve's prepare, import; then the messages
+# of an unknown kind (a module of optikin.problems that registers none) and of an unknown backend.
+SCRIPT = """
+import json, sys
+from pathlib import Path
+from optikin.errors import SpecError
+from optikin.registry import BACKENDS, PROBLEM_KINDS
+from optikin.export.context import context
+from optikin.runner import prepare
+
+def imported():
+    return {
+        "kinds": PROBLEM_KINDS.names(),
+        "backends": BACKENDS.names(),
+        "modules": sorted(m for m in sys.modules if m.startswith("optikin.solvers.")),
+    }
+
+out = {}
+context("cc-ik-position", None, "--what fk")
+out["context"] = imported()
+prepare("cc-ik-position")
+out["prepare"] = imported()
+folder = Path(sys.argv[1])
+for name in ("kind", "backend"):
+    try:
+        prepare(str(folder / f"{name}.yaml"))
+    except SpecError as exc:
+        out[name] = str(exc)
+print(json.dumps(out))
+"""
+
+PROBLEM = """\
+name: {name}
+title: a small test problem
+{line}arm:
+  type: constant_curvature
+  params: {{section_lengths: [0.18, 0.18]}}
+data:
+  source: random
+  samples: 4
+"""
+
+
+def test_backend_table_is_every_registration():
+    """BACKEND_MODULES names each backend that importing every solver module registers, and where."""
+    load_backends()
+    assert BACKEND_MODULES == {name: BACKENDS.get(name).module for name in BACKENDS.names()}
+
+
+def test_a_problem_imports_its_own_kind_and_backends_only(tmp_path):
+    """An fk export of an ik problem and its solve import the ik kind and the backends of its presets alone;
+    an unknown kind or backend still lists every one (fresh interpreter)."""
+    (tmp_path / "kind.yaml").write_text(PROBLEM.format(name="kind", line="kind: ph_shared\n"))
+    (tmp_path / "warp.yaml").write_text("name: warp\nbackend: warp_drive\n")
+    (tmp_path / "backend.yaml").write_text(
+        PROBLEM.format(name="backend", line=f"kind: fk\nsolver: {tmp_path}/warp.yaml\n")
+    )
+    run = subprocess.run([sys.executable, "-c", SCRIPT, str(tmp_path)], capture_output=True, text=True, check=True)
+    out = json.loads(run.stdout)
+    assert out["context"]["kinds"] == ["ik"]
+    assert out["context"]["backends"] == ["gauss_newton"]
+    # cc-ik-position: gauss-newton, baselines gauss-newton-compiled, newton, ipopt, sqpmethod, lm, trf
+    assert out["prepare"]["kinds"] == ["ik"]
+    assert out["prepare"]["backends"] == ["gauss_newton", "ipopt", "lm", "newton", "sqpmethod", "trf"]
+    for modules in (out["context"]["modules"], out["prepare"]["modules"]):
+        assert not any(m.startswith(("optikin.solvers.qp", "optikin.solvers.ph_backends")) for m in modules)
+    kinds = ", ".join(sorted(m.name for m in pkgutil.iter_modules(problems.__path__) if m.ispkg))
+    assert "kind.yaml: kind: unknown problem kind 'ph_shared'; " in out["kind"]
+    assert out["kind"].endswith(f" known: {kinds}")
+    backends = ", ".join(sorted(BACKEND_MODULES))
+    assert "warp.yaml: backend: unknown solver backend 'warp_drive'; " in out["backend"]
+    assert out["backend"].endswith(f" known: {backends}")
