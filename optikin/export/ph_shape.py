@@ -174,6 +174,7 @@ def newton_functions(model: ShapeEnergyModel, prefix: str) -> tuple[list[ca.Func
     x, F, curve = split.x, split.F, split.curve
     settings = model.settings
     energy = shape_energy(curve, settings.twist_weight, settings.nodes, settings.curvature_floor)
+    derivatives: tuple[ca.SX, ...]
     if settings.twist_weight:
         length, g = curve.arc_length(), ca.gradient(energy, x)
         H = ca.hessian(energy, x)[0]
