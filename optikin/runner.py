@@ -20,10 +20,10 @@ from typing import TYPE_CHECKING, Any, Callable, Sequence
 
 from optikin.arms import build_arm
 from optikin.arms.base import ArmModel
-from optikin.data.sources import source_of
+from optikin.data.sources import DATA_SOURCES, DataSource, source_of
 from optikin.errors import SpecError, UnknownNameError
 from optikin.options import validate_options
-from optikin.problems import ProblemContext, ProblemKind, load_kind
+from optikin.problems import ProblemContext, ProblemKind, load_kind, load_kinds
 from optikin.progress import SILENT, Progress
 from optikin.provenance import now, provenance_of
 from optikin.resources import check_memory
@@ -44,6 +44,15 @@ def kind_of(spec: ProblemSpec, path: Path) -> ProblemKind:
         return load_kind(spec.kind)
     except UnknownNameError as exc:
         raise SpecError(path, "kind", str(exc)) from None
+
+
+def _data_source(kind: ProblemKind, name: str, path: Path) -> DataSource:
+    """The kind's data source ``name``; one the kind's own modules do not register may be registered by a
+    module another kind imports, so an unknown one is looked for again with every kind imported."""
+    sources = DATA_SOURCES.get(kind.data_family)
+    if sources is None or name not in sources:
+        load_kinds()
+    return source_of(kind.data_family, name, path)
 
 
 def _check_baselines(spec: ProblemSpec, path: Path, kind: ProblemKind) -> None:
@@ -134,7 +143,7 @@ def prepare_spec(
     if run:
         _check_baselines(spec, path, kind)
     options = validate_options(kind.options, spec.options, path, "options")
-    data_source = source_of(kind.data_family, spec.data.source, path)
+    data_source = _data_source(kind, spec.data.source, path)
     data_params = validate_options(data_source.params, spec.data.params, path, "data.params")
     preset_name = solver or spec.solver or kind.default_solver
     preset = _preset(preset_name, kind)

@@ -11,8 +11,9 @@ from optikin import problems
 from optikin.registry import BACKENDS
 from optikin.solvers import BACKEND_MODULES, load_backends
 
-# Run in a fresh interpreter: what an export's context, then a solve's prepare, import; then the messages
-# of an unknown kind (a module of optikin.problems that registers none) and of an unknown backend.
+# Run in a fresh interpreter: what an export's context, then a solve's prepare, import; an ik problem whose
+# source (targets "cosserat") optikin.data.cosserat_sensors registers, which the statics kind imports; the
+# messages of an unknown kind (a module of optikin.problems that registers none) and of an unknown backend.
 SCRIPT = """
 import json, sys
 from pathlib import Path
@@ -34,6 +35,7 @@ out["context"] = imported()
 prepare("cc-ik-position")
 out["prepare"] = imported()
 folder = Path(sys.argv[1])
+out["source"] = prepare(str(folder / "source.yaml"))[1].data_source.name
 for name in ("kind", "backend"):
     try:
         prepare(str(folder / f"{name}.yaml"))
@@ -49,7 +51,7 @@ title: a small test problem
   type: constant_curvature
   params: {{section_lengths: [0.18, 0.18]}}
 data:
-  source: random
+  source: {source}
   samples: 4
 """
 
@@ -61,13 +63,13 @@ def test_backend_table_is_every_registration():
 
 
 def test_a_problem_imports_its_own_kind_and_backends_only(tmp_path):
-    """An fk export of an ik problem and its solve import the ik kind and the backends of its presets alone;
-    an unknown kind or backend still lists every one (fresh interpreter)."""
-    (tmp_path / "kind.yaml").write_text(PROBLEM.format(name="kind", line="kind: ph_shared\n"))
+    """An fk export of an ik problem and its solve import the ik kind and the backends of its presets alone; a
+    data source another kind's module registers is found; an unknown kind or backend still lists every one."""
+    (tmp_path / "kind.yaml").write_text(PROBLEM.format(name="kind", line="kind: ph_shared\n", source="random"))
+    (tmp_path / "source.yaml").write_text(PROBLEM.format(name="source", line="kind: ik\n", source="cosserat"))
     (tmp_path / "warp.yaml").write_text("name: warp\nbackend: warp_drive\n")
-    (tmp_path / "backend.yaml").write_text(
-        PROBLEM.format(name="backend", line=f"kind: fk\nsolver: {tmp_path}/warp.yaml\n")
-    )
+    line = f"kind: fk\nsolver: {tmp_path}/warp.yaml\n"
+    (tmp_path / "backend.yaml").write_text(PROBLEM.format(name="backend", line=line, source="random"))
     run = subprocess.run([sys.executable, "-c", SCRIPT, str(tmp_path)], capture_output=True, text=True, check=True)
     out = json.loads(run.stdout)
     assert out["context"]["kinds"] == ["ik"]
@@ -77,6 +79,7 @@ def test_a_problem_imports_its_own_kind_and_backends_only(tmp_path):
     assert out["prepare"]["backends"] == ["gauss_newton", "ipopt", "lm", "newton", "sqpmethod", "trf"]
     for modules in (out["context"]["modules"], out["prepare"]["modules"]):
         assert not any(m.startswith(("optikin.solvers.qp", "optikin.solvers.ph_backends")) for m in modules)
+    assert out["source"] == "cosserat"
     kinds = ", ".join(sorted(m.name for m in pkgutil.iter_modules(problems.__path__) if m.ispkg))
     assert "kind.yaml: kind: unknown problem kind 'ph_shared'; " in out["kind"]
     assert out["kind"].endswith(f" known: {kinds}")
