@@ -184,14 +184,15 @@ def test_every_converged_sample_is_a_minimum(built):
             assert abs(E - row[2]) <= 1e-12 * abs(E)
 
 
+@pytest.mark.slow
 def test_with_twist_the_export_agrees(tmp_path):
     """With a twist term the derivatives are CasADi's of the energy (no coefficient chain rule); the export
     still agrees with the Python fast path, basin check included."""
     overrides = [("options.twist_weight", 0.5)]
     setup = ph_setup("cbha-ph-shape", overrides)
     executable = build(export("cbha-ph-shape", "ph-shape", tmp_path, overrides=overrides))
-    n = 20
-    out = run((setup, executable, tmp_path), setup.parameters[:n], 50, 1, 1, 0)
+    n = 8
+    out = run((setup, executable, tmp_path), setup.parameters[:n], 50, 1, 1)
     compare(
         out,
         adapter_with(setup, max_iterations=50, fallback=True, basin_check=True).solve(setup.model, setup.samples[:n]),
