@@ -7,7 +7,9 @@ does a handful of float comparisons and no numpy linear algebra.
 
 * :func:`modified_newton_function` / :func:`modified_newton`: unconstrained, two
   variables; the Hessian's eigenvalues are floored (closed form for 2 x 2) so the
-  step is a descent direction; Armijo backtracking on the energy.
+  step is a descent direction; Armijo backtracking on the energy. The outputs from a
+  gradient and Hessian computed otherwise: :func:`modified_newton_outputs`; a step
+  predicted to converge needs no Hessian at its end (:func:`converging_step`).
 * :func:`kkt_newton_function` / :func:`kkt_newton`: ``min E s.t. S = L`` with
   simple bounds on some variables; null-space Newton (SQP) with the reduced
   Hessian shifted to positive definite where it is not, backtracking on an exact

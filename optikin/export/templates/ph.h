@@ -6,7 +6,9 @@
    is the backbone. Minimised by modified Newton (Hessian eigenvalues floored, Armijo backtracking;
    optikin.curves.newton.modified_newton) on the CasADi-generated energy, gradient and Hessian,
    as the ph_newton fast path of optikin.solvers.ph_backends does. The data-only part of the
-   family (its roots and pole) is computed once per sample.
+   family (its roots and pole) is computed once per sample; a full step that quadratic
+   convergence predicts to meet the tolerance is checked on E and the gradient alone
+   (optikin.curves.newton.converging_step), the Hessian there taken as positive definite.
 
    Sizes (compile-time constants):
      ${PREFIX}_NX  free parameters x = (phi0, phi2) [rad], returned wrapped into [-pi, pi)
