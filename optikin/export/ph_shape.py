@@ -174,8 +174,8 @@ def bending_derivatives(curve: PHQuintic, x: ca.SX, nodes: int) -> tuple[ca.SX, 
     pairs = [(k, nodes - 1 - k, w[k]) for k in range(nodes // 2)]
     if nodes % 2:
         pairs.append((nodes // 2, nodes // 2, 0.5 * w[nodes // 2]))  # the middle node, half its weight twice
-    energy = 0.0
-    H = {ab: 0.0 for ab in ddc}
+    energy: Any = 0.0
+    H: dict[tuple[int, int], Any] = {ab: 0.0 for ab in ddc}
     G_sums: list[list] = [[0.0] * len(values[j][0]) for j in range(3)]
     G_differences: list[list] = [[0.0] * len(values[j][1]) for j in range(3)]
     for k, _, weight in pairs:
