@@ -19,14 +19,13 @@ Exit status, one meaning each:
 from __future__ import annotations
 
 import argparse
+import importlib
 import json
 import logging
 import sys
 import traceback
 from pathlib import Path
 from typing import Any, Callable, Literal
-
-import yaml
 
 from optikin import __version__
 from optikin.errors import OptikinError
@@ -106,6 +105,8 @@ def _print_kinds(console) -> None:
 
 
 def _cmd_show(args: argparse.Namespace) -> int:
+    import yaml
+
     from optikin.options import describe_options
     from optikin.report import print_listing, wide_console
 
@@ -207,6 +208,31 @@ def _headless_figures() -> None:
     matplotlib.use("Agg")
 
 
+class _CommandParser(argparse.ArgumentParser):
+    """A subcommand's parser; :meth:`defer` leaves a module's arguments and ``main`` until the subcommand is used."""
+
+    _module: str | None = None
+
+    def defer(self, module: str) -> None:
+        """Add ``module.add_arguments`` when this parser first parses or prints its help, and run ``module.main``,
+        so that ``optikin --help`` and the other subcommands do not import ``module``."""
+        self._module = module
+        self.set_defaults(run=lambda args: importlib.import_module(module).main(args))
+
+    def _add_deferred(self) -> None:
+        if self._module is not None:
+            module, self._module = self._module, None
+            importlib.import_module(module).add_arguments(self)
+
+    def parse_known_args(self, args: Any = None, namespace: Any = None) -> tuple[Any, list[str]]:
+        self._add_deferred()
+        return super().parse_known_args(args, namespace)
+
+    def format_help(self) -> str:
+        self._add_deferred()
+        return super().format_help()
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="optikin",
@@ -216,7 +242,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"optikin {__version__}")
     parser.add_argument("--debug", action="store_true", help="show the traceback of an internal error")
-    sub = parser.add_subparsers(dest="command", required=True)
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_CommandParser)
 
     p = sub.add_parser("list", help="named problems (and solver presets) with title and kind")
     p.add_argument("--solvers", action="store_true", help="also list solver presets")
@@ -258,17 +284,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--open", action="store_true", help="open the page in the web browser")
     p.set_defaults(run=_cmd_view)
 
-    from optikin.sweep import run as sweep
-
     p = sub.add_parser("sweep", help="solve a problem over axes of overrides (joblib or Dask workers), one table")
-    sweep.add_arguments(p)
-    p.set_defaults(run=sweep.main)
-
-    from optikin import bench
+    p.defer("optikin.sweep.run")
 
     p = sub.add_parser("bench", help="forward-kinematics throughput of every evaluation path against numpy")
-    bench.add_arguments(p)
-    p.set_defaults(run=bench.main)
+    p.defer("optikin.bench")
 
     p = sub.add_parser("export", help="a problem's kinematics, IK, PH shape or QP step as a self-contained C library")
     p.add_argument("problem", help="problem name or path to a problem file")

@@ -86,3 +86,15 @@ def test_a_problem_imports_its_own_kind_and_backends_only(tmp_path):
     backends = ", ".join(sorted(BACKEND_MODULES))
     assert "warp.yaml: backend: unknown solver backend 'warp_drive'; " in out["backend"]
     assert out["backend"].endswith(f" known: {backends}")
+
+
+def test_the_command_line_parser_imports_no_subcommand_module():
+    """``optikin --help`` imports neither numpy nor the sweep and bench modules; ``optikin sweep`` still has its
+    arguments (fresh interpreter)."""
+    script = (
+        "import sys; from optikin.cli import build_parser; parser = build_parser(); "
+        "print(sorted(m for m in ('numpy', 'optikin.sweep.run', 'optikin.bench') if m in sys.modules)); "
+        "print(parser.parse_args(['sweep', 'grid', '--jobs', '2']).jobs)"
+    )
+    run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True)
+    assert run.stdout.split("\n")[:2] == ["[]", "2"]
