@@ -204,3 +204,20 @@ def test_with_twist_the_export_agrees(tmp_path):
         adapter_with(setup, max_iterations=50, fallback=True, basin_check=True).solve(setup.model, setup.samples[:n]),
     )
     assert (out[:, 0] == 0).all()
+
+
+def test_an_odd_coarse_grid_agrees(tmp_path):
+    """A 7 x 7 coarse grid (a loop the vectoriser leaves scalar): the cold starts, restarts and basin checks
+    pick the same grid points as Python's."""
+    from optikin.export.ph_shape import PHExportSetup, export_ph_shape
+
+    setup = ph_setup("cbha-ph-shape")
+    adapter = adapter_with(setup, max_iterations=50, fallback=True, basin_check=True)
+    adapter.options = adapter.options.model_copy(update={"coarse_grid": 7})
+    model = adapter.model(setup.model.settings, False)
+    assert model.coarse_grid == 7
+    n = 12
+    odd = PHExportSetup(model, adapter, setup.samples[:n], setup.parameters[:n])
+    executable = build(export_ph_shape("cbha-ph-shape", odd, tmp_path, n), flags=("-O0",))
+    out = run((odd, executable, tmp_path), setup.parameters[:n], 50, 1, 1)
+    compare(out, adapter.solve(model, setup.samples[:n]))
