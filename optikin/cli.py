@@ -171,18 +171,19 @@ def _solve_chunks(args: argparse.Namespace) -> Any:
 
 
 def _cmd_plot(args: argparse.Namespace) -> int:
-    from optikin.errors import SpecError
-    from optikin.problems import load_kinds
-    from optikin.registry import PROBLEM_KINDS
+    from optikin.errors import SpecError, UnknownNameError
+    from optikin.problems import load_kind
     from optikin.results import read_result, redraw
 
     _headless_figures()
     folder = Path(args.result)
     summary, arrays = read_result(folder)
-    load_kinds()
-    if summary["kind"] not in PROBLEM_KINDS:
+    try:
+        kind = load_kind(summary["kind"]) if isinstance(summary["kind"], str) else None
+    except UnknownNameError:
+        kind = None
+    if kind is None:
         raise SpecError(folder / "result.json", "kind", f"unknown problem kind {summary['kind']!r}")
-    kind = PROBLEM_KINDS.get(summary["kind"])
     if kind.figures is None:
         print(f"kind {kind.name} draws no figures")
         return EXIT_OK

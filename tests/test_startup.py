@@ -98,3 +98,23 @@ def test_the_command_line_parser_imports_no_subcommand_module():
     )
     run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True)
     assert run.stdout.split("\n")[:2] == ["[]", "2"]
+
+
+def test_plot_imports_the_result_kind_only(tmp_path, capsys):
+    """``optikin plot`` redraws with the result's own kind alone (fresh interpreter); an unknown kind exits 2."""
+    from optikin.cli import EXIT_BAD_INPUT, main
+
+    out = tmp_path / "out"
+    assert main(["solve", "cc-two-section-fk", "--set", "data.samples=4", "--out", str(out), "-q"]) == 0
+    folder = out / "cc-two-section-fk"
+    script = (
+        "import sys; from optikin.cli import main; from optikin.registry import PROBLEM_KINDS; "
+        f"code = main(['plot', {str(folder)!r}]); print(code, PROBLEM_KINDS.names())"
+    )
+    run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True)
+    assert run.stdout.splitlines()[-1] == "0 ['fk']"
+    summary = json.loads((folder / "result.json").read_text())
+    (folder / "result.json").write_text(json.dumps({**summary, "kind": "teleport"}))
+    capsys.readouterr()
+    assert main(["plot", str(folder)]) == EXIT_BAD_INPUT
+    assert "result.json: kind: unknown problem kind 'teleport'" in capsys.readouterr().err
