@@ -12,7 +12,8 @@ load average.
 
 * ``ph-shape``: the 100 samples of ``cbha-ph-shape`` as one trajectory (warm starts); Python:
   preset ``ph-newton-compiled`` (Newton on the compiled CasADi Function, the loop in Python), per
-  sample; ``basin`` adds the basin check on every warm-started sample.
+  sample; ``basin`` adds the basin check on every warm-started sample. With valgrind on PATH,
+  ``c_instructions``: instructions per sample of one trajectory call (callgrind).
 * ``qp-step``: ``track-nominal``'s controller on arms of 2, 4 and 8 sections (0.18 m each, the
   waypoints repeated per section), one step per call; steps along the reference (no constraint
   active) or ``active``: configurations up to 1.3 x beyond the limits with references from random
