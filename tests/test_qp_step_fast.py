@@ -3,17 +3,24 @@
 The reference builds the same QP from scratch for every step: the Jacobian and the tip
 pose from the arm's own CasADi ``jac_dq``/``fk_dq`` called the ordinary way, ``v``, ``H`` and
 ``g`` in numpy, the rate box written out by hand, and solves it with quadprog (Goldfarb-Idnani
-dual active set, exact up to rounding) through ``qpsolvers.solve_qp``. The controller's default
-path is daqp (another active-set method) warm-started on preallocated buffers; both answers are
-exact, so they agree to 1e-9 rad/s or m/s. Cases: random states stepped through in sequence (the
-warm start then starts from an unrelated active set), states next to the configuration limits (rate
-bounds active), rows ``A qdot >= b`` cutting the box-only optimum (rows active), rows that no rate
-in the box satisfies (infeasible: the hold fallback and its status, then recovery), and the backbone
-barrier rows of three obstacles along a closed-loop run.
+dual active set, exact up to rounding) through ``qpsolvers.solve_qp``, or with daqp set up from
+scratch (``daqp.solve``). The controller's default path is daqp warm-started on preallocated
+buffers, called through its C functions (``DirectDaqp``); every answer is exact, so they agree to
+1e-9 rad/s or m/s. Cases: random states stepped through in sequence (the warm start then starts
+from an unrelated active set), states next to the configuration limits (rate bounds active), a
+closed loop from outside the limits (the box shut to one rate, ``lb = ub``, then opening), rows
+``A qdot >= b`` cutting the box-only optimum (rows active), rows that no rate in the box satisfies
+(infeasible: the hold fallback and its status, then recovery), and the backbone barrier rows of three
+obstacles along a closed-loop run. The direct calls give the bits of ``daqp.Model`` (daqp's own Python
+class) on all of these, and the projection onto the box those of ``np.clip`` whatever array the solver
+returns.
 """
 
 from __future__ import annotations
 
+from importlib import metadata
+
+import daqp
 import numpy as np
 import pytest
 import qpsolvers
@@ -22,7 +29,8 @@ from optikin.arms.constant_curvature import ConstantCurvatureArm
 from optikin.control.qp import ACTIVE_SET_MAX_RATES, ACTIVE_SET_MAX_ROWS, QPController, default_step_solver
 from optikin.solvers import load_preset
 from optikin.solvers.qp import step_solver
-from optikin.solvers.qp.qp_daqp import ActiveSetStepSolver
+from optikin.solvers.base import Solution
+from optikin.solvers.qp.qp_daqp import DIRECT_VERSIONS, ActiveSetStepSolver, DirectDaqp, ModelDaqp
 from optikin.solvers.qp.qp_osqp import OSQPStepSolver
 
 DT, GAIN, DAMPING, MARGIN = 0.01, 20.0, 1e-4, 1e-9
@@ -253,3 +261,150 @@ def test_the_qp_active_set_preset_builds_the_structural_default():
     solver = factory.create(6, 8, 3)
     assert isinstance(solver, ActiveSetStepSolver) and (solver.n, solver.rows) == (6, 3)
     assert isinstance(step_solver("qp_daqp", 6, 8), ActiveSetStepSolver)
+
+
+def scratch_daqp(H, g, lb, ub, A=None, b=None):
+    """daqp set up from scratch for this one QP (``daqp.solve``): the answer, or None when it finds none."""
+    n = len(g)
+    A = np.zeros((0, n)) if A is None else A[np.isfinite(b)]
+    upper = np.concatenate([ub, np.full(len(A), 1e30)])
+    lower = np.concatenate([lb, np.zeros(0) if b is None else b[np.isfinite(b)]])
+    x, _, exitflag, _ = daqp.solve(np.ascontiguousarray(H), g, np.ascontiguousarray(A), upper, lower)
+    return np.asarray(x) if exitflag == 1 else None
+
+
+def test_the_installed_daqp_is_called_directly():
+    """A daqp release whose C structures DirectDaqp is not checked against falls back to daqp.Model: flag it here."""
+    assert metadata.version("daqp") in DIRECT_VERSIONS, "check DirectDaqp's structures against this daqp release"
+    assert DirectDaqp.available()
+    qp = controller(arm_of(2))
+    state = random_states(qp.arm, 1, np.random.default_rng(0))[0]
+    qp.command(*state)
+    assert isinstance(qp.solver, ActiveSetStepSolver) and isinstance(qp.solver.daqp, DirectDaqp)
+    assert isinstance(ActiveSetStepSolver(6, direct=False), ActiveSetStepSolver)
+
+
+def test_from_outside_the_limits_the_shut_box_opens_and_the_step_stays_exact(arm):
+    """Closed loop from past theta_1's and S_2's limits: while the box of a variable is shut to one rate (lb = ub)
+    daqp takes it as an equality; every step matches daqp set up from scratch and quadprog, also once it opens."""
+    from optikin.control.reference import minimum_jerk_path, reference_from_configurations
+    from optikin.control.simulate import simulate
+
+    n = arm.n_config
+    start = np.tile([0.18, 0.6, 0.3], arm.n_sections)
+    start[2::3] = np.linspace(0.3, -1.0, arm.n_sections)
+    inside = start + np.tile([-0.01, 0.4, 0.5], arm.n_sections)
+    q0 = start.copy()
+    q0[1] = arm.theta_max + 0.3
+    q0[3] = arm.lower[3] - 0.004
+    t, Q, Qdot = minimum_jerk_path(np.array([start, inside]), 0.5, 1 / DT, hold=0.2)
+    ref = reference_from_configurations(arm, t, Q, Qdot, "pose")
+    run = simulate(controller(arm), ref, q0)
+    qp, model = (
+        controller(arm),
+        QPController(
+            arm, DT, gain=GAIN, damping=DAMPING, rate_limits=rates_of(arm), solver=ActiveSetStepSolver(n, direct=False)
+        ),
+    )
+    qp.reset(run.q[0], run.x[0])
+    model.reset(run.q[0], run.x[0])
+    shut = opened = 0
+    for k in range(len(t) - 1):
+        state = (run.q[k], run.x[k], ref.value[k], ref.rate[k])
+        qdot = qp.command(*state).copy()
+        assert qp.status == "ok"
+        assert np.array_equal(qdot, model.command(*state)) and qp.solution.iterations == model.solution.iterations
+        H, g = reference_qp(arm, *state)
+        lb, ub = box(arm, run.q[k])
+        assert np.abs(qdot - scratch_daqp(H, g, lb, ub)).max() < TOLERANCE
+        closed = lb == ub
+        shut += int(closed.any())
+        if not closed.any():
+            assert np.abs(qdot - qpsolvers.solve_qp(H, g, lb=lb, ub=ub, solver="quadprog")).max() < TOLERANCE
+            opened += shut > 0
+    assert shut >= 8 and opened >= 50
+
+
+@pytest.mark.parametrize("rows", [0, ROWS])
+def test_the_direct_calls_give_the_bits_of_daqp_model(arm, rows):
+    """Random states (bounds active), given rows cutting the optimum and infeasible steps: DirectDaqp and
+    daqp.Model answer with the same bits, exit flags and iterations, and both recover after a failure."""
+    rng = np.random.default_rng(30 + arm.n_sections + rows)
+    n = arm.n_config
+    given = [GivenRows(n, rows), GivenRows(n, rows)] if rows else [None, None]
+    direct = controller(arm, given[0])
+    model = QPController(
+        arm,
+        DT,
+        gain=GAIN,
+        damping=DAMPING,
+        rate_limits=rates_of(arm),
+        margin=MARGIN,
+        barrier=given[1],
+        solver=ActiveSetStepSolver(n, rows=rows, direct=False),
+    )
+    states = random_states(arm, 8, rng) + random_states(arm, 12, rng, near_limits=True)
+    failures = 0
+    for k, state in enumerate(states):
+        if rows:
+            box_only, lb, ub = reference_step(arm, *state)
+            inside = lb + rng.uniform(0.2, 0.8, n) * (ub - lb)
+            A = rng.normal(size=(rows, n))
+            A *= np.sign(A @ inside - A @ box_only)[:, None]
+            b = A @ inside
+            if k % 5 == 4:
+                b[0] = np.maximum(A[0] * lb, A[0] * ub).sum() + 1.0  # infeasible
+            for rows_now in given:
+                rows_now.next = (A, b)
+        qdot = direct.command(*state).copy()
+        assert np.array_equal(qdot, model.command(*state))
+        assert (direct.status, direct.slip) == (model.status, model.slip)
+        assert direct.solution.iterations == model.solution.iterations
+        failures += direct.status != "ok"
+    assert isinstance(direct.solver.daqp, DirectDaqp) and isinstance(model.solver.daqp, ModelDaqp)
+    assert failures == (4 if rows else 0)
+
+
+class Scripted:
+    """A step solver answering with given rates, as an array of its own, a new one, a view or a list."""
+
+    name = "scripted"
+
+    def __init__(self, n):
+        self.kept, self.answers = np.zeros(n), []
+
+    def solve(self, data):
+        x, how = self.answers.pop(0)
+        if how == "kept":
+            self.kept[:] = x
+            x = self.kept
+        elif how == "strided":
+            x = np.repeat(x, 2)[::2]
+        elif how == "float32":
+            x = x.astype(np.float32)
+        elif how == "list":
+            x = list(x)
+        return Solution(x, "ok")
+
+
+def test_the_projection_onto_the_box_is_np_clip_whatever_array_the_solver_returns():
+    arm = arm_of(2)
+    n = arm.n_config
+    solver = Scripted(n)
+    qp = QPController(arm, DT, gain=GAIN, damping=DAMPING, rate_limits=rates_of(arm), solver=solver)
+    rng = np.random.default_rng(7)
+    states = random_states(arm, 12, rng, near_limits=True)
+    hows = ["kept", "kept", "new", "strided", "kept", "float32", "list", "new", "kept", "new", "kept", "strided"]
+    for state, how in zip(states, hows):
+        lb, ub = box(arm, state[0])
+        x = lb + rng.uniform(-0.5, 1.5, n) * (ub - lb)  # some rates outside the box
+        solver.answers.append((x, how))
+        qdot = qp.command(*state)
+        x_read = x.astype(np.float32).astype(float) if how == "float32" else x
+        assert qp.status == "ok" and np.array_equal(qdot, np.clip(x_read, lb, ub))
+        assert qp.slip == np.abs(np.clip(x_read, lb, ub) - x_read).max()
+    x = np.zeros(n)
+    x[2] = np.inf
+    solver.answers.append((x, "kept"))
+    qp.command(*states[0])
+    assert qp.status == "fallback (hold): non-finite solution" and qp.slip == 0.0

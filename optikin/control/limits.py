@@ -26,13 +26,13 @@ them): they get rate limits only and are wrapped to ``(-pi, pi]`` after integrat
 
 from __future__ import annotations
 
-from typing import Mapping, Sequence
+from typing import Any, Mapping, Sequence, cast
 
 import casadi as ca
 import numpy as np
 
 from optikin.arms.base import ArmModel
-from optikin.fastcall import BufferedFunction
+from optikin.interrupt import calls_casadi
 
 DEFAULT_RATE_LIMITS = {"S": 0.1, "theta": np.pi, "phi": 2.0 * np.pi}
 """Rate limits by variable prefix: m/s for lengths, rad/s for angles (assumed; Seleem et al. 2020 gives none)."""
@@ -78,6 +78,12 @@ class RateBounds:
     ``lower``/``upper`` default to the arm's bounds; ``margin`` is a scalar or
     per-variable distance kept from the configuration limits; ``gain`` the fraction
     of the distance to a limit one step may cover.
+
+    The box is one CasADi Function of the configuration (:attr:`function`, ``q -> (lb, ub)``),
+    evaluated in place: :meth:`update` copies ``q`` into its input :attr:`q` and writes
+    :attr:`lb`, :attr:`ub`. A controller whose task model already holds the step's configuration
+    in a buffer can let the box read that buffer instead (:meth:`read_configuration_from`) and
+    call :meth:`refresh`, which takes no copy.
     """
 
     def __init__(
@@ -107,17 +113,42 @@ class RateBounds:
             raise ValueError("margin leaves no room between the configuration limits")
         self.lower, self.upper = lower, upper
         # One CasADi call per step instead of seven numpy ufuncs on six numbers (each costs about as much).
-        q = ca.SX.sym("q", arm.n_config)
+        n = arm.n_config
+        q = ca.SX.sym("q", n)
         rate = ca.DM(self.rate)
-        bounds = [ca.fmin(ca.fmax(gain * (ca.DM(limit) - q) / self.dt, -rate), rate) for limit in (lower, upper)]
-        self._bounds = BufferedFunction(ca.Function("rate_bounds", [q], bounds, ["q"], ["lb", "ub"]))
-        self._q = self._bounds.inputs[0]
-        self.lb, self.ub = self._bounds.outputs
+        bounds = [
+            ca.densify(ca.fmin(ca.fmax(gain * (ca.DM(limit) - q) / self.dt, -rate), rate)) for limit in (lower, upper)
+        ]
+        self.function = ca.Function("rate_bounds", [q], bounds, ["q"], ["lb", "ub"])
+        self.q, self.lb, self.ub = np.zeros(n), np.zeros(n), np.zeros(n)
+        self._buffer, self._refresh = cast(Any, self.function.buffer())  # CasADi's stub asks for a byte count
+        self._buffer.set_arg(0, self.q.data)
+        self._buffer.set_res(0, self.lb.data)
+        self._buffer.set_res(1, self.ub.data)
 
+    @calls_casadi
     def update(self, q: np.ndarray) -> None:
         """Write the bounds for the step starting at ``q`` into :attr:`lb`, :attr:`ub`."""
-        self._q[:] = q
-        self._bounds()
+        self.q[...] = q
+        self._refresh()
+
+    @calls_casadi
+    def refresh(self) -> None:
+        """Write the bounds for the step starting at the configuration now in :attr:`q` into :attr:`lb`, :attr:`ub`."""
+        self._refresh()
+
+    def read_configuration_from(self, q: np.ndarray) -> None:
+        """Make :attr:`q` the array ``q`` (kept, not copied), e.g. a task model's input buffer.
+
+        Parameters
+        ----------
+        q:
+            ``(n,)`` C-contiguous ``float64``: :meth:`refresh` evaluates the box at its contents then.
+        """
+        if q.shape != self.q.shape or q.dtype != np.float64 or not q.flags.c_contiguous:
+            raise ValueError(f"the configuration must be a C-contiguous float64 array of shape {self.q.shape}")
+        self.q = q
+        self._buffer.set_arg(0, q.data)
 
 
 def limit_excess(arm: ArmModel, Q: np.ndarray, periodic: Sequence[str] | None = None) -> np.ndarray:

@@ -44,13 +44,22 @@ Both lie in the box, so a failing solver can never push a limit. A returned
 solution is itself projected onto the box (a no-op for an exact solver); the
 amount removed is kept in :attr:`QPController.slip`, the bound violation the
 solver's tolerance would otherwise have let through.
+
+Per step, in place. Every array of the step lives in a buffer allocated once: the task Function
+(:class:`~optikin.control.task.TaskModel`) writes ``J, v, H, g``, the rate box reads the configuration
+from the task Function's own input (:meth:`~optikin.control.limits.RateBounds.read_configuration_from`),
+the step solver reads the QP from those buffers, and one more CasADi Function on the buffers
+projects its answer onto the box and measures what the projection removed (largest and summed
+``|qdot - x|``: the sum is not finite exactly when the answer is not). A step is thus four calls
+into compiled code (task, box, solver, projection) and no numpy temporary.
 """
 
 from __future__ import annotations
 
 import math
-from typing import Literal, Sequence
+from typing import Any, Literal, Sequence, cast
 
+import casadi as ca
 import numpy as np
 
 from optikin.arms.base import ArmModel
@@ -58,6 +67,7 @@ from optikin.control.base import Controller
 from optikin.control.limits import RateBounds
 from optikin.control.obstacles import BarrierRows
 from optikin.control.task import Task
+from optikin.interrupt import calls_casadi
 from optikin.solvers.base import QPStepSolver, Solution
 from optikin.solvers.qp.common import QPData
 from optikin.solvers.qp.qp_daqp import ActiveSetStepSolver
@@ -153,10 +163,11 @@ class QPController(Controller):
             solver = default_step_solver(arm.n_config, m.m, 0 if barrier is None else barrier.rows)
         self.solver = solver
         self.name = f"qp ({getattr(solver, 'name', type(solver).__name__)})"
+        self.bounds.read_configuration_from(m.q)
         self.qdot = np.zeros(arm.n_config)
-        self._removed = np.zeros(arm.n_config)
         self.slip = 0.0
         self.solution: Solution | None = None
+        self._projection = _BoxProjection(self.bounds.lb, self.bounds.ub, self.qdot)
 
     def reset(self, q: np.ndarray, x: np.ndarray) -> None:
         super().reset(q, x)
@@ -165,25 +176,20 @@ class QPController(Controller):
 
     def command(self, q: np.ndarray, x: np.ndarray, x_ref: np.ndarray, xdot_ref: np.ndarray) -> np.ndarray:
         self.model.evaluate(q, x, x_ref, xdot_ref)
-        self.bounds.update(q)
+        self.bounds.refresh()  # at the q just written into the task Function's input
         if self.barrier is not None:
             self.barrier.update(q)
-        lb, ub = self.bounds.lb, self.bounds.ub
         try:
             solution = self.solution = self.solver.solve(self.data)
             failure = None if solution.status == "ok" else f"no solution ({solution.message})"
         except Exception as exc:  # noqa: BLE001 - a solver crash must stop neither the loop nor the arm
             self.solution, failure = None, f"solver raised {type(exc).__name__}: {exc}"
         if failure is None:
-            qdot, removed = self.qdot, self._removed
-            np.maximum(solution.x, lb, out=qdot)
-            np.minimum(qdot, ub, out=qdot)
-            np.subtract(qdot, solution.x, out=removed)
-            amounts = np.abs(removed, out=removed).tolist()  # n floats: quicker than a numpy reduction
-            if math.isfinite(sum(amounts)):  # NaN or inf anywhere in the solution makes the sum non-finite
-                self.slip = max(amounts)
+            slip, removed = self._projection(solution.x)  # writes self.qdot
+            if math.isfinite(removed):  # NaN or inf anywhere in the solution makes the sum non-finite
+                self.slip = slip
                 self.status = "ok"
-                return qdot
+                return self.qdot
             failure = "non-finite solution"
         self.slip = 0.0
         self._fall_back()
@@ -197,3 +203,45 @@ class QPController(Controller):
             self.qdot[:] = np.linalg.solve(self.model.H, -self.model.g)
         np.maximum(self.qdot, self.bounds.lb, out=self.qdot)
         np.minimum(self.qdot, self.bounds.ub, out=self.qdot)
+
+
+class _BoxProjection:
+    """``qdot = min(max(x, lb), ub)`` and ``(max, sum)`` of ``|qdot - x|``, one CasADi call on given arrays.
+
+    ``lb``, ``ub`` and ``qdot`` (``(n,)``, C-contiguous ``float64``) are read and written in place;
+    the answer ``x`` is read where the solver left it (the same array every step for a solver that
+    keeps one, else rebound, or copied when it is not a contiguous ``float64`` vector). CasADi's
+    ``fmax``/``fmin`` pass over a NaN, so a NaN in ``x`` shows in the sum, never in ``qdot``.
+    """
+
+    def __init__(self, lb: np.ndarray, ub: np.ndarray, qdot: np.ndarray):
+        n = qdot.shape[0]
+        x, low, high = (ca.SX.sym(name, n) for name in ("x", "lb", "ub"))
+        projected = ca.fmin(ca.fmax(x, low), high)
+        removed = ca.fabs(projected - x)
+        amounts = ca.vertcat(ca.mmax(removed), ca.sum1(removed))
+        self.function = ca.Function("box_projection", [x, low, high], [projected, amounts])
+        self._copy, self._amounts = np.zeros(n), np.zeros(2)
+        self._read: np.ndarray = self._copy
+        self._buffer, self._trigger = cast(Any, self.function.buffer())  # CasADi's stub asks for a byte count
+        for i, array in enumerate((self._copy, lb, ub)):
+            self._buffer.set_arg(i, array.data)
+        self._buffer.set_res(0, qdot.data)
+        self._buffer.set_res(1, self._amounts.data)
+
+    @calls_casadi
+    def __call__(self, x: np.ndarray) -> tuple[float, float]:
+        """Project ``x``; the largest and the summed amount removed."""
+        if x is not self._read:
+            self._bind(x)
+        self._trigger()
+        slip, removed = self._amounts.tolist()
+        return slip, removed
+
+    def _bind(self, x: np.ndarray) -> None:
+        if isinstance(x, np.ndarray) and x.shape == self._copy.shape and x.dtype == np.float64 and x.flags.c_contiguous:
+            self._read = x
+        else:
+            self._copy[...] = x
+            self._read = self._copy
+        self._buffer.set_arg(0, self._read.data)

@@ -76,7 +76,9 @@ class TaskModel:
 
     After :meth:`evaluate`, the attributes ``J`` (``m x n``), ``e``, ``v`` (``m``),
     ``H`` (``n x n``), ``H_upper`` and ``g`` (``n``) are views of the buffers:
-    valid until the next call, not to be kept.
+    valid until the next call, not to be kept. :attr:`q` is the Function's configuration
+    input, holding the ``q`` of the last :meth:`evaluate` (a rate box may read it in place,
+    :meth:`optikin.control.limits.RateBounds.read_configuration_from`).
     """
 
     def __init__(self, arm: ArmModel, task: Task = "pose", compiled: bool = False):
@@ -84,7 +86,7 @@ class TaskModel:
         self.n, self.m = arm.n_config, task_dimension(task)
         self.fk = arm.function(TASK_FUNCTIONS[task][0])
         self._f = BufferedFunction(task_step_function(arm, task), compiled=compiled)
-        self._q, self._x, self._x_ref, self._xdot_ref, self._k, self._damping = self._f.inputs
+        self.q, self._x, self._x_ref, self._xdot_ref, self._k, self._damping = self._f.inputs
         self.J = self._f.output_matrix(0)
         self.e, self.v = self._f.outputs[1], self._f.outputs[2]
         self.H = self._f.output_matrix(3)
@@ -97,8 +99,8 @@ class TaskModel:
 
     def evaluate(self, q: np.ndarray, x: np.ndarray, x_ref: np.ndarray, xdot_ref: np.ndarray) -> None:
         """Refresh ``J, e, v, H, H_upper, g`` for this step (gains as last set)."""
-        self._q[:] = q
-        self._x[:] = x
-        self._x_ref[:] = x_ref
-        self._xdot_ref[:] = xdot_ref
+        self.q[...] = q  # [...] = copies in place, cheaper than [:] = (no slice object, no view)
+        self._x[...] = x
+        self._x_ref[...] = x_ref
+        self._xdot_ref[...] = xdot_ref
         self._f()
