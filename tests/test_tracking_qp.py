@@ -303,6 +303,28 @@ def test_compiled_task_function_gives_the_same_qp_data_as_the_casadi_virtual_mac
     np.testing.assert_allclose(data[0][4], (J.T @ J + DAMPING * np.eye(6))[rows, cols], atol=1e-14)
 
 
+@pytest.mark.skipif(shutil.which("gcc") is None, reason="needs a C compiler")
+@pytest.mark.parametrize("compiled", [False, True])
+def test_the_rate_box_is_the_hand_made_one_also_compiled_and_read_in_place(compiled):
+    """RateBounds against the box written out in numpy (the same operations, so the same bits), through
+    update(q) and through refresh() on a configuration array the box reads in place."""
+    rng = np.random.default_rng(8)
+    bounds, shared = RateBounds(ARM, DT, compiled=compiled), RateBounds(ARM, DT, compiled=compiled)
+    q_in = np.zeros(6)
+    shared.read_configuration_from(q_in)
+    for fractions in rng.uniform(-1.0, 2.0, size=(20, 6)):
+        q = ARM.lower + fractions * (ARM.upper - ARM.lower)
+        bounds.update(q)
+        q_in[:] = q
+        shared.refresh()
+        lb, ub = hand_bounds(q)
+        for box in (bounds, shared):
+            np.testing.assert_array_equal(box.lb, lb)
+            np.testing.assert_array_equal(box.ub, ub)
+    with pytest.raises(ValueError, match="C-contiguous float64"):
+        shared.read_configuration_from(np.zeros(12)[::2])
+
+
 def test_the_tip_pose_of_the_two_section_arm_has_five_independent_directions():
     """Why J J^+ != I for the pose task (seed 000 eq. 39 assumes it): the 8 x 6 Jacobian has rank 5.
 

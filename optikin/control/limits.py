@@ -79,11 +79,13 @@ class RateBounds:
     per-variable distance kept from the configuration limits; ``gain`` the fraction
     of the distance to a limit one step may cover.
 
-    The box is one CasADi Function of the configuration (:attr:`function`, ``q -> (lb, ub)``),
-    evaluated in place: :meth:`update` copies ``q`` into its input :attr:`q` and writes
-    :attr:`lb`, :attr:`ub`. A controller whose task model already holds the step's configuration
-    in a buffer can let the box read that buffer instead (:meth:`read_configuration_from`) and
-    call :meth:`refresh`, which takes no copy.
+    The box is one CasADi Function (:attr:`function`, ``(q, lower, upper, rate, gain, dt) -> (lb, ub)``,
+    the limits and rates as inputs set once, so its compiled code depends on ``n`` only), evaluated in
+    place: :meth:`update` copies ``q`` into its input :attr:`q` and writes :attr:`lb`, :attr:`ub`. A
+    controller whose task model already holds the step's configuration in a buffer can let the box
+    read that buffer instead (:meth:`read_configuration_from`) and call :meth:`refresh`, which takes
+    no copy. ``compiled``: evaluate C code of the Function (compiled with gcc, cached) instead of
+    CasADi's virtual machine; the same bits.
     """
 
     def __init__(
@@ -96,6 +98,7 @@ class RateBounds:
         lower=None,
         upper=None,
         gain: float = 1.0,
+        compiled: bool = False,
     ):
         if not dt > 0:
             raise ValueError(f"dt must be positive, got {dt}")
@@ -114,15 +117,25 @@ class RateBounds:
         self.lower, self.upper = lower, upper
         # One CasADi call per step instead of seven numpy ufuncs on six numbers (each costs about as much).
         n = arm.n_config
-        q = ca.SX.sym("q", n)
-        rate = ca.DM(self.rate)
-        bounds = [
-            ca.densify(ca.fmin(ca.fmax(gain * (ca.DM(limit) - q) / self.dt, -rate), rate)) for limit in (lower, upper)
-        ]
-        self.function = ca.Function("rate_bounds", [q], bounds, ["q"], ["lb", "ub"])
+        q, low, high, rate = (ca.SX.sym(name, n) for name in ("q", "lower", "upper", "rate"))
+        scale, step = ca.SX.sym("gain"), ca.SX.sym("dt")
+        bounds = [ca.densify(ca.fmin(ca.fmax(scale * (limit - q) / step, -rate), rate)) for limit in (low, high)]
+        self.function = ca.Function(
+            f"rate_bounds_{n}",
+            [q, low, high, rate, scale, step],
+            bounds,
+            ["q", "lower", "upper", "rate", "gain", "dt"],
+            ["lb", "ub"],
+        )
+        if compiled:
+            from optikin.codegen import compile_function
+
+            self.function = compile_function(self.function)
         self.q, self.lb, self.ub = np.zeros(n), np.zeros(n), np.zeros(n)
+        self._parameters = (lower, upper, self.rate.copy(), np.array([float(gain)]), np.array([self.dt]))
         self._buffer, self._refresh = cast(Any, self.function.buffer())  # CasADi's stub asks for a byte count
-        self._buffer.set_arg(0, self.q.data)
+        for i, array in enumerate((self.q, *self._parameters)):
+            self._buffer.set_arg(i, array.data)
         self._buffer.set_res(0, self.lb.data)
         self._buffer.set_res(1, self.ub.data)
 

@@ -50,8 +50,9 @@ Per step, in place. Every array of the step lives in a buffer allocated once: th
 from the task Function's own input (:meth:`~optikin.control.limits.RateBounds.read_configuration_from`),
 the step solver reads the QP from those buffers, and one more CasADi Function on the buffers
 projects its answer onto the box and measures what the projection removed (largest and summed
-``|qdot - x|``: the sum is not finite exactly when the answer is not). A step is thus four calls
-into compiled code (task, box, solver, projection) and no numpy temporary.
+``|qdot - x|``: the sum is not finite exactly when the answer is not). Without obstacles a step is
+thus five calls out of Python (task Function, box, daqp's refresh and solve, projection, with the
+default solver) and no numpy temporary.
 """
 
 from __future__ import annotations
@@ -122,7 +123,7 @@ class QPController(Controller):
     fallback:
         What to command when the solver fails (see the module docstring).
     compiled:
-        Compile the per-step CasADi Function with a C compiler.
+        Compile the per-step CasADi Functions (task, rate box, projection) with a C compiler.
     barrier:
         The backbone barrier rows (its step solver must be created for ``barrier.rows`` rows); ``None``: no obstacles.
     """
@@ -153,7 +154,7 @@ class QPController(Controller):
             raise ValueError(f"unknown fallback {fallback!r}; known: {', '.join(FALLBACKS)}")
         self.damping, self.fallback = float(damping), fallback
         self.model.set_gains(self.gain, self.damping)
-        self.bounds = RateBounds(arm, dt, rate_limits, margin, periodic, gain=limit_gain)
+        self.bounds = RateBounds(arm, dt, rate_limits, margin, periodic, gain=limit_gain, compiled=compiled)
         m = self.model
         self.data = QPData(m.J, m.v, self.damping, m.H, m.H_upper, m.g, self.bounds.lb, self.bounds.ub)
         self.barrier = barrier
@@ -167,7 +168,7 @@ class QPController(Controller):
         self.qdot = np.zeros(arm.n_config)
         self.slip = 0.0
         self.solution: Solution | None = None
-        self._projection = _BoxProjection(self.bounds.lb, self.bounds.ub, self.qdot)
+        self._projection = _BoxProjection(self.bounds.lb, self.bounds.ub, self.qdot, compiled)
 
     def reset(self, q: np.ndarray, x: np.ndarray) -> None:
         super().reset(q, x)
@@ -212,15 +213,20 @@ class _BoxProjection:
     the answer ``x`` is read where the solver left it (the same array every step for a solver that
     keeps one, else rebound, or copied when it is not a contiguous ``float64`` vector). CasADi's
     ``fmax``/``fmin`` pass over a NaN, so a NaN in ``x`` shows in the sum, never in ``qdot``.
+    ``compiled``: evaluate C code of the Function (gcc, cached) instead of CasADi's virtual machine.
     """
 
-    def __init__(self, lb: np.ndarray, ub: np.ndarray, qdot: np.ndarray):
+    def __init__(self, lb: np.ndarray, ub: np.ndarray, qdot: np.ndarray, compiled: bool = False):
         n = qdot.shape[0]
         x, low, high = (ca.SX.sym(name, n) for name in ("x", "lb", "ub"))
         projected = ca.fmin(ca.fmax(x, low), high)
         removed = ca.fabs(projected - x)
         amounts = ca.vertcat(ca.mmax(removed), ca.sum1(removed))
-        self.function = ca.Function("box_projection", [x, low, high], [projected, amounts])
+        self.function = ca.Function(f"box_projection_{n}", [x, low, high], [projected, amounts])
+        if compiled:
+            from optikin.codegen import compile_function
+
+            self.function = compile_function(self.function)
         self._copy, self._amounts = np.zeros(n), np.zeros(2)
         self._read: np.ndarray = self._copy
         self._buffer, self._trigger = cast(Any, self.function.buffer())  # CasADi's stub asks for a byte count

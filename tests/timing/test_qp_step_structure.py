@@ -16,7 +16,10 @@ different contender first each pass. Whole sequences, not single steps, are inte
 loop runs one controller, and a cvxpy solve between two steps of another path evicts that path's
 data from the caches (its steps then take several times as long).
 
-* ``active set (default)``: ``solver=None``, i.e. daqp on the controller's buffers, warm-started;
+* ``active set (default)``: ``solver=None``, i.e. daqp on the controller's buffers, warm-started,
+  its C functions called directly (:class:`~optikin.solvers.qp.qp_daqp.DirectDaqp`);
+* ``active set, daqp.Model``: the same, through daqp's Python class (``direct=False``: what a daqp
+  release the direct calls are not written for gets), which copies its answer every step;
 * ``osqp in place``: the ``qp_osqp`` backend at its defaults (eps 1e-7, rho 1);
 * ``qpsolvers daqp``: ``qpsolvers``-style, daqp set up from scratch every step (the exactness reference);
 * ``cvxpy Parameters``: the ``qp_cvxpy`` backend (DPP, Clarabel).
@@ -40,6 +43,7 @@ from optikin.control.qp import QPController
 from optikin.control.reference import minimum_jerk_path, reference_from_configurations
 from optikin.control.simulate import simulate
 from optikin.solvers.qp import step_solver
+from optikin.solvers.qp.qp_daqp import ActiveSetStepSolver
 
 RATE, STEPS, PASSES = 1000.0, 400, 4
 TASK_ROWS = 8
@@ -73,6 +77,7 @@ def contenders(arm: ConstantCurvatureArm) -> dict[str, QPController]:
 
     return {
         "active set (default)": qp(),
+        "active set, daqp.Model": qp(ActiveSetStepSolver(n, TASK_ROWS, direct=False)),
         "osqp in place": qp(step_solver("qp_osqp", n, TASK_ROWS)),
         "qpsolvers daqp": qp(step_solver("qp_qpsolvers", n, TASK_ROWS, solver="daqp")),
         "cvxpy Parameters": qp(step_solver("qp_cvxpy", n, TASK_ROWS, solver="CLARABEL")),
