@@ -18,6 +18,7 @@ returns.
 
 from __future__ import annotations
 
+import logging
 from importlib import metadata
 
 import daqp
@@ -273,15 +274,17 @@ def scratch_daqp(H, g, lb, ub, A=None, b=None):
     return np.asarray(x) if exitflag == 1 else None
 
 
-def test_the_installed_daqp_is_called_directly():
-    """A daqp release whose C structures DirectDaqp is not checked against falls back to daqp.Model: flag it here."""
-    assert metadata.version("daqp") in DIRECT_VERSIONS, "check DirectDaqp's structures against this daqp release"
-    assert DirectDaqp.available()
+def test_the_installed_daqp_is_called_directly_where_its_structures_are_known():
+    """A release DirectDaqp was checked against takes the direct path; any other falls back to daqp.Model."""
+    known = metadata.version("daqp") in DIRECT_VERSIONS
+    assert DirectDaqp.available() == known
     qp = controller(arm_of(2))
     state = random_states(qp.arm, 1, np.random.default_rng(0))[0]
     qp.command(*state)
-    assert isinstance(qp.solver, ActiveSetStepSolver) and isinstance(qp.solver.daqp, DirectDaqp)
-    assert isinstance(ActiveSetStepSolver(6, direct=False), ActiveSetStepSolver)
+    assert isinstance(qp.solver, ActiveSetStepSolver)
+    assert isinstance(qp.solver.daqp, DirectDaqp if known else ModelDaqp)
+    undirected = ActiveSetStepSolver(6, direct=False)
+    assert not undirected._direct
 
 
 def test_from_outside_the_limits_the_shut_box_opens_and_the_step_stays_exact(arm):
@@ -325,6 +328,26 @@ def test_from_outside_the_limits_the_shut_box_opens_and_the_step_stays_exact(arm
     assert shut >= 8 and opened >= 50
 
 
+def test_another_daqp_release_falls_back_to_daqp_model_with_the_same_command(monkeypatch, caplog):
+    from optikin.solvers.qp import qp_daqp
+
+    qp = controller(arm_of(2))
+    state = random_states(qp.arm, 1, np.random.default_rng(1))[0]
+    expected = qp.command(*state).copy()
+    monkeypatch.setattr(qp_daqp.metadata, "version", lambda name: "99.0.0")
+    qp_daqp._library.cache_clear()
+    try:
+        with caplog.at_level(logging.INFO, logger="optikin.solvers.qp.qp_daqp"):
+            fallback = controller(arm_of(2))
+            qdot = fallback.command(*state)
+        assert isinstance(fallback.solver.daqp, ModelDaqp)
+        assert np.abs(qdot - expected).max() <= 1e-12
+        assert "daqp 99.0.0: DirectDaqp was written for" in caplog.text
+    finally:
+        qp_daqp._library.cache_clear()
+
+
+@pytest.mark.skipif(not DirectDaqp.available(), reason="DirectDaqp was not checked against this daqp release")
 @pytest.mark.parametrize("rows", [0, ROWS])
 def test_the_direct_calls_give_the_bits_of_daqp_model(arm, rows):
     """Random states (bounds active), given rows cutting the optimum and infeasible steps: DirectDaqp and

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import ctypes
 import functools
+import logging
 import time
 import weakref
 from importlib import metadata
@@ -52,6 +53,8 @@ _UPDATE_ROWS = 2
 """daqp's ``DAQP_UPDATE_M``: new ``A``."""
 _WORKSPACE_BYTES = 4096
 """Room for daqp's ``DAQPWorkspace`` (about 400 bytes), zeroed as ``calloc`` would."""
+
+logger = logging.getLogger(__name__)
 
 _doubles = ctypes.POINTER(ctypes.c_double)
 _ints = ctypes.POINTER(ctypes.c_int)
@@ -102,7 +105,13 @@ def _library() -> Any:
     import daqp
 
     try:
-        if metadata.version("daqp") not in DIRECT_VERSIONS:
+        version = metadata.version("daqp")
+        if version not in DIRECT_VERSIONS:
+            logger.info(
+                "daqp %s: DirectDaqp was written for %s; the QP step runs through daqp.Model (same answers, slower)",
+                version,
+                " or ".join(sorted(DIRECT_VERSIONS)),
+            )
             return None
         library = ctypes.PyDLL(daqp.__file__)
         for name in ("setup_daqp", "daqp_update_ldp", "daqp_solve", "free_daqp_workspace", "free_daqp_ldp"):
