@@ -9,8 +9,8 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
-from optikin.problems import load_kinds
-from optikin.registry import PROBLEM_KINDS
+from optikin.errors import UnknownNameError
+from optikin.problems import load_kind
 from optikin.results import Result
 from optikin.tables import comparison_rows, compact_columns, flatten, format_value
 
@@ -70,8 +70,10 @@ def print_result(result: Result, console: Console | None = None, wide: bool = Fa
 
 def headline_of(kind: str) -> tuple[str, ...]:
     """The :attr:`~optikin.problems.ProblemKind.headline` columns of a registered kind (none if unknown)."""
-    load_kinds()
-    return PROBLEM_KINDS.get(kind).headline if kind in PROBLEM_KINDS else ()
+    try:
+        return load_kind(kind).headline
+    except UnknownNameError:
+        return ()
 
 
 def print_listing(

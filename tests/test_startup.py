@@ -27,6 +27,7 @@ def imported():
         "kinds": PROBLEM_KINDS.names(),
         "backends": BACKENDS.names(),
         "modules": sorted(m for m in sys.modules if m.startswith("optikin.solvers.")),
+        "heavy": sorted(m for m in ("matplotlib.pyplot", "cvxpy", "sklearn") if m in sys.modules),
     }
 
 out = {}
@@ -63,7 +64,8 @@ def test_backend_table_is_every_registration():
 
 
 def test_a_problem_imports_its_own_kind_and_backends_only(tmp_path):
-    """An fk export of an ik problem and its solve import the ik kind and the backends of its presets alone; a
+    """An fk export of an ik problem and its solve import the ik kind and the backends of its presets alone (and
+    neither matplotlib's pyplot, cvxpy nor scikit-learn); a
     data source another kind's module registers is found; an unknown kind or backend still lists every one."""
     (tmp_path / "kind.yaml").write_text(PROBLEM.format(name="kind", line="kind: ph_shared\n", source="random"))
     (tmp_path / "source.yaml").write_text(PROBLEM.format(name="source", line="kind: ik\n", source="cosserat"))
@@ -77,6 +79,7 @@ def test_a_problem_imports_its_own_kind_and_backends_only(tmp_path):
     # cc-ik-position: gauss-newton, baselines gauss-newton-compiled, newton, ipopt, sqpmethod, lm, trf
     assert out["prepare"]["kinds"] == ["ik"]
     assert out["prepare"]["backends"] == ["gauss_newton", "ipopt", "lm", "newton", "sqpmethod", "trf"]
+    assert out["context"]["heavy"] == out["prepare"]["heavy"] == []  # figures and fits import theirs when used
     for modules in (out["context"]["modules"], out["prepare"]["modules"]):
         assert not any(m.startswith(("optikin.solvers.qp", "optikin.solvers.ph_backends")) for m in modules)
     assert out["source"] == "cosserat"

@@ -24,7 +24,6 @@ from collections import OrderedDict
 from dataclasses import dataclass
 from typing import Literal, get_args
 
-import cvxpy as cp
 import numpy as np
 import scipy.linalg
 
@@ -230,6 +229,8 @@ def fit_cvxpy(
     their largest magnitude (the weights and bounds with them), which keeps
     the conic solver's tolerances relative to the data.
     """
+    import cvxpy as cp  # here, not at the top: a second of import time the other fits do not need
+
     start = time.perf_counter()
     scale = float(np.max(np.abs(F))) or 1.0
     Q, R = np.linalg.qr(X)

@@ -28,7 +28,7 @@ import importlib
 import importlib.util
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable, Protocol, Sequence, TypeVar
+from typing import TYPE_CHECKING, Any, Callable, Mapping, Protocol, Sequence, TypeVar
 
 import numpy as np
 
@@ -38,7 +38,7 @@ from optikin.errors import SolverError, SpecError
 from optikin.options import NoOptions, Options
 from optikin.progress import Progress
 from optikin.registry import PROBLEM_KINDS
-from optikin.results import FigureBuilder, Result
+from optikin.results import Drawer, FigureBuilder, Result
 from optikin.solvers.base import Adapter
 from optikin.spec import ProblemSpec, SolverSpec
 
@@ -197,6 +197,21 @@ class ProblemKind:
     headline: tuple[str, ...] = ()
     arm_optional: bool = False
     run_chunked: Callable[[ProblemContext, ChunkEngine], Result] | None = None
+
+
+def figures_of(module: str) -> FigureBuilder:
+    """The :data:`~optikin.results.FigureBuilder` ``figures`` of ``module``, imported at the first drawing.
+
+    A kind's figures need matplotlib (about half a second to import); a solve without figures, an
+    export or a listing never imports it.
+    """
+
+    def figures(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -> dict[str, Drawer]:
+        builder: FigureBuilder = importlib.import_module(module).figures
+        return builder(arrays, summary)
+
+    figures.__doc__ = f"The figures of :mod:`{module}` (imported when first drawn)."
+    return figures
 
 
 def register_kind(kind: ProblemKind) -> ProblemKind:

@@ -37,8 +37,7 @@ import optikin.calibration.cosserat_source  # noqa: F401 - registers source "cos
 import optikin.calibration.synthetic  # noqa: F401 - registers source "synthetic" of data family "recordings"
 import optikin.data.readers  # noqa: F401 - registers the lab-format sources of data family "recordings"
 from optikin.calibration.synthetic import FAMILY
-from optikin.problems import ProblemContext, ProblemKind, register_kind
-from optikin.problems.calibrate import figures
+from optikin.problems import ProblemContext, ProblemKind, figures_of, register_kind
 from optikin.problems.calibrate.options import CalibrateOptions
 from optikin.problems.calibrate.report import result_of
 from optikin.problems.calibrate.run import solve
@@ -61,6 +60,6 @@ register_kind(
         default_solver=None,
         options=CalibrateOptions,
         data_family=FAMILY,
-        figures=figures.figures,
+        figures=figures_of("optikin.problems.calibrate.figures"),
     )
 )

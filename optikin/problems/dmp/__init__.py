@@ -63,8 +63,8 @@ Modules: :mod:`~optikin.problems.dmp.options` (the options model),
 from __future__ import annotations
 
 from optikin.data import demonstrations as _demonstrations  # noqa: F401  (registers the data sources)
-from optikin.problems import ProblemContext, ProblemKind, register_kind
-from optikin.problems.dmp import figures, report, run
+from optikin.problems import ProblemContext, ProblemKind, figures_of, register_kind
+from optikin.problems.dmp import report, run
 from optikin.problems.dmp.options import DmpOptions
 from optikin.results import Result
 
@@ -84,7 +84,7 @@ register_kind(
         baselines=("lstsq", "lwr", "genetic"),
         options=DmpOptions,
         data_family="demonstrations",
-        figures=figures.figures,
+        figures=figures_of("optikin.problems.dmp.figures"),
         headline=("reproduction position max [mm]", "reproduction orientation max [mrad]", "fit time [ms]"),
     )
 )

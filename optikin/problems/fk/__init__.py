@@ -32,8 +32,7 @@ processes, with the single-process run's per-sample arrays (:mod:`optikin.proble
 from __future__ import annotations
 
 import optikin.data.configurations  # noqa: F401 - registers the sources of data family "configurations"
-from optikin.problems import ProblemContext, ProblemKind, register_kind
-from optikin.problems.fk import figures
+from optikin.problems import ProblemContext, ProblemKind, figures_of, register_kind
 from optikin.problems.fk.chunks import run_chunked
 from optikin.problems.fk.options import FkOptions
 from optikin.problems.fk.report import report
@@ -58,7 +57,7 @@ register_kind(
         baselines=("numpy",),
         options=FkOptions,
         data_family="configurations",
-        figures=figures.figures,
+        figures=figures_of("optikin.problems.fk.figures"),
         run_chunked=run_chunked,
     )
 )

@@ -102,8 +102,7 @@ per-sample answer equals the single-process run's (:mod:`optikin.problems.ik.chu
 from __future__ import annotations
 
 from optikin.data.targets import FAMILY as TARGETS
-from optikin.problems import ProblemContext, ProblemKind, register_kind
-from optikin.problems.ik import figures
+from optikin.problems import ProblemContext, ProblemKind, figures_of, register_kind
 from optikin.problems.ik.chunks import run_chunked
 from optikin.problems.ik.options import FormulationOptions, IkOptions
 from optikin.problems.ik.report import array_key, result_of
@@ -128,7 +127,7 @@ register_kind(
         default_solver="gauss-newton",
         options=IkOptions,
         data_family=TARGETS,
-        figures=figures.figures,
+        figures=figures_of("optikin.problems.ik.figures"),
         run_chunked=run_chunked,
     )
 )

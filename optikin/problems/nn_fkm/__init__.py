@@ -55,8 +55,7 @@ scored on the Cosserat tips (:mod:`optikin.data.cosserat_nn`).
 
 from __future__ import annotations
 
-from optikin.problems import ProblemContext, ProblemKind, register_kind
-from optikin.problems.nn_fkm import figures
+from optikin.problems import ProblemContext, ProblemKind, figures_of, register_kind
 from optikin.problems.nn_fkm.report import report
 from optikin.problems.nn_fkm.run import run
 from optikin.problems.nn_shared import NNOptions
@@ -77,6 +76,6 @@ register_kind(
         default_solver=None,
         options=NNOptions,
         data_family="nn_database",
-        figures=figures.figures,
+        figures=figures_of("optikin.problems.nn_fkm.figures"),
     )
 )

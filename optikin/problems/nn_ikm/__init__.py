@@ -54,8 +54,7 @@ constant-curvature and direct-mlp rows.
 
 from __future__ import annotations
 
-from optikin.problems import ProblemContext, ProblemKind, register_kind
-from optikin.problems.nn_ikm import figures
+from optikin.problems import ProblemContext, ProblemKind, figures_of, register_kind
 from optikin.problems.nn_ikm.report import report
 from optikin.problems.nn_ikm.run import run
 from optikin.problems.nn_shared import NNOptions
@@ -76,6 +75,6 @@ register_kind(
         default_solver=None,
         options=NNOptions,
         data_family="nn_database",
-        figures=figures.figures,
+        figures=figures_of("optikin.problems.nn_ikm.figures"),
     )
 )

@@ -37,8 +37,7 @@ from __future__ import annotations
 import optikin.data.markers  # noqa: F401 - registers the sources of data family "markers"
 import optikin.data.cosserat_markers  # noqa: F401 - registers source "cosserat" of data family "markers"
 from optikin.baselines.ph_comparators import COMPARATORS
-from optikin.problems import ProblemContext, ProblemKind, register_kind
-from optikin.problems.ph_ik import figures
+from optikin.problems import ProblemContext, ProblemKind, figures_of, register_kind
 from optikin.problems.ph_ik.options import PHIkOptions
 from optikin.problems.ph_ik.report import report
 from optikin.problems.ph_ik.run import IkOutcome, run, tube_length_function
@@ -62,6 +61,6 @@ register_kind(
         baselines=COMPARATORS,
         options=PHIkOptions,
         data_family="markers",
-        figures=figures.figures,
+        figures=figures_of("optikin.problems.ph_ik.figures"),
     )
 )

@@ -67,8 +67,8 @@ from __future__ import annotations
 
 import optikin.data.markers  # noqa: F401 - registers the sources of data family "markers"
 import optikin.data.cosserat_markers  # noqa: F401 - registers source "cosserat" of data family "markers"
-from optikin.problems import ProblemContext, ProblemKind, register_kind
-from optikin.problems.ph_shape import cc, figures
+from optikin.problems import ProblemContext, ProblemKind, figures_of, register_kind
+from optikin.problems.ph_shape import cc
 from optikin.problems.ph_shape.options import PHShapeOptions
 from optikin.problems.ph_shape.report import report
 from optikin.problems.ph_shape.run import ShapeOutcome, run
@@ -93,7 +93,7 @@ register_kind(
         baselines=(NAME, cc.NAME, cc.TWO_ARCS),
         options=PHShapeOptions,
         data_family="markers",
-        figures=figures.figures,
+        figures=figures_of("optikin.problems.ph_shape.figures"),
         headline=(
             "mean marker distance [mm]",
             "truth backbone: mean of the largest node distance [mm]",

@@ -51,8 +51,7 @@ from __future__ import annotations
 
 import optikin.data.cosserat_sensors  # noqa: F401 - registers source "cosserat" of data families "targets", "actuations"
 from optikin.data.actuations import FAMILY as ACTUATIONS
-from optikin.problems import ProblemContext, ProblemKind, register_kind
-from optikin.problems.statics import figures
+from optikin.problems import ProblemContext, ProblemKind, figures_of, register_kind
 from optikin.problems.statics.options import LoadOptions, StaticsOptions
 from optikin.problems.statics.report import result_of
 from optikin.problems.statics.run import COLLOCATION, solve
@@ -77,6 +76,6 @@ register_kind(
         baselines=(COLLOCATION,),
         options=StaticsOptions,
         data_family=ACTUATIONS,
-        figures=figures.figures,
+        figures=figures_of("optikin.problems.statics.figures"),
     )
 )
