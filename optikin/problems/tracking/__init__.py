@@ -79,8 +79,8 @@ blocks. The MPC baselines are held to the same criterion (``no penetration (mpc)
 from __future__ import annotations
 
 import optikin.data.references  # noqa: F401  (registers the references sources)
-from optikin.problems import ProblemContext, ProblemKind, register_kind
-from optikin.problems.tracking import figures, report
+from optikin.problems import ProblemContext, ProblemKind, figures_of, register_kind
+from optikin.problems.tracking import report
 from optikin.problems.tracking.options import TrackingOptions
 from optikin.problems.tracking.run import BASELINES, run
 from optikin.results import Result
@@ -101,7 +101,7 @@ register_kind(
         baselines=tuple(BASELINES),
         options=TrackingOptions,
         data_family="references",
-        figures=figures.figures,
+        figures=figures_of("optikin.problems.tracking.figures"),
         headline=("rms [mm]", "final [mm]", "outside limits", "step [us]", "converged", "penetrations", "depth [mm]"),
     )
 )

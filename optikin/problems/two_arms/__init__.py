@@ -47,8 +47,8 @@ sampled clearance less half its sample spacing stays positive; the rope is check
 
 from __future__ import annotations
 
-from optikin.problems import ProblemContext, ProblemKind, register_kind
-from optikin.problems.two_arms import figures, references, report  # noqa: F401  (references registers its sources)
+from optikin.problems import ProblemContext, ProblemKind, figures_of, register_kind
+from optikin.problems.two_arms import references, report  # noqa: F401  (references registers its sources)
 from optikin.problems.two_arms.options import TwoArmOptions
 from optikin.problems.two_arms.run import BASELINES, run
 from optikin.results import Result
@@ -69,7 +69,7 @@ register_kind(
         baselines=tuple(BASELINES),
         options=TwoArmOptions,
         data_family="two_arm_references",
-        figures=figures.figures,
+        figures=figures_of("optikin.problems.two_arms.figures"),
         headline=("rms [mm]", "clearance [mm]", "collision steps", "outside limits", "step [us]"),
     )
 )
