@@ -114,5 +114,11 @@ def test_daqp_direct(benchmark, steps, compiled):
         _daqp_steps.extend(commands)
 
 
+@pytest.mark.parametrize("compiled", [False, True], ids=["casadi-vm", "compiled"])
+def test_active_set_warm_started(benchmark, steps, compiled):
+    """The shipped preset qp-active-set: daqp on the controller's buffers, warm-started from the last active set."""
+    _bench(benchmark, f"active set {compiled}", joint(compiled, "qp_daqp"), steps)
+
+
 def test_osqp_updated_in_place(benchmark, steps):
     _bench(benchmark, "osqp", joint(True, "qp_osqp", eps_abs=1e-7, eps_rel=1e-7, rho=1.0, max_iter=4000), steps)
