@@ -24,6 +24,7 @@ load average.
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import statistics
 import subprocess
@@ -52,12 +53,20 @@ def c_times(executable: Path, data: Path, *args: str, runs: int = 5) -> dict[str
     return {"c_wall_us": statistics.median(wall), "c_cpu_us": statistics.median(cpu), "load": os.getloadavg()[0]}
 
 
+def c_instructions(executable: Path, function: str, *args: str) -> int:
+    """Instructions of the calls of ``function`` in one run of the example with ``args`` (valgrind's callgrind)."""
+    out = executable.parent / "callgrind.out"
+    command = ["valgrind", "--tool=callgrind", f"--toggle-collect={function}", f"--callgrind-out-file={out}"]
+    run = subprocess.run([*command, str(executable), *args], capture_output=True, text=True, check=True)
+    refs = re.search(r"I\s+refs:\s+([\d,]+)", run.stderr)
+    assert refs is not None, run.stderr
+    return int(refs.group(1).replace(",", ""))
+
+
 @pytest.mark.parametrize("basin", [False, True], ids=["warm", "basin"])
 def test_ph_shape_trajectory(benchmark, tmp_path, basin):
     """With valgrind on PATH, ``c_instructions``: instructions per sample of one ``optikin_ph_shape_trajectory``
     call (callgrind, no timing loop)."""
-    import re
-
     from optikin.export.context import registered_preset
     from optikin.export.ph_shape import ph_setup
 
@@ -68,24 +77,8 @@ def test_ph_shape_trajectory(benchmark, tmp_path, basin):
     options = ("50", "1", "1" if basin else "0")
     benchmark.extra_info.update(c_times(executable, data, *options))
     if shutil.which("valgrind"):
-        run = subprocess.run(
-            [
-                "valgrind",
-                "--tool=callgrind",
-                "--toggle-collect=optikin_ph_shape_trajectory",
-                f"--callgrind-out-file={tmp_path / 'callgrind.out'}",
-                str(executable),
-                str(data),
-                *options,
-                "0",
-            ],
-            capture_output=True,
-            text=True,
-            check=True,
-        )
-        refs = re.search(r"I\s+refs:\s+([\d,]+)", run.stderr)
-        assert refs is not None
-        benchmark.extra_info["c_instructions"] = round(int(refs.group(1).replace(",", "")) / len(setup.parameters))
+        count = c_instructions(executable, "optikin_ph_shape_trajectory", str(data), *options, "0")
+        benchmark.extra_info["c_instructions"] = round(count / len(setup.parameters))
     preset = registered_preset("ph-newton-compiled")
     assert preset is not None
     newton_options = preset.options.model_copy(update={"basin_check": basin})
@@ -150,8 +143,6 @@ def test_ik_trajectory(benchmark, tmp_path, problem):
     overridden), one C call for the whole chain. Python: ``GaussNewton.solve_many(warm_start=True)``
     (preset ``gauss-newton``), per target in ``python_us``. With valgrind on PATH, ``c_instructions``:
     instructions per target of one ``optikin_ik_trajectory_trajectory`` call (callgrind, no timing loop)."""
-    import re
-
     from optikin.export import ik_setup
 
     overrides = [("data.samples", 1000)]
@@ -166,23 +157,8 @@ def test_ik_trajectory(benchmark, tmp_path, problem):
     ]
     benchmark.extra_info.update({"targets": len(setup.targets), "median iterations": float(np.median(iterations))})
     if shutil.which("valgrind"):
-        run = subprocess.run(
-            [
-                "valgrind",
-                "--tool=callgrind",
-                "--toggle-collect=optikin_ik_trajectory_trajectory",
-                f"--callgrind-out-file={tmp_path / 'callgrind.out'}",
-                str(executable),
-                str(data),
-                "0",
-            ],
-            capture_output=True,
-            text=True,
-            check=True,
-        )
-        refs = re.search(r"I\s+refs:\s+([\d,]+)", run.stderr)
-        assert refs is not None
-        benchmark.extra_info["c_instructions"] = round(int(refs.group(1).replace(",", "")) / len(setup.targets))
+        count = c_instructions(executable, "optikin_ik_trajectory_trajectory", str(data), "0")
+        benchmark.extra_info["c_instructions"] = round(count / len(setup.targets))
     problem_, adapter, start, P = setup.problem, setup.adapter, setup.start, setup.targets
     adapter.solve_many(problem_, start, P[:3], warm_start=True)  # build the step Function outside the timing
     batch = benchmark.pedantic(lambda: adapter.solve_many(problem_, start, P, warm_start=True), rounds=5)
