@@ -13,6 +13,7 @@ import yaml
 from optikin.errors import SpecError
 from optikin.problems import load_kinds
 from optikin.problems.fk import numpy_tip_dq
+from optikin.problems.fk import figures as fk_figures
 from optikin.problems.fk.figures import figures
 from optikin.registry import PROBLEM_KINDS
 from optikin.results import read_result
@@ -108,10 +109,15 @@ def test_bad_data_params_are_named(tmp_path, data, field):
     assert error_of(problem_file(tmp_path, data=data)).field == field
 
 
-def test_kind_declares_its_models():
+def test_kind_declares_its_models(monkeypatch):
     load_kinds()
     kind = PROBLEM_KINDS.get("fk")
-    assert kind.options is not None and kind.data_family == "configurations" and kind.figures is figures
+    assert kind.options is not None and kind.data_family == "configurations"
+    calls = []
+    monkeypatch.setattr(fk_figures, "figures", lambda arrays, summary: calls.append((arrays, summary)) or {})
+    arrays, summary = {"q": np.zeros((1, 6))}, {"kind": "fk"}
+    assert kind.figures(arrays, summary) == {}  # the kind draws with optikin.problems.fk.figures.figures
+    assert calls == [(arrays, summary)]
 
 
 # --------------------------------------------------------------------------- sources and baselines
