@@ -13,11 +13,11 @@ import warnings
 
 import numpy as np
 import pytest
+import sklearn.neural_network
 from sklearn.exceptions import ConvergenceWarning
 from sklearn.neural_network import MLPRegressor
 
 from optikin.arms.cbha import CBHAGeometry
-from optikin.baselines import nn_models
 from optikin.baselines.nn_database import DatabaseSpec, build_database
 from optikin.baselines.nn_models import (
     SETTINGS,
@@ -95,7 +95,7 @@ def test_predict_is_scikit_learns_predict_on_the_trained_network(db, monkeypatch
                 trained.append(self)
             return super().partial_fit(X, y)
 
-    monkeypatch.setattr(nn_models, "MLPRegressor", Recorded)
+    monkeypatch.setattr(sklearn.neural_network, "MLPRegressor", Recorded)  # train_model imports it when it runs
     model = train_model(forward_tasks(db)[1], db, dataclasses.replace(SMALL, max_epochs=6))
     (network,) = [n for n in trained if n.hidden_layer_sizes == (model.neurons, model.neurons)]
     X = db.leg_lengths[db.test][:, list(model.task.inputs[1])]

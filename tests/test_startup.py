@@ -121,3 +121,13 @@ def test_plot_imports_the_result_kind_only(tmp_path, capsys):
     capsys.readouterr()
     assert main(["plot", str(folder)]) == EXIT_BAD_INPUT
     assert "result.json: kind: unknown problem kind 'teleport'" in capsys.readouterr().err
+
+
+def test_the_network_kinds_import_scikit_learn_only_to_train():
+    """The nn and ph_ik kinds, and a stored model's metadata, need no scikit-learn import (fresh interpreter)."""
+    script = (
+        "import sys; import optikin.problems.nn_fkm, optikin.problems.nn_ikm, optikin.problems.ph_ik; "
+        "import optikin.baselines.nn_store; print('sklearn' in sys.modules)"
+    )
+    run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True)
+    assert run.stdout.strip() == "False"

@@ -55,15 +55,17 @@ from __future__ import annotations
 import copy
 import time
 from dataclasses import dataclass, field, replace
-from typing import Callable, Literal
+from typing import TYPE_CHECKING, Callable, Literal
 
 import numpy as np
 from scipy.special import expit
-from sklearn.neural_network import MLPRegressor
 from threadpoolctl import threadpool_limits
 
 from optikin.baselines.nn_database import LearningDatabase
 from optikin.data.cosserat_nn import CosseratDatabase
+
+if TYPE_CHECKING:
+    from sklearn.neural_network import MLPRegressor
 
 Database = LearningDatabase | CosseratDatabase
 """Where a :class:`Task` reads its rows and its train / validation / test split."""
@@ -426,6 +428,8 @@ def train_model(
     y_off, y_sc = affine_map(target, setting.scaling)
     Xs, Ys = (X_train - x_off) / x_sc, (target - y_off) / y_sc
     Xv = (X_val - x_off) / x_sc
+    from sklearn.neural_network import MLPRegressor  # here: two seconds of import a trained model does not need
+
     results: dict[int, tuple[float, int, MLPRegressor]] = {}
     start = time.perf_counter()
     with threadpool_limits(1):  # tiny matrices: BLAS threads only add overhead

@@ -44,11 +44,11 @@ import tempfile
 import zipfile
 from dataclasses import asdict
 from datetime import datetime, timezone
+from importlib import metadata
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import sklearn
 
 from optikin import __version__
 from optikin.arms.cbha import CBHAGeometry
@@ -92,7 +92,7 @@ def store_metadata(models: list[TrainedModel], db: LearningDatabase) -> dict[str
         "created": datetime.now(timezone.utc).isoformat(timespec="seconds"),
         "versions": {
             "optikin": __version__,
-            "scikit-learn": sklearn.__version__,
+            "scikit-learn": metadata.version("scikit-learn"),
             "numpy": np.__version__,
             "python": platform.python_version(),
         },
