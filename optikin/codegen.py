@@ -224,7 +224,21 @@ def _sha256_file(path: Path) -> str:
 
 
 def _source(f: ca.Function) -> str:
-    """The C code of ``f`` plus the batch loop (for a Function with an input and an output)."""
+    """The C code of ``f`` plus the batch loop (for a Function with an input and an output).
+
+    The names of ``f`` and of its inputs and outputs, which CasADi and the batch loop write into
+    comments, string literals and symbols as they are, must be C identifiers.
+
+    Raises
+    ------
+    SpecError
+        A name is not a C identifier (:func:`optikin.export._escape.c_identifier`).
+    """
+    from optikin.export._escape import c_identifier
+
+    c_identifier(f.name(), "Function name", "compiled code")
+    for name in (*f.name_in(), *f.name_out()):
+        c_identifier(name, f"input or output name of {f.name()}", "compiled code")
     generator = ca.CodeGenerator(f"{f.name()}.c", {"with_header": False})
     generator.add(f)
     source = generator.dump()
@@ -348,7 +362,12 @@ def source_library(name: str, source: str, flags: tuple[str, ...], compiler: str
     ------
     SolverError
         No such compiler, compiling failed, or (``build=False``) no valid library is cached.
+    SpecError
+        ``name``, which names files in the cache, is not a C identifier.
     """
+    from optikin.export._escape import c_identifier
+
+    c_identifier(name, "library name", "compiled code")
     path = find_compiler(compiler)
     record = _record(source, path, flags)
     key = str(record["hash"])

@@ -30,6 +30,11 @@ What is exported (``--what``):
     optional rows ``A qdot >= b``, the QP solved by a dense dual active-set method in C, and the
     controller's fallback (:mod:`optikin.export.qp_step`).
 
+Every piece of text of a generated file that optikin does not write as a constant goes through
+:mod:`optikin.export._escape` (comments, string literals, identifiers, ``Makefile`` and CMake
+values); the problem is named by its file stem only. The output folder is checked before anything
+is generated (:func:`check_output_folder`) and the five files are written all or none.
+
 The folder written holds ``<stem>.c`` (the generated code and the template), ``<stem>.h``
 (the documented API: sizes, work structure, status codes), ``main.c`` (an example that runs
 the problem's first samples or a file of them and times the calls), a ``Makefile`` and a
@@ -43,6 +48,8 @@ flags checked against :data:`optikin.codegen.ALLOWED_FLAGS`.
 from __future__ import annotations
 
 import argparse
+import os
+import secrets
 import subprocess
 from dataclasses import dataclass
 from importlib import resources
@@ -55,6 +62,15 @@ import numpy as np
 
 from optikin.codegen import check_flags, find_compiler
 from optikin.errors import SolverError, SpecError
+from optikin.export._escape import (
+    c_comment,
+    c_identifier,
+    c_string,
+    cmake_value,
+    make_word,
+    problem_comment,
+)
+from optikin.results import OutputError
 
 WHATS = ("fk", "ik-step", "ik-trajectory", "ph-shape", "qp-step")
 """What ``optikin export`` writes (module docstring)."""
@@ -92,13 +108,49 @@ class Export:
 
     @property
     def files(self) -> tuple[Path, ...]:
-        return (
-            self.source,
-            self.header,
-            self.folder / "main.c",
-            self.folder / "Makefile",
-            self.folder / "CMakeLists.txt",
-        )
+        return tuple(self.folder / name for name in file_names(self.stem))
+
+
+def file_names(stem: str) -> tuple[str, ...]:
+    """The names of the files an export of ``stem`` writes, in the order :func:`main` lists them."""
+    return f"{stem}.c", f"{stem}.h", "main.c", "Makefile", "CMakeLists.txt"
+
+
+def check_output_folder(out: Path | str, stem: str | None = None) -> Path:
+    """The folder of ``--out`` ``out`` if an export can write into it; creates nothing.
+
+    Parameters
+    ----------
+    out:
+        The folder; a string may not be empty (``--out ''``, which ``Path`` would read as the
+        current folder).
+    stem:
+        The export's stem: its files (:func:`file_names`) may not be symlinks or folders.
+
+    Raises
+    ------
+    OutputError
+        ``out`` is empty, is (or lies under) a file or a dangling symlink, its nearest existing
+        folder is not writable, or a file of the export is a symlink or not a regular file.
+    """
+    if isinstance(out, str) and not out.strip():
+        raise OutputError("--out: an empty output folder is not accepted (give a folder, e.g. c_export)")
+    folder = Path(out)
+    existing = folder
+    while not os.path.lexists(existing) and existing != existing.parent:
+        existing = existing.parent
+    if existing.is_symlink() and not existing.exists():
+        raise OutputError(f"{existing}: a symlink to nothing, not an output folder")
+    if not existing.is_dir():
+        raise OutputError(f"{existing}: not a folder, cannot hold the export")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise OutputError(f"{existing}: cannot write the export there: permission denied")
+    if existing == folder and stem is not None:
+        for name in file_names(stem):
+            path = folder / name
+            if path.is_symlink() or (os.path.lexists(path) and not path.is_file()):
+                raise OutputError(f"{path}: a symlink or folder is where the export writes a file")
+    return folder
 
 
 def _template(name: str) -> Template:
@@ -120,8 +172,22 @@ def _rows(array: np.ndarray) -> str:
     return ", ".join("{" + _numbers(row) + "}" for row in np.atleast_2d(array))
 
 
+def _common(stem: str, problem: str) -> dict[str, str]:
+    """What every template of export ``stem`` takes: ``stem`` (also ``prefix``), ``PREFIX``, the problem's name."""
+    stem = c_identifier(stem, "stem")
+    return dict(stem=stem, prefix=stem, PREFIX=stem.upper(), problem=problem_comment(problem))
+
+
 def _generated(functions: list[ca.Function], stem: str) -> tuple[str, dict[str, int]]:
-    """CasADi's C code of ``functions`` (no header, no export macros) and the largest work sizes."""
+    """CasADi's C code of ``functions`` (no header, no export macros) and the largest work sizes.
+
+    CasADi writes the names of each Function and of its inputs and outputs into comments and string
+    literals as they are: each must be a C identifier (:func:`~optikin.export._escape.c_identifier`).
+    """
+    for f in functions:
+        c_identifier(f.name(), "Function name")
+        for name in (*f.name_in(), *f.name_out()):
+            c_identifier(name, f"input or output name of {f.name()}")
     generator = ca.CodeGenerator(f"{stem}.c", {"with_header": False, "with_export": False})
     for f in functions:
         generator.add(f)
@@ -135,22 +201,70 @@ def _generated(functions: list[ca.Function], stem: str) -> tuple[str, dict[str, 
 
 
 def _write(folder: Path, stem: str, code: str, header: str, source: str, main: str) -> None:
-    folder.mkdir(parents=True, exist_ok=True)
-    (folder / f"{stem}.h").write_text(header)
-    (folder / f"{stem}.c").write_text(f"/* {stem}.c: written by optikin export */\n{code}\n{source}")
-    (folder / "main.c").write_text(main)
-    (folder / "Makefile").write_text(_template("Makefile.in").substitute(stem=stem))
-    (folder / "CMakeLists.txt").write_text(_template("CMakeLists.txt.in").substitute(stem=stem))
+    """Write the five files of export ``stem`` into ``folder`` (created), all or none.
+
+    Each file is written under a temporary name first, then renamed into place; on an error the
+    temporaries and the folders this call created are removed.
+
+    Raises
+    ------
+    OutputError
+        The folder cannot take the files (:func:`check_output_folder`), or writing failed.
+    """
+    stem = c_identifier(stem, "stem")
+    word = make_word(stem, "stem")
+    texts = dict(
+        zip(
+            file_names(stem),
+            (
+                f"/* {stem}.c: written by optikin export */\n{code}\n{source}",
+                header,
+                main,
+                _template("Makefile.in").substitute(stem=word),
+                _template("CMakeLists.txt.in").substitute(
+                    project=cmake_value(stem, "stem"),
+                    target=cmake_value(stem, "stem"),
+                    source=cmake_value(f"{stem}.c", "stem"),
+                ),
+            ),
+        )
+    )
+    check_output_folder(folder, stem)
+    created: list[Path] = []
+    staged: list[tuple[Path, Path]] = []
+    try:
+        missing = [p for p in (folder, *folder.parents) if not os.path.lexists(p)]
+        for parent in reversed(missing):
+            parent.mkdir()
+            created.append(parent)
+        for name, text in texts.items():
+            temporary = folder / f".{name}.{os.getpid()}-{secrets.token_hex(4)}.tmp"
+            staged.append((temporary, folder / name))
+            temporary.write_text(text, encoding="ascii")
+        for temporary, final in staged:
+            os.replace(temporary, final)
+    except BaseException as exc:
+        for temporary, _ in staged:
+            temporary.unlink(missing_ok=True)
+        for parent in reversed(created):
+            try:
+                parent.rmdir()
+            except OSError:
+                pass
+        if isinstance(exc, OSError):
+            raise OutputError(f"{folder}: cannot write the export: {exc.strerror or exc}") from None
+        raise
 
 
 # --------------------------------------------------------------------------- forward kinematics
 def export_fk(problem: str, arm, folder: Path, samples: np.ndarray) -> Export:
     """Write the FK library of ``arm`` (module docstring); ``samples`` ``(k, N)`` go into the example."""
-    stem = prefix = "optikin_fk"
-    PREFIX = prefix.upper()
+    common: dict[str, Any] = _common("optikin_fk", problem)
+    prefix, PREFIX = common["prefix"], common["PREFIX"]
     q = ca.SX.sym("q", arm.n_config)
     functions, outputs, declarations, definitions, defines = [], [], [], [], []
     for name in FK_FUNCTIONS:
+        c_identifier(name, "FK function")
         value = ca.densify(getattr(arm, name)(q))
         rows, cols = value.shape
         functions.append(ca.Function(f"{prefix}_{name}_cg", [q], [value]))
@@ -165,12 +279,12 @@ def export_fk(problem: str, arm, folder: Path, samples: np.ndarray) -> Export:
             f"int {prefix}_{name}({prefix}_work* work, const double* q, double* out) {{\n"
             f"  return evaluate({prefix}_{name}_cg, work, q, out);\n}}\n"
         )
-    code, sizes = _generated(functions, stem)
-    common = dict(stem=stem, prefix=prefix, PREFIX=PREFIX, problem=problem, n=arm.n_config, **sizes)
+    code, sizes = _generated(functions, common["stem"])
+    common.update(n=arm.n_config, **sizes)
     header = _template("fk.h").substitute(
         common,
-        arm=arm.name,
-        variables=", ".join(arm.config_names),
+        arm=c_comment(arm.name),
+        variables=c_comment(", ".join(arm.config_names)),
         output_list="\n".join(outputs) + "\n",
         size_defines="\n".join(defines),
         declarations="\n".join(declarations),
@@ -184,11 +298,11 @@ def export_fk(problem: str, arm, folder: Path, samples: np.ndarray) -> Export:
         max_out=max(f.nnz_out(0) for f in functions),
         n_functions=len(functions),
         function_list=", ".join(f"{prefix}_{name}" for name in FK_FUNCTIONS),
-        name_list=", ".join(f'"{name}"' for name in FK_FUNCTIONS),
+        name_list=", ".join(c_string(name) for name in FK_FUNCTIONS),
         size_list=", ".join(str(f.nnz_out(0)) for f in functions),
     )
-    _write(folder, stem, code, header, source, main)
-    return Export("fk", folder, stem, samples)
+    _write(folder, common["stem"], code, header, source, main)
+    return Export("fk", folder, common["stem"], samples)
 
 
 # --------------------------------------------------------------------------- inverse kinematics
@@ -216,8 +330,8 @@ def export_ik(what: str, problem_name: str, problem, adapter, start: np.ndarray,
     problem = full.reduced  # the variables solved for (fixed ones substituted), as the Python adapters do
     if problem.n == 0:
         raise SolverError(f"{full.name}: every variable is fixed, nothing to solve")
-    stem = prefix = f"optikin_{what.replace('-', '_')}"
-    PREFIX = prefix.upper()
+    common: dict[str, Any] = _common(f"optikin_{what.replace('-', '_')}", problem_name)
+    stem, prefix = common["stem"], common["prefix"]
     x, p, r, J = problem.symbols
     hessian = ca.hessian(0.5 * ca.sumsqr(r), x)[0]
     functions = [
@@ -230,23 +344,21 @@ def export_ik(what: str, problem_name: str, problem, adapter, start: np.ndarray,
     scaling = np.ones(n) if problem.weights is None else problem.weights**2
     options, limits = adapter.options, adapter.limits
     fixed = full.fixed
-    common = dict(
-        stem=stem, prefix=prefix, PREFIX=PREFIX, problem=problem_name, n=full.n, n_free=n, m=m, n_p=n_p, k=max(n, m)
-    )
+    common.update(n=full.n, n_free=n, m=m, n_p=n_p, k=max(n, m))
     tolerance = repr(float(problem.tolerance))
     header = _template("ik.h").substitute(
         common,
         **sizes,
-        variables=", ".join(full.variable_names),
-        fixed_note=", ".join(
-            f"{name} = {value!r}" for name, value, f in zip(full.variable_names, full.lower, fixed) if f
-        )
-        or "none",
-        target_kind=problem.residual.name_in(1),
+        variables=c_comment(", ".join(full.variable_names)),
+        fixed_note=c_comment(
+            ", ".join(f"{name} = {value!r}" for name, value, f in zip(full.variable_names, full.lower, fixed) if f)
+            or "none"
+        ),
+        target_kind=c_comment(problem.residual.name_in(1)),
         tolerance=tolerance,
         ok_note="" if problem.exact else ", or a stationary point (the problem is a minimisation)",
         stationarity_tolerance=repr(float(problem.stationarity_tolerance)),
-        max_iterations=limits.max_iterations,
+        max_iterations=int(limits.max_iterations),
     )
     source = _template("ik.c").substitute(
         common,
@@ -267,11 +379,11 @@ def export_ik(what: str, problem_name: str, problem, adapter, start: np.ndarray,
         damping=repr(float(options.damping)),
         damping_min=repr(float(options.damping_min)),
         damping_max=repr(float(options.damping_max)),
-        max_iterations=limits.max_iterations,
+        max_iterations=int(limits.max_iterations),
         second_order=int(options.second_order),
         lambda_floor=repr(LAMBDA_FLOOR),
         slow_progress=repr(SLOW_PROGRESS),
-        slow_steps=SLOW_STEPS,
+        slow_steps=int(SLOW_STEPS),
     )
     trajectory = what == "ik-trajectory"
     main = _template("ik_main.c").substitute(
@@ -361,10 +473,12 @@ def export(
         ``what`` does not fit the problem.
     SolverError
         The problem has constraints (not exported) or every variable is fixed.
+    OutputError
+        ``folder`` cannot take the files (:func:`check_output_folder`) or writing them failed.
     """
-    folder = Path(folder)
     if what not in WHATS:
         raise ValueError(f"--what {what!r}: one of {', '.join(WHATS)}")
+    folder = check_output_folder(folder)
     if what == "fk":
         from optikin.export.context import context
 
@@ -408,7 +522,7 @@ def build(exported: Export, flags: Iterable[str] = ("-O2",), compiler: str = "cc
 
 def main(args: argparse.Namespace) -> int:
     """``optikin export PROBLEM --what WHAT --out DIR``: write the files and list them."""
-    exported = export(args.problem, args.what, Path(args.out))
+    exported = export(args.problem, args.what, args.out)
     for path in exported.files:
         print(path)
     return 0

@@ -115,27 +115,27 @@ def export_ph_shape(problem: str, setup: PHExportSetup, folder: Path, samples: i
     """Write the PH library of ``setup`` into ``folder``; its first ``samples`` samples go into the example."""
     from optikin.curves.min_energy import N_PARAMETERS
     from optikin.curves.newton import CURVATURE_SAFETY, ENERGY_NOISE, PREDICTION_SAFETY
-    from optikin.export import MAX_FILE_SAMPLES, Export, _generated, _rows, _template, _write
+    from optikin.export import MAX_FILE_SAMPLES, Export, _common, _generated, _rows, _template, _write
+    from optikin.export._escape import c_comment, c_identifier
     from optikin.export.grid_loops import grid_source
 
     model, adapter = setup.model, setup.adapter
     if model.free_speeds:
         raise SolverError(f"{problem}: --what ph-shape exports given end speeds only")
-    stem = prefix = "optikin_ph_shape"
-    PREFIX = prefix.upper()
+    common: dict[str, object] = dict(_common("optikin_ph_shape", problem), n_p=N_PARAMETERS)
+    stem = prefix = str(common["stem"])
     functions, grid = newton_functions(model, prefix)
     code, sizes = _generated(functions, stem)
     options, limits = adapter.options, adapter.preset.limits
     settings = model.settings
-    common = dict(stem=stem, prefix=prefix, PREFIX=PREFIX, problem=problem, n_p=N_PARAMETERS)
     header = _template("ph.h").substitute(
         common,
         **sizes,
         n_family=functions[0].nnz_out(0),
-        twist_note=f" + {settings.twist_weight!r} int tau^2 ds" if settings.twist_weight else "",
-        nodes=settings.nodes,
-        coarse_grid=model.coarse_grid,
-        preset=adapter.preset.name,
+        twist_note=f" + {float(settings.twist_weight)!r} int tau^2 ds" if settings.twist_weight else "",
+        nodes=int(settings.nodes),
+        coarse_grid=int(model.coarse_grid),
+        preset=c_comment(adapter.preset.name),
     )
     source = _template("ph.c").substitute(
         common,
@@ -147,8 +147,8 @@ def export_ph_shape(problem: str, setup: PHExportSetup, folder: Path, samples: i
         warm_start=int(options.warm_start),
         restart=int(options.fallback),
         basin_check=int(options.basin_check),
-        coarse_grid=model.coarse_grid,
-        grid_energy=grid_source(grid, model.coarse_grid, f"{prefix}_grid_energy"),
+        coarse_grid=int(model.coarse_grid),
+        grid_energy=grid_source(grid, model.coarse_grid, c_identifier(grid.name(), "Function name")),
     )
     rows = setup.parameters[:samples]
     main = _template("ph_main.c").substitute(

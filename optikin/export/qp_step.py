@@ -125,11 +125,12 @@ def qp_setup(problem: str, overrides: Sequence[tuple[str, Any]] = (), samples: i
 def export_qp_step(problem: str, setup: QPExportSetup, folder: Path, samples: int) -> Export:
     """Write the QP step library of ``setup`` into ``folder``; its first ``samples`` steps go into the example."""
     from optikin.control.task import task_dimension, task_step_function
-    from optikin.export import Export, _generated, _numbers, _rows, _template, _write
+    from optikin.export import Export, _common, _generated, _numbers, _rows, _template, _write
+    from optikin.export._escape import c_comment
 
     arm = setup.arm
-    stem = prefix = "optikin_qp_step"
-    PREFIX = prefix.upper()
+    common: dict[str, object] = dict(_common("optikin_qp_step", problem))
+    stem = prefix = str(common["stem"])
     step = task_step_function(arm, setup.task)
     q, x, x_ref, xdot_ref, k, damping = (ca.SX.sym(step.name_in(i), step.size_in(i)) for i in range(6))
     inputs = [q, x, x_ref, xdot_ref, k, damping]
@@ -138,40 +139,42 @@ def export_qp_step(problem: str, setup: QPExportSetup, folder: Path, samples: in
     n, m = arm.n_config, task_dimension(setup.task)
     bounds = setup.bounds
     periodic = bounds.periodic
-    common = dict(stem=stem, prefix=prefix, PREFIX=PREFIX, problem=problem, n=n, m=m, max_rows=setup.max_rows)
+    common.update(n=n, m=m, max_rows=setup.max_rows)
     header = _template("qp.h").substitute(
         common,
         **sizes,
-        arm=arm.name,
-        task=f"tip {setup.task}",
+        arm=c_comment(arm.name),
+        task=c_comment(f"tip {setup.task}"),
         flip_note=", the reference flipped into the measurement's hemisphere of dual quaternions"
         if setup.task == "pose"
         else "",
-        gain_note=", ".join(f"{v:g}" for v in setup.gain),
-        damping=repr(setup.damping),
-        dt=repr(setup.dt),
-        limit_gain=repr(setup.limit_gain),
+        gain_note=c_comment(", ".join(f"{v:g}" for v in setup.gain)),
+        damping=repr(float(setup.damping)),
+        dt=repr(float(setup.dt)),
+        limit_gain=repr(float(setup.limit_gain)),
         periodic_note=(
-            f"; periodic {', '.join(np.asarray(arm.config_names)[periodic])}: -r <= qdot <= r" if periodic.any() else ""
+            c_comment(f"; periodic {', '.join(np.asarray(arm.config_names)[periodic])}: -r <= qdot <= r")
+            if periodic.any()
+            else ""
         ),
         primal_tolerance=repr(PRIMAL_TOLERANCE),
-        fallback=setup.fallback,
+        fallback=c_comment(setup.fallback),
         fallback_note="qdot = 0 clipped into the box"
         if setup.fallback == "hold"
         else "qdot = -H^-1 g clipped into the box",
-        variables=", ".join(arm.config_names),
+        variables=c_comment(", ".join(arm.config_names)),
         task_note="tip dual quaternion" if setup.task == "pose" else "tip position [m]",
     )
     source = _template("qp.c").substitute(
         common,
         gain=_numbers(setup.gain),
-        damping=repr(setup.damping),
+        damping=repr(float(setup.damping)),
         lower=_numbers(np.where(periodic, 0.0, bounds.lower)),
         upper=_numbers(np.where(periodic, 0.0, bounds.upper)),
         rate=_numbers(bounds.rate),
         periodic=", ".join(str(int(v)) for v in periodic),
-        dt=repr(setup.dt),
-        limit_gain=repr(setup.limit_gain),
+        dt=repr(float(setup.dt)),
+        limit_gain=repr(float(setup.limit_gain)),
         fallback_dls=int(setup.fallback == "damped_least_squares"),
         primal_tolerance=repr(PRIMAL_TOLERANCE),
         rounding=repr(ROUNDING),
