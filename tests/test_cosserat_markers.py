@@ -179,4 +179,7 @@ def test_ph_kinds_compare_tube_markers_with_the_tube_curves_at_their_offset(tmp_
     ik, _ = solve(str(problem_variant("cbha-ph-ik-cosserat", tmp_path, samples=3, data_params=STRAIGHT)))
     errors = ik.metrics["L1 / L2 / L3 mean error against the noise-free tube lengths [mm]"]
     assert np.max(errors) < 1e-3
-    assert [row.metrics["failures"] for row in ik.comparison if row.method == "newton-raphson"] == [3]
+    # Table I scaled by 1.8 holds the straight arm's 419 mm tubes: Newton-Raphson reaches them (the
+    # vertebra model's uniform stretch is the Cosserat arm's); unscaled, its tubes stop at 297 mm
+    newton = [row.metrics for row in ik.comparison if row.method == "newton-raphson"]
+    assert [m["failures"] for m in newton] == [0] and newton[0]["mean |L error| [mm]"] < 0.01

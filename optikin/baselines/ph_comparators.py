@@ -28,7 +28,10 @@ not ``ok`` is counted and gets no lengths, never dropped.
     :func:`optikin.baselines.hybrid_tubes.hybrid_tube_lengths`: the shipped networks
     NN1-NN4 from the tip position relative to the base, trained on seed 004's Fig. 7
     database (``cbha-nn-ikm``: independent platforms, the seed's) or on the database
-    whose sections bend as one (``cbha-nn-ikm-coupled``).
+    whose sections bend as one (``cbha-nn-ikm-coupled``). Each uses the arm its networks were
+    trained on (Table I unscaled, :func:`networks_arm`), whatever the problem's arm: on a
+    recording of another arm (``cbha-ph-ik-cosserat``, 1.8 times the size) they extrapolate,
+    and the fairness manifest labels them "another arm".
 
 Both Newton rows solve the postures in order, each from the last solution that was
 ``ok``; before the first, from the straight configuration (``newton-raphson``), or from
@@ -71,6 +74,7 @@ from optikin.data.targets import reach_bound
 from optikin.errors import InputDataError
 from optikin.ik.formulation import Formulation, build_problem, rest_configuration
 from optikin.baselines.hybrid_tubes import SHIPPED_STORES, hybrid_tube_lengths, load_hybrid_models
+from optikin.baselines.nn_store import read_metadata
 from optikin.solvers import build_preset
 from optikin.solvers.nonlinear import LeastSquaresProblem, NonlinearAdapter
 from optikin.solvers.base import Solution
@@ -206,8 +210,15 @@ def newton_raphson_tube_lengths(
     return ComparatorRun(lengths, seconds, status, messages)
 
 
-def hybrid_run(arm: CBHAArm, recording: MarkerRecording, store: Path) -> ComparatorRun:
-    """The hybrid networks of ``store`` from the tip position relative to the base (module docstring)."""
+def networks_arm(store: Path) -> CBHAArm:
+    """The CBHA whose database the networks of ``store`` were trained on (the geometry of its metadata)."""
+    return CBHAArm(read_metadata(store)["geometry"])
+
+
+def hybrid_run(store: Path, recording: MarkerRecording) -> ComparatorRun:
+    """The hybrid networks of ``store`` from the tip position relative to the base, on their own arm
+    (:func:`networks_arm`, module docstring)."""
+    arm = networks_arm(store)
     lengths, seconds = hybrid_tube_lengths(arm, relative_section_ends(recording, []), load_hybrid_models(arm, store))
     finite = np.all(np.isfinite(lengths), axis=1)
     return ComparatorRun(
@@ -224,7 +235,8 @@ def run_comparator(arm: CBHAArm, name: str, recording: MarkerRecording, source: 
     Parameters
     ----------
     arm:
-        The CBHA the recording is of.
+        The CBHA the Newton-Raphson rows solve on; the hybrid rows use their networks' own
+        (:func:`networks_arm`), which the fairness manifest labels when it is another.
     name:
         One of :data:`COMPARATORS`.
     recording:
@@ -233,5 +245,5 @@ def run_comparator(arm: CBHAArm, name: str, recording: MarkerRecording, source: 
         Names the data in errors (e.g. ``"problem.yaml: data"``).
     """
     if name in HYBRID_STORES:
-        return hybrid_run(arm, recording, HYBRID_STORES[name])
+        return hybrid_run(HYBRID_STORES[name], recording)
     return newton_raphson_tube_lengths(arm, recording, NR_TARGETS[name], source)
