@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+import io
+import re
 import shutil
 from typing import Sequence
 
+from rich import box
 from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
+from rich.text import Text
 
 from optikin.errors import UnknownNameError
 from optikin.problems import load_kind
@@ -15,57 +19,186 @@ from optikin.results import Result
 from optikin.tables import comparison_rows, compact_columns, flatten, format_value
 
 
+METRIC_LINES = 12
+"""Metric lines a result prints before the comparison (all of them with ``verbose``)."""
+
+SHORT_NAME_LENGTH = 14
+"""Longest method name the compact comparison prints; longer ones are abbreviated, with a legend."""
+
+PIPED_WIDTH = 80
+"""Columns of a result printed to a pipe or a file (``COLUMNS`` overrides)."""
+
+
 def wide_console() -> Console:
     """A console as wide as the terminal, or 160 columns when output is not a terminal."""
     return Console(width=shutil.get_terminal_size((160, 24)).columns)
 
 
-def print_result(result: Result, console: Console | None = None, wide: bool = False) -> None:
-    """Status counts, the run's criteria (met or not), metrics, and the comparison of methods as tables.
+def result_console(wide: bool = False) -> Console:
+    """The console a result prints to: the terminal's width, :data:`PIPED_WIDTH` columns when piped
+    (``COLUMNS`` overrides both); ``wide`` never folds a line (every column of the comparison)."""
+    width = shutil.get_terminal_size((PIPED_WIDTH, 24)).columns
+    return Console(width=100_000 if wide else width, soft_wrap=wide)
 
-    The comparison shows method, role, success, the first error and the first time (and the statuses);
-    ``wide`` shows every column (the result folder's ``comparison.csv`` and ``.md`` always hold them).
-    Metrics holding a mapping are printed as sub-rows ``name.key``.
+
+def print_result(result: Result, console: Console | None = None, wide: bool = False, verbose: bool = False) -> None:
+    """Headline, the run's criteria (a missed one first), metrics, the comparison of methods, notes.
+
+    Parameters
+    ----------
+    result:
+        The solved problem.
+    console:
+        Where to print; :func:`result_console` when None. The compact comparison fits its width
+        without breaking a word: methods under short names (a legend line gives the full ones, ``*``
+        marks the problem's own solver), the kind's headline columns from the left as far as they fit
+        (the others named in a line below), then the statuses.
+    wide:
+        Every column of the comparison, full method names and roles (the result folder's
+        ``comparison.csv`` and ``.md`` always hold them).
+    verbose:
+        Every metric; otherwise the first :data:`METRIC_LINES` (all are in ``result.json``).
     """
-    console = console or wide_console()
+    console = console or result_console(wide)
     counts = ", ".join(f"{k}: {v}" for k, v in result.status_counts().items())
     console.print(
-        f"[bold]{result.problem}[/bold] ({result.kind}, solver {result.solver}): {result.samples} samples, {counts}"
+        f"[bold]{escape(result.problem)}[/bold] ({escape(result.kind)}, solver {escape(str(result.solver))}): "
+        f"{result.samples} samples, {escape(counts)}"
     )
     if result.criteria:
+        ordered = sorted(result.criteria.items(), key=lambda item: item[1])
         met = ", ".join(
-            f"{escape(name)} " + ("[green]met[/green]" if ok else "[red]not met[/red]")
-            for name, ok in result.criteria.items()
+            f"{escape(name)} " + ("[green]met[/green]" if ok else "[red]not met[/red]") for name, ok in ordered
         )
         console.print(f"criteria: {met}")
     if result.metrics:
-        table = Table(title="metrics", show_header=False)
-        for k, v in flatten(result.metrics).items():
-            table.add_row(escape(k), escape(format_value(v)))
-        console.print(table)
+        _print_metrics(result, console, wide or verbose)
     if result.comparison:
-        columns, cells = comparison_rows(result.comparison)
-        shown = columns[2:] if wide else compact_columns(columns, headline_of(result.kind))
-        where = [columns.index(c) for c in ("method", "role", *shown)]
-        title = "comparison (same run)" + ("" if wide else "; every column: --wide or comparison.md")
-        table = Table(title=title)
-        for i in where:
-            table.add_column(escape(columns[i]), justify="left" if i < 2 else "right", overflow="fold")
-        reasons = {}
-        if not wide and "not applicable" in columns:
-            status, why = columns.index("statuses") if "statuses" in columns else None, columns.index("not applicable")
-            for row in cells:
-                if row[why]:
-                    reasons[row[0]] = row[why]
-                    if status is not None:
-                        row[status] = "not applicable"
-        for row in cells:
-            table.add_row(*(escape(row[i]) for i in where))
-        console.print(table)
-        for method, reason in reasons.items():
-            console.print(f"not applicable: {escape(method)}: {escape(reason)}")
+        (_print_wide_comparison if wide else _print_compact_comparison)(result, console)
     for note in result.notes:
         console.print(f"note: {escape(note)}")
+
+
+def _print_metrics(result: Result, console: Console, every: bool) -> None:
+    flat = list(flatten(result.metrics).items())
+    shown = flat if every else flat[:METRIC_LINES]
+    table = Table(title="metrics", show_header=False, box=box.SIMPLE)
+    table.add_column(overflow="fold")
+    table.add_column(overflow="fold")
+    for k, v in shown:
+        table.add_row(escape(k), escape(format_value(v)))
+    console.print(table)
+    if len(shown) < len(flat):
+        console.print(f"{len(flat) - len(shown)} more metrics in result.json (all: --verbose)")
+
+
+def _print_wide_comparison(result: Result, console: Console) -> None:
+    columns, cells = comparison_rows(result.comparison)
+    table = Table(title="comparison (same run)")
+    for i, column in enumerate(columns):
+        table.add_column(escape(column), justify="left" if i < 2 else "right", no_wrap=True)
+    for row in cells:
+        table.add_row(*(escape(c) for c in row))
+    console.print(table)
+
+
+def _print_compact_comparison(result: Result, console: Console) -> None:
+    columns, cells = comparison_rows(result.comparison)
+    metrics = compact_columns(columns, headline_of(result.kind))
+    reasons = _not_applicable(columns, cells)
+    names = short_names([row[0] for row in cells])
+    labels = [names[row[0]] + ("*" if row[1] == "solver" else "") for row in cells]
+    shown = list(metrics)
+    table = _compact_table(columns, cells, labels, shown)
+    while shown and not _fits_whole_words(table, console.width):
+        shown.pop(-2 if len(shown) > 1 and shown[-1] == "statuses" else -1)
+        table = _compact_table(columns, cells, labels, shown)
+    console.print(table)
+    legend = [f"{short} = {full}" for full, short in names.items() if short != full]
+    solver = any(row[1] == "solver" for row in cells)
+    if legend or solver:
+        console.print(escape("; ".join(legend + (["* the problem's solver"] if solver else []))))
+    hidden = [c for c in metrics if c not in shown]
+    if hidden:
+        console.print(escape(f"not shown at {console.width} columns: {', '.join(hidden)} (--wide or comparison.md)"))
+    for method, reason in reasons.items():
+        console.print(f"not applicable: {escape(names[method])}: {escape(reason)}")
+
+
+def _compact_table(columns: list[str], cells: list[list[str]], labels: list[str], shown: list[str]) -> Table:
+    where = [columns.index(c) for c in shown]
+    table = Table(title="comparison (same run)", box=box.SIMPLE_HEAD)
+    for header, texts in [("method", labels), *((c, [row[i] for row in cells]) for c, i in zip(shown, where))]:
+        longest = max(len(word) for text in (header, *texts) for word in text.split() or [""])
+        table.add_column(escape(header), justify="left" if header == "method" else "right", min_width=longest)
+    for label, row in zip(labels, cells):
+        table.add_row(escape(label), *(escape(row[i]) for i in where))
+    return table
+
+
+def _fits_whole_words(table: Table, width: int) -> bool:
+    """Whether ``table`` printed at ``width`` columns stays within them and keeps every word whole."""
+    probe = Console(width=width, file=io.StringIO(), color_system=None)
+    probe.print(table)
+    printed = probe.file.getvalue()  # type: ignore[attr-defined]
+    words = set(printed.split())
+    texts = [Text.from_markup(str(c.header)).plain for c in table.columns]
+    texts += [Text.from_markup(str(cell)).plain for c in table.columns for cell in c.cells]
+    return all(len(line) <= width for line in printed.splitlines()) and all(
+        word in words for text in texts for word in text.split()
+    )
+
+
+def _not_applicable(columns: list[str], cells: list[list[str]]) -> dict[str, str]:
+    """The reason of every method that was not applicable, by method; its statuses say so."""
+    if "not applicable" not in columns:
+        return {}
+    why = columns.index("not applicable")
+    status = columns.index("statuses") if "statuses" in columns else None
+    reasons = {}
+    for row in cells:
+        if row[why]:
+            reasons[row[0]] = row[why]
+            if status is not None:
+                row[status] = "not applicable"
+    return reasons
+
+
+def short_names(methods: Sequence[str], length: int = SHORT_NAME_LENGTH) -> dict[str, str]:
+    """A unique name of at most ``length`` characters for each method, by full name.
+
+    A name that fits is kept; a longer one becomes the part before its parenthesis
+    (``qp (daqp-active-set)`` -> ``qp``) when that fits and is free, else its initials, the
+    parenthesis's initials joined with a dash (``mrac (seed gains)`` -> ``mrac-sg`` beside ``mrac``,
+    ``damped least squares`` -> ``dls``), numbered when still taken.
+
+    >>> short_names(["mrac", "mrac (seed gains)", "damped least squares"])
+    {'mrac': 'mrac', 'mrac (seed gains)': 'mrac-sg', 'damped least squares': 'dls'}
+    """
+    taken = {m for m in methods if len(m) <= length}
+    names: dict[str, str] = {}
+    for method in methods:
+        if method in names:
+            continue
+        if len(method) <= length:
+            names[method] = method
+            continue
+        base, _, rest = method.partition(" (")
+        base, inside = base.strip(), rest.rstrip(")").strip()
+        candidates = [base] if len(base) <= length else []
+        stem = base if len(base) <= length else _initials(base)
+        candidates += [f"{stem}-{_initials(inside)}" if inside else stem, _initials(method)]
+        short = next((c for c in candidates if c and len(c) <= length and c not in taken), None)
+        if short is None:
+            root = candidates[-1][: length - 2]
+            short = next(f"{root}{i}" for i in range(2, 100) if f"{root}{i}" not in taken)
+        taken.add(short)
+        names[method] = short
+    return names
+
+
+def _initials(text: str) -> str:
+    return "".join(word[0] for word in re.split(r"[\s\-_/]+", text) if word).lower()
 
 
 def headline_of(kind: str) -> tuple[str, ...]:
