@@ -1,24 +1,34 @@
-"""Validators of the numeric inputs of the Python API, in the style of pytransform3d's ``check_*``.
+"""Validators of the inputs of the Python API, in the style of pytransform3d's ``check_*``: one per concept.
 
-Each ``check_*`` function returns its input as a float array when it is usable and
-raises :class:`ValueError` naming the argument (and the entry) and what is wrong
-otherwise:
+Each ``check_*`` function returns its input as a float array when it is usable and raises
+:class:`TypeError` (not numbers: a string, ``None``, a complex or boolean value) or
+:class:`ValueError` (a wrong shape, a non-finite entry, a magnitude or norm out of range)
+naming the argument and the entry:
 
-* :func:`check_quaternion`: shape ``(..., 4)``, finite, unit norm within a tolerance;
+* :func:`check_numbers`: real numbers (integers or floats), as a float array;
+* :func:`check_shape`: the trailing shape, e.g. ``(..., 4)``;
+* :func:`check_finite`: no NaN or infinity;
+* :func:`check_magnitude`: every entry within ``+-`` a plausible limit (:data:`MAX_MAGNITUDE`);
+* :func:`check_vectors`: finite vectors ``(..., n)``, optionally of unit norm or nonzero;
+* :func:`check_quaternion`: shape ``(..., 4)``, finite, unit norm within :data:`UNIT_TOLERANCE`;
 * :func:`check_dual_quaternion`: shape ``(..., 8)``, finite, a unit real part and a dual
   part orthogonal to it (``Q_r . Q_d = 0``, Seleem et al. 2020, eqs. 9-10);
-* :func:`check_configuration`: one configuration ``(n,)`` (or a batch ``(N, n)``) of an arm,
-  finite, inside the arm's bounds (periodic angles excepted);
-* :func:`check_parameter`: a model parameter (scalar or vector), finite, optionally positive;
-  raises :class:`ParameterError`, which carries the parameter's field name.
+* :func:`check_rotation_matrix`: ``(..., 3, 3)``, finite, ``R^T R = I`` and ``det R = +1``;
+* :func:`check_configuration`: configurations of an arm, finite, inside the arm's bounds (or
+  plausibly near them) with periodic angles excepted;
+* :func:`check_parameter`: a model parameter (scalar or vector), a finite number, optionally
+  positive and below a physical bound; raises :class:`ParameterError`, which carries the
+  parameter's field name.
 
-They are numpy-only and meant for the public entry points; inner loops call the unchecked
-functions (or pass ``check=False`` where a function offers it).
+They are numpy-only and meant for the public entry points (the policy: ``docs/conventions.md``,
+"Checked inputs"); inner loops call the unchecked functions (``check=False``) or the raw CasADi
+Functions.
 """
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+import weakref
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -26,9 +36,17 @@ if TYPE_CHECKING:
     from optikin.arms.base import ArmModel
 
 UNIT_TOLERANCE = 1e-6
-"""Default largest accepted ``| |q| - 1 |`` (and ``|Q_r . Q_d|`` of a dual quaternion)."""
+"""The one tolerance on unit norms: largest accepted ``| |q| - 1 |`` of a quaternion (and ``|Q_r . Q_d|`` of a
+dual quaternion, ``| R^T R - I |`` of a rotation matrix, ``| |n| - 1 |`` of a unit axis)."""
 BOUND_TOLERANCE = 1e-9
 """Default slack on an arm's bounds, relative to each variable's range (absolute for a fixed variable)."""
+MAX_MAGNITUDE = 1e6
+"""Largest plausible angle [rad] or translation [m] taken by the algebra: beyond it an angle has lost a
+turn's worth of digits to rounding (the spacing of doubles near 1e6 is 1e-10) and a length is a unit mistake."""
+PLAUSIBLE_SPANS = 10.0
+"""How far outside its bounds a configuration variable may plausibly lie, in multiples of its range
+(:func:`check_configuration` with ``within="plausible"``): a solver's or a network's overshoot passes,
+millimetres or degrees given for metres or radians do not."""
 
 
 class ParameterError(ValueError):
@@ -39,11 +57,9 @@ class ParameterError(ValueError):
         super().__init__(f"{field}: {message}")
 
 
-def _as_float(value: object, name: str) -> np.ndarray:
-    try:
-        return np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name}: expected numbers, got {value!r}") from None
+class ParameterTypeError(ParameterError, TypeError):
+    """A model parameter that is not a number (a string, a bool, ``None``): both a :class:`TypeError` and a
+    :class:`ParameterError`."""
 
 
 def _where(name: str, shape: tuple[int, ...], flat_index: int) -> str:
@@ -54,16 +70,200 @@ def _where(name: str, shape: tuple[int, ...], flat_index: int) -> str:
     return f"{name}[{', '.join(str(int(i)) for i in index)}]"
 
 
+def _describe(value: object) -> str:
+    text = repr(value)
+    return f"{type(value).__name__} {text if len(text) <= 40 else text[:37] + '...'}"
+
+
+def check_numbers(value: object, name: str) -> np.ndarray:
+    """Check that ``value`` holds real numbers (integers or floats) and return them as floats.
+
+    Parameters
+    ----------
+    value : array_like
+        A number, a (nested) sequence of numbers or an array.
+    name : str
+        The argument's name, for the message.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``value`` as a float array of its own shape (the same object for a float array).
+
+    Raises
+    ------
+    TypeError
+        For a string, ``None``, a boolean, a complex number or anything else that is not real numbers.
+    ValueError
+        For a ragged sequence.
+    """
+    if isinstance(value, np.ndarray) and value.dtype == np.float64:
+        return value
+    if isinstance(value, (str, bytes)) or value is None:
+        raise TypeError(f"{name}: expected numbers, got {_describe(value)}")
+    try:
+        array = np.asarray(value)
+    except ValueError:
+        raise ValueError(f"{name}: expected an array of numbers, got a ragged sequence {_describe(value)}") from None
+    if array.dtype.kind not in "fiu":
+        raise TypeError(f"{name}: expected real numbers, got {_describe(value)} (dtype {array.dtype})")
+    return array.astype(float, copy=False)
+
+
+def check_shape(values: np.ndarray, name: str, trailing: tuple[int, ...], what: str = "an array") -> np.ndarray:
+    """Check that ``values`` has the trailing shape ``trailing`` (any batch shape before it).
+
+    Parameters
+    ----------
+    values : numpy.ndarray
+        The array.
+    name : str
+        The argument's name, for the message.
+    trailing : tuple of int
+        The required last dimensions, e.g. ``(4,)`` or ``(3, 3)``.
+    what : str
+        What the array holds, for the message (``"quaternions (w, x, y, z)"``).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``values``.
+
+    Raises
+    ------
+    ValueError
+        Naming ``name``, the shape wanted and the shape given.
+    """
+    k = len(trailing)
+    if values.ndim < k or values.shape[values.ndim - k :] != trailing:
+        wanted = ", ".join(str(t) for t in trailing)
+        raise ValueError(
+            f"{name}: expected {what} of shape ({wanted}{',' if k == 1 else ''}) or (..., {wanted}), "
+            f"got shape {values.shape}"
+        )
+    return values
+
+
+def check_finite(values: np.ndarray, name: str, width: int = 1) -> np.ndarray:
+    """Check that every entry of ``values`` is finite.
+
+    Parameters
+    ----------
+    values : numpy.ndarray
+        Float array.
+    name : str
+        The argument's name, for the message.
+    width : int
+        Length of the trailing element (4 for quaternions): the message names the element
+        ``name[i]`` and shows it; 1 names the entry.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``values``.
+
+    Raises
+    ------
+    ValueError
+        Naming ``name`` and the first element with a NaN or an infinity.
+    """
+    if np.isfinite(values).all():
+        return values
+    rows = values.reshape(-1, width)
+    i = int(np.argmax(~np.isfinite(rows).all(axis=1)))
+    shown = rows[i].tolist() if width > 1 else rows[i, 0]
+    batch = values.shape[:-1] if width > 1 else values.shape
+    kind = "has a non-finite component" if width > 1 else "is not a finite number"
+    raise ValueError(f"{_where(name, batch, i)}: {shown} {kind}")
+
+
+def check_magnitude(values: np.ndarray, name: str, limit: float = MAX_MAGNITUDE, unit: str = "") -> np.ndarray:
+    """Check that every entry of ``values`` lies within ``[-limit, limit]`` (NaN fails too).
+
+    Parameters
+    ----------
+    values : numpy.ndarray
+        Float array.
+    name : str
+        The argument's name, for the message.
+    limit : float
+        The largest plausible magnitude.
+    unit : str
+        The entries' unit, for the message (``"rad"``).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``values``.
+
+    Raises
+    ------
+    ValueError
+        Naming ``name`` and the first entry out of range.
+    """
+    if (np.abs(values) <= limit).all():
+        return values
+    check_finite(values, name)
+    flat = values.reshape(-1)
+    i = int(np.argmax(~(np.abs(flat) <= limit)))
+    suffix = f" {unit}" if unit else ""
+    raise ValueError(
+        f"{_where(name, values.shape, i)}: {flat[i]:.6g}{suffix} is beyond the plausible magnitude {limit:g}{suffix}"
+    )
+
+
 def _check_rows(values: np.ndarray, name: str, width: int, what: str) -> np.ndarray:
     """``values`` of shape ``(..., width)`` with finite entries, as rows ``(M, width)``."""
-    if values.ndim == 0 or values.shape[-1] != width:
-        raise ValueError(f"{name}: expected {what} of shape ({width},) or (..., {width}), got shape {values.shape}")
-    rows = values.reshape(-1, width)
-    bad = ~np.isfinite(rows).all(axis=1)
-    if bad.any():
-        i = int(np.argmax(bad))
-        raise ValueError(f"{_where(name, values.shape[:-1], i)}: {rows[i].tolist()} has a non-finite component")
-    return rows
+    check_shape(values, name, (width,), what)
+    check_finite(values, name, width)
+    return values.reshape(-1, width)
+
+
+def check_vectors(
+    v: object, name: str, width: int = 3, unit: bool = False, nonzero: bool = False, tolerance: float = UNIT_TOLERANCE
+) -> np.ndarray:
+    """Check finite vectors ``(..., width)``; optionally of unit norm (within ``tolerance``) or nonzero.
+
+    Parameters
+    ----------
+    v : array_like
+        One vector ``(width,)`` or a batch ``(..., width)``.
+    name : str
+        The argument's name, for the message.
+    width : int
+        The number of components.
+    unit : bool
+        Require ``| |v| - 1 | <= tolerance`` (an axis).
+    nonzero : bool
+        Require ``|v| > 0`` (a direction).
+    tolerance : float
+        See ``unit``.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``v`` as floats, of its own shape.
+
+    Raises
+    ------
+    TypeError
+        For values that are not numbers.
+    ValueError
+        For a wrong shape, a non-finite component, or a norm off 1 (``unit``) or zero (``nonzero``),
+        naming ``name`` and the batch index.
+    """
+    values = check_numbers(v, name)
+    rows = _check_rows(values, name, width, f"vectors of {width} components")
+    if unit or nonzero:
+        norm = np.linalg.norm(rows, axis=1)
+        bad = np.abs(norm - 1.0) > tolerance if unit else norm == 0.0
+        if bad.any():
+            i = int(np.argmax(bad))
+            wanted = f"not a unit vector (| |v| - 1 | > {tolerance:g})" if unit else "a zero vector has no direction"
+            raise ValueError(
+                f"{_where(name, values.shape[:-1], i)}: {rows[i].tolist()} has norm {norm[i]:.6g}: {wanted}"
+            )
+    return values
 
 
 def check_quaternion(q: object, unit: bool = True, name: str = "q", tolerance: float = UNIT_TOLERANCE) -> np.ndarray:
@@ -87,11 +287,13 @@ def check_quaternion(q: object, unit: bool = True, name: str = "q", tolerance: f
 
     Raises
     ------
+    TypeError
+        For values that are not numbers.
     ValueError
         For a wrong shape, a non-finite component, a zero quaternion or (``unit``) a norm
         off 1, naming ``name`` and the batch index.
     """
-    values = _as_float(q, name)
+    values = check_numbers(q, name)
     rows = _check_rows(values, name, 4, "quaternions (w, x, y, z)")
     norm = np.linalg.norm(rows, axis=1)
     bad = np.abs(norm - 1.0) > tolerance if unit else norm == 0.0
@@ -103,7 +305,7 @@ def check_quaternion(q: object, unit: bool = True, name: str = "q", tolerance: f
 
 
 def check_dual_quaternion(
-    dq: object, unit: bool = True, name: str = "dq", tolerance: float = UNIT_TOLERANCE
+    dq: object, unit: bool = True, name: str = "dq", tolerance: float = UNIT_TOLERANCE, orthogonal: bool = True
 ) -> np.ndarray:
     """Check dual quaternions ``(Q_r, Q_d)`` (Seleem et al. 2020, eqs. 9-10).
 
@@ -115,12 +317,15 @@ def check_dual_quaternion(
     dq : array_like
         One dual quaternion ``(8,)`` or a batch ``(..., 8)``.
     unit : bool
-        Also require ``| |Q_r| - 1 | <= tolerance`` and ``|Q_r . Q_d| <= tolerance`` (a rigid
-        transform); else only a nonzero real part.
+        Also require ``| |Q_r| - 1 | <= tolerance`` and (``orthogonal``) ``|Q_r . Q_d| <= tolerance``
+        (a rigid transform); else only a nonzero real part.
     name : str
         The argument's name, for the message.
     tolerance : float
         Largest accepted ``| |Q_r| - 1 |`` and ``|Q_r . Q_d|`` (units of ``Q_d``: metres / 2).
+    orthogonal : bool
+        With ``unit``, also require the dual part orthogonal to the real part (what a screw needs; a
+        translation ``2 vec(Q_d Q_r*)`` is defined without it).
 
     Returns
     -------
@@ -129,11 +334,13 @@ def check_dual_quaternion(
 
     Raises
     ------
+    TypeError
+        For values that are not numbers.
     ValueError
         For a wrong shape, a non-finite component, a zero real part or (``unit``) a dual
         quaternion that is not unit, naming ``name`` and the batch index.
     """
-    values = _as_float(dq, name)
+    values = check_numbers(dq, name)
     rows = _check_rows(values, name, 8, "dual quaternions (Q_r, Q_d)")
     norm = np.linalg.norm(rows[:, :4], axis=1)
     if not unit:
@@ -142,8 +349,8 @@ def check_dual_quaternion(
             i = int(np.argmax(bad))
             raise ValueError(f"{_where(name, values.shape[:-1], i)}: the real part is zero")
         return values
-    dot = np.einsum("ij,ij->i", rows[:, :4], rows[:, 4:])
     bad_norm = np.abs(norm - 1.0) > tolerance
+    dot = np.einsum("ij,ij->i", rows[:, :4], rows[:, 4:]) if orthogonal else np.zeros(len(rows))
     bad_dot = np.abs(dot) > tolerance
     if (bad_norm | bad_dot).any():
         i = int(np.argmax(bad_norm | bad_dot))
@@ -160,31 +367,118 @@ def check_dual_quaternion(
     return values
 
 
+def check_rotation_matrix(R: object, name: str = "R", tolerance: float = UNIT_TOLERANCE) -> np.ndarray:
+    """Check rotation matrices: shape ``(..., 3, 3)``, finite, ``|R^T R - I| <= tolerance`` and ``det R > 0``.
+
+    Parameters
+    ----------
+    R : array_like
+        One matrix ``(3, 3)`` or a batch ``(..., 3, 3)``.
+    name : str
+        The argument's name, for the message.
+    tolerance : float
+        Largest accepted entry of ``|R^T R - I|``.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``R`` as floats, of its own shape.
+
+    Raises
+    ------
+    TypeError
+        For values that are not numbers.
+    ValueError
+        For a wrong shape, a non-finite entry, a matrix that is not orthonormal or a reflection,
+        naming ``name`` and the batch index.
+    """
+    values = check_numbers(R, name)
+    check_shape(values, name, (3, 3), "rotation matrices")
+    check_finite(values, name)
+    mats = values.reshape(-1, 3, 3)
+    residual = np.abs(np.einsum("kji,kjl->kil", mats, mats) - np.eye(3)).max(axis=(1, 2))
+    det = np.linalg.det(mats)
+    bad = (residual > tolerance) | (det <= 0.0)
+    if bad.any():
+        i = int(np.argmax(bad))
+        why = (
+            f"R^T R differs from the identity by {residual[i]:.3g} (> {tolerance:g})"
+            if residual[i] > tolerance
+            else f"det R = {det[i]:.6g}: a reflection"
+        )
+        raise ValueError(f"{_where(name, values.shape[:-2], i)}: not a rotation matrix: {why}")
+    return values
+
+
+_LIMITS: weakref.WeakKeyDictionary[Any, dict[tuple[str, float], tuple[np.ndarray, ...]]] = weakref.WeakKeyDictionary()
+"""The intervals of :func:`configuration_limits` per arm, computed once (recomputed when a bound array is replaced)."""
+
+
+def configuration_limits(
+    arm: ArmModel, within: str = "bounds", tolerance: float = BOUND_TOLERANCE
+) -> tuple[np.ndarray, np.ndarray]:
+    """The interval each configuration variable of ``arm`` must lie in, for :func:`check_configuration`.
+
+    Parameters
+    ----------
+    arm : ArmModel
+        The arm whose bounds apply.
+    within : {"bounds", "plausible"}
+        ``"bounds"``: the arm's bounds with a slack of ``tolerance`` times each variable's range;
+        ``"plausible"``: the bounds widened by :data:`PLAUSIBLE_SPANS` ranges on each side. A periodic
+        variable (a CC section's ``phi``) always gets the plausible interval: its bounds are one turn.
+    tolerance : float
+        See ``within``.
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        ``(low, high)``, each ``(n_config,)``.
+
+    Raises
+    ------
+    ValueError
+        For an unknown ``within``.
+    """
+    if within not in ("bounds", "plausible"):
+        raise ValueError(f"within: expected 'bounds' or 'plausible', got {within!r}")
+    cached = _LIMITS.setdefault(arm, {}).get((within, tolerance))
+    if cached is not None and cached[0] is arm.lower and cached[1] is arm.upper:
+        return cached[2], cached[3]
+    span = np.where(arm.upper > arm.lower, arm.upper - arm.lower, 1.0)
+    wide = PLAUSIBLE_SPANS * span
+    slack = np.where(arm.periodic, wide, tolerance * span) if within == "bounds" else wide
+    low, high = arm.lower - slack, arm.upper + slack
+    _LIMITS[arm][(within, tolerance)] = (arm.lower, arm.upper, low, high)
+    return low, high
+
+
 def check_configuration(
     arm: ArmModel,
     q: object,
     name: str = "q",
-    bounds: bool = True,
+    within: str = "bounds",
     batch: bool = False,
     tolerance: float = BOUND_TOLERANCE,
 ) -> np.ndarray:
-    """Check configurations of ``arm``: shape, finite values and (``bounds``) the arm's bounds.
+    """Check configurations of ``arm``: numbers, shape, finite values inside the arm's bounds (or near them).
 
-    Periodic variables (e.g. the ``phi`` of a CC section) are not bound-checked: the
-    kinematics are 2 pi-periodic in them.
+    Periodic variables (e.g. the ``phi`` of a CC section) are only held to a plausible interval
+    (:func:`configuration_limits`): the kinematics are 2 pi-periodic in them.
 
     Parameters
     ----------
     arm : ArmModel
         The arm whose :attr:`~optikin.arms.base.ArmModel.config_names` and bounds apply.
     q : array_like
-        One configuration ``(n_config,)``; with ``batch`` also ``(N, n_config)``. SI units.
+        One configuration ``(n_config,)``; with ``batch`` also ``(..., n_config)``. SI units.
     name : str
         The argument's name, for the message.
-    bounds : bool
-        Whether to require ``lower <= q <= upper`` (to ``tolerance``).
+    within : {"bounds", "plausible"}
+        ``"bounds"``: ``lower <= q <= upper`` (to ``tolerance``); ``"plausible"``: within
+        :data:`PLAUSIBLE_SPANS` ranges of the bounds (what a batch evaluation asks).
     batch : bool
-        Whether a batch ``(N, n_config)`` is accepted.
+        Whether a batch ``(..., n_config)`` is accepted.
     tolerance : float
         Slack on the bounds, relative to each variable's range (absolute for a fixed variable).
 
@@ -195,43 +489,57 @@ def check_configuration(
 
     Raises
     ------
+    TypeError
+        For values that are not numbers (a string, ``None``, a complex value).
     ValueError
-        For a wrong shape, a non-finite value or a value outside the bounds, naming ``name``,
+        For a wrong shape, a non-finite value or a value outside the interval, naming ``name``,
         the sample (for a batch) and the variable.
     """
-    values = _as_float(q, name)
+    values = check_numbers(q, name)
     n = arm.n_config
-    shapes = f"({n},) or (N, {n})" if batch else f"({n},)"
-    if values.shape != (n,) and not (batch and values.ndim == 2 and values.shape[1] == n):
+    if values.shape != (n,) and not (batch and values.ndim >= 1 and values.shape[-1] == n):
+        shapes = f"({n},) or (N, {n})" if batch else f"({n},)"
         hint = "" if batch or values.ndim != 2 or values.shape[1] != n else "; for a batch use arm.evaluate(name, Q)"
         raise ValueError(
             f"{name}: expected a configuration of {arm.name} of shape {shapes} "
             f"({', '.join(arm.config_names)}), got shape {values.shape}{hint}"
         )
+    low, high = configuration_limits(arm, within, tolerance)
+    if ((values >= low) & (values <= high)).all():
+        return values
     rows = values.reshape(-1, n)
 
     def where(i: int) -> str:
-        return f"{name}[{i}]" if values.ndim == 2 else name
+        return _where(name, values.shape[:-1], i)
 
     bad = ~np.isfinite(rows)
     if bad.any():
         i, j = (int(k) for k in np.argwhere(bad)[0])
         raise ValueError(f"{where(i)}: {arm.config_names[j]} = {rows[i, j]} is not a finite number")
-    if bounds:
-        span = arm.upper - arm.lower
-        slack = tolerance * np.where(span > 0, span, 1.0)
-        outside = ((rows < arm.lower - slack) | (rows > arm.upper + slack)) & ~arm.periodic
-        if outside.any():
-            i, j = (int(k) for k in np.argwhere(outside)[0])
-            raise ValueError(
-                f"{where(i)}: {arm.config_names[j]} = {rows[i, j]:.6g} outside its bounds "
-                f"[{arm.lower[j]:.6g}, {arm.upper[j]:.6g}]"
-            )
-    return values
+    i, j = (int(k) for k in np.argwhere((rows < low) | (rows > high))[0])
+    value = f"{arm.config_names[j]} = {rows[i, j]:.6g}"
+    if arm.periodic[j]:
+        raise ValueError(
+            f"{where(i)}: {value} is beyond the plausible range [{low[j]:.6g}, {high[j]:.6g}] of a periodic angle"
+        )
+    bounds = f"[{arm.lower[j]:.6g}, {arm.upper[j]:.6g}]"
+    if within == "bounds":
+        raise ValueError(f"{where(i)}: {value} outside its bounds {bounds}")
+    raise ValueError(
+        f"{where(i)}: {value} is far outside its bounds {bounds} (more than {PLAUSIBLE_SPANS:g} ranges away: "
+        "a unit mistake, millimetres or degrees for metres or radians?)"
+    )
 
 
-def check_parameter(value: object, field: str, positive: bool = False, size: int | None = None) -> np.ndarray:
-    """Check a numeric model parameter: numbers, finite, optionally positive and of a given length.
+def check_parameter(
+    value: object,
+    field: str,
+    positive: bool = False,
+    size: int | None = None,
+    maximum: float | None = None,
+    unit: str = "",
+) -> np.ndarray:
+    """Check a numeric model parameter: numbers, finite, optionally positive, below a bound and of a given length.
 
     Parameters
     ----------
@@ -244,6 +552,10 @@ def check_parameter(value: object, field: str, positive: bool = False, size: int
         Whether every entry must be above zero.
     size : int, optional
         The length a vector must have; ``None``: any length (a scalar stays a scalar).
+    maximum : float, optional
+        The largest physically plausible magnitude ``|value|`` of an entry; ``None``: no bound.
+    unit : str
+        The parameter's unit, for the message (``"m"`` adds a hint about millimetres).
 
     Returns
     -------
@@ -252,12 +564,16 @@ def check_parameter(value: object, field: str, positive: bool = False, size: int
 
     Raises
     ------
+    ParameterTypeError
+        For a value that is not numbers (a string, even of a number, a bool, ``None``), naming the field.
     ParameterError
         Naming the field (and the entry of a vector).
     """
     try:
-        values = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
+        values = check_numbers(value, field)
+    except TypeError:
+        raise ParameterTypeError(field, f"expected a number or a list of numbers, got {_describe(value)}") from None
+    except ValueError:
         raise ParameterError(field, f"expected numbers, got {value!r}") from None
     if values.ndim > 1 or (size is not None and values.shape != (size,)):
         wanted = f"{size} numbers" if size is not None else "a number or a list of numbers"
@@ -269,4 +585,8 @@ def check_parameter(value: object, field: str, positive: bool = False, size: int
             raise ParameterError(entry, f"not a finite number ({v})")
         if positive and not v > 0:
             raise ParameterError(entry, f"must be positive, got {v:g}")
+        if maximum is not None and abs(v) > maximum:
+            u = f" {unit}" if unit else ""
+            hint = " (millimetres given for metres?)" if unit == "m" else ""
+            raise ParameterError(entry, f"{v:g}{u} is beyond the physical bound {maximum:g}{u}{hint}")
     return values

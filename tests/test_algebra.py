@@ -948,7 +948,7 @@ def test_casadi_columns_are_a_batch():
     assert pq.shape == (4, N) and lq.shape == (3, N) and ldq.shape == (6, N)
     np.testing.assert_allclose(pq.T, quat_multiply(Q, P), atol=1e-15)
     np.testing.assert_allclose(lq.T, quat_log(Q), atol=1e-15)
-    np.testing.assert_allclose(ldq.T, dq_log(dq_from_parts(Q, 0.5 * P)), atol=1e-14)
+    np.testing.assert_allclose(ldq.T, dq_log(dq_from_parts(Q, 0.5 * P), check=False), atol=1e-14)
 
 
 def test_casadi_matrix_from_quat_rejects_several_columns():
@@ -1035,7 +1035,7 @@ def test_jacobian_dq_exp(a, n, pitch):
 def test_jacobian_dq_log(a, n):
     dq = screw(n, np.array([0.4, 1.1, -0.7]), 2 * a, 0.35)[0].astype(float)
     J = np.asarray(J_DQ_LOG(dq), float)  # 6 x 8, in the ambient space
-    _check_jacobian(J, central_fd(dq_log, dq, 1e-6), "dq_log vs its own numpy path")
+    _check_jacobian(J, central_fd(lambda z: dq_log(z, check=False), dq, 1e-6), "dq_log vs its own numpy path")
     # Along the manifold (dq exp(s)), against the independent long-double log of the series exp.
     tangent = np.stack(
         [ref_dqmul(dq, np.r_[0, e[:3], 0, e[3:]]).astype(float) for e in np.eye(6)], axis=1

@@ -23,6 +23,8 @@ from typing import Any, Callable, Sequence
 import casadi as ca
 import numpy as np
 
+from optikin.checks import check_numbers
+
 Array = Any
 """A numpy array (or a float) or a CasADi ``SX``/``MX``/``DM`` matrix."""
 
@@ -67,15 +69,17 @@ def any_casadi(*xs: Array) -> bool:
     return any(is_casadi(x) for x in xs)
 
 
-def components(x: Array, n: int) -> list[Array]:
+def components(x: Array, n: int, name: str = "x") -> list[Array]:
     """Split ``x`` into its ``n`` components.
 
     Parameters
     ----------
     x : Array
-        numpy ``(..., n)`` or CasADi ``n x N``.
+        numpy ``(..., n)`` (or anything :func:`optikin.checks.check_numbers` takes) or CasADi ``n x N``.
     n : int
         Number of components.
+    name : str
+        The argument's name, for the message.
 
     Returns
     -------
@@ -84,16 +88,18 @@ def components(x: Array, n: int) -> list[Array]:
 
     Raises
     ------
+    TypeError
+        When a numpy ``x`` is not real numbers (a string, ``None``, complex values), naming ``name``.
     ValueError
-        When the last axis (numpy) or the number of rows (CasADi) is not ``n``.
+        When the last axis (numpy) or the number of rows (CasADi) is not ``n``, naming ``name``.
     """
     if is_casadi(x):
         if x.shape[0] != n:
-            raise ValueError(f"expected {n} rows, got a CasADi matrix of shape {x.shape}")
+            raise ValueError(f"{name}: expected {n} rows, got a CasADi matrix of shape {x.shape}")
         return [x[i, :] for i in range(n)]
-    x = np.asarray(x, dtype=float)
+    x = check_numbers(x, name)
     if x.shape[-1:] != (n,):
-        raise ValueError(f"expected a last axis of length {n}, got shape {x.shape}")
+        raise ValueError(f"{name}: expected a last axis of length {n}, got shape {x.shape}")
     return [x[..., i] for i in range(n)]
 
 
@@ -127,15 +133,20 @@ def concat(a: Array, b: Array) -> Array:
     -------
     Array
         numpy ``(..., n_a + n_b)`` or CasADi ``(n_a + n_b) x N``.
+
+    Raises
+    ------
+    TypeError
+        When a numpy part is not real numbers, naming ``a`` or ``b``.
     """
     if any_casadi(a, b):
         return ca.vertcat(a, b)
-    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    a, b = check_numbers(a, "a"), check_numbers(b, "b")
     batch = np.broadcast_shapes(a.shape[:-1], b.shape[:-1])
     return np.concatenate([np.broadcast_to(a, batch + a.shape[-1:]), np.broadcast_to(b, batch + b.shape[-1:])], axis=-1)
 
 
-def split(x: Array, n_first: int, n_total: int) -> tuple[Array, Array]:
+def split(x: Array, n_first: int, n_total: int, name: str = "x") -> tuple[Array, Array]:
     """Split an element into its first ``n_first`` and its remaining components.
 
     Parameters
@@ -146,6 +157,8 @@ def split(x: Array, n_first: int, n_total: int) -> tuple[Array, Array]:
         Number of components of the first part.
     n_total : int
         Number of components of ``x`` (checked).
+    name : str
+        The argument's name, for the message.
 
     Returns
     -------
@@ -154,16 +167,18 @@ def split(x: Array, n_first: int, n_total: int) -> tuple[Array, Array]:
 
     Raises
     ------
+    TypeError
+        When a numpy ``x`` is not real numbers, naming ``name``.
     ValueError
-        When ``x`` does not have ``n_total`` components.
+        When ``x`` does not have ``n_total`` components, naming ``name``.
     """
     if is_casadi(x):
         if x.shape[0] != n_total:
-            raise ValueError(f"expected {n_total} rows, got a CasADi matrix of shape {x.shape}")
+            raise ValueError(f"{name}: expected {n_total} rows, got a CasADi matrix of shape {x.shape}")
         return x[:n_first, :], x[n_first:, :]
-    x = np.asarray(x, dtype=float)
+    x = check_numbers(x, name)
     if x.shape[-1:] != (n_total,):
-        raise ValueError(f"expected a last axis of length {n_total}, got shape {x.shape}")
+        raise ValueError(f"{name}: expected a last axis of length {n_total}, got shape {x.shape}")
     return x[..., :n_first], x[..., n_first:]
 
 

@@ -9,6 +9,14 @@ The logarithm follows Ude, Nemec, Petric & Morimoto (ICRA 2014), the form the
 quaternion DMPs of Seleem et al. 2020 (seed 000, eqs. 17-23) are built on: for
 ``q = (cos a, sin a n)``, ``log q = a n`` (half the rotation angle along the axis)
 and ``exp`` is its inverse. Both are exact and smooth at the identity.
+
+Checked inputs (``docs/conventions.md``): with ``check=True`` (the default) the functions
+that read a quaternion as a rotation, divide by a norm or take angles refuse numpy inputs
+that are not numbers, of the wrong shape, non-finite, zero, not of unit norm (within
+:data:`optikin.checks.UNIT_TOLERANCE`) or beyond :data:`optikin.checks.MAX_MAGNITUDE`,
+raising :class:`ValueError` / :class:`TypeError` that name the argument; the algebraic
+operations (product, conjugate, norm, parts) check types and shapes only. CasADi
+matrices are never checked (they build expression graphs); inner loops pass ``check=False``.
 """
 
 from __future__ import annotations
@@ -18,47 +26,55 @@ import numpy as np
 
 from optikin.algebra import backend as B
 from optikin.algebra.backend import Array
+from optikin.checks import (
+    MAX_MAGNITUDE,
+    UNIT_TOLERANCE,
+    check_finite,
+    check_magnitude,
+    check_numbers,
+    check_quaternion,
+    check_rotation_matrix,
+    check_vectors,
+)
 from optikin.errors import InputDataError
 
 IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
 """The identity rotation ``(1, 0, 0, 0)``."""
 
 
-UNIT_TOLERANCE = 1e-6
-"""Largest ``| |q| - 1 |`` accepted by the functions that take unit quaternions."""
-
-
-def refuse_degenerate(q: Array, name: str = "q", unit: bool = True, tolerance: float = UNIT_TOLERANCE) -> None:
-    """Raise :class:`ValueError` for a numpy quaternion that is zero or (``unit``) not of norm 1.
-
-    The check the public functions here run on numpy inputs (CasADi symbols pass unchecked).
-    A row with a NaN passes: NaN marks a sample that has no answer (a failed solve) and
-    propagates; a finite zero or non-unit quaternion is a mistake that would return garbage
-    silently (a "rotation" matrix that is not one, a logarithm of the wrong angle).
+def refuse_degenerate(q: Array, name: str = "q", unit: bool = True) -> Array:
+    """Check numpy quaternions (:func:`optikin.checks.check_quaternion`); CasADi matrices pass unchecked.
 
     Parameters
     ----------
     q : Array
-        Quaternions ``(..., 4)``; anything else (CasADi) is not checked.
+        Quaternions ``(..., 4)``.
     name : str
         The argument's name, for the message.
     unit : bool
-        Require ``| |q| - 1 | <= tolerance``; else only a nonzero norm.
-    tolerance : float
-        See ``unit``.
+        Require ``| |q| - 1 | <=`` :data:`~optikin.checks.UNIT_TOLERANCE`; else only a finite nonzero ``q``.
+
+    Returns
+    -------
+    Array
+        ``q`` (as floats when numpy).
+
+    Raises
+    ------
+    TypeError
+        For numpy input that is not numbers.
+    ValueError
+        For a wrong shape, a non-finite component, a zero quaternion or (``unit``) a norm off 1,
+        naming ``name`` and the batch index.
     """
-    if not isinstance(q, np.ndarray) or q.size == 0:
-        return
-    norm = np.linalg.norm(q.reshape(-1, q.shape[-1]), axis=1)
-    finite = np.isfinite(norm)
-    bad = finite & ((np.abs(norm - 1.0) > tolerance) if unit else (norm == 0.0))
-    if bad.any():
-        i = int(np.argmax(bad))
-        wanted = (
-            f"not a unit quaternion (| |q| - 1 | > {tolerance:g})" if unit else "a zero quaternion has no direction"
-        )
-        where = name if q.ndim == 1 else f"{name}[{', '.join(str(int(k)) for k in np.unravel_index(i, q.shape[:-1]))}]"
-        raise ValueError(f"{where}: norm {norm[i]:.6g}: {wanted} (pass check=False to skip this check)")
+    return q if B.is_casadi(q) else check_quaternion(q, unit=unit, name=name)
+
+
+def _checked_scalars(value: Array, name: str, limit: float = MAX_MAGNITUDE, unit: str = "rad") -> Array:
+    """``value`` checked as finite numbers within ``+-limit`` (numpy), or unchanged (CasADi)."""
+    if B.is_casadi(value):
+        return value
+    return check_magnitude(check_finite(check_numbers(value, name), name), name, limit, unit)
 
 
 def quat_multiply(p: Array, q: Array) -> Array:
@@ -74,8 +90,8 @@ def quat_multiply(p: Array, q: Array) -> Array:
     Array
         ``p q`` in the same layout; for rotations, ``q`` applied first, then ``p`` (``R(p q) = R(p) R(q)``).
     """
-    pw, px, py, pz = B.components(p, 4)
-    qw, qx, qy, qz = B.components(q, 4)
+    pw, px, py, pz = B.components(p, 4, "p")
+    qw, qx, qy, qz = B.components(q, 4, "q")
     return B.stack(
         [
             pw * qw - px * qx - py * qy - pz * qz,
@@ -99,7 +115,7 @@ def quat_conjugate(q: Array) -> Array:
     Array
         ``q*``, same layout.
     """
-    w, x, y, z = B.components(q, 4)
+    w, x, y, z = B.components(q, 4, "q")
     return B.stack([w, -x, -y, -z])
 
 
@@ -116,7 +132,7 @@ def quat_norm(q: Array) -> Array:
     Array
         numpy ``(...)`` or CasADi ``1 x N``.
     """
-    return B.sqrt(B.sum_squares(B.components(q, 4)))
+    return B.sqrt(B.sum_squares(B.components(q, 4, "q")))
 
 
 def quat_normalize(q: Array, check: bool = True) -> Array:
@@ -128,15 +144,20 @@ def quat_normalize(q: Array, check: bool = True) -> Array:
         Nonzero quaternions ``(w, x, y, z)``: numpy ``(..., 4)`` or CasADi ``4 x N``.
 
     check : bool
-        Refuse a finite zero (or non-unit) numpy quaternion (:func:`refuse_degenerate`); False in inner loops.
+        Refuse a numpy ``q`` that is not finite or is zero (:func:`refuse_degenerate`); False in inner loops.
 
     Returns
     -------
     Array
         Unit quaternions, same layout.
+
+    Raises
+    ------
+    ValueError
+        With ``check``, for a non-finite or zero quaternion, naming ``q``.
     """
     if check:
-        refuse_degenerate(q, "q", unit=False)
+        q = refuse_degenerate(q, "q", unit=False)
     w, x, y, z = B.components(q, 4)
     n = quat_norm(q)
     return B.stack([w / n, x / n, y / n, z / n])
@@ -151,15 +172,20 @@ def quat_inverse(q: Array, check: bool = True) -> Array:
         Nonzero quaternions ``(w, x, y, z)``: numpy ``(..., 4)`` or CasADi ``4 x N``.
 
     check : bool
-        Refuse a finite zero (or non-unit) numpy quaternion (:func:`refuse_degenerate`); False in inner loops.
+        Refuse a numpy ``q`` that is not finite or is zero (:func:`refuse_degenerate`); False in inner loops.
 
     Returns
     -------
     Array
         ``q^-1``, same layout.
+
+    Raises
+    ------
+    ValueError
+        With ``check``, for a non-finite or zero quaternion, naming ``q``.
     """
     if check:
-        refuse_degenerate(q, "q", unit=False)
+        q = refuse_degenerate(q, "q", unit=False)
     w, x, y, z = B.components(q, 4)
     n2 = B.sum_squares([w, x, y, z])
     return B.stack([w / n2, -x / n2, -y / n2, -z / n2])
@@ -178,7 +204,7 @@ def quat_from_pure(v: Array) -> Array:
     Array
         numpy ``(..., 4)`` or CasADi ``4 x N``.
     """
-    x, y, z = B.components(v, 3)
+    x, y, z = B.components(v, 3, "v")
     return B.stack([0.0 * x, x, y, z])
 
 
@@ -195,10 +221,10 @@ def quat_vector(q: Array) -> Array:
     Array
         numpy ``(..., 3)`` or CasADi ``3 x N``.
     """
-    return B.split(q, 1, 4)[1]
+    return B.split(q, 1, 4, "q")[1]
 
 
-def quat_exp(v: Array) -> Array:
+def quat_exp(v: Array, check: bool = True) -> Array:
     """Exponential ``exp(v) = (cos|v|, sin|v| v/|v|)`` of a 3-vector, exact and smooth at ``v = 0``.
 
     Ude et al. 2014; the update ``exp(eta dt / 2 tau) Q`` of seed 000 eq. (23).
@@ -208,13 +234,23 @@ def quat_exp(v: Array) -> Array:
     ----------
     v : Array
         Vectors (half rotation vectors, rad): numpy ``(..., 3)`` or CasADi ``3 x N``.
+    check : bool
+        Refuse a numpy ``v`` with a non-finite component or one beyond :data:`~optikin.checks.MAX_MAGNITUDE`
+        rad; False in inner loops.
 
     Returns
     -------
     Array
         Unit quaternions, numpy ``(..., 4)`` or CasADi ``4 x N``.
+
+    Raises
+    ------
+    ValueError
+        With ``check``, for a wrong shape, a non-finite or implausibly large component, naming ``v``.
     """
-    x, y, z = B.components(v, 3)
+    if check and not B.is_casadi(v):
+        v = check_magnitude(check_vectors(v, "v"), "v", MAX_MAGNITUDE, "rad")
+    x, y, z = B.components(v, 3, "v")
     a2 = B.sum_squares([x, y, z])
     s = B.sinc_of_square(a2)
     return B.stack([B.cos_of_square(a2), s * x, s * y, s * z])
@@ -234,15 +270,20 @@ def quat_log(q: Array, check: bool = True) -> Array:
         Unit quaternions ``(w, x, y, z)``: numpy ``(..., 4)`` or CasADi ``4 x N``.
 
     check : bool
-        Refuse a finite zero (or non-unit) numpy quaternion (:func:`refuse_degenerate`); False in inner loops.
+        Refuse a numpy ``q`` that is not a finite unit quaternion (:func:`refuse_degenerate`); False in inner loops.
 
     Returns
     -------
     Array
         Half rotation vectors [rad], numpy ``(..., 3)`` or CasADi ``3 x N``; inverse of :func:`quat_exp`.
+
+    Raises
+    ------
+    ValueError
+        With ``check``, for a non-finite, zero or non-unit quaternion, naming ``q``.
     """
     if check:
-        refuse_degenerate(q, "q", unit=True)
+        q = refuse_degenerate(q, "q", unit=True)
     w, x, y, z = B.components(q, 4)
     s2 = B.sum_squares([x, y, z])
     # atan2(s, w) / s with s = |(x, y, z)|; near the identity, its series in s^2.
@@ -256,24 +297,33 @@ def quat_log(q: Array, check: bool = True) -> Array:
     return B.stack([ratio * x + B.where(full_turn, np.pi, 0.0), ratio * y, ratio * z])
 
 
-def quat_angle(q: Array) -> Array:
+def quat_angle(q: Array, check: bool = True) -> Array:
     """Rotation angle of a unit quaternion, either sign (``q`` and ``-q`` give the same).
 
     Parameters
     ----------
     q : Array
         Unit quaternions ``(w, x, y, z)``: numpy ``(..., 4)`` or CasADi ``4 x N``.
+    check : bool
+        Refuse a numpy ``q`` that is not a finite unit quaternion (:func:`refuse_degenerate`); False in inner loops.
 
     Returns
     -------
     Array
         Angles in ``[0, pi]`` [rad], numpy ``(...)`` or CasADi ``1 x N``.
+
+    Raises
+    ------
+    ValueError
+        With ``check``, for a non-finite, zero or non-unit quaternion, naming ``q``.
     """
-    w, x, y, z = B.components(q, 4)
+    if check:
+        q = refuse_degenerate(q, "q", unit=True)
+    w, x, y, z = B.components(q, 4, "q")
     return 2.0 * B.atan2(B.sqrt(B.sum_squares([x, y, z])), B.fabs(w))
 
 
-def quat_power(q: Array, t: Array) -> Array:
+def quat_power(q: Array, t: Array, check: bool = True) -> Array:
     """Power ``q^t = exp(t log q)`` of a unit quaternion: the rotation scaled by ``t``.
 
     Parameters
@@ -282,16 +332,26 @@ def quat_power(q: Array, t: Array) -> Array:
         Unit quaternions ``(w, x, y, z)``: numpy ``(..., 4)`` or CasADi ``4 x N``.
     t : Array
         A scalar, or one exponent per quaternion (numpy ``(...)``, CasADi ``1 x N``).
+    check : bool
+        Refuse a numpy ``q`` that is not a finite unit quaternion and a ``t`` that is not a finite number
+        within :data:`~optikin.checks.MAX_MAGNITUDE`; False in inner loops.
 
     Returns
     -------
     Array
         Unit quaternions, same layout as ``q``.
+
+    Raises
+    ------
+    ValueError
+        With ``check``, naming ``q`` or ``t``.
     """
-    return quat_exp(B.scale(t, quat_log(q), 3))
+    if check:
+        q, t = refuse_degenerate(q, "q", unit=True), _checked_scalars(t, "t", unit="")
+    return quat_exp(B.scale(t, quat_log(q, check=False), 3), check=False)
 
 
-def quat_from_axis_angle(axis: Array, angle: Array) -> Array:
+def quat_from_axis_angle(axis: Array, angle: Array, check: bool = True) -> Array:
     """Rotation by ``angle`` about the unit vector ``axis``: ``(cos(angle/2), sin(angle/2) axis)``.
 
     Parameters
@@ -300,13 +360,25 @@ def quat_from_axis_angle(axis: Array, angle: Array) -> Array:
         Unit vectors: numpy ``(..., 3)`` or CasADi ``3 x N``.
     angle : Array
         Angles [rad], broadcast against the batch shape of ``axis`` (CasADi: a scalar or ``1 x N``).
+    check : bool
+        Refuse a numpy ``axis`` that is not a finite unit vector (within :data:`~optikin.checks.UNIT_TOLERANCE`)
+        and a numpy ``angle`` that is not finite or beyond :data:`~optikin.checks.MAX_MAGNITUDE`; False in
+        inner loops.
 
     Returns
     -------
     Array
         Unit quaternions, numpy ``(..., 4)`` or CasADi ``4 x N``.
+
+    Raises
+    ------
+    ValueError
+        With ``check``, for a zero, non-unit or non-finite axis or a bad angle, naming ``axis`` or ``angle``.
     """
-    x, y, z = B.components(axis, 3)
+    if check:
+        axis = axis if B.is_casadi(axis) else check_vectors(axis, "axis", unit=True)
+        angle = _checked_scalars(angle, "angle")
+    x, y, z = B.components(axis, 3, "axis")
     h = 0.5 * angle
     s = B.sin(h)
     return B.stack([B.cos(h), s * x, s * y, s * z])
@@ -323,15 +395,22 @@ def quat_rotate(q: Array, v: Array, check: bool = True) -> Array:
         Vectors: numpy ``(..., 3)`` or CasADi ``3 x N`` (batch shapes broadcast).
 
     check : bool
-        Refuse a finite zero (or non-unit) numpy quaternion (:func:`refuse_degenerate`); False in inner loops.
+        Refuse a numpy ``q`` that is not a finite unit quaternion (:func:`refuse_degenerate`) and a numpy ``v``
+        that is not finite; False in inner loops.
 
     Returns
     -------
     Array
         The rotated vectors, numpy ``(..., 3)`` or CasADi ``3 x N``.
+
+    Raises
+    ------
+    ValueError
+        With ``check``, naming ``q`` or ``v``.
     """
     if check:
-        refuse_degenerate(q, "q", unit=True)
+        q = refuse_degenerate(q, "q", unit=True)
+        v = v if B.is_casadi(v) else check_vectors(v, "v")
     return quat_vector(quat_multiply(quat_multiply(q, quat_from_pure(v)), quat_conjugate(q)))
 
 
@@ -346,7 +425,7 @@ def matrix_from_quat(q: Array, check: bool = True) -> Array:
         Unit quaternions ``(w, x, y, z)``: numpy ``(..., 4)``, or one CasADi ``4 x 1``.
 
     check : bool
-        Refuse a finite zero (or non-unit) numpy quaternion (:func:`refuse_degenerate`); False in inner loops.
+        Refuse a numpy ``q`` that is not a finite unit quaternion (:func:`refuse_degenerate`); False in inner loops.
 
     Returns
     -------
@@ -356,11 +435,12 @@ def matrix_from_quat(q: Array, check: bool = True) -> Array:
     Raises
     ------
     ValueError
-        For a CasADi input with more than one column.
+        For a CasADi input with more than one column; with ``check``, for a numpy ``q`` that is not a
+        finite unit quaternion.
     """
     if check:
-        refuse_degenerate(q, "q", unit=True)
-    w, x, y, z = B.components(q, 4)
+        q = refuse_degenerate(q, "q", unit=True)
+    w, x, y, z = B.components(q, 4, "q")
     rows = [
         [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
         [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
@@ -373,7 +453,7 @@ def matrix_from_quat(q: Array, check: bool = True) -> Array:
     return np.stack([np.stack(r, axis=-1) for r in rows], axis=-2)
 
 
-def quat_from_matrix(R: Array) -> Array:
+def quat_from_matrix(R: Array, check: bool = True) -> Array:
     """Unit quaternion (``w >= 0``) of a rotation matrix, by Shepperd's method (Shepperd 1978).
 
     Of the four algebraically equal formulas, the one with the largest pivot is
@@ -383,6 +463,9 @@ def quat_from_matrix(R: Array) -> Array:
     ----------
     R : Array
         Rotation matrices: numpy ``(..., 3, 3)`` or one CasADi ``3 x 3``.
+    check : bool
+        Refuse a numpy ``R`` that is not finite, not orthonormal (within :data:`~optikin.checks.UNIT_TOLERANCE`)
+        or a reflection (:func:`optikin.checks.check_rotation_matrix`); False in inner loops.
 
     Returns
     -------
@@ -392,16 +475,16 @@ def quat_from_matrix(R: Array) -> Array:
     Raises
     ------
     ValueError
-        When the matrices are not 3 x 3.
+        When the matrices are not 3 x 3; with ``check``, when a numpy matrix is not a rotation, naming ``R``.
     """
     if B.is_casadi(R):
         if R.shape != (3, 3):
             raise ValueError(f"quat_from_matrix takes a 3x3 CasADi matrix, got {R.shape}")
         m = [[R[i, j] for j in range(3)] for i in range(3)]
     else:
-        R = np.asarray(R, dtype=float)
+        R = check_rotation_matrix(R, "R") if check else np.asarray(R, dtype=float)
         if R.shape[-2:] != (3, 3):
-            raise ValueError(f"expected rotation matrices of shape (..., 3, 3), got {R.shape}")
+            raise ValueError(f"R: expected rotation matrices of shape (..., 3, 3), got {R.shape}")
         m = [[R[..., i, j] for j in range(3)] for i in range(3)]
     trace = m[0][0] + m[1][1] + m[2][2]
     pivots = [
@@ -433,19 +516,29 @@ def quat_from_matrix(R: Array) -> Array:
     return B.stack([sign * c for c in best])
 
 
-def quat_from_rpy(roll: Array, pitch: Array, yaw: Array) -> Array:
+def quat_from_rpy(roll: Array, pitch: Array, yaw: Array, check: bool = True) -> Array:
     """Quaternion of ``R = Rz(yaw) Ry(pitch) Rx(roll)``, the convention of seed 000 eq. (30).
 
     Parameters
     ----------
     roll, pitch, yaw : Array
         Angles [rad] about x, y and z: numpy arrays (broadcast together) or CasADi rows ``1 x N``.
+    check : bool
+        Refuse numpy angles that are not finite or beyond :data:`~optikin.checks.MAX_MAGNITUDE`; False in
+        inner loops.
 
     Returns
     -------
     Array
         Unit quaternions, numpy ``(..., 4)`` or CasADi ``4 x N``; inverse of :func:`rpy_from_quat`.
+
+    Raises
+    ------
+    ValueError
+        With ``check``, naming ``roll``, ``pitch`` or ``yaw``.
     """
+    if check:
+        roll, pitch, yaw = (_checked_scalars(a, n) for a, n in ((roll, "roll"), (pitch, "pitch"), (yaw, "yaw")))
     cr, sr = B.cos(0.5 * roll), B.sin(0.5 * roll)
     cp, sp = B.cos(0.5 * pitch), B.sin(0.5 * pitch)
     cy, sy = B.cos(0.5 * yaw), B.sin(0.5 * yaw)
@@ -474,16 +567,21 @@ def rpy_from_quat(q: Array, check: bool = True) -> Array:
         Unit quaternions ``(w, x, y, z)``: numpy ``(..., 4)`` or CasADi ``4 x N``.
 
     check : bool
-        Refuse a finite zero (or non-unit) numpy quaternion (:func:`refuse_degenerate`); False in inner loops.
+        Refuse a numpy ``q`` that is not a finite unit quaternion (:func:`refuse_degenerate`); False in inner loops.
 
     Returns
     -------
     Array
         ``(roll, pitch, yaw)`` [rad], numpy ``(..., 3)`` or CasADi ``3 x N``.
+
+    Raises
+    ------
+    ValueError
+        With ``check``, naming ``q``.
     """
     if check:
-        refuse_degenerate(q, "q", unit=True)
-    w, x, y, z = B.components(q, 4)
+        q = refuse_degenerate(q, "q", unit=True)
+    w, x, y, z = B.components(q, 4, "q")
     roll = B.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
     sin_pitch = B.clip(2 * (w * y - x * z), -1.0, 1.0)
     pitch = ca.asin(sin_pitch) if B.is_casadi(sin_pitch) else np.arcsin(sin_pitch)
@@ -491,7 +589,7 @@ def rpy_from_quat(q: Array, check: bool = True) -> Array:
     return B.stack([roll, pitch, yaw])
 
 
-def check_unit_quaternions(q: np.ndarray, source: str = "quaternions", tolerance: float = 1e-6) -> np.ndarray:
+def check_unit_quaternions(q: np.ndarray, source: str = "quaternions", tolerance: float = UNIT_TOLERANCE) -> np.ndarray:
     """Check that ``q`` holds unit quaternions; raise naming the first sample that is not one.
 
     Rejects a wrong shape, NaN or infinite components, and ``| |q| - 1 | > tolerance``
@@ -536,7 +634,7 @@ def check_unit_quaternions(q: np.ndarray, source: str = "quaternions", tolerance
     return q
 
 
-def quat_hemisphere_continuous(qs: np.ndarray) -> np.ndarray:
+def quat_hemisphere_continuous(qs: np.ndarray, check: bool = True) -> np.ndarray:
     """Flip signs along a sequence so consecutive quaternions have a non-negative dot product.
 
     ``q`` and ``-q`` are the same rotation; a continuous sequence keeps logarithms and
@@ -546,6 +644,9 @@ def quat_hemisphere_continuous(qs: np.ndarray) -> np.ndarray:
     ----------
     qs : numpy.ndarray
         Quaternions ``(T, 4)`` ``(w, x, y, z)``, in time order.
+    check : bool
+        Refuse rows that are not finite unit quaternions (:func:`optikin.checks.check_quaternion`); False in
+        inner loops.
 
     Returns
     -------
@@ -555,17 +656,20 @@ def quat_hemisphere_continuous(qs: np.ndarray) -> np.ndarray:
     Raises
     ------
     ValueError
-        When ``qs`` is not ``(T, 4)``.
+        When ``qs`` is not ``(T, 4)``; with ``check``, for a row that is not a finite unit quaternion, naming
+        ``qs[i]``.
     """
-    qs = np.array(qs, dtype=float)
+    qs = np.array(check_numbers(qs, "qs"), dtype=float)
     if qs.ndim != 2 or qs.shape[1] != 4:
-        raise ValueError(f"expected a sequence of shape (T, 4), got {qs.shape}")
+        raise ValueError(f"qs: expected a sequence of shape (T, 4), got {qs.shape}")
+    if check:
+        check_quaternion(qs, unit=True, name="qs")
     dots = np.einsum("ij,ij->i", qs[1:], qs[:-1])
     flips = np.concatenate([[1.0], np.cumprod(np.where(dots < 0, -1.0, 1.0))])
     return qs * flips[:, None]
 
 
-def quat_slerp(q0: Array, q1: Array, t: Array) -> Array:
+def quat_slerp(q0: Array, q1: Array, t: Array, check: bool = True) -> Array:
     """Spherical linear interpolation along the shorter arc: ``q0 (q0* q1)^t``.
 
     Parameters
@@ -574,12 +678,23 @@ def quat_slerp(q0: Array, q1: Array, t: Array) -> Array:
         Unit quaternions ``(w, x, y, z)``: numpy ``(..., 4)`` or CasADi ``4 x N``.
     t : Array
         Interpolation parameter (``0 -> q0``, ``1 -> +-q1``): a scalar or one per element.
+    check : bool
+        Refuse numpy ``q0``, ``q1`` that are not finite unit quaternions and a ``t`` that is not a finite number
+        within :data:`~optikin.checks.MAX_MAGNITUDE`; False in inner loops.
 
     Returns
     -------
     Array
         Unit quaternions, same layout.
+
+    Raises
+    ------
+    ValueError
+        With ``check``, naming ``q0``, ``q1`` or ``t``.
     """
+    if check:
+        q0, q1 = refuse_degenerate(q0, "q0", unit=True), refuse_degenerate(q1, "q1", unit=True)
+        t = _checked_scalars(t, "t", unit="")
     rel = quat_multiply(quat_conjugate(q0), q1)
     sign = B.where(B.components(rel, 4)[0] < 0, -1.0, 1.0)
-    return quat_multiply(q0, quat_power(B.scale(sign, rel, 4), t))
+    return quat_multiply(q0, quat_power(B.scale(sign, rel, 4), t, check=False))
