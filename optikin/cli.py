@@ -171,22 +171,18 @@ def _solve_chunks(args: argparse.Namespace) -> Any:
 
 
 def _cmd_plot(args: argparse.Namespace) -> int:
-    from optikin.errors import SpecError, UnknownNameError
-    from optikin.problems import load_kind
-    from optikin.results import read_result, redraw
+    from optikin.errors import InputDataError
+    from optikin.results import read_result, redraw, result_kind
 
     _headless_figures()
     folder = Path(args.result)
     summary, arrays = read_result(folder)
-    try:
-        kind = load_kind(summary["kind"]) if isinstance(summary["kind"], str) else None
-    except UnknownNameError:
-        kind = None
-    if kind is None:
-        raise SpecError(folder / "result.json", "kind", f"unknown problem kind {summary['kind']!r}")
+    kind = result_kind(folder, summary)
     if kind.figures is None:
         print(f"kind {kind.name} draws no figures")
         return EXIT_OK
+    if not arrays:
+        raise InputDataError("the result holds no arrays: no figures to draw from", source=str(folder))
     for path in redraw(folder, kind.figures, summary, arrays):
         print(f"drew {path}")
     return EXIT_OK

@@ -55,6 +55,8 @@ least-squares minimum whose residual lies within the stated measurement noise), 
 minimum beyond it), ``failed``, ``not_converged``, ``timeout``."""
 SOLVED = ("ok", "fit")
 """The statuses that count as solved."""
+KIND_NAME = re.compile(r"[a-z][a-z0-9_]{0,63}")
+"""What a problem kind's name looks like (checked before a result's kind is looked up)."""
 
 Drawer = Callable[[Path], None]
 """Draws one figure into the PNG file it is given."""
@@ -359,8 +361,24 @@ def _swap(staging: Path, final: Path) -> Path | None:
     return old
 
 
+ARRAY_KINDS = "biufcUS"
+"""The numpy dtype kinds ``arrays.npz`` may hold (bool, integer, float, complex, text); never objects."""
+
+
 def read_result(folder: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-    """The summary (``result.json``) and arrays (``arrays.npz``, empty if absent) of a written result."""
+    """The summary (``result.json``) and arrays (``arrays.npz``) of a written result.
+
+    ``arrays.npz`` is read without unpickling anything (``allow_pickle=False``), and must hold exactly the
+    arrays, with the shapes, that ``result.json`` records under ``arrays``; it may be absent only when that
+    record is empty.
+
+    Raises
+    ------
+    InputDataError
+        Naming the folder and the file: not a result folder, ``result.json`` not a JSON object with a
+        ``kind``, ``arrays.npz`` missing, not an ``.npz`` archive, truncated, holding object arrays, or
+        holding arrays other than those recorded.
+    """
     from optikin.errors import InputDataError
 
     folder = Path(folder)
@@ -368,29 +386,124 @@ def read_result(folder: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         summary = json.loads((folder / "result.json").read_text())
     except OSError as exc:
         raise InputDataError(f"not a result folder: {exc.strerror or exc}", source=str(folder)) from None
-    except json.JSONDecodeError as exc:
-        raise InputDataError(f"result.json is not JSON: {exc.msg} (line {exc.lineno})", source=str(folder)) from None
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise InputDataError(f"result.json is not JSON: {exc}", source=str(folder)) from None
     if not isinstance(summary, dict) or "kind" not in summary:
         raise InputDataError("result.json names no problem kind", source=str(folder))
-    arrays: dict[str, np.ndarray] = {}
-    if (folder / "arrays.npz").is_file():
-        with np.load(folder / "arrays.npz", allow_pickle=False) as npz:
-            arrays = {k: npz[k] for k in npz.files}
+    recorded = summary.get("arrays")
+    if recorded is not None and not (
+        isinstance(recorded, dict)
+        and all(isinstance(v, list) and all(type(n) is int for n in v) for v in recorded.values())
+    ):
+        raise InputDataError("arrays: expected a mapping of array name to shape", source=str(folder / "result.json"))
+    npz = folder / "arrays.npz"
+    if not npz.exists() and not npz.is_symlink():
+        if recorded == {}:
+            return summary, {}
+        raise InputDataError("arrays.npz is missing: the result's arrays cannot be read", source=str(folder))
+    arrays = _read_arrays(npz)
+    if recorded is not None:
+        for name in sorted(set(recorded) | set(arrays)):
+            if name not in arrays:
+                raise InputDataError(f"array {name!r} recorded in result.json is missing", source=str(npz))
+            if name not in recorded:
+                raise InputDataError(f"array {name!r} is not recorded in result.json", source=str(npz))
+            if list(arrays[name].shape) != recorded[name]:
+                raise InputDataError(
+                    f"array {name!r} has shape {list(arrays[name].shape)}; result.json records {recorded[name]}",
+                    source=str(npz),
+                )
     return summary, arrays
+
+
+def _read_arrays(npz: Path) -> dict[str, np.ndarray]:
+    """Every array of ``npz``, read without unpickling (an object array is refused, never loaded)."""
+    import zipfile
+    import zlib
+
+    from optikin.errors import InputDataError
+
+    if not npz.is_file():
+        raise InputDataError("is not a file", source=str(npz))
+    if not zipfile.is_zipfile(npz):
+        raise InputDataError("is not an .npz archive (a zip of .npy arrays)", source=str(npz))
+    try:
+        with np.load(npz, allow_pickle=False) as archive:
+            arrays = {name: archive[name] for name in archive.files}
+    except ValueError as exc:
+        if "allow_pickle" in str(exc):
+            raise InputDataError("holds object arrays, which are never loaded (no pickles)", source=str(npz)) from None
+        raise InputDataError(f"cannot be read: {exc}", source=str(npz)) from None
+    except (OSError, EOFError, KeyError, zipfile.BadZipFile, zlib.error, NotImplementedError) as exc:
+        raise InputDataError(f"cannot be read (truncated or damaged): {exc}", source=str(npz)) from None
+    for name, value in arrays.items():
+        if value.dtype.kind not in ARRAY_KINDS:
+            raise InputDataError(f"array {name!r} has dtype {value.dtype}: not numbers or text", source=str(npz))
+    return arrays
+
+
+def result_kind(folder: Path, summary: Mapping[str, Any]) -> Any:
+    """The registered problem kind (:class:`optikin.problems.ProblemKind`) a written result names.
+
+    The name must be a registered kind's or the name of a package of :mod:`optikin.problems`, checked
+    before :func:`optikin.problems.load_kind` imports anything.
+
+    Raises
+    ------
+    InputDataError
+        ``result.json``'s ``kind`` is not a registered kind's name.
+    """
+    import pkgutil
+
+    from optikin import problems
+    from optikin.errors import InputDataError, UnknownNameError
+    from optikin.problems import load_kind
+    from optikin.registry import PROBLEM_KINDS
+
+    name = summary.get("kind")
+    unknown = InputDataError(f"unknown problem kind {name!r}", source=str(Path(folder) / "result.json"), field="kind")
+    if not isinstance(name, str) or KIND_NAME.fullmatch(name) is None:
+        raise unknown
+    if name not in PROBLEM_KINDS and name not in {m.name for m in pkgutil.iter_modules(problems.__path__)}:
+        raise unknown
+    try:
+        return load_kind(name)
+    except UnknownNameError:
+        raise unknown from None
 
 
 def redraw(
     folder: Path, figure_builder: FigureBuilder, summary: Mapping[str, Any], arrays: Mapping[str, np.ndarray]
 ) -> list[Path]:
     """Draw a written result's figures again into ``folder``; each PNG replaces the old one atomically
-    (drawn to a temporary name first, created with the user's umask)."""
+    (drawn to a temporary name first, created with the user's umask).
+
+    Raises
+    ------
+    InputDataError
+        A figure cannot be drawn from ``arrays`` (arrays of shapes or values the kind never writes).
+    """
+    from optikin.errors import InputDataError
+
     written = []
-    for name, draw in figure_builder(arrays, summary).items():
+    source = str(Path(folder) / "arrays.npz")
+    try:
+        drawers = figure_builder(arrays, summary)
+    except (ValueError, IndexError, KeyError, TypeError) as exc:
+        raise InputDataError(
+            f"the arrays do not fit the kind's figures: {type(exc).__name__}: {exc}", source=source
+        ) from None
+    for name, draw in drawers.items():
         final = Path(folder) / f"{name}.png"
         temporary = Path(folder) / f"{_temporary_name(name, 'tmp')}.png"
         try:
             draw(temporary)
             os.replace(temporary, final)
+        except (ValueError, IndexError, KeyError, TypeError) as exc:
+            temporary.unlink(missing_ok=True)
+            raise InputDataError(
+                f"figure {name!r} cannot be drawn from these arrays: {type(exc).__name__}: {exc}", source=source
+            ) from None
         except BaseException:
             temporary.unlink(missing_ok=True)
             raise

@@ -35,8 +35,8 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from optikin.errors import OptikinError
-from optikin.results import MethodRow, read_result
+from optikin.errors import InputDataError, OptikinError
+from optikin.results import MethodRow, read_result, result_kind
 from optikin.tables import comparison_rows, format_value
 
 MM = 1e3
@@ -491,13 +491,22 @@ def write_view(folder: Path, out: Path | None = None) -> Path:
     Raises
     ------
     InputDataError
-        ``folder`` is not a result folder.
+        ``folder`` is not a result folder, names an unknown kind, or holds no arrays or arrays that
+        cannot be shown (:func:`optikin.results.read_result`).
     ViewError
         plotly is not installed, or ``out`` cannot be written.
     """
     folder = Path(folder)
     summary, arrays = read_result(folder)
-    page = page_html(arrays, summary)
+    result_kind(folder, summary)
+    if not arrays:
+        raise InputDataError("the result holds no arrays: nothing to show", source=str(folder))
+    try:
+        page = page_html(arrays, summary)
+    except (ValueError, IndexError, KeyError, TypeError) as exc:
+        raise InputDataError(
+            f"the arrays cannot be shown: {type(exc).__name__}: {exc}", source=str(folder / "arrays.npz")
+        ) from None
     target = Path(out) if out is not None else folder / "view.html"
     try:
         target.write_text(page, encoding="utf-8")

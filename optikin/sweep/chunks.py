@@ -26,7 +26,7 @@ from optikin.errors import SpecError
 from optikin.problems import ChunkWork, ProblemContext, ProblemKind
 from optikin.results import Result
 from optikin.sweep.cell import cached_arm
-from optikin.sweep.run import check_jobs, dask_client
+from optikin.sweep.run import check_dask, check_jobs, dask_client
 
 MIN_PIECE = 64
 """Fewest samples worth sending to a worker: a smaller batch is solved in this process."""
@@ -93,6 +93,7 @@ class Chunks:
 
     def __init__(self, jobs: int = 1, dask: str | None = None) -> None:
         check_jobs(jobs)
+        check_dask(dask)
         self.jobs, self.dask = jobs, dask
         self.workers = jobs
         self._client: Any = None
@@ -164,4 +165,5 @@ class Chunks:
 def chunks_of(jobs: int, dask: str | None) -> Chunks | None:
     """The engine of ``optikin solve --jobs N`` / ``--dask ADDRESS``; None for one process (``--jobs 1``)."""
     check_jobs(jobs)
+    check_dask(dask)
     return Chunks(jobs, dask) if dask is not None or jobs > 1 else None

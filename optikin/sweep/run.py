@@ -18,9 +18,10 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import re
 import sys
 import time
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterator
@@ -28,10 +29,26 @@ from typing import Any, Callable, Iterator
 from optikin.errors import SpecError
 from optikin.progress import ProgressLines, progress_interval
 from optikin.sweep.cell import run_cell
-from optikin.sweep.spec import Cell, expand, load_sweep
-from optikin.sweep.store import dead_tries, markers_dir, read_cells, table_rows, write_cell, write_figures, write_table
+from optikin.sweep.spec import Cell, SweepSpec, expand, load_sweep
+from optikin.sweep.store import (
+    dead_tries,
+    markers_dir,
+    prepare_folder,
+    read_cells,
+    table_rows,
+    write_cell,
+    write_figures,
+    write_table,
+)
 
 Record = dict[str, Any]
+
+DASK_ADDRESS = re.compile(
+    r"(?:(?:tcp|tls|ws|wss|ucx)://)?(?:[A-Za-z0-9](?:[A-Za-z0-9.-]{0,252})|\[[0-9A-Fa-f:.]+\]):(?P<port>[0-9]{1,5})"
+)
+"""A Dask scheduler address: an optional protocol, a host name, IPv4 or bracketed IPv6 address, and a port."""
+DASK_TIMEOUT = 3.0
+"""Seconds a Dask scheduler at an address has to answer the one connection attempt."""
 
 
 @dataclass
@@ -140,25 +157,63 @@ def check_jobs(jobs: int) -> None:
         raise SpecError("--jobs", "", f"expected at least 1 worker, got {jobs}")
 
 
+def check_dask(address: str | None) -> None:
+    """``--dask`` is ``local:N`` (N >= 1) or a scheduler address ``[PROTOCOL://]HOST:PORT`` (:data:`DASK_ADDRESS`).
+
+    Raises
+    ------
+    SpecError
+        Naming ``--dask`` and the address.
+    """
+    if address is None:
+        return
+    if address.startswith("local:"):
+        workers = address.removeprefix("local:")
+        if not workers.isdigit() or int(workers) < 1:
+            raise SpecError("--dask", "", f"expected local:N with N >= 1 workers, got {address!r}")
+        return
+    match = DASK_ADDRESS.fullmatch(address)
+    if match is None or not 1 <= int(match.group("port")) <= 65535:
+        raise SpecError(
+            "--dask", "", f"expected local:N or a scheduler address such as tcp://HOST:8786, got {address!r}"
+        )
+
+
 @contextmanager
 def dask_client(address: str, retries: int) -> Iterator[Any]:
     """A ``distributed.Client`` of the scheduler at ``address``, or of a ``LocalCluster`` of N single-threaded
-    worker processes for ``local:N`` (its scheduler allowing ``retries`` worker deaths per task); closed after."""
+    worker processes for ``local:N`` (its scheduler allowing ``retries`` worker deaths per task); closed after.
+
+    A scheduler is tried once, for :data:`DASK_TIMEOUT` seconds.
+
+    Raises
+    ------
+    SpecError
+        Dask is not installed, ``address`` is malformed (:func:`check_dask`), or no scheduler answers there.
+    """
     try:
         import dask
         from distributed import Client, LocalCluster
     except ImportError:
         raise SpecError("--dask", "", 'needs Dask: pip install "optikin[dask]" (dask[distributed])') from None
+    check_dask(address)
     cluster = None
     if address.startswith("local:"):
-        workers = address.removeprefix("local:")
-        if not workers.isdigit() or int(workers) < 1:
-            raise SpecError("--dask", "", f"expected local:N with N >= 1 workers, got {address!r}")
         with dask.config.set({"distributed.scheduler.allowed-failures": retries}):
-            cluster = LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True, dashboard_address=None)
+            cluster = LocalCluster(
+                n_workers=int(address.removeprefix("local:")),
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=None,
+            )
         client = Client(cluster)
     else:
-        client = Client(address)
+        try:
+            client = Client(address, timeout=DASK_TIMEOUT)
+        except (OSError, TimeoutError) as exc:
+            raise SpecError(
+                "--dask", "", f"no Dask scheduler answered at {address} within {DASK_TIMEOUT:g} s ({exc})"
+            ) from None
     try:
         yield client
     finally:
@@ -167,26 +222,25 @@ def dask_client(address: str, retries: int) -> Iterator[Any]:
             cluster.close()
 
 
-def _dask(cells: list[Cell], folder: Path, address: str, retries: int) -> Iterator[tuple[Record, int]]:
-    """Records as cells finish on a Dask cluster (``local:N`` starts a ``LocalCluster`` of N processes)."""
-    with dask_client(address, retries) as client:
-        from distributed import as_completed
+def _dask(cells: list[Cell], folder: Path, client: Any) -> Iterator[tuple[Record, int]]:
+    """Records as cells finish on the Dask cluster of ``client``."""
+    from distributed import as_completed
 
-        futures = {client.submit(run_cell, cell, key=f"optikin-cell-{cell.key}", pure=False): cell for cell in cells}
-        workers_count = max(1, len(client.scheduler_info().get("workers", {})))
-        remaining = len(futures)
-        deaths: dict[str, int] = {}
-        for future in as_completed(futures):
-            remaining -= 1
-            cell = futures[future]
-            for key, count in dead_tries(folder).items():
-                deaths[key] = deaths.get(key, 0) + count
-            try:
-                record = future.result()
-                record["tries"] = 1 + deaths.get(cell.key, 0)
-            except Exception as exc:  # noqa: BLE001 - KilledWorker and the like fail this cell alone
-                record = _killed(cell, 1 + deaths.get(cell.key, 0), f"{type(exc).__name__}: {exc}")
-            yield record, min(workers_count, remaining)
+    futures = {client.submit(run_cell, cell, key=f"optikin-cell-{cell.key}", pure=False): cell for cell in cells}
+    workers_count = max(1, len(client.scheduler_info().get("workers", {})))
+    remaining = len(futures)
+    deaths: dict[str, int] = {}
+    for future in as_completed(futures):
+        remaining -= 1
+        cell = futures[future]
+        for key, count in dead_tries(folder).items():
+            deaths[key] = deaths.get(key, 0) + count
+        try:
+            record = future.result()
+            record["tries"] = 1 + deaths.get(cell.key, 0)
+        except Exception as exc:  # noqa: BLE001 - KilledWorker and the like fail this cell alone
+            record = _killed(cell, 1 + deaths.get(cell.key, 0), f"{type(exc).__name__}: {exc}")
+        yield record, min(workers_count, remaining)
 
 
 def run_sweep(
@@ -226,10 +280,40 @@ def run_sweep(
         On the sweep file (naming the field), ``--jobs`` or ``--dask``.
     """
     check_jobs(jobs)
+    check_dask(dask)
     spec, path = load_sweep(name_or_path)
     cells = expand(spec, path)
     folder = Path(out) / spec.name
-    markers_dir(folder).mkdir(parents=True, exist_ok=True)
+    with ExitStack() as stack:
+        client = stack.enter_context(dask_client(dask, spec.retries)) if dask else None
+        prepare_folder(folder)
+        return _run(
+            spec,
+            cells,
+            folder,
+            jobs,
+            client,
+            engine=f"dask {dask}" if dask else f"joblib loky x{jobs}",
+            resume=resume,
+            figures=figures,
+            progress=progress,
+            on_record=on_record,
+        )
+
+
+def _run(
+    spec: SweepSpec,
+    cells: list[Cell],
+    folder: Path,
+    jobs: int,
+    client: Any,
+    engine: str,
+    resume: bool,
+    figures: bool,
+    progress: bool,
+    on_record: Callable[[Record], None] | None,
+) -> SweepReport:
+    """:func:`run_sweep` in a checked ``folder``, on ``client`` (Dask) or on ``jobs`` joblib workers."""
     dead_tries(folder)
     finished = read_cells(folder) if resume else {}
     todo = [
@@ -239,9 +323,8 @@ def run_sweep(
     ]
     started = time.perf_counter()
     bar = _Bar(spec.name, len(cells), len(cells) - len(todo), progress)
-    engine = f"dask {dask}" if dask else f"joblib loky x{jobs}"
     try:
-        stream = _dask(todo, folder, dask, spec.retries) if dask else _joblib(todo, folder, jobs, spec.retries)
+        stream = _dask(todo, folder, client) if client is not None else _joblib(todo, folder, jobs, spec.retries)
         for record, running in stream:
             write_cell(folder, record)
             bar.update(record, running)

@@ -26,7 +26,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from optikin.results import process_alive
+from optikin.errors import InputDataError
+from optikin.results import OutputError, process_alive
 from optikin.sweep.spec import Cell, SweepSpec
 
 if TYPE_CHECKING:
@@ -44,27 +45,89 @@ def markers_dir(folder: Path) -> Path:
     return folder / "running"
 
 
+FOLDERS = ("cells", "running", "figures")
+"""Entries of a sweep folder that must be folders."""
+FILES = ("table.csv", "table.json")
+"""Entries of a sweep folder that must be files."""
+
+
+def prepare_folder(folder: Path) -> None:
+    """Check a sweep folder before any cell runs, and create it with ``cells/`` and ``running/``.
+
+    Raises
+    ------
+    OutputError
+        Naming the entry: ``folder`` or one of :data:`FOLDERS` is not a folder, one of :data:`FILES` or a
+        ``cells/*.json`` is not a file, or the folder cannot be created.
+    """
+    folder = Path(folder)
+    for path in (folder, *(folder / n for n in FOLDERS)):
+        if (path.exists() or path.is_symlink()) and not path.is_dir():
+            raise OutputError(
+                f"{path}: is not a folder, and the sweep needs one there; move it away or choose another --out"
+            )
+    for name in FILES:
+        path = folder / name
+        if (path.exists() or path.is_symlink()) and not path.is_file():
+            raise OutputError(f"{path}: is not a file, and the sweep writes its table there; move it away")
+    for path in sorted(cells_dir(folder).glob("*.json")):
+        if not path.is_file():
+            raise OutputError(f"{path}: is not a file, and the sweep writes a cell there; move it away")
+    try:
+        cells_dir(folder).mkdir(parents=True, exist_ok=True)
+        markers_dir(folder).mkdir(exist_ok=True)
+    except OSError as exc:
+        raise OutputError(f"{folder}: cannot create the sweep folder: {exc.strerror or exc}") from None
+
+
 def write_cell(folder: Path, record: dict[str, Any]) -> Path:
-    """Write one finished cell atomically (temporary file + ``os.replace``); returns its path."""
+    """Write one finished cell atomically (temporary file + ``os.replace``); returns its path.
+
+    Raises
+    ------
+    OutputError
+        The cell cannot be written (naming its file); nothing half-written is left.
+    """
     target = cells_dir(folder) / f"{record['key']}.json"
-    target.parent.mkdir(parents=True, exist_ok=True)
     staging = target.parent / f".{record['key']}.tmp-{os.getpid()}-{secrets.token_hex(4)}"
-    with open(staging, "w", encoding="utf-8") as stream:
-        json.dump(record, stream, indent=1, allow_nan=False, default=str)
-        stream.flush()
-        os.fsync(stream.fileno())
-    os.replace(staging, target)
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        with open(staging, "w", encoding="utf-8") as stream:
+            json.dump(record, stream, indent=1, allow_nan=False, default=str)
+            stream.flush()
+            os.fsync(stream.fileno())
+        os.replace(staging, target)
+    except OSError as exc:
+        staging.unlink(missing_ok=True)
+        raise OutputError(f"{target}: cannot write the cell: {exc.strerror or exc}") from None
     return target
 
 
 def read_cells(folder: Path) -> dict[str, dict[str, Any]]:
-    """The finished cells of a folder by key (an unreadable file is skipped: that cell runs again)."""
+    """The finished cells of a folder by key.
+
+    Raises
+    ------
+    InputDataError
+        A ``cells/*.json`` cannot be read or is not a cell record (a JSON object with a ``status`` and, if
+        any, a mapping of ``values``); removing that file runs its cell again.
+    """
     records = {}
     for path in sorted(cells_dir(folder).glob("*.json")):
+        again = "remove it to run that cell again"
         try:
-            records[path.stem] = json.loads(path.read_text(encoding="utf-8"))
-        except (OSError, ValueError):
-            continue
+            record = json.loads(path.read_text(encoding="utf-8"))
+        except OSError as exc:
+            raise InputDataError(f"cannot read the cell: {exc.strerror or exc}; {again}", source=str(path)) from None
+        except ValueError as exc:
+            raise InputDataError(f"not a cell record: not JSON ({exc}); {again}", source=str(path)) from None
+        if (
+            not isinstance(record, dict)
+            or not isinstance(record.get("status"), str)
+            or not isinstance(record.get("values", {}), dict)
+        ):
+            raise InputDataError(f"not a cell record (a JSON object with status and values); {again}", source=str(path))
+        records[path.stem] = record
     return records
 
 
@@ -114,13 +177,6 @@ def write_table(folder: Path, spec: SweepSpec, rows: list[dict[str, Any]]) -> tu
     """``table.csv`` and ``table.json`` (rows, the axes, the timing columns), each written atomically."""
     columns = list(rows[0]) if rows else []
     csv_path, json_path = folder / "table.csv", folder / "table.json"
-    staging = folder / f".table.csv.tmp-{os.getpid()}"
-    with open(staging, "w", newline="", encoding="utf-8") as stream:
-        writer = csv.writer(stream)
-        writer.writerow(columns)
-        for row in rows:
-            writer.writerow([_csv_value(row[c]) for c in columns])
-    os.replace(staging, csv_path)
     document = {
         "sweep": spec.name,
         "title": spec.title,
@@ -128,9 +184,21 @@ def write_table(folder: Path, spec: SweepSpec, rows: list[dict[str, Any]]) -> tu
         "timing_columns": [c for c in columns if TIMING.search(c)],
         "rows": rows,
     }
-    staging = folder / f".table.json.tmp-{os.getpid()}"
-    staging.write_text(json.dumps(document, indent=1, default=str), encoding="utf-8")
-    os.replace(staging, json_path)
+    for target in (csv_path, json_path):
+        staging = folder / f".{target.name}.tmp-{os.getpid()}"
+        try:
+            with open(staging, "w", newline="", encoding="utf-8") as stream:
+                if target == json_path:
+                    stream.write(json.dumps(document, indent=1, default=str))
+                else:
+                    writer = csv.writer(stream)
+                    writer.writerow(columns)
+                    for row in rows:
+                        writer.writerow([_csv_value(row[c]) for c in columns])
+            os.replace(staging, target)
+        except OSError as exc:
+            staging.unlink(missing_ok=True)
+            raise OutputError(f"{target}: cannot write the sweep's table: {exc.strerror or exc}") from None
     return csv_path, json_path
 
 
@@ -338,10 +406,13 @@ def write_figures(folder: Path, spec: SweepSpec, rows: list[dict[str, Any]]) -> 
     from optikin.plots import save
 
     out = folder / "figures"
-    out.mkdir(exist_ok=True)
     drawn = []
-    for plan in figure_plans(spec, rows):
-        path = out / f"{_slug(plan.metric)}--vs--{_slug(plan.axis)}.png"
-        save(draw_figure(spec, plan), path)
-        drawn.append(path)
+    try:
+        out.mkdir(exist_ok=True)
+        for plan in figure_plans(spec, rows):
+            path = out / f"{_slug(plan.metric)}--vs--{_slug(plan.axis)}.png"
+            save(draw_figure(spec, plan), path)
+            drawn.append(path)
+    except OSError as exc:
+        raise OutputError(f"{out}: cannot draw the sweep's figures: {exc.strerror or exc}") from None
     return drawn
