@@ -54,6 +54,7 @@ from optikin.baselines.nn_store import load_models, save_models
 from optikin.data.cosserat_nn import CosseratDatabase
 from optikin.options import Options, validate_options
 from optikin.problems import ProblemContext
+from optikin.problems.fairness import ArmSize, Given, Manifest, cbha_name, cbha_size, coverage, recorded_arm
 from optikin.progress import Progress
 from optikin.results import Drawer, MethodRow, Result
 from optikin.solvers.base import SolutionBatch
@@ -485,6 +486,7 @@ def comparison_result(
     metrics: dict[str, Any],
     arrays: dict[str, np.ndarray],
     note: str,
+    fairness: Sequence[str] = (),
 ) -> Result:
     """The result of either kind: the first network variant is the method, every row a comparison.
 
@@ -510,8 +512,135 @@ def comparison_result(
         metrics=metrics,
         comparison=comparison,
         arrays=arrays,
-        notes=[note],
+        notes=[note, *fairness],
     )
+
+
+# ---------------------------------------------------------------------------------------- fairness
+FIG9_SUFFIX = "-fig9"
+"""Suffix of a row whose legs are split from the six tube lengths (Fig. 9)."""
+TABLE_IV_ROWS = ("constant-curvature", "direct-mlp", "goal-babbling", "true-lengths")
+
+
+def method_names(kind: str, spec: ProblemSpec, o: NNOptions) -> list[str]:
+    """The rows a run of ``spec`` reports, in order, known before the run (for the fairness manifest's test)."""
+    cosserat = spec.data.source == "cosserat"
+    if kind == "nn_fkm":
+        suffixes = [FIG9_SUFFIX] if cosserat else [""] + ([FIG9_SUFFIX] if o.tube_sensors else [])
+    else:
+        suffixes = [""]
+    names = [f"{s.name}{x}" for s in o.settings() for x in suffixes]
+    names += [f"{b}{x}" for b in spec.baselines for x in suffixes]
+    if kind == "nn_fkm" and (cosserat or o.tube_sensors):
+        names.append("constant-curvature")
+    if cosserat and o.direct:
+        names.append("direct-mlp")
+    if kind == "nn_ikm" and cosserat:
+        names += ["constant-curvature"] + (["goal-babbling"] if o.goal_babbling else []) + ["true-lengths"]
+    return names
+
+
+def nn_manifest(
+    spec: ProblemSpec, arm: CBHAArm, o: NNOptions, data_params: Any, methods: Sequence[str], database: str = ""
+) -> Manifest:
+    """What every row of an ``nn_fkm`` / ``nn_ikm`` comparison is given (:mod:`optikin.problems.fairness`).
+
+    The networks and the exact solvers model the problem's CBHA (the generator's own on a
+    vertebra-model database, the measured radii and a Table I sized to the recorded arm on a
+    Cosserat one); constant-curvature gets the tube offsets; direct-mlp, goal-babbling and
+    true-lengths no model of the arm. ``database`` describes the networks' training set.
+    """
+    truth, shared = recorded_arm(spec.data.source, data_params, arm)
+    model = cbha_size(arm.geometry, cbha_name(arm.geometry))
+    source = "generator's own" if shared else "measured"
+    variants = {s.name: s for s in o.settings()}
+    trained_on = database or "the vertebra-model database of data"
+    entries = []
+    for name in methods:
+        base = name.removesuffix(FIG9_SUFFIX)
+        split = "the six tube lengths split over the legs (Fig. 6)" if name.endswith(FIG9_SUFFIX) else ""
+        if base in variants:
+            entries.append(
+                Given(
+                    name,
+                    source,
+                    model,
+                    training=f"{trained_on}, setting {variants[base].description}",
+                    budget="one forward pass per sample",
+                    limits="Table I (lengths clipped)" if spec.kind == "nn_ikm" else "none",
+                    information=split,
+                )
+            )
+        elif base in spec.baselines:
+            entries.append(
+                Given(
+                    name,
+                    source,
+                    model,
+                    budget=f"preset {base} on the first {o.exact_samples} test samples",
+                    limits="Table I",
+                    information=split,
+                )
+            )
+        elif name == "constant-curvature":
+            radii = (float(arm.geometry.r_max), float(arm.geometry.r_min))
+            entries.append(
+                Given(
+                    name,
+                    "measured",
+                    ArmSize("the tube offsets of the problem's arm", radii),
+                    information="the true tube offsets; each section an arc (the model nearest a Cosserat arm's)",
+                )
+            )
+        elif name == "direct-mlp":
+            entries.append(Given(name, "none", training="the Cosserat training postures"))
+        elif name == "goal-babbling":
+            entries.append(Given(name, "none", training=f"{o.goal_babbling} babbling commands on the arm"))
+        elif name == "true-lengths":
+            entries.append(
+                Given(name, "none", information="the postures' own tube lengths: the controller's floor, not a method")
+            )
+        else:
+            entries.append(Given(name, "none"))
+    return Manifest(truth, shared, tuple(entries))
+
+
+def network_inputs(prep: Prepared, kind: str) -> tuple[np.ndarray, np.ndarray, str]:
+    """The networks' training inputs and the test inputs they are given, and what those are: the tips
+    (``nn_ikm``) or the six tube lengths (``nn_fkm``) [m]."""
+    db, truth = prep.db, prep.truth
+    if kind == "nn_ikm":
+        test = truth.tip[truth.test] if truth is not None else db.tip[db.test]
+        return db.tip[db.train], test, "tips"
+    test = truth.tube_lengths[truth.test] if truth is not None else db.tube_lengths[db.test]
+    return db.tube_lengths[db.train], test, "tube lengths"
+
+
+def direct_inputs(prep: Prepared, kind: str) -> tuple[np.ndarray, np.ndarray]:
+    """The direct MLP's training and test inputs (Cosserat postures): tips (``nn_ikm``) or tube lengths."""
+    truth = prep.truth
+    assert truth is not None, "direct-mlp is trained on Cosserat postures"
+    X = truth.tip if kind == "nn_ikm" else truth.tube_lengths
+    return X[truth.train], X[truth.test]
+
+
+def annotate_fairness(prep: Prepared, comparison: list[MethodRow], metrics: dict[str, Any]) -> list[str]:
+    """Add the fairness manifest to the rows (``given.*``) and ``metrics`` (``fairness``); its printed notes."""
+    kind, db = prep.spec.kind, prep.db
+    database = f"the vertebra-model database ({db.spec.coupling}, {len(db.train)} training rows)"
+    data_params = prep.truth.params if prep.truth is not None else None
+    manifest = nn_manifest(prep.spec, prep.arm, prep.options, data_params, [r.method for r in comparison], database)
+    train, test, what = network_inputs(prep, kind)
+    found = coverage(train, test)
+    label = f"tested outside its training range: its test {what} lie beyond the database's (coverage columns)"
+    for g in manifest.given:
+        if g.method.removesuffix(FIG9_SUFFIX) in {s.name for s in prep.options.settings()}:
+            manifest = manifest.with_coverage(g.method, found, label)
+        elif g.method == "direct-mlp":
+            manifest = manifest.with_coverage(g.method, coverage(*direct_inputs(prep, kind)), label)
+    comparison[:] = manifest.annotate(comparison)
+    metrics |= manifest.metrics()
+    return manifest.notes()
 
 
 # ---------------------------------------------------------------------------------------- figures

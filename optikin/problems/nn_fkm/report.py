@@ -7,7 +7,14 @@ from typing import Any
 import numpy as np
 
 from optikin.problems.nn_fkm.run import FKMOutcome
-from optikin.problems.nn_shared import comparison_result, coverage_metrics, error_stats, network_row, solver_row
+from optikin.problems.nn_shared import (
+    annotate_fairness,
+    comparison_result,
+    coverage_metrics,
+    error_stats,
+    network_row,
+    solver_row,
+)
 from optikin.results import MethodRow, Result
 
 
@@ -80,4 +87,5 @@ def report(outcome: FKMOutcome) -> Result:
             " direct-mlp: seed 004 Table IV's qualitative FKM (Melingui et al.), an MLP from the six tube "
             "lengths to the tip trained on the Cosserat training postures."
         )
-    return comparison_result(prep, outcome.networks, comparison, errors, metrics, arrays, note)
+    fairness = annotate_fairness(prep, comparison, metrics)
+    return comparison_result(prep, outcome.networks, comparison, errors, metrics, arrays, note, fairness)

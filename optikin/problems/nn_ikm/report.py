@@ -7,7 +7,15 @@ from typing import Any
 import numpy as np
 
 from optikin.problems.nn_ikm.run import Driven, IKMOutcome
-from optikin.problems.nn_shared import MM, comparison_result, coverage_metrics, error_stats, network_row, solver_row
+from optikin.problems.nn_shared import (
+    annotate_fairness,
+    MM,
+    comparison_result,
+    coverage_metrics,
+    error_stats,
+    network_row,
+    solver_row,
+)
 from optikin.results import MethodRow, Result
 
 
@@ -121,4 +129,5 @@ def report(outcome: IKMOutcome) -> Result:
             "towards its training tips (tube lengths: those the arm then has). "
             f"Exact solvers on the first {k} test tips ({outcome.formulation.label()})."
         )
-    return comparison_result(prep, outcome.networks, comparison, errors, metrics, arrays, note)
+    fairness = annotate_fairness(prep, comparison, metrics)
+    return comparison_result(prep, outcome.networks, comparison, errors, metrics, arrays, note, fairness)

@@ -2,14 +2,24 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
 from optikin.data.configurations import skipped_rows_notes
 from optikin.data.cosserat_markers import CosseratTruth
-from optikin.baselines.ph_comparators import HYBRID, NEWTON_RAPHSON
+from optikin.arms.cbha import CBHAArm
+from optikin.baselines.ph_comparators import (
+    COMPARATORS,
+    HYBRID,
+    HYBRID_STORES,
+    NEWTON_RAPHSON,
+    NR_TARGETS,
+    networks_arm,
+)
 from optikin.problems import ProblemContext
+from optikin.problems.fairness import ArmSize, Given, Manifest, cbha_name, cbha_size, recorded_arm
+from optikin.problems.ph_ik.options import PHIkOptions
 from optikin.problems.ph_ik.run import IkOutcome
 from optikin.problems.ph_shared import MM, method_rows, summary_of
 from optikin.results import MethodRow, Result
@@ -118,11 +128,85 @@ def ik_arrays(outcome: IkOutcome) -> dict[str, np.ndarray]:
     return arrays
 
 
+NR_INFORMATION = {
+    "sections": "the tip rigid body and the marker at the end of section 1 (one measurement more than the PH rows)",
+    "pose": "the tip pose relative to the base (the PH rows' data)",
+}
+
+
+def manifest(ctx: ProblemContext, tube_lengths: np.ndarray | None = None) -> Manifest:
+    """What every row of a ``ph_ik`` comparison is given (:mod:`optikin.problems.fairness`).
+
+    The PH rows get the tube offsets (a lab measures them); the Newton-Raphson rows the
+    problem's CBHA vertebra model; the hybrid rows their networks' own arm, labelled when it
+    is not the problem's. ``tube_lengths`` [m], the recorded ones, are checked against each
+    model's range.
+    """
+    options: PHIkOptions = ctx.options
+    arm = ctx.arm
+    truth, shared = recorded_arm(ctx.spec.data.source, ctx.data_params, arm)
+    own = "generator's own" if shared else "measured"
+    if options.tube_radius is not None:
+        radii = (float(options.tube_radius[0]), float(options.tube_radius[1]))
+        offsets = ArmSize("tube offsets of options.tube_radius", radii)
+    else:
+        geometry = cast(CBHAArm, arm).geometry
+        offsets = ArmSize("tube offsets of the arm's r_max, r_min", (float(geometry.r_max), float(geometry.r_min)))
+    solver = ctx.solver.name if ctx.solver is not None else ""
+    ph = [solver] + [b for b in ctx.spec.baselines if b not in COMPARATORS and b != solver]
+    entries = [
+        Given(
+            name,
+            own,
+            offsets,
+            budget=f"preset {name}, one solve per posture",
+            information="the base and tip rigid bodies",
+        )
+        for name in ph
+    ]
+    for name in (n for n in COMPARATORS if n in ctx.spec.baselines):
+        geometry = cast(CBHAArm, arm).geometry
+        if name in NR_TARGETS:
+            entries.append(
+                Given(
+                    name,
+                    own,
+                    cbha_size(geometry, cbha_name(geometry)),
+                    budget="Newton (CasADi rootfinder) to |r| <= 1e-9 m per posture, warm-started along the recording",
+                    limits="Table I (the affine elongation distribution keeps every leg inside)",
+                    information=NR_INFORMATION[NR_TARGETS[name]],
+                )
+            )
+            continue
+        store = HYBRID_STORES[name]
+        theirs = networks_arm(store).geometry
+        another = cbha_size(theirs, "") != cbha_size(geometry, "")
+        entries.append(
+            Given(
+                name,
+                "another arm" if another else own,
+                cbha_size(theirs, f"the shipped networks' arm, {cbha_name(theirs)}"),
+                training=f"the shipped networks NN1-NN4 of {store.parent.name} (setting adam)",
+                budget="one forward pass per posture",
+                information="the tip position relative to the base",
+                label=(
+                    f"trained on {cbha_name(theirs)}, not this problem's {cbha_name(geometry)}: what reusing "
+                    "them on this arm costs, not the hybrid approach's accuracy"
+                    if another
+                    else ""
+                ),
+            )
+        )
+    return Manifest(truth, shared, tuple(entries), tube_lengths)
+
+
 def report(ctx: ProblemContext, outcome: IkOutcome) -> Result:
     """The Result of a ``ph_ik`` run."""
     spec, main, layout, options = ctx.spec, outcome.main, outcome.layout, outcome.options
     errors = np.abs(outcome.tubes[outcome.solver] - outcome.reference) * MM
     rows, comparator_arrays, comparator_notes = comparator_rows(outcome)
+    given = manifest(ctx, outcome.reference)
+    metrics = ik_metrics(outcome) | given.metrics()
     notes = [
         f"{len(outcome.recording)} postures from {outcome.recording.source or spec.data.source}; tubes carried "
         f"by the {layout.frame} frame at {layout.radius_start * MM:.1f} mm (base) to "
@@ -138,8 +222,11 @@ def report(ctx: ProblemContext, outcome: IkOutcome) -> Result:
             "median IK per sample [us]": float(np.median(outcome.ik_seconds[outcome.solver]) * 1e6),
             "build [s]": main.build_seconds,
         },
-        metrics=ik_metrics(outcome),
-        comparison=ph_rows(outcome) + rows,
+        metrics=metrics,
+        comparison=given.annotate(ph_rows(outcome) + rows),
         arrays={**ik_arrays(outcome), **comparator_arrays},
-        notes=skipped_rows_notes(outcome.recording.skipped_rows, ctx.data_params) + notes + comparator_notes,
+        notes=skipped_rows_notes(outcome.recording.skipped_rows, ctx.data_params)
+        + notes
+        + comparator_notes
+        + given.notes(),
     )

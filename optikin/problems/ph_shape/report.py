@@ -7,10 +7,12 @@ from typing import Any
 import numpy as np
 
 from optikin.data.configurations import skipped_rows_notes
-from optikin.data.cosserat_markers import CosseratRecording, CosseratTruth
+from optikin.data.cosserat_markers import CosseratMarkerParams, CosseratRecording, CosseratTruth
 from optikin.problems import ProblemContext
 from optikin.problems.ph_shape import cc
+from optikin.problems.fairness import Given, Manifest, recorded_arm
 from optikin.problems.ph_shape.c1 import SECTIONS
+from optikin.problems.ph_shape.options import PHShapeOptions
 from optikin.problems.ph_shape.run import ShapeOutcome
 from optikin.problems.ph_shape.wrench import NAME, distances_to_polylines
 from optikin.problems.ph_shared import MM, distances_to_curves, method_rows, tube_marker_distances
@@ -253,6 +255,70 @@ def shape_arrays(outcome: ShapeOutcome) -> dict[str, np.ndarray]:
     return arrays
 
 
+WRENCH_STIFFNESS = {
+    "EA": "axial_stiffness",
+    "EI": "bending_stiffness",
+    "GA": "shear_stiffness",
+    "GJ": "torsion_stiffness",
+    "mass_per_length": "mass_per_length",
+    "gravity": "gravity",
+}
+"""The ``cosserat-wrench`` rod's fields and the ``cosserat`` source's parameters they default to."""
+
+
+def wrench_given(ctx: ProblemContext, options: PHShapeOptions) -> Given:
+    """What ``cosserat-wrench`` is given: the truth's own rod when its options are the recording's parameters."""
+    rod, params = options.cosserat_wrench, ctx.data_params
+    budget = "Levenberg-Marquardt on the 6 clamp-wrench unknowns, from the arc's clamp couple, then the previous fit"
+    information = "the base and tip rigid bodies, the PH methods' backbone length"
+    if isinstance(params, CosseratMarkerParams):
+        same = all(
+            np.allclose(getattr(rod, mine), getattr(params, theirs)) for mine, theirs in WRENCH_STIFFNESS.items()
+        )
+        if same:
+            return Given(
+                NAME,
+                "generator's own",
+                budget=budget,
+                information=information + "; the truth's stiffness, mass per length and gravity",
+                label="the rod is the Cosserat truth's own (the defaults of options.cosserat_wrench): an upper "
+                "bound for a rod a lab would calibrate",
+            )
+        return Given(NAME, "measured", budget=budget, information=information + "; options.cosserat_wrench's rod")
+    return Given(
+        NAME,
+        "another arm",
+        budget=budget,
+        information=information + "; options.cosserat_wrench's rod",
+        label="a uniform Cosserat rod of assumed stiffness on a recording of another model: a guessed rod",
+    )
+
+
+def manifest(ctx: ProblemContext) -> Manifest:
+    """What every row of a ``ph_shape`` comparison is given (:mod:`optikin.problems.fairness`).
+
+    The PH and constant-curvature rows get the end poses and no model of the arm (the tube
+    offsets enter only the tube-marker distances); ``cc-two-arcs`` and the C1 rows also the
+    marker at the end of section 1; ``cosserat-wrench`` a rod (:func:`wrench_given`).
+    """
+    options: PHShapeOptions = ctx.options
+    truth, shared = recorded_arm(ctx.spec.data.source, ctx.data_params, ctx.arm)
+    solver = ctx.solver.name if ctx.solver is not None else ""
+    ends = "the base and tip rigid bodies"
+    joint = "; the marker at the end of section 1 (an extra joint pose)"
+    entries = []
+    for name in [solver] + [b for b in ctx.spec.baselines if b != solver]:
+        if name == NAME:
+            entries.append(wrench_given(ctx, options))
+        elif name == cc.TWO_ARCS:
+            entries.append(Given(name, "none", information=ends + joint))
+        else:
+            entries.append(Given(name, "none", budget=f"preset {name}" if name != cc.NAME else "", information=ends))
+            if options.c1_joint and name != cc.NAME:
+                entries.append(Given(f"{name} (C1", "none", budget=f"preset {name}", information=ends + joint))
+    return Manifest(truth, shared, tuple(entries))
+
+
 def report(ctx: ProblemContext, outcome: ShapeOutcome) -> Result:
     """The Result of a ``ph_shape`` run."""
     spec, main, options = ctx.spec, outcome.main, outcome.options
@@ -289,6 +355,8 @@ def report(ctx: ProblemContext, outcome: ShapeOutcome) -> Result:
         chain_metrics, chain_rows, chain_arrays = c1_report(outcome)
         metrics.update(chain_metrics)
         comparison.extend(chain_rows)
+    given = manifest(ctx)
+    metrics |= given.metrics()
     return ctx.result(
         solver=outcome.solver,
         status=main.status,
@@ -300,12 +368,13 @@ def report(ctx: ProblemContext, outcome: ShapeOutcome) -> Result:
             "build [s]": main.build_seconds,
         },
         metrics=metrics,
-        comparison=comparison,
+        comparison=given.annotate(comparison),
         arrays={**shape_arrays(outcome), **truth_arrays, **wrench_arrays, **cc_arrays, **chain_arrays},
         notes=skipped_rows_notes(outcome.recording.skipped_rows, ctx.data_params)
         + [
             f"{len(outcome.recording)} postures from {outcome.recording.source or spec.data.source}; residual = "
             f"largest marker distance of the sample [m]; backbone length: {options.length}; end speeds "
             f"{options.speeds_note()}"
-        ],
+        ]
+        + given.notes(),
     )
