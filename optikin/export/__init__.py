@@ -33,7 +33,7 @@ What is exported (``--what``):
 Every piece of text of a generated file that optikin does not write as a constant goes through
 :mod:`optikin.export._escape` (comments, string literals, identifiers, ``Makefile`` and CMake
 values); the problem is named by its file stem only. The output folder is checked before anything
-is generated (:func:`check_output_folder`) and the five files are written all or none.
+is generated (:func:`check_output_folder`) and a failed write leaves none of the files behind.
 
 The folder written holds ``<stem>.c`` (the generated code and the template), ``<stem>.h``
 (the documented API: sizes, work structure, status codes), ``main.c`` (an example that runs
@@ -201,10 +201,11 @@ def _generated(functions: list[ca.Function], stem: str) -> tuple[str, dict[str, 
 
 
 def _write(folder: Path, stem: str, code: str, header: str, source: str, main: str) -> None:
-    """Write the five files of export ``stem`` into ``folder`` (created), all or none.
+    """Write the five files of export ``stem`` into ``folder`` (created).
 
-    Each file is written under a temporary name first, then renamed into place; on an error the
-    temporaries and the folders this call created are removed.
+    Each file is written under a temporary name first and all are then renamed into place, so an
+    error while writing (a full disk) leaves none of them, whole or half-written: the temporaries
+    and the folders this call created are removed.
 
     Raises
     ------

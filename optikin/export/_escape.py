@@ -16,10 +16,11 @@ write as a constant goes through one of these:
     keyword), else a :class:`~optikin.errors.SpecError` naming the field.
 :func:`make_word`
     a file or target name in a ``Makefile``: make cannot quote a target, so the word is one of the
-    allow-list ``[A-Za-z0-9_.+-]`` that make and the shell both read literally, else a ``SpecError``.
+    allow-list ``[A-Za-z0-9_][A-Za-z0-9_.+-]*`` that make and the shell both read literally (no
+    option, no hidden file), else a ``SpecError``.
 :func:`cmake_value`
-    a CMake quoted argument: ``\\``, ``"``, ``$`` and ``;`` escaped (no variable reference,
-    generator expression or list split can come of it), control characters and non-ASCII refused.
+    a CMake quoted argument: ``\\``, ``"`` and ``$`` escaped (one argument, whatever ``;`` it holds,
+    with no variable reference or generator expression), control characters and non-ASCII refused.
 """
 
 from __future__ import annotations
@@ -43,10 +44,10 @@ C_KEYWORDS = frozenset(
 """The keywords of C99, which are not identifiers."""
 
 _IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
-_MAKE_WORD = re.compile(r"[A-Za-z0-9_.+-]+")
+_MAKE_WORD = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.+-]*")
 _COMMENT_UNSAFE = re.compile(r"[^ -~]|[*/\\?]")
 _STRING_PLAIN = frozenset(chr(c) for c in range(0x20, 0x7F)) - set('"\\?')
-_CMAKE_ESCAPES = {"\\": "\\\\", '"': '\\"', "$": "\\$", ";": "\\;"}
+_CMAKE_ESCAPES = {"\\": "\\\\", '"': '\\"', "$": "\\$"}
 
 
 def c_comment(text: str) -> str:
@@ -104,7 +105,7 @@ def c_identifier(text: str, field: str, where: str = WHERE) -> str:
 
 
 def make_word(text: str, field: str, where: str = WHERE) -> str:
-    """``text`` if a ``Makefile`` may hold it as a file or target name (letters, digits, ``_.+-``).
+    """``text`` if a ``Makefile`` may hold it as a file or target name (module docstring).
 
     Raises
     ------
@@ -112,7 +113,7 @@ def make_word(text: str, field: str, where: str = WHERE) -> str:
         ``text`` holds anything else (``$``, a backtick, a quote, a space, ``#``, ``:``, a newline...).
     """
     if not isinstance(text, str) or not _MAKE_WORD.fullmatch(text):
-        raise SpecError(where, field, f"{text!r} cannot be a Makefile name (letters, digits, _ . + - only)")
+        raise SpecError(where, field, f"{text!r} cannot be a Makefile name (letters, digits, _ . + -, not first . + -)")
     return text
 
 
