@@ -23,6 +23,7 @@ import os
 import re
 import shutil
 import tempfile
+import textwrap
 from pathlib import Path
 from typing import Any, get_args
 
@@ -271,6 +272,102 @@ def problem_file_page() -> str:
     )
 
 
+def _subcommands(parser: Any) -> dict[str, Any]:
+    """``{name: parser}`` of every subcommand of ``parser``, deferred arguments added (by printing its help)."""
+    import argparse
+
+    found: dict[str, Any] = {}
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, sub in action.choices.items():
+                sub.format_help()
+                found[name] = sub
+    return found
+
+
+def _argument_rows(parser: Any) -> list[tuple[str, str, str]]:
+    """``(argument, default, meaning)`` of every argument of ``parser`` but ``--help``."""
+    import argparse
+
+    rows = []
+    for action in parser._actions:
+        if isinstance(action, (argparse._HelpAction, argparse._SubParsersAction)):
+            continue
+        if action.option_strings:
+            metavar = "" if action.nargs == 0 else f" {action.metavar or action.dest.upper()}"
+            name = ", ".join(action.option_strings) + metavar
+        else:
+            name = action.metavar or action.dest
+        default = action.default
+        shown = "" if default in (None, False, argparse.SUPPRESS) or action.nargs == 0 else repr(default)
+        meaning = action.help or ""
+        if action.choices and not isinstance(action.choices, dict):
+            meaning += f" (one of: {', '.join(map(str, action.choices))})"
+        if action.required and action.option_strings:
+            meaning += " (required)"
+        rows.append((name, shown, meaning))
+    return rows
+
+
+def _argument_table(parser: Any) -> list[str]:
+    rows = _argument_rows(parser)
+    if not rows:
+        return ["Takes no arguments.", ""]
+    lines = ["| argument | default | meaning |", "| --- | --- | --- |"]
+    lines += [f"| {_cell(a, True)} | {_cell(d, True)} | {_cell(m)} |" for a, d, m in rows]
+    return [*lines, ""]
+
+
+def command_page() -> str:
+    """Every subcommand of ``optikin`` with its usage and arguments, read from :func:`optikin.cli.build_parser`."""
+    from optikin.cli import build_parser
+
+    parser = build_parser()
+    lines = [
+        "# Commands",
+        "",
+        "Every subcommand and option of `optikin`, generated from its argument parser "
+        "(`optikin COMMAND --help` prints the same). Options before the subcommand:",
+        "",
+        *_argument_table(parser),
+        f"{_cell(parser.epilog or '')}.",
+        "",
+    ]
+    for name, sub in _subcommands(parser).items():
+        summary = next((a.help for a in parser._subparsers._group_actions[0]._choices_actions if a.dest == name), "")
+        usage = " ".join(sub.format_usage().split())
+        lines += [f"## `optikin {name}`", "", f"{_cell(summary or '')}.", "", "```text", usage, "```", ""]
+        lines += _argument_table(sub)
+    return "\n".join(lines)
+
+
+def sweep_file_page() -> str:
+    """The schema of a sweep file (``sweeps/*.yaml``), its annotated example, and the shipped sweeps."""
+    from optikin.spec import shipped_dir
+    from optikin.sweep import spec as sweep_spec
+
+    example = (sweep_spec.__doc__ or "").split("A sweep file::", 1)[-1].split("\n\n")[1]
+    shipped = [f"- `{path.stem}`" for path in sorted(shipped_dir("sweeps").glob("*.yaml"))]  # type: ignore[arg-type]
+    return "\n".join(
+        [
+            "# Sweep files",
+            "",
+            "`optikin sweep NAME` solves a problem over axes of overrides and collects one table; "
+            "the file is validated like a problem file (unknown fields are errors).",
+            "",
+            "```yaml",
+            textwrap.dedent(example).rstrip(),
+            "```",
+            "",
+            model_tables(sweep_spec.SweepSpec),
+            "## Shipped sweeps",
+            "",
+            *(shipped or ["None."]),
+            "",
+        ]
+    )
+
+
 ROLE_RE = re.compile(r":(?:py:)?(?:mod|class|func|meth|data|attr|exc|obj|const):<code>(~?)([\w.]+)</code>")
 """A Sphinx role of a docstring as mkdocstrings renders it (``:class:<code>X</code>``)."""
 
@@ -292,6 +389,9 @@ def on_config(config: MkDocsConfig) -> MkDocsConfig:
     PAGES.update({f"reference/kinds/{k}.md": page for k, page in kinds.items()})
     PAGES.update({f"reference/backends/{f}.md": page for f, page in families.items()})
     PAGES["benchmarks.md"] = (ROOT / "BENCHMARKS.md").read_text(encoding="utf-8")
+    PAGES["reference/commands.md"] = command_page()
+    PAGES["reference/sweep-file.md"] = sweep_file_page()
+    PAGES["reference/recordings.md"] = (ROOT / "examples" / "README.md").read_text(encoding="utf-8")
 
     generated = {
         "GENERATED_KINDS": [{"Problem kinds": "reference/kinds/index.md"}]
