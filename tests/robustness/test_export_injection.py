@@ -188,6 +188,27 @@ def test_an_output_folder_with_a_hostile_name_builds_with_make(tmp_path, monkeyp
     assert pwned(tmp_path) == []
 
 
+@needs_gcc
+@pytest.mark.parametrize("problem, what", [("cbha-ph-shape", "ph-shape"), ("track-nominal", "qp-step")])
+def test_ph_shape_and_qp_step_from_a_hostile_folder_are_plain_c(tmp_path, monkeypatch, problem, what):
+    """Every file is ASCII, the header's comments hold no code and gcc accepts the example with its header."""
+    monkeypatch.chdir(tmp_path)
+    folder = tmp_path / HOSTILE_FOLDER
+    folder.mkdir(parents=True)
+    shutil.copy(REPO / "problems" / f"{problem}.yaml", folder)
+    out = tmp_path / "out"
+    assert main(["export", str(folder / f"{problem}.yaml"), "--what", what, "--out", str(out)]) == 0
+    stem = f"optikin_{what.replace('-', '_')}"
+    assert all(path.read_bytes().isascii() for path in out.iterdir())
+    header = (out / f"{stem}.h").read_text()
+    assert header.startswith(f"/* {stem}.h: ") and problem in header.splitlines()[0]
+    assert "__attribute__" not in comments(header)[1] and "#include <stdlib.h>" not in comments(header)[1]
+    command = ["gcc", "-std=c99", "-fsyntax-only", "-Wall", "-Werror", "main.c"]
+    run = subprocess.run(command, cwd=out, capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr
+    assert pwned(tmp_path) == []
+
+
 def test_casadi_names_that_are_not_identifiers_are_refused():
     """CasADi writes Function, input and output names into comments and strings unescaped."""
     x = ca.SX.sym("x", 2)
