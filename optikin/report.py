@@ -5,7 +5,7 @@ from __future__ import annotations
 import io
 import re
 import shutil
-from typing import Sequence
+from typing import TYPE_CHECKING, Sequence
 
 from rich import box
 from rich.console import Console
@@ -14,9 +14,10 @@ from rich.table import Table
 from rich.text import Text
 
 from optikin.errors import UnknownNameError
-from optikin.problems import load_kind
-from optikin.results import Result
 from optikin.tables import comparison_rows, compact_columns, flatten, format_value
+
+if TYPE_CHECKING:
+    from optikin.results import Result
 
 
 METRIC_LINES = 12
@@ -203,6 +204,8 @@ def _initials(text: str) -> str:
 
 def headline_of(kind: str) -> tuple[str, ...]:
     """The :attr:`~optikin.problems.ProblemKind.headline` columns of a registered kind (none if unknown)."""
+    from optikin.problems import load_kind
+
     try:
         return load_kind(kind).headline
     except UnknownNameError:
