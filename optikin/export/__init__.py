@@ -140,7 +140,7 @@ def check_output_folder(out: Path | str, stem: str | None = None) -> Path:
     while not os.path.lexists(existing) and existing != existing.parent:
         existing = existing.parent
     if existing.is_symlink() and not existing.exists():
-        raise OutputError(f"{existing}: a symlink to nothing, not an output folder")
+        raise OutputError(f"{existing}: a symlink to nothing (dangling or a loop), not an output folder")
     if not existing.is_dir():
         raise OutputError(f"{existing}: not a folder, cannot hold the export")
     if not os.access(existing, os.W_OK | os.X_OK):
@@ -352,8 +352,7 @@ def export_ik(what: str, problem_name: str, problem, adapter, start: np.ndarray,
         **sizes,
         variables=c_comment(", ".join(full.variable_names)),
         fixed_note=c_comment(
-            ", ".join(f"{name} = {value!r}" for name, value, f in zip(full.variable_names, full.lower, fixed) if f)
-            or "none"
+            ", ".join(f"{v} = {float(x)!r}" for v, x, f in zip(full.variable_names, full.lower, fixed) if f) or "none"
         ),
         target_kind=c_comment(problem.residual.name_in(1)),
         tolerance=tolerance,
