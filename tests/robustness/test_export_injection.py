@@ -113,11 +113,14 @@ def export_and_build(root: Path, problem: Path, what: str, out: Path, cmake: boo
     header = (out / f"optikin_{what.replace('-', '_')}.h").read_bytes()
     assert header.isascii()
     assert header.startswith(b"/* optikin_") and problem.stem.encode() in header.splitlines()[0]
-    subprocess.run(["make", "-s", "-C", str(out)], check=True, capture_output=True, timeout=120)
+    subprocess.run(["make", "-s", "-C", str(out), "CFLAGS=-O0"], check=True, capture_output=True, timeout=120)
     outputs = [subprocess.run([str(out / "example")], cwd=root, capture_output=True, text=True, timeout=60, check=True)]
     if cmake:
         build = root / "cmake-build"
-        for command in (["cmake", "-S", str(out), "-B", str(build)], ["cmake", "--build", str(build)]):
+        for command in (
+            ["cmake", "-S", str(out), "-B", str(build), "-DCMAKE_BUILD_TYPE=Debug"],
+            ["cmake", "--build", str(build)],
+        ):
             subprocess.run(command, check=True, capture_output=True, timeout=300)
         run = subprocess.run([str(build / "example")], cwd=root, capture_output=True, text=True, timeout=60, check=True)
         outputs.append(run)
