@@ -36,6 +36,7 @@ from typing import Sequence
 
 import numpy as np
 
+from optikin.calibration.identifiability import MAX_STD, Identifiability, analyse
 from optikin.calibration.model import Layout, MarkerModel, rotation_from_vector_np
 from optikin.calibration.solver import Fit, Loss, Problem, solve
 
@@ -44,6 +45,9 @@ SCREENING_ITERATIONS = 10
 postures far from the model, nearly weightless, converge slowly; the final fit without them does)."""
 SCREENING_TOLERANCE = 1e-6
 """Relative decrease of the cost that ends the screening fit."""
+FOLD_ITERATIONS = 20
+"""Steps of each training fold's fits at most: they start from the calibration's solution on every posture,
+next to their own minimum (a start that did not converge on every posture is not made to converge per fold)."""
 SCREENING_ROUNDS = 3
 """Fits without the rejected postures, each screened again, at most."""
 
@@ -87,6 +91,16 @@ class Calibration:
     actuators, actuator_reference : numpy.ndarray or None
         With an actuator map: every posture's readings minus the reference ``(N, n_a)``, and the
         reference (their mean) ``(n_a,)``.
+    full : Problem
+        The problem on every posture (the rows of ``measured``).
+    least_squares : Fit
+        Every posture fitted by least squares (loss ``linear``) with the final geometry held: the errors
+        reported in sample.
+    identifiability, identifiability_start : Identifiability
+        The identifiability reports at the solution and at the start
+        (:mod:`optikin.calibration.identifiability`).
+    outlier_threshold, max_iterations, tolerance : float, int, float
+        The settings of the fit, which the held-out test repeats in each training fold.
     """
 
     fit: Fit
@@ -100,6 +114,25 @@ class Calibration:
     start: np.ndarray = field(default_factory=lambda: np.zeros(0))
     actuators: np.ndarray | None = None
     actuator_reference: np.ndarray | None = None
+    full: Problem | None = None
+    least_squares: Fit | None = None
+    identifiability: Identifiability | None = None
+    identifiability_start: Identifiability | None = None
+    outlier_threshold: float = 6.0
+    max_iterations: int = 100
+    tolerance: float = 1e-10
+
+    @property
+    def verdict(self) -> str:
+        """``ok``, or ``not_identifiable`` when the identifiability report at the solution finds a reason."""
+        return "ok" if self.identifiability is None else self.identifiability.verdict
+
+    @property
+    def X_all(self) -> np.ndarray:
+        """``(N, n_x)`` every posture's configuration: the final fit's, the screening fit's for rejected ones."""
+        X = self.robust.X.copy()
+        X[self.kept] = self.fit.X
+        return X
 
     @property
     def layout(self) -> Layout:
@@ -174,9 +207,9 @@ def marker_model(layout: Layout) -> MarkerModel:
 
 
 def initial_base(
-    measured: np.ndarray, marker_sections: Sequence[int], first_length: float
+    measured: np.ndarray, marker_sections: Sequence[int], first_length: float, axis: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
-    """A starting base pose from the data alone (module docstring, step 1).
+    """A starting base pose from the data alone (module docstring, step 1), or on a given base axis.
 
     Parameters
     ----------
@@ -186,6 +219,8 @@ def initial_base(
         Section end (1-based) of each marker.
     first_length : float
         Nominal length of the first section [m].
+    axis : numpy.ndarray, optional
+        ``(3,)`` the base axis (the direction the backbone leaves the base) instead of the mean chord.
 
     Returns
     -------
@@ -194,12 +229,14 @@ def initial_base(
     """
     order = np.argsort(marker_sections, kind="stable")
     P = measured[:, order]
-    chords = np.diff(P, axis=1).reshape(-1, 3)
-    chords = chords[np.all(np.isfinite(chords), axis=1)]
-    if len(chords) == 0:
-        raise ValueError("no posture shows two consecutive disks: cannot find the base axis")
-    axis = np.sum(chords / np.linalg.norm(chords, axis=1, keepdims=True), axis=0)
-    axis /= np.linalg.norm(axis)
+    if axis is None:
+        chords = np.diff(P, axis=1).reshape(-1, 3)
+        chords = chords[np.all(np.isfinite(chords), axis=1)]
+        chords = chords[np.linalg.norm(chords, axis=1) > 0]
+        if len(chords) == 0:
+            raise ValueError("no posture shows two consecutive disks: cannot find the base axis")
+        axis = np.sum(chords / np.linalg.norm(chords, axis=1, keepdims=True), axis=0)
+    axis = np.asarray(axis, dtype=float) / np.linalg.norm(axis)
     first = P[:, 0]
     first = first[np.all(np.isfinite(first), axis=1)]
     centre = np.mean(first, axis=0)
@@ -274,8 +311,11 @@ def calibrate(
     position_sigma: float | None = None,
     orientation_sigma: float | None = None,
     fix: Sequence[str] = (),
+    plane: tuple[int, float] | None = None,
+    direction: Sequence[float] | None = None,
     estimate_yaw: bool = False,
     fix_lengths: bool = False,
+    length_bounds: tuple[float, float] | None = None,
     offsets: bool = False,
     offset_sigma: float | None = None,
     initial_offsets: np.ndarray | None = None,
@@ -287,6 +327,7 @@ def calibrate(
     outlier_threshold: float = 6.0,
     max_iterations: int = 100,
     tolerance: float = 1e-10,
+    max_std: float = MAX_STD,
 ) -> Calibration:
     """Estimate section lengths, base pose and (optionally) marker offsets from ``N`` measured postures.
 
@@ -308,11 +349,18 @@ def calibrate(
         Standard deviations [m, rad] of Gaussian priors at the starting base pose (default: none).
     fix : sequence of str
         Base components held at their start: among ``x``, ``y``, ``z``, ``tilt``, ``yaw``.
+    plane : tuple of (int, float), optional
+        The mount plane ``p0[axis] = value`` [m] of the measurement frame: the base position starts on it
+        (its other coordinates from the data or ``base_position``) and stays there.
+    direction : sequence of float, optional
+        ``(3,)`` the direction the backbone leaves the base: the base axis, held (``R_ref`` has its z on it).
     estimate_yaw : bool
         Estimate the rotation about the base axis too (only meaningful with a prior or
         orientation measurements; module docstring).
     fix_lengths : bool
         Hold the section lengths at ``lengths``.
+    length_bounds : tuple of float, optional
+        ``(low, high)`` fractions of the nominal lengths that bound the estimated ones (default: none).
     offsets : bool
         Estimate one offset per marker in its disk's frame.
     offset_sigma : float, optional
@@ -326,18 +374,23 @@ def calibrate(
         (:mod:`optikin.calibration.model`), estimated with the geometry, started from a linear fit
         to the postures' own bending vectors.
     loss, loss_scale : str, float
-        Robust loss and its scale [m] (:mod:`optikin.calibration.solver`).
+        Robust loss and its scale [m] (:mod:`optikin.calibration.solver`), used where the geometry is
+        estimated; every reported error is a least-squares one (:attr:`Calibration.least_squares`).
     marker_noise : float
-        Expected marker noise per coordinate [m], which weighs the priors against the data.
+        Expected marker noise per coordinate [m], which weighs the priors against the data and is the
+        floor of the noise level of the identifiability report.
     outlier_threshold : float
         A posture with a marker error above this many median marker errors is rejected.
     max_iterations, tolerance : int, float
         Of each Levenberg-Marquardt solve.
+    max_std : float
+        The standard deviation [m] above which the geometry is weakly determined
+        (:mod:`optikin.calibration.identifiability`).
 
     Returns
     -------
     Calibration
-        The estimates, their covariance, the rejected postures.
+        The estimates, their covariance, the rejected postures, the identifiability reports.
     """
     started = time.perf_counter()
     measured = np.asarray(measured, dtype=float)
@@ -359,10 +412,20 @@ def calibrate(
         raise ValueError(f"fix: unknown base components {sorted(unknown)}; known: {', '.join(BASE_FIELDS)}")
     if len(marker_sections) != M:
         raise ValueError(f"{M} markers measured, {len(marker_sections)} marker sections given")
-
-    guess_p, guess_R = initial_base(measured, marker_sections, float(lengths0[0]))
+    fix = list(fix)
+    axis = None
+    if direction is not None:
+        axis = np.asarray(direction, dtype=float)
+        if axis.shape != (3,) or not np.linalg.norm(axis) > 0:
+            raise ValueError(f"direction: expected a non-zero 3-vector, got {direction}")
+        fix.append("tilt")
+    guess_p, guess_R = initial_base(measured, marker_sections, float(lengths0[0]), axis)
     p0 = guess_p if base_position is None else np.asarray(base_position, dtype=float)
-    ref = guess_R if base_rotation is None else np.asarray(base_rotation, dtype=float)
+    ref = guess_R if base_rotation is None or axis is not None else np.asarray(base_rotation, dtype=float)
+    if plane is not None:
+        p0 = p0.copy()
+        p0[plane[0]] = plane[1]
+        fix.append("xyz"[plane[0]])
 
     beta0 = np.zeros(layout.n_beta)
     beta0[layout.lengths] = lengths0[layout.lengths]
@@ -377,6 +440,11 @@ def calibrate(
     free[layout.rotation] = rotation_free
     free[layout.offsets] = offsets
     free[layout.actuator_map] = True
+    lower = upper = None
+    if length_bounds is not None and not layout.extensible:
+        lower, upper = np.full(layout.n_beta, -np.inf), np.full(layout.n_beta, np.inf)
+        lower[layout.lengths] = length_bounds[0] * lengths0
+        upper[layout.lengths] = length_bounds[1] * lengths0
     prior_mean = beta0.copy()
     prior_sigma = np.full(layout.n_beta, np.inf)
     if position_sigma is not None:
@@ -407,18 +475,81 @@ def calibrate(
         beta0[layout.actuator_map] = np.concatenate([W[:-1].T.ravel(), W[-1]])
         prior_mean = beta0.copy()
     X0 = per_posture(layout, X0)
-    problem = Problem(model, measured, ref, free, prior_mean, prior_sigma, loss, loss_scale, marker_noise, readings)
-    robust = solve(problem, X0, beta0, min(max_iterations, SCREENING_ITERATIONS), SCREENING_TOLERANCE, 1e-8)
-
+    problem = Problem(
+        model, measured, ref, free, prior_mean, prior_sigma, loss, loss_scale, marker_noise, readings, lower, upper
+    )
     names_of_markers = list(marker_names) if marker_names is not None else [f"marker{j + 1}" for j in range(M)]
-    outliers = find_outliers(problem, robust, outlier_threshold, names_of_markers)
+    start_report = analyse(problem, X0, beta0, names, marker_noise, max_std)
+    screened = screened_fit(problem, X0, beta0, outlier_threshold, names_of_markers, max_iterations, tolerance)
+    X_all = screened.robust.X.copy()
+    X_all[screened.kept] = screened.fit.X
+    least_squares = fit_postures(problem, screened.fit.beta, X_all, loss="linear")
+    sigma = screened.fit.sigma if np.isfinite(screened.fit.sigma) else 0.0
+    report = analyse(
+        screened.problem, screened.fit.X, screened.fit.beta, names, max(sigma, marker_noise), max_std
+    )
+    return Calibration(
+        screened.fit,
+        screened.robust,
+        screened.problem,
+        screened.kept,
+        screened.outliers,
+        names,
+        names_of_markers,
+        time.perf_counter() - started,
+        beta0,
+        readings,
+        reference,
+        full=problem,
+        least_squares=least_squares,
+        identifiability=report,
+        identifiability_start=start_report,
+        outlier_threshold=outlier_threshold,
+        max_iterations=max_iterations,
+        tolerance=tolerance,
+    )
+
+
+@dataclass(eq=False)
+class Screened:
+    """The outcome of :func:`screened_fit`: the screening fit, the final fit, the postures kept and rejected."""
+
+    robust: Fit
+    fit: Fit
+    kept: np.ndarray
+    outliers: list[Outlier]
+    problem: Problem
+    limit: float
+
+
+def screened_fit(
+    problem: Problem,
+    X0: np.ndarray,
+    beta0: np.ndarray,
+    threshold: float,
+    marker_names: Sequence[str],
+    max_iterations: int = 100,
+    tolerance: float = 1e-10,
+) -> Screened:
+    """Steps 3-5 of the module docstring on ``problem``: the screening fit, the outliers by the rule
+    (:func:`find_outliers`), the fit without them, screened again up to :data:`SCREENING_ROUNDS` times.
+
+    Returns
+    -------
+    Screened
+        Indices are the postures of ``problem``; ``limit`` [m] is the rule's last marker-error limit
+        (``threshold`` times the final fit's median marker error, at least :data:`MIN_OUTLIER_ERROR`).
+    """
+    N = len(problem.measured)
+    robust = solve(problem, X0, beta0, min(max_iterations, SCREENING_ITERATIONS), SCREENING_TOLERANCE, 1e-8)
+    outliers = find_outliers(problem, robust, threshold, marker_names)
     X_all, beta = robust.X.copy(), robust.beta
     for _ in range(SCREENING_ROUNDS):
         kept = np.setdiff1d(np.arange(N), [o.posture for o in outliers])
         final_problem = problem.subset(kept)
         fit = solve(final_problem, X_all[kept], beta, max_iterations, tolerance)
         X_all[kept], beta = fit.X, fit.beta
-        more = find_outliers(final_problem, fit, outlier_threshold, names_of_markers)
+        more = find_outliers(final_problem, fit, threshold, marker_names)
         if not more:
             break
         outliers += [Outlier(int(kept[o.posture]), o.reason) for o in more]
@@ -427,19 +558,8 @@ def calibrate(
         final_problem = problem.subset(kept)
         fit = solve(final_problem, X_all[kept], beta, max_iterations, tolerance)
     outliers.sort(key=lambda o: o.posture)
-    return Calibration(
-        fit,
-        robust,
-        final_problem,
-        kept,
-        outliers,
-        names,
-        names_of_markers,
-        time.perf_counter() - started,
-        beta0,
-        readings,
-        reference,
-    )
+    limit = max(threshold * float(np.nanmedian(fit.errors)), MIN_OUTLIER_ERROR)
+    return Screened(robust, fit, kept, outliers, final_problem, limit)
 
 
 def find_outliers(problem: Problem, fit: Fit, threshold: float, marker_names: Sequence[str]) -> list[Outlier]:
@@ -505,64 +625,91 @@ def explaining_swaps(
     return found
 
 
-def fit_postures(problem: Problem, beta: np.ndarray, X0: np.ndarray | None = None) -> Fit:
+def fit_postures(problem: Problem, beta: np.ndarray, X0: np.ndarray | None = None, loss: Loss | None = None) -> Fit:
     """Every posture's configuration with the shared parameters ``beta`` held (the inverse kinematics of the markers).
 
-    The start is :func:`chord_configurations` unless ``X0`` is given.
+    The start is :func:`chord_configurations` unless ``X0`` is given; ``loss`` replaces the problem's (``linear``:
+    the least-squares fit every reported error comes from).
     """
     lay = problem.model.layout
-    held = Problem(
-        problem.model,
-        problem.measured,
-        problem.ref,
-        np.zeros_like(problem.free),
-        problem.prior_mean,
-        problem.prior_sigma,
-        problem.loss,
-        problem.loss_scale,
-        problem.noise,
-        problem.actuators,
-    )
+    held = problem.held(loss)
     if X0 is None:
-        lengths = beta[lay.lengths] if not lay.extensible else np.full(lay.n_sections, np.nan)
         if lay.extensible:
             raise ValueError("fit_postures on an extensible arm needs starting configurations")
         R0 = problem.ref @ rotation_from_vector_np(beta[lay.rotation])
-        X0 = per_posture(lay, chord_configurations(problem.measured, lay, lengths, beta[lay.position], R0))
+        X0 = per_posture(lay, chord_configurations(problem.measured, lay, beta[lay.lengths], beta[lay.position], R0))
     return solve(held, X0, beta)
 
 
 @dataclass(eq=False)
 class HeldOut:
-    """Errors on postures left out of the fit that estimated the shared parameters.
+    """Errors on postures left out of the fit that estimated the shared parameters, over every posture.
 
     Attributes
     ----------
     errors : numpy.ndarray
-        ``(N, M)`` marker errors [m] of each kept posture, fitted with the shared parameters of
-        the fold that left it out (NaN where not seen).
+        ``(N, M)`` least-squares marker errors [m] of every posture, fitted with the shared parameters of the
+        fold that left it out (NaN where not seen, and for postures never tested by ``split``).
     fold : numpy.ndarray
-        ``(N,)`` the fold of each posture.
+        ``(N,)`` the test fold of each posture (``-1``: never tested).
     betas : numpy.ndarray
         ``(folds, n_beta)`` the shared parameters of each fold.
     method : str
         ``kfold`` or ``split``.
+    screened : numpy.ndarray
+        ``(N,)`` bool: tested postures beyond their training fold's outlier limit.
+    limits : numpy.ndarray
+        ``(folds,)`` each training fold's limit [m]: ``threshold`` times its median marker error.
+    training_outliers : list of list of int
+        Per fold, the postures its screening rejected from training.
+    threshold : float
+        The rule's multiple of the median marker error.
+    loss : str
+        The loss of the training fits (the test fits are least squares).
     """
 
     errors: np.ndarray
     fold: np.ndarray
     betas: np.ndarray
     method: str
+    screened: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    limits: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    training_outliers: list[list[int]] = field(default_factory=list)
+    threshold: float = 6.0
+    loss: str = "linear"
+
+    @property
+    def tested(self) -> np.ndarray:
+        return self.fold >= 0
+
+    @property
+    def posture_errors(self) -> np.ndarray:
+        """``(N,)`` each posture's largest held-out marker error [m] (NaN where not tested or nothing seen)."""
+        finite = np.isfinite(self.errors)
+        largest = np.max(np.where(finite, self.errors, -np.inf), axis=1)
+        return np.where(finite.any(axis=1), largest, np.nan)
+
+    def headline(self, screened: bool | None = None) -> dict[str, float]:
+        """Median, p95 and max [m] of :attr:`posture_errors` over every tested posture (``screened``: only the
+        screened ones, or only the others)."""
+        e = self.posture_errors
+        keep = self.tested & np.isfinite(e)
+        if screened is not None:
+            keep &= self.screened == screened
+        e = e[keep]
+        if len(e) == 0:
+            return {"median": float("nan"), "p95": float("nan"), "max": float("nan")}
+        return {"median": float(np.median(e)), "p95": float(np.percentile(e, 95)), "max": float(np.max(e))}
 
     @property
     def median(self) -> float:
-        """Median held-out marker error [m] (over the postures that were tested)."""
-        return float(np.nanmedian(self.errors))
+        """Median held-out marker error [m] (per marker, over the tested postures)."""
+        return float(np.nanmedian(self.errors[self.tested]))
 
     @property
     def rms(self) -> float:
         """Root-mean-square held-out marker error [m]."""
-        return float(np.sqrt(np.nanmean(self.errors**2)))
+        return float(np.sqrt(np.nanmean(self.errors[self.tested] ** 2)))
 
 
 def folds_of(n: int, method: str, folds: int, test_fraction: float, rng: np.random.Generator) -> np.ndarray:
@@ -585,20 +732,22 @@ def held_out(
     folds: int = 5,
     test_fraction: float = 0.2,
     rng: np.random.Generator | None = None,
-    max_iterations: int = 100,
-    tolerance: float = 1e-10,
+    fold: np.ndarray | None = None,
 ) -> HeldOut:
-    """The held-out error of a calibration, by ``k``-fold cross-validation or one train/test split of the kept postures.
+    """The held-out error of a calibration over all its postures, by ``k``-fold cross-validation or one split.
 
-    For each fold the shared parameters are fitted on the other postures (from the
-    calibration's solution: the same minimum, reached faster), then every posture of the
-    fold is fitted with them held (its configuration is its own; only the shared
-    parameters are learnt elsewhere), and its marker errors are the held-out errors.
+    For each fold the calibration is repeated on the other postures (:func:`screened_fit`: the robust loss,
+    the outlier rule applied to the training postures alone), from the calibration's solution (the same
+    minimum, reached faster; at most :data:`FOLD_ITERATIONS` steps); then every posture of the fold is fitted
+    by least squares with that geometry held
+    (its configuration is its own; only the shared parameters are learnt elsewhere), and its marker errors are
+    the held-out errors. A test posture whose largest error exceeds its training fold's outlier limit is
+    *screened*: flagged, reported apart, and still counted in every headline figure.
 
     Parameters
     ----------
     calibration : Calibration
-        The calibration on all kept postures.
+        The calibration on all postures.
     method : str
         ``kfold`` or ``split``.
     folds : int
@@ -607,23 +756,52 @@ def held_out(
         Share of postures tested by ``split``.
     rng : numpy.random.Generator, optional
         Shuffles the postures (default seeded 0).
-    max_iterations, tolerance : int, float
-        Of each fit.
+    fold : numpy.ndarray, optional
+        ``(N,)`` a given fold assignment (``-1``: never tested), instead of drawing one.
 
     Returns
     -------
     HeldOut
-        Per-posture held-out errors and the shared parameters of every fold.
+        Per-posture held-out errors, the fold assignment, the shared parameters of every fold, the screening.
     """
     rng = np.random.default_rng(0) if rng is None else rng
-    problem, fit = calibration.problem, calibration.fit
-    N = len(fit.X)
-    fold = folds_of(N, method, folds, test_fraction, rng)
-    errors = np.full(fit.errors.shape, np.nan)
-    betas = []
-    for f in range(folds if method == "kfold" else 1):
+    problem = calibration.full
+    assert problem is not None
+    N = len(problem.measured)
+    if fold is None:
+        fold = folds_of(N, method, folds, test_fraction, rng)
+    fold = np.asarray(fold, dtype=int)
+    if fold.shape != (N,):
+        raise ValueError(f"fold: expected one fold per posture ({N}), got shape {fold.shape}")
+    X_all = calibration.X_all
+    errors = np.full((N, problem.measured.shape[1]), np.nan)
+    screened = np.zeros(N, dtype=bool)
+    betas, limits, rejected = [], [], []
+    for f in np.unique(fold[fold >= 0]):
         test, train = np.flatnonzero(fold == f), np.flatnonzero(fold != f)
-        trained = solve(problem.subset(train), fit.X[train], fit.beta, max_iterations, tolerance)
-        betas.append(trained.beta)
-        errors[test] = fit_postures(problem.subset(test), trained.beta, fit.X[test]).errors
-    return HeldOut(errors, fold, np.array(betas), method)
+        trained = screened_fit(
+            problem.subset(train),
+            X_all[train],
+            calibration.fit.beta,
+            calibration.outlier_threshold,
+            calibration.marker_names,
+            min(calibration.max_iterations, FOLD_ITERATIONS),
+            calibration.tolerance,
+        )
+        betas.append(trained.fit.beta)
+        limits.append(trained.limit)
+        rejected.append([int(train[o.posture]) for o in trained.outliers])
+        errors[test] = fit_postures(problem.subset(test), trained.fit.beta, X_all[test], loss="linear").errors
+        largest = np.nanmax(np.where(np.isfinite(errors[test]), errors[test], 0.0), axis=1)
+        screened[test] = largest > trained.limit
+    return HeldOut(
+        errors,
+        fold,
+        np.array(betas),
+        method,
+        screened,
+        np.array(limits),
+        rejected,
+        calibration.outlier_threshold,
+        problem.loss,
+    )

@@ -7,7 +7,7 @@ estimated section lengths (an extensible arm: the median lengths, with the
 of other problem files. :func:`write_arm_file` writes it as YAML under the key
 ``arm``, next to a ``calibration`` mapping holding what an arm section cannot carry:
 the base pose in the recording frame, the marker offsets, the standard deviations
-and the held-out error.
+and the held-out error. :func:`write_folds_csv` writes the held-out test's fold of every posture.
 
 :func:`write_points_csv` writes the measured points of every marker in the recording frame,
 in the columns of the point targets of the ``ik`` kind (:mod:`optikin.ik.points`), to be
@@ -32,7 +32,7 @@ import yaml
 
 from optikin.algebra import matrix_from_quat, quat_from_matrix
 from optikin.arms.constant_curvature import ConstantCurvatureArm
-from optikin.calibration.calibrate import Calibration
+from optikin.calibration.calibrate import Calibration, HeldOut
 from optikin.data.markers import MarkerRecording
 from optikin.data.recording import Recording
 
@@ -70,9 +70,14 @@ def arm_section(calibration: Calibration, nominal: ConstantCurvatureArm) -> dict
     }
 
 
-def calibration_facts(calibration: Calibration, held_out_median: float | None = None) -> dict[str, Any]:
-    """The base pose [m, unit quaternion (w, x, y, z)], marker offsets [m], standard deviations of the geometry
-    and the held-out error."""
+def calibration_facts(calibration: Calibration, test: HeldOut | None = None) -> dict[str, Any]:
+    """The base pose [m, unit quaternion (w, x, y, z)], marker offsets [m], standard deviations of the geometry,
+    the identifiability verdict and the held-out error.
+
+    With a held-out test: ``held_out_largest_marker_error`` (median, p95, max [m] of each posture's largest
+    least-squares marker error, every tested posture) and ``noise_level`` [m], its p95: a posture of another
+    run fitted within it is within what the calibration itself leaves on postures it did not see.
+    """
     names = calibration.names
     std = calibration.fit.std
     facts: dict[str, Any] = {
@@ -85,11 +90,20 @@ def calibration_facts(calibration: Calibration, held_out_median: float | None = 
         "std": {n: float(f"{s:.3g}") for n, s in zip(names, std) if s > 0 and not n.startswith("map_")},
         "postures_used": int(len(calibration.kept)),
         "postures_rejected": len(calibration.outliers),
-        "median_marker_error": float(f"{np.nanmedian(calibration.fit.errors):.4g}"),
+        "median_marker_error": float(f"{np.nanmedian(least_squares_errors(calibration)):.4g}"),
     }
-    if held_out_median is not None:
-        facts["held_out_median_marker_error"] = float(f"{held_out_median:.4g}")
+    facts["verdict"] = calibration.verdict
+    if test is not None:
+        headline = test.headline()
+        facts["held_out_largest_marker_error"] = {k: float(f"{v:.4g}") for k, v in headline.items()}
+        facts["noise_level"] = float(f"{headline['p95']:.4g}")
     return facts
+
+
+def least_squares_errors(calibration: Calibration) -> np.ndarray:
+    """``(N, M)`` the least-squares marker errors of every posture with the final geometry [m]."""
+    fit = calibration.least_squares if calibration.least_squares is not None else calibration.fit
+    return fit.errors
 
 
 def write_arm_file(path: Path, section: dict[str, Any], facts: dict[str, Any], origin: str) -> None:
@@ -119,6 +133,14 @@ def write_points_csv(path: Path, names: list[str], points: np.ndarray) -> Path:
     table = np.asarray(points, dtype=float).reshape(n, -1)
     header = [f"{name}_{a}" for name in names for a in "xyz"]
     lines = [",".join(header)] + [",".join(repr(float(v)) for v in row) for row in table]
+    Path(path).write_text("\n".join(lines) + "\n")
+    return Path(path)
+
+
+def write_folds_csv(path: Path, fold: np.ndarray) -> Path:
+    """Write the fold of every posture as columns ``posture, fold`` (``-1``: never tested), so that another
+    model can be scored on the same split."""
+    lines = ["posture,fold"] + [f"{i},{int(f)}" for i, f in enumerate(fold)]
     Path(path).write_text("\n".join(lines) + "\n")
     return Path(path)
 

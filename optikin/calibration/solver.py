@@ -26,6 +26,10 @@ posture's step clipped to :data:`MAX_POSTURE_STEP`. The
 cost of an iteration is linear in the number of postures: one mapped CasADi call for
 the residuals and exact Jacobians, batched ``n_x x n_x`` solves, one ``n_beta`` solve.
 
+Bounds on the shared parameters (:attr:`Problem.lower`, :attr:`Problem.upper`; the section lengths of a
+calibration) are kept by projecting every trial step onto them; a parameter that ends on its bound is
+named by :mod:`optikin.calibration.identifiability`.
+
 At the solution, the covariance of the free shared parameters is
 ``sigma^2 S^-1`` (``S`` undamped, with the robust weights), with
 ``sigma^2 = sum w |r|^2 / (n_residuals - n_unknowns)``: the marginal of
@@ -92,6 +96,8 @@ class Problem:
         with it (their residuals are ``noise (beta - mu) / sigma``).
     actuators : numpy.ndarray, optional
         ``(N, n_a)`` actuator readings minus their reference, for a layout with an actuator map.
+    lower, upper : numpy.ndarray, optional
+        ``(n_beta,)`` bounds on the shared parameters (default none): every step is projected onto them.
     """
 
     model: MarkerModel
@@ -104,6 +110,8 @@ class Problem:
     loss_scale: float = 1e-3
     noise: float = 3e-4
     actuators: np.ndarray | None = None
+    lower: np.ndarray | None = None
+    upper: np.ndarray | None = None
 
     @property
     def seen(self) -> np.ndarray:
@@ -123,7 +131,34 @@ class Problem:
             self.loss_scale,
             self.noise,
             None if self.actuators is None else self.actuators[postures],
+            self.lower,
+            self.upper,
         )
+
+    def held(self, loss: Loss | None = None) -> "Problem":
+        """The same problem with every shared parameter held (and, given, another loss): per-posture fits."""
+        return Problem(
+            self.model,
+            self.measured,
+            self.ref,
+            np.zeros_like(self.free),
+            self.prior_mean,
+            self.prior_sigma,
+            self.loss if loss is None else loss,
+            self.loss_scale,
+            self.noise,
+            self.actuators,
+            self.lower,
+            self.upper,
+        )
+
+    def project(self, beta: np.ndarray) -> np.ndarray:
+        """``beta`` clipped to the bounds."""
+        if self.lower is not None:
+            beta = np.maximum(beta, self.lower)
+        if self.upper is not None:
+            beta = np.minimum(beta, self.upper)
+        return beta
 
 
 @dataclass(eq=False)
@@ -273,7 +308,7 @@ def solve(
     started = time.perf_counter()
     if not problem.free.any():
         return solve_postures(problem, X0, beta0, max_iterations, tolerance, step_tolerance)
-    X, beta = np.array(X0, dtype=float), np.array(beta0, dtype=float)
+    X, beta = np.array(X0, dtype=float), problem.project(np.array(beta0, dtype=float))
     free = problem.free
     state = _State(problem, X, beta, True)
     if not state.finite:
@@ -291,6 +326,8 @@ def solve(
             X_new = X + dx
             beta_new = beta.copy()
             beta_new[free] += db
+            beta_new = problem.project(beta_new)
+            db = (beta_new - beta)[free]
             trial = _State(problem, X_new, beta_new, True)  # Jacobians too: most trials are accepted
             if trial.finite and trial.cost <= state.cost:
                 accepted = True
@@ -407,6 +444,26 @@ def solve_postures(
         not active.any(),
         time.perf_counter() - started,
     )
+
+
+def information(problem: Problem, X: np.ndarray, beta: np.ndarray) -> tuple[np.ndarray, float]:
+    """The information on the free shared parameters at ``(X, beta)``, and the weighted residual sum.
+
+    The Schur complement ``S = C - sum_k B_k^T A_k^+ B_k`` of the undamped normal equations (module docstring,
+    with the robust weights at that point and the priors), each posture's block by pseudo-inverse so that a
+    posture whose own configuration is undetermined (a disk never seen) adds nothing spurious.
+
+    Returns
+    -------
+    tuple
+        ``S (n_free, n_free)`` [1 / unit^2, unit^2 of the data: metres] and ``sum w |r|^2`` [m^2].
+    """
+    state = _State(problem, np.asarray(X, dtype=float), np.asarray(beta, dtype=float), True)
+    A, B, C, _, _ = _normal_equations(problem, state)
+    S = C
+    if A.shape[1] and B.shape[2]:
+        S = C - np.einsum("nki,nkj->ij", B, np.linalg.pinv(A, rcond=1e-12, hermitian=True) @ B)
+    return 0.5 * (S + S.T), float(np.sum(state.w * np.sum(state.r * state.r, axis=2)))
 
 
 def _covariance(problem: Problem, state: _State, N: int) -> tuple[np.ndarray, float]:

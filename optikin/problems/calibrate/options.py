@@ -9,10 +9,13 @@ from pydantic import Field, StrictFloat, StrictInt
 from optikin.options import Options
 
 BaseComponent = Literal["x", "y", "z", "tilt", "yaw"]
+Axis = Literal["x", "y", "z"]
 
 
 class BaseOptions(Options):
-    """The base pose: its start (default: from the data), priors and components held."""
+    """The base: a tracked rigid body (``body``), a mount plane and exit direction (``plane``, ``direction``), a
+    pose (``position``, ``orientation``, held with ``fix``) or, with none of them, estimated from several starts
+    (``starts``); priors and components held."""
 
     position: list[StrictFloat] | None = Field(
         None, min_length=3, max_length=3, description="starting base position [m] in the recording frame"
@@ -33,6 +36,24 @@ class BaseOptions(Options):
     orientation_sigma_deg: StrictFloat | None = Field(
         None, gt=0, description="std of a prior at the start orientation [deg]"
     )
+    plane: dict[Axis, StrictFloat] | None = Field(
+        None,
+        description="the mount plane as one coordinate of the recording's frame and units, e.g. {y: 0.0}: the "
+        "base stays on it (its position in the plane is estimated)",
+    )
+    direction: list[StrictFloat] | None = Field(
+        None,
+        min_length=3,
+        max_length=3,
+        description="the direction the backbone leaves the base, in the recording's frame (e.g. [0, -1, 0]: "
+        "hanging, y up): the base axis, held",
+    )
+    starts: Literal["several", "data"] = Field(
+        "several",
+        description="where the base is estimated (no body, plane, direction, position or orientation): several "
+        "starts (the base axis from the data, hanging down, standing up), the best by held-out error, all "
+        "reported; or the start from the data alone",
+    )
     fix: list[BaseComponent] = Field(default_factory=list, description="components held at their start")
     estimate_yaw: bool = Field(
         False, description="estimate the rotation about the base axis (not observable from positions alone)"
@@ -45,6 +66,14 @@ class HoldOutOptions(Options):
     method: Literal["kfold", "split"] = Field("kfold", description="k-fold cross-validation or one train/test split")
     folds: StrictInt = Field(5, ge=2, le=50, description="folds of kfold")
     test_fraction: StrictFloat = Field(0.2, gt=0, lt=1, description="share of postures tested by split")
+
+
+class IdentifiabilityOptions(Options):
+    """When the geometry counts as determined (:mod:`optikin.calibration.identifiability`)."""
+
+    max_std: StrictFloat = Field(
+        1.0, gt=0, description="largest standard deviation of a parameter or combination [mm; angles: deg]"
+    )
 
 
 class CalibrateOptions(Options):
@@ -73,15 +102,23 @@ class CalibrateOptions(Options):
         "none", description="estimate one offset per marker from its disk's centre, in the disk's frame"
     )
     offset_sigma: StrictFloat | None = Field(None, gt=0, description="std of a zero-mean prior on the offsets [m]")
-    loss: Literal["soft_l1", "huber", "linear"] = Field("soft_l1", description="robust loss on marker errors")
+    loss: Literal["soft_l1", "huber", "linear"] = Field(
+        "soft_l1",
+        description="loss on marker errors where the geometry is estimated (every reported error is least squares)",
+    )
     loss_scale: StrictFloat = Field(1e-3, gt=0, description="scale of the robust loss [m]")
     marker_noise: StrictFloat = Field(
         3e-4, gt=0, description="expected marker noise per coordinate [m], weighing the priors against the data"
     )
     outlier_threshold: StrictFloat = Field(
-        6.0, gt=1, description="a posture with a marker error above this many median marker errors is rejected"
+        6.0,
+        gt=1,
+        description="a posture with a marker error above this many median marker errors is rejected from the "
+        "geometry's fit; in the held-out test the rule is applied inside each training fold (the test postures "
+        "beyond it are reported apart, and still counted)",
     )
     holdout: HoldOutOptions = Field(default_factory=HoldOutOptions)
+    identifiability: IdentifiabilityOptions = Field(default_factory=IdentifiabilityOptions)
     max_iterations: StrictInt = Field(100, ge=1, description="Levenberg-Marquardt steps per fit")
     tolerance: StrictFloat = Field(1e-10, gt=0, description="relative decrease of the cost that ends a fit")
     arm_file: str | None = Field(
@@ -97,6 +134,11 @@ class CalibrateOptions(Options):
         description="write the kept postures' measured points in the recording frame to this CSV file "
         "(<marker>_x, _y, _z: point targets of kind ik, source csv, with the calibrated base pose as "
         "data.params.base), relative to the problem file",
+    )
+    folds_file: str | None = Field(
+        None,
+        description="write the held-out test's fold of every posture to this CSV file (posture, fold), relative "
+        "to the problem file (the array fold of arrays.npz holds the same)",
     )
     markers_file: str | None = Field(
         None,

@@ -10,23 +10,33 @@ import numpy as np
 
 from optikin.algebra import matrix_from_quat
 from optikin.arms.constant_curvature import ConstantCurvatureArm
-from optikin.calibration.calibrate import Calibration, HeldOut, calibrate, fit_postures, held_out
+from optikin.calibration.calibrate import (
+    Calibration,
+    HeldOut,
+    calibrate,
+    fit_postures,
+    folds_of,
+    held_out,
+    initial_base,
+    reference_orientation,
+)
 from optikin.calibration.export import (
     arm_section,
     base_frame_points,
     calibration_facts,
     marker_recording,
     write_arm_file,
+    write_folds_csv,
     write_points_csv,
     write_target_csv,
 )
-from optikin.data.markers import write_marker_csv
 from optikin.calibration.model import vector_from_rotation_np
 from optikin.calibration.synthetic import CalibrationTruth
-from optikin.data.recording import Recording
+from optikin.data.markers import write_marker_csv
+from optikin.data.recording import FrameOptions, Recording, frame_matrix
 from optikin.errors import InputDataError
 from optikin.problems import ProblemContext
-from optikin.problems.calibrate.options import CalibrateOptions
+from optikin.problems.calibrate.options import BaseOptions, CalibrateOptions
 
 
 @dataclass(eq=False)
@@ -45,6 +55,8 @@ class CalibrateOutcome:
     seconds: float
     held_out_seconds: float
     written: dict[str, Path]
+    candidates: list["Candidate"]
+    chosen: str
 
 
 def tracks_of(recording: Recording) -> dict[str, np.ndarray]:
@@ -102,6 +114,67 @@ def mean_rotation(R: np.ndarray) -> np.ndarray:
     return U @ D @ Vt
 
 
+DEFAULT_LENGTH_BOUNDS = (0.5, 2.0)
+"""Bounds of the estimated section lengths, as fractions of the nominal ones, when the arm gives no
+``length_range``: a section is not half or twice the length it was built with."""
+HYPOTHESES = (("from the data", None), ("hanging", (0.0, 0.0, -1.0)), ("standing", (0.0, 0.0, 1.0)))
+"""The starts of an estimated base: the base axis from the chords between disks (:func:`initial_base`), straight
+down and straight up in optikin's z-up frame (each with its position on that axis behind the first disks)."""
+
+
+PRUNE = 2.0
+"""A start whose in-sample error (median largest-marker error, least squares) exceeds this many times the best
+start's is reported without a held-out test: it cannot win (a held-out error is not below the in-sample one
+of the same geometry by that much)."""
+
+
+@dataclass(eq=False)
+class Candidate:
+    """One start of the base and where it led (``held_out`` None: pruned, :data:`PRUNE`)."""
+
+    name: str
+    calibration: Calibration
+    held_out: HeldOut | None
+    seconds: float
+    held_out_seconds: float
+
+
+def length_bounds_of(ctx: ProblemContext) -> tuple[float, float]:
+    """The arm's ``length_range`` where the problem file gives one, else :data:`DEFAULT_LENGTH_BOUNDS`."""
+    arm = ctx.arm
+    if ctx.spec.arm is not None and "length_range" in ctx.spec.arm.params and isinstance(arm, ConstantCurvatureArm):
+        return arm.length_range
+    return DEFAULT_LENGTH_BOUNDS
+
+
+def recording_axes(ctx: ProblemContext) -> np.ndarray:
+    """``A`` taking the recording's axes to optikin's (its source's ``frame``), the identity without one."""
+    frame = getattr(ctx.data_params, "frame", None)
+    return frame_matrix(frame) if isinstance(frame, FrameOptions) else np.eye(3)
+
+
+def mount_of(ctx: ProblemContext, base: BaseOptions) -> tuple[tuple[int, float] | None, np.ndarray | None]:
+    """``options.base.plane`` and ``direction`` in optikin's frame: ``(axis index, value [m])`` and ``(3,)``."""
+    A = recording_axes(ctx)
+    plane = None
+    if base.plane is not None:
+        if len(base.plane) != 1:
+            raise ctx.error(
+                "options.base.plane", f"give one coordinate of the mount plane, e.g. {{y: 0.0}}, got {base.plane}"
+            )
+        ((axis, value),) = base.plane.items()
+        image = A @ np.eye(3)["xyz".index(axis)]
+        k = int(np.argmax(np.abs(image)))
+        plane = (k, float(np.sign(image[k]) * value))
+    direction = None
+    if base.direction is not None:
+        d = np.asarray(base.direction, dtype=float)
+        if not np.linalg.norm(d) > 0:
+            raise ctx.error("options.base.direction", "the exit direction must not be zero")
+        direction = A @ (d / np.linalg.norm(d))
+    return plane, direction
+
+
 def solve(ctx: ProblemContext) -> CalibrateOutcome:
     """Calibrate the arm of ``ctx`` on the recording of ``data``."""
     options: CalibrateOptions = ctx.options
@@ -111,11 +184,8 @@ def solve(ctx: ProblemContext) -> CalibrateOutcome:
     recording: Recording = ctx.load_data()
     names, sections, measured = markers_of(ctx, recording, arm.n_sections)
     seen = np.all(np.isfinite(measured), axis=2)
-    if seen.sum() * 3 <= 2 * arm.n_sections * len(measured) + arm.n_sections + 5:
-        raise InputDataError(
-            f"{int(seen.sum())} marker samples in {len(measured)} postures are too few to calibrate",
-            source=ctx.spec.data.source,
-        )
+    if not seen.any():
+        raise InputDataError("no marker is ever seen: nothing to calibrate", source=ctx.spec.data.source)
     readings = None
     if options.actuator_map == "linear":
         channels = list(recording.actuators) if options.actuators is None else options.actuators
@@ -152,52 +222,86 @@ def solve(ctx: ProblemContext) -> CalibrateOutcome:
         if abs(np.linalg.norm(q) - 1.0) > 1e-3:
             raise ctx.error("options.base.orientation", "expected a unit quaternion (w, x, y, z)")
         rotation = matrix_from_quat(q / np.linalg.norm(q))
+    plane, direction = mount_of(ctx, base)
+    estimated = (
+        base.starts == "several"
+        and base.body is None
+        and base.position is None
+        and base.orientation is None
+        and plane is None
+        and direction is None
+        and not base.fix
+    )
+    starts = HYPOTHESES if estimated else HYPOTHESES[:1]
     sigma_deg = base.orientation_sigma_deg
-    started = time.perf_counter()
-    with ctx.progress.task(f"calibrate: {len(measured)} postures x {len(names)} markers", total=2) as advance:
-        calibration = calibrate(
-            measured,
-            arm.section_lengths.tolist(),
-            sections,
-            names,
-            base_position=position,
-            base_rotation=rotation,
-            position_sigma=base.position_sigma,
-            orientation_sigma=None if sigma_deg is None else float(np.radians(sigma_deg)),
-            fix=base.fix,
-            estimate_yaw=base.estimate_yaw,
-            fix_lengths=options.lengths == "fixed",
-            offsets=options.offsets == "per_marker",
-            offset_sigma=options.offset_sigma,
-            extensible=options.lengths == "extensible",
-            actuators=readings,
-            loss=options.loss,
-            loss_scale=options.loss_scale,
-            marker_noise=options.marker_noise,
-            outlier_threshold=options.outlier_threshold,
-            max_iterations=options.max_iterations,
-            tolerance=options.tolerance,
-        )
-        seconds = time.perf_counter() - started
-        advance()
-        h = options.holdout
-        started = time.perf_counter()
-        test = held_out(
-            calibration, h.method, h.folds, h.test_fraction, ctx.rng(1), options.max_iterations, options.tolerance
-        )
-        held_out_seconds = time.perf_counter() - started
-        advance()
+    bounds = length_bounds_of(ctx) if options.lengths == "estimate" else None
+    h = options.holdout
+    fold = folds_of(len(measured), h.method, h.folds, h.test_fraction, ctx.rng(1))
+    calibrations: list[tuple[str, Calibration, float]] = []
+    task = f"calibrate: {len(measured)} postures x {len(names)} markers, {len(starts)} start(s)"
+    with ctx.progress.task(task, total=2 * len(starts)) as advance:
+        for label, axis in starts:
+            start_position, start_rotation = position, rotation
+            if axis is not None:
+                start_position = initial_base(measured, sections, float(arm.section_lengths[0]), np.array(axis))[0]
+                start_rotation = reference_orientation(np.array(axis))
+            started = time.perf_counter()
+            calibration = calibrate(
+                measured,
+                arm.section_lengths.tolist(),
+                sections,
+                names,
+                base_position=start_position,
+                base_rotation=start_rotation,
+                position_sigma=base.position_sigma,
+                orientation_sigma=None if sigma_deg is None else float(np.radians(sigma_deg)),
+                fix=base.fix,
+                plane=plane,
+                direction=direction,
+                estimate_yaw=base.estimate_yaw,
+                fix_lengths=options.lengths == "fixed",
+                length_bounds=bounds,
+                offsets=options.offsets == "per_marker",
+                offset_sigma=options.offset_sigma,
+                extensible=options.lengths == "extensible",
+                actuators=readings,
+                loss=options.loss,
+                loss_scale=options.loss_scale,
+                marker_noise=options.marker_noise,
+                outlier_threshold=options.outlier_threshold,
+                max_iterations=options.max_iterations,
+                tolerance=options.tolerance,
+                max_std=options.identifiability.max_std * 1e-3,
+            )
+            calibrations.append((label, calibration, time.perf_counter() - started))
+            advance()
+        best_in_sample = min(in_sample_median(c) for _, c, _ in calibrations)
+        candidates: list[Candidate] = []
+        for label, calibration, seconds in calibrations:
+            started = time.perf_counter()
+            same = next((c for c in candidates if c.held_out and same_geometry(c.calibration, calibration)), None)
+            test: HeldOut | None = same.held_out if same is not None else None
+            if same is None and in_sample_median(calibration) <= PRUNE * best_in_sample:
+                test = held_out(calibration, fold=fold)
+            candidates.append(Candidate(label, calibration, test, seconds, time.perf_counter() - started))
+            advance()
+    tested = [c for c in candidates if c.held_out is not None]
+    best = min(tested, key=lambda c: _finite_or_inf(c.held_out.headline()["median"]) if c.held_out else np.inf)
+    calibration = best.calibration
+    assert best.held_out is not None
+    test = best.held_out
     truth = getattr(recording, "truth", None)
     truth_errors = None
     lay = calibration.layout
     if isinstance(truth, CalibrationTruth) and not lay.extensible and not lay.actuated:
-        tested = test.fold >= 0
-        subset = calibration.problem.subset(np.flatnonzero(tested))
+        assert calibration.full is not None
+        tested = np.flatnonzero(test.tested)
         truth_errors = np.full(test.errors.shape, np.nan)
-        X0 = calibration.fit.X[tested]
-        truth_errors[tested] = fit_postures(subset, truth_beta(calibration, truth), X0).errors
+        X0 = calibration.X_all[tested]
+        subset = calibration.full.subset(tested)
+        truth_errors[tested] = fit_postures(subset, truth_beta(calibration, truth), X0, loss="linear").errors
     section = arm_section(calibration, arm)
-    facts = calibration_facts(calibration, test.median)
+    facts = calibration_facts(calibration, test)
     written: dict[str, Path] = {}
     try:
         if options.arm_file is not None:
@@ -205,12 +309,14 @@ def solve(ctx: ProblemContext) -> CalibrateOutcome:
             write_arm_file(written["arm_file"], section, facts, ctx.path.name)
         if options.targets_file is not None:
             written["targets_file"] = (ctx.path.parent / options.targets_file).resolve()
-            tip = names[int(np.argmax(sections))]
             points = base_frame_points(calibration, measured[calibration.kept, int(np.argmax(sections))])
             write_target_csv(written["targets_file"], recording.time[calibration.kept], points)
         if options.points_file is not None:
             written["points_file"] = (ctx.path.parent / options.points_file).resolve()
             write_points_csv(written["points_file"], names, measured[calibration.kept])
+        if options.folds_file is not None:
+            written["folds_file"] = (ctx.path.parent / options.folds_file).resolve()
+            write_folds_csv(written["folds_file"], test.fold)
         if options.markers_file is not None:
             written["markers_file"] = (ctx.path.parent / options.markers_file).resolve()
             tip = names[int(np.argmax(sections))]
@@ -232,7 +338,30 @@ def solve(ctx: ProblemContext) -> CalibrateOutcome:
         facts,
         truth if isinstance(truth, CalibrationTruth) else None,
         truth_errors,
-        seconds,
-        held_out_seconds,
+        best.seconds,
+        best.held_out_seconds,
         written,
+        candidates,
+        best.name,
+    )
+
+
+def _finite_or_inf(x: float) -> float:
+    return x if np.isfinite(x) else np.inf
+
+
+def in_sample_median(calibration: Calibration) -> float:
+    """The median over the postures of each one's largest least-squares marker error in sample [m]."""
+    errors = calibration.least_squares.errors if calibration.least_squares is not None else calibration.fit.errors
+    finite = np.isfinite(errors)
+    largest = np.max(np.where(finite, errors, -np.inf), axis=1)[finite.any(axis=1)]
+    return _finite_or_inf(float(np.median(largest))) if len(largest) else np.inf
+
+
+def same_geometry(a: Calibration, b: Calibration) -> bool:
+    """Two starts that reached the same shared parameters (to 1e-7 m or rad) and kept the same postures."""
+    return bool(
+        np.array_equal(a.kept, b.kept)
+        and a.fit.beta.shape == b.fit.beta.shape
+        and np.max(np.abs(a.fit.beta - b.fit.beta), initial=0.0) <= 1e-7
     )
