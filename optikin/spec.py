@@ -34,7 +34,9 @@ A solver preset::
 from __future__ import annotations
 
 import copy
+import math
 import os
+import re
 from importlib import resources
 from pathlib import Path
 from typing import Any, Literal, Sequence
@@ -43,12 +45,12 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from optikin.errors import SpecError, UnknownNameError
-from optikin.options import spec_error
+from optikin.options import StrictNumbers, spec_error
 
 NAME_PATTERN = r"^[a-z0-9][a-z0-9_\-]*$"
 
 
-class _Strict(BaseModel):
+class _Strict(StrictNumbers):
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
@@ -194,8 +196,35 @@ def provenance(name_or_path: str, path: Path, kind: Literal["problems", "solvers
 # --------------------------------------------------------------------------- loading
 
 
+MAX_DEPTH = 50
+"""Deepest nesting of mappings and lists read from a problem, preset or sweep file (or a ``--set`` value)."""
+
+_CORE = "tag:yaml.org,2002:"
+_INT_RE = re.compile(r"^(?:[-+]?[0-9]+|0o[0-7]+|0x[0-9a-fA-F]+)$")
+_FLOAT_RE = re.compile(
+    r"^(?:[-+]?(?:\.[0-9]+|[0-9]+(?:\.[0-9]*)?)(?:[eE][-+]?[0-9]+)?|[-+]?\.(?:inf|Inf|INF)|\.(?:nan|NaN|NAN))$"
+)
+_BOOL_RE = re.compile(r"^(?:true|True|TRUE|false|False|FALSE)$")
+_NULL_RE = re.compile(r"^(?:~|null|Null|NULL|)$")
+
+
 class _StrictLoader(yaml.SafeLoader):
-    """``yaml.SafeLoader`` that refuses duplicate keys and aliases (``*name``, the "billion laughs")."""
+    """The YAML reader of optikin's files: the YAML 1.2 core schema and nothing else.
+
+    Plain scalars resolve as in YAML 1.2 (``1e6`` and ``1.0e6`` are floats, ``yes``, ``on``,
+    ``0b1``, ``1_000``, ``1:30`` and ``2024-01-01`` are strings); the only tags are the core
+    schema's (``!!null``, ``!!bool``, ``!!int``, ``!!float``, ``!!str``, ``!!seq``, ``!!map``), so
+    ``!!binary``, ``!!python/...``, ``!!timestamp``, ``!!set``, the merge key ``<<`` and any custom
+    ``!tag`` are refused, as are aliases (``*name``, the "billion laughs"), duplicate keys and
+    nesting deeper than :data:`MAX_DEPTH`. Every refusal names the line.
+    """
+
+    yaml_implicit_resolvers: dict[Any, Any] = {}
+    yaml_constructors: dict[Any, Any] = {}
+
+    def __init__(self, stream: str) -> None:
+        super().__init__(stream)
+        self._depth = 0
 
     def compose_node(self, parent: Any, index: Any) -> Any:
         if self.check_event(yaml.AliasEvent):
@@ -203,7 +232,25 @@ class _StrictLoader(yaml.SafeLoader):
             raise yaml.constructor.ConstructorError(
                 None, None, f"aliases (*{event.anchor}) are not accepted in optikin files", event.start_mark
             )
-        return super().compose_node(parent, index)
+        if self.check_event(yaml.CollectionStartEvent) and self._depth >= MAX_DEPTH:
+            raise yaml.constructor.ConstructorError(
+                None, None, f"nested too deeply (more than {MAX_DEPTH} levels)", self.peek_event().start_mark
+            )
+        self._depth += 1
+        try:
+            node = super().compose_node(parent, index)
+        finally:
+            self._depth -= 1
+        if not node.tag.startswith(_CORE) or node.tag[len(_CORE) :] not in _CORE_TAGS:
+            shown = "!!" + node.tag[len(_CORE) :] if node.tag.startswith(_CORE) else node.tag
+            raise yaml.constructor.ConstructorError(
+                None,
+                None,
+                f"tag {shown[:40]!r} is not accepted (only the YAML core schema: "
+                "!!null, !!bool, !!int, !!float, !!str, !!seq, !!map)",
+                node.start_mark,
+            )
+        return node
 
     def construct_mapping(self, node: Any, deep: bool = False) -> Any:
         seen: dict[object, int] = {}
@@ -217,6 +264,69 @@ class _StrictLoader(yaml.SafeLoader):
                 seen[key] = key_node.start_mark.line
         return super().construct_mapping(node, deep=deep)
 
+    def _scalar(self, node: Any, pattern: re.Pattern[str], what: str) -> str:
+        value = str(self.construct_scalar(node))
+        if not pattern.match(value):
+            raise yaml.constructor.ConstructorError(None, None, f"{value[:40]!r} is not {what}", node.start_mark)
+        return value
+
+    def construct_core_null(self, node: Any) -> None:
+        self._scalar(node, _NULL_RE, "null")
+
+    def construct_core_bool(self, node: Any) -> bool:
+        return self._scalar(node, _BOOL_RE, "true or false").lower() == "true"
+
+    def construct_core_int(self, node: Any) -> int:
+        value = self._scalar(node, _INT_RE, "an integer (YAML 1.2: decimal, 0o octal or 0x hexadecimal)")
+        try:
+            if value[:2] in ("0o", "0x"):
+                return int(value[2:], 8 if value[1] == "o" else 16)
+            return int(value, 10)
+        except ValueError:
+            raise yaml.constructor.ConstructorError(
+                None, None, f"an integer of {len(value)} digits is too long", node.start_mark
+            ) from None
+
+    def construct_core_float(self, node: Any) -> float:
+        value = self._scalar(node, _FLOAT_RE, "a number")
+        if value.lower().endswith(".inf"):
+            return -math.inf if value.startswith("-") else math.inf
+        return math.nan if value.lower() == ".nan" else float(value)
+
+
+_CORE_TAGS = ("null", "bool", "int", "float", "str", "seq", "map")
+_StrictLoader.add_constructor(_CORE + "null", _StrictLoader.construct_core_null)
+_StrictLoader.add_constructor(_CORE + "bool", _StrictLoader.construct_core_bool)
+_StrictLoader.add_constructor(_CORE + "int", _StrictLoader.construct_core_int)
+_StrictLoader.add_constructor(_CORE + "float", _StrictLoader.construct_core_float)
+_StrictLoader.add_constructor(_CORE + "str", yaml.SafeLoader.construct_yaml_str)
+_StrictLoader.add_constructor(_CORE + "seq", yaml.SafeLoader.construct_yaml_seq)
+_StrictLoader.add_constructor(_CORE + "map", yaml.SafeLoader.construct_yaml_map)
+_StrictLoader.add_implicit_resolver(_CORE + "null", _NULL_RE, ["~", "n", "N", ""])
+_StrictLoader.add_implicit_resolver(_CORE + "bool", _BOOL_RE, list("tTfF"))
+_StrictLoader.add_implicit_resolver(_CORE + "int", _INT_RE, list("-+0123456789"))
+_StrictLoader.add_implicit_resolver(_CORE + "float", _FLOAT_RE, list("-+0123456789."))
+
+
+def load_yaml(text: str, source: str | Path) -> Any:
+    """The value of the YAML document ``text`` read by :class:`_StrictLoader` (YAML 1.2 core schema only).
+
+    Raises
+    ------
+    SpecError
+        Naming ``source`` and the line and column of a malformed document, a refused tag or alias,
+        a duplicate key or nesting deeper than :data:`MAX_DEPTH`.
+    """
+    try:
+        return yaml.load(text, Loader=_StrictLoader)  # noqa: S506 - a SafeLoader subclass, core tags only
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark else ""
+        problem = getattr(exc, "problem", None) or str(exc)
+        raise SpecError(source, "", f"malformed YAML: {where}{problem}") from None
+    except RecursionError:
+        raise SpecError(source, "", "malformed YAML: nested too deeply") from None
+
 
 def _read_yaml(path: Path) -> dict[str, Any]:
     try:
@@ -228,15 +338,7 @@ def _read_yaml(path: Path) -> dict[str, Any]:
         raise SpecError(path, "", f"cannot read: {exc.strerror or exc}") from None
     except UnicodeDecodeError as exc:
         raise SpecError(path, "", f"not UTF-8 text (byte {exc.start}): is this a YAML file?") from None
-    try:
-        data = yaml.load(text, Loader=_StrictLoader)  # noqa: S506 - a SafeLoader subclass
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark else ""
-        problem = getattr(exc, "problem", None) or str(exc)
-        raise SpecError(path, "", f"malformed YAML: {where}{problem}") from None
-    except RecursionError:
-        raise SpecError(path, "", "malformed YAML: nested too deeply") from None
+    data = load_yaml(text, path)
     if not isinstance(data, dict):
         raise SpecError(path, "", f"expected a mapping at the top level, got {type(data).__name__}")
     return data
@@ -261,10 +363,13 @@ def parse_override(text: str) -> tuple[str, Any]:
     field = field.strip()
     if not sep or not field or any(not part for part in field.split(".")):
         raise SpecError("--set", field, f"expected FIELD=VALUE with a dotted field, got {text!r}")
+    if not value.strip():
+        return field, None
     try:
-        return field, yaml.safe_load(value) if value.strip() else None
-    except yaml.YAMLError as exc:
-        raise SpecError("--set", field, f"value {value!r} is not YAML: {exc}") from None
+        return field, load_yaml(value, "--set")
+    except SpecError as exc:
+        problem = str(exc).removeprefix("--set: malformed YAML: ")
+        raise SpecError("--set", field, f"value {value[:40]!r} is not YAML: {problem}") from None
 
 
 def apply_overrides(data: dict[str, Any], overrides: Sequence[tuple[str, Any]], path: Path) -> dict[str, Any]:
@@ -311,12 +416,41 @@ def include_arm(data: dict[str, Any], path: Path) -> dict[str, Any]:
     return data | {"arm": section}
 
 
+MAX_ARM_PARAMETER = 1e12
+"""Largest magnitude of a number in ``arm.params`` (SI units): every physical parameter of a continuum arm is
+below it (Young's moduli are below 1e12 Pa, lengths below 1e3 m); a larger one is a unit or typing error."""
+_QUOTED_NUMBER = re.compile(r"^\s*[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?\s*$")
+
+
+def check_arm_params(params: Any, path: Path, field: str = "arm.params") -> None:
+    """Refuse, in the arm's parameters (handed to its constructor as they are), a quoted number (``"2.0"``)
+    and a number above :data:`MAX_ARM_PARAMETER` in magnitude.
+
+    Raises
+    ------
+    SpecError
+        Naming the file and the dotted field (``arm.params.section_lengths.0``).
+    """
+    items = params.items() if isinstance(params, dict) else enumerate(params) if isinstance(params, list) else ()
+    for key, value in items:
+        where = f"{field}.{key}"
+        if isinstance(value, str) and _QUOTED_NUMBER.match(value):
+            raise SpecError(path, where, f"expected a number, got the string {value[:40]!r} (write it without quotes)")
+        if isinstance(value, (int, float)) and not isinstance(value, bool) and abs(value) > MAX_ARM_PARAMETER:
+            raise SpecError(
+                path, where, f"{value:g} is above the largest magnitude of an arm parameter, {MAX_ARM_PARAMETER:g}"
+            )
+        check_arm_params(value, path, where)
+
+
 def load_problem(name_or_path: str, overrides: Sequence[tuple[str, Any]] = ()) -> tuple[ProblemSpec, Path]:
     """Read and validate a problem file, its ``arm:`` included from a file if it names one
     (:func:`include_arm`) and ``overrides`` (:func:`apply_overrides`) set; returns the spec and the
     file it came from."""
     path = resolve(name_or_path, "problems")
     spec = _validate(ProblemSpec, apply_overrides(include_arm(_read_yaml(path), path), overrides, path), path)
+    if spec.arm is not None:
+        check_arm_params(spec.arm.params, path)
     if spec.name != path.stem:
         raise SpecError(path, "name", f"{spec.name!r} differs from the file name {path.stem!r}")
     return spec, path

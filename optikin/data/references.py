@@ -188,6 +188,14 @@ def waypoint_reference(arm: ArmModel, data: DataSpec, params: WaypointParams, pa
             "data.params.waypoints",
             f"expected at least two rows of {arm.n_config} numbers ({', '.join(arm.config_names)})",
         )
+    for i, row in enumerate(W):
+        for j, name in enumerate(arm.config_names):
+            if not arm.periodic[j] and not arm.lower[j] <= row[j] <= arm.upper[j]:
+                raise SpecError(
+                    str(path),
+                    f"data.params.waypoints.{i}.{j}",
+                    f"{name} = {row[j]:g} is outside the arm's limits [{arm.lower[j]:g}, {arm.upper[j]:g}]",
+                )
     try:
         t, Q, Qdot = minimum_jerk_path(W, params.segment_time, params.rate, params.hold)
     except ValueError as exc:

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from typing import Annotated, Literal, get_args
 
-from pydantic import Field, ValidationInfo, field_validator
+from pydantic import Field, ValidationInfo, field_validator, model_validator
 from pydantic_core import PydanticCustomError
 
 from optikin.dmp import Gains
@@ -110,6 +110,12 @@ class Disturbance(Options):
         1.0, description="the displacement (output: rad | m) or the force (force: gap units per s^2, scaled by tau^2)"
     )
     component: int = Field(0, ge=0, description="the gap component pushed (below the DMP's dimension)")
+
+    @model_validator(mode="after")
+    def _window_in_order(self) -> Disturbance:
+        if not self.start < self.stop:
+            raise ValueError(f"start = {self.start:g} s is not before stop = {self.stop:g} s")
+        return self
 
 
 class Coupling(Options):

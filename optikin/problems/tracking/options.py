@@ -7,11 +7,24 @@ are checked against it when the run starts, naming the field.
 
 from __future__ import annotations
 
-from typing import Literal
+import re
+from typing import Annotated, Literal
 
-from pydantic import Field, NonNegativeFloat, PositiveFloat
+from pydantic import AfterValidator, Field, NonNegativeFloat, PositiveFloat, field_validator
 
 from optikin.options import Options
+
+
+def _rate_limit_key(key: str) -> str:
+    if not re.fullmatch(r"(S|theta|phi)([1-9][0-9]*)?", key):
+        raise ValueError(
+            f"unknown variable or prefix {key[:40]!r}: expected S, theta or phi, or a variable (S1, theta2, phi1, ...)"
+        )
+    return key
+
+
+RateLimitKey = Annotated[str, AfterValidator(_rate_limit_key)]
+"""A key of ``rate_limits``: a variable prefix (S, theta, phi) or a variable name (S1, theta2, ...)."""
 
 
 class CosseratPlantOptions(Options):
@@ -68,6 +81,13 @@ class PlantOptions(Options):
     physics: CosseratPlantOptions | None = Field(
         None, description="a Cosserat rod as the plant, actuated by the nominal map of the CC command; null: CC"
     )
+
+    @field_validator("disturbance_window")
+    @classmethod
+    def _window_in_order(cls, value: tuple[float, float] | None) -> tuple[float, float] | None:
+        if value is not None and not value[0] < value[1]:
+            raise ValueError(f"the start t_on = {value[0]:g} s is not before the end t_off = {value[1]:g} s")
+        return value
 
 
 class MracOptions(Options):
@@ -165,7 +185,7 @@ class TrackingOptions(Options):
         10.0, description="K of the QP, pseudo-inverse and DLS: one value or one per task row [1/s]"
     )
     damping: float = Field(1e-4, ge=0.0, description="lambda, the weight of ||qdot||^2 in the QP and DLS")
-    rate_limits: dict[str, PositiveFloat] | list[PositiveFloat] | None = Field(
+    rate_limits: dict[RateLimitKey, PositiveFloat] | list[PositiveFloat] | None = Field(
         None,
         description="rate limits by variable name or prefix (S, theta, phi), or one per variable [m/s, rad/s]; "
         "null: S 0.1, theta pi, phi 2 pi",

@@ -10,7 +10,7 @@ from __future__ import annotations
 from pydantic import Field, NonNegativeFloat, PositiveFloat, field_validator
 
 from optikin.options import Options
-from optikin.problems.tracking.options import ObstacleOptions
+from optikin.problems.tracking.options import ObstacleOptions, RateLimitKey
 
 Vector3 = tuple[float, float, float]
 
@@ -80,7 +80,7 @@ class TwoArmOptions(Options):
         1e-3, description="w of the posture term ||qdot - k_p (q_start - q)||^2 (settles the free motions)"
     )
     posture_gain: NonNegativeFloat = Field(1.0, description="k_p of the posture term [1/s]")
-    rate_limits: dict[str, PositiveFloat] | None = Field(
+    rate_limits: dict[RateLimitKey, PositiveFloat] | None = Field(
         None, description="rate limits by variable name or prefix (S, theta, phi) [m/s, rad/s]; null: S 0.1, theta pi"
     )
     limit_margin: NonNegativeFloat = Field(1e-9, description="distance kept from the configuration limits")
