@@ -9,8 +9,11 @@ solvers share one arm and its CasADi Functions, built by the first of them.
 
 from __future__ import annotations
 
+import ctypes
 import json
 import os
+import signal
+import threading
 import time
 from collections import OrderedDict
 from pathlib import Path
@@ -23,8 +26,43 @@ if TYPE_CHECKING:
 
 KEPT_ARMS = 8
 """Arms a worker process keeps (the most recently used)."""
+PARENT_POLL = 0.5
+"""Seconds between a worker's looks at whether the process that started it is still there."""
+_PR_SET_PDEATHSIG = 1  # Linux prctl option: the signal this process gets when its parent thread ends
 
 _ARMS: OrderedDict[str, "ArmModel"] = OrderedDict()
+
+
+def watch_parent(parent: int) -> None:
+    """A joblib (loky) worker's initializer: end this worker when process ``parent``, which started it, is gone.
+
+    On Linux the kernel sends this process SIGKILL when its parent ends (``prctl(PR_SET_PDEATHSIG)``), even
+    during a long CasADi call; everywhere, a daemon thread looks every :data:`PARENT_POLL` seconds whether the
+    parent is still ``parent`` (a process whose parent dies is handed to another, even while the dead one is
+    not yet reaped) and ends this process with ``os._exit`` if not. So a killed ``optikin sweep`` or
+    ``optikin solve --jobs`` leaves no workers behind.
+    """
+    try:
+        ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    except (OSError, AttributeError):
+        pass
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(PARENT_POLL)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="optikin-parent-watch", daemon=True).start()
+
+
+def worker_pool(jobs: int, ordered: bool = True) -> Any:
+    """A joblib ``Parallel`` of ``jobs`` loky workers that end with this process (:func:`watch_parent`),
+    returning a list in order (``ordered``) or a generator in the order the tasks finish."""
+    from joblib import Parallel
+    from joblib._parallel_backends import LokyBackend
+
+    backend = LokyBackend(initializer=watch_parent, initargs=(os.getpid(),))
+    return Parallel(n_jobs=jobs, backend=backend, return_as="list" if ordered else "generator_unordered")
 
 
 def cached_arm(arm_type: str, params: dict[str, Any], path: str | Path = "<arm>") -> "ArmModel":

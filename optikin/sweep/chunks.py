@@ -25,7 +25,7 @@ from typing import Any, Sequence
 from optikin.errors import SpecError
 from optikin.problems import ChunkWork, ProblemContext, ProblemKind
 from optikin.results import Result
-from optikin.sweep.cell import cached_arm
+from optikin.sweep.cell import cached_arm, worker_pool
 from optikin.sweep.run import check_dask, check_jobs, dask_client
 
 MIN_PIECE = 64
@@ -92,10 +92,9 @@ class Chunks:
     """
 
     def __init__(self, jobs: int = 1, dask: str | None = None) -> None:
-        check_jobs(jobs)
         check_dask(dask)
-        self.jobs, self.dask = jobs, dask
-        self.workers = jobs
+        self.jobs, self.dask = jobs if dask else check_jobs(jobs), dask
+        self.workers = self.jobs
         self._client: Any = None
         self._ref: ProblemRef | None = None
         self._local: tuple[ProblemContext, dict[str, Any]] | None = None
@@ -157,13 +156,13 @@ class Chunks:
         if self._client is not None:
             futures = self._client.map(run_piece, [self._ref] * len(pieces), [work] * len(pieces), pieces, pure=False)
             return list(self._client.gather(futures))
-        from joblib import Parallel, delayed
+        from joblib import delayed
 
-        return list(Parallel(n_jobs=self.jobs, backend="loky")(delayed(run_piece)(self._ref, work, p) for p in pieces))
+        return list(worker_pool(self.jobs)(delayed(run_piece)(self._ref, work, p) for p in pieces))
 
 
 def chunks_of(jobs: int, dask: str | None) -> Chunks | None:
     """The engine of ``optikin solve --jobs N`` / ``--dask ADDRESS``; None for one process (``--jobs 1``)."""
-    check_jobs(jobs)
     check_dask(dask)
+    jobs = jobs if dask else check_jobs(jobs)
     return Chunks(jobs, dask) if dask is not None or jobs > 1 else None

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import logging
 import re
 import sys
 import time
@@ -28,7 +29,7 @@ from typing import Any, Callable, Iterator
 
 from optikin.errors import SpecError
 from optikin.progress import ProgressLines, progress_interval
-from optikin.sweep.cell import run_cell
+from optikin.sweep.cell import run_cell, worker_pool
 from optikin.sweep.spec import Cell, SweepSpec, expand, load_sweep
 from optikin.sweep.store import (
     dead_tries,
@@ -125,14 +126,14 @@ def _killed(cell: Cell, tries: int, reason: str) -> Record:
 
 def _joblib(cells: list[Cell], folder: Path, jobs: int, retries: int) -> Iterator[tuple[Record, int]]:
     """Records as cells finish (any order), with the number still running."""
-    from joblib import Parallel, delayed
+    from joblib import delayed
     from joblib.externals.loky.process_executor import TerminatedWorkerError
 
     pending = {cell.key: cell for cell in cells}
     deaths: dict[str, int] = {}
     while pending:
         try:
-            parallel = Parallel(n_jobs=jobs, backend="loky", return_as="generator_unordered")
+            parallel = worker_pool(jobs, ordered=False)
             for record in parallel(delayed(run_cell)(cell) for cell in list(pending.values())):
                 pending.pop(record["key"])
                 record["tries"] = deaths.get(record["key"], 0) + 1
@@ -151,10 +152,30 @@ def _joblib(cells: list[Cell], folder: Path, jobs: int, retries: int) -> Iterato
                     yield _killed(pending.pop(key), deaths[key], reason), min(jobs, len(pending))
 
 
-def check_jobs(jobs: int) -> None:
-    """``--jobs`` counts worker processes: at least 1."""
+def check_jobs(jobs: int) -> int:
+    """``--jobs`` counts worker processes: at least 1, and at most the CPUs this process may use.
+
+    Returns
+    -------
+    int
+        ``jobs``, or the CPU count when ``jobs`` is above it (logged as a warning on ``optikin.sweep``).
+
+    Raises
+    ------
+    SpecError
+        ``jobs`` below 1.
+    """
     if jobs < 1:
         raise SpecError("--jobs", "", f"expected at least 1 worker, got {jobs}")
+    from joblib import cpu_count
+
+    cpus = max(1, cpu_count())
+    if jobs > cpus:
+        logging.getLogger("optikin.sweep").warning(
+            "--jobs %d is above this machine's CPU count (%d): running %d workers", jobs, cpus, cpus
+        )
+        return cpus
+    return jobs
 
 
 def check_dask(address: str | None) -> None:
@@ -279,7 +300,7 @@ def run_sweep(
     SpecError
         On the sweep file (naming the field), ``--jobs`` or ``--dask``.
     """
-    check_jobs(jobs)
+    jobs = jobs if dask else check_jobs(jobs)
     check_dask(dask)
     spec, path = load_sweep(name_or_path)
     cells = expand(spec, path)
