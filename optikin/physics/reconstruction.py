@@ -27,9 +27,19 @@ respect to the tip wrench that the implicit function theorem gives
 ``d (F, C) / d w``, so the Gauss-Newton steps find the same minimiser, without a
 nested boundary-value solve per iteration. Levenberg-Marquardt (Marquardt 1963;
 Nocedal & Wright, *Numerical Optimization*, 2nd ed., section 10.3) with a diagonal
-damping that adapts to the gain ratio does the minimisation; the start is the
-previous sample's base wrench (:meth:`ShapeReconstructor.reconstruct_sequence`) or
-the straight rod's (zero).
+damping that adapts to the gain ratio does the minimisation.
+
+Which equilibrium. More than one equilibrium can reach the same end poses: besides the
+gently bent rod, stretched, sheared, coiled ones under tip forces of hundreds of newtons
+(from another rod's fit, 24-135 mm off the truth with 1000 times its elastic energy, in
+``tests/test_physics_reconstruction.py``). A fit converges to the one nearest its start, so
+the start decides. Every fit of :meth:`ShapeReconstructor.reconstruct_sequence` therefore
+starts from the circular arc of its own end poses (:meth:`ShapeReconstructor.arc_start`);
+the previous sample's fit is tried as a second candidate only, and of the candidates that
+reach the tolerance the one of lowest elastic energy is kept. When two of them reach it with
+shapes more than ``ambiguity_distance`` apart, the result says ``ambiguous`` and reports the
+spread, the fitted wrench and the energy. Without a start, :meth:`ShapeReconstructor.reconstruct`
+moves the target from the unloaded rod's tip by continuation.
 
 With the distributed force the problem has 9 unknowns and 6 residuals: the damped
 steps pick one of the many exact solutions (near the start), not the true load.
@@ -50,7 +60,7 @@ import casadi as ca
 import numpy as np
 from pydantic import Field
 
-from optikin.algebra import matrix_from_quat, quat_conjugate, quat_multiply, quat_slerp
+from optikin.algebra import matrix_from_quat, quat_conjugate, quat_multiply, quat_rotate, quat_slerp
 from optikin.options import Options
 from optikin.physics.model import STATE_SIZE, ArmEquations, Loads, RodArm, load_vector
 from optikin.physics.solution import RodSolution
@@ -77,6 +87,12 @@ class ReconstructionOptions(Options):
         description="without a start (or when it fails): targets from the unknowns-zero tip to the measured one "
         "in this many steps, doubled up to 3 times until the fit converges",
     )
+    ambiguity_distance: float = Field(
+        1e-3,
+        gt=0,
+        description="two candidate fits within tolerance whose shapes differ by more than this at some node mark "
+        "the reconstruction ambiguous [m]",
+    )
 
 
 @dataclass(frozen=True)
@@ -95,9 +111,18 @@ class Reconstruction:
     status : str
         ``"ok"`` when ``|residual| <= tolerance``, else ``"not_converged"``.
     iterations : int
-        Levenberg-Marquardt iterations.
+        Levenberg-Marquardt iterations of the kept candidate.
     seconds : float
-        Wall time of the fit [s].
+        Wall time of the fit, every candidate [s].
+    energy : float
+        Elastic energy of the kept shape [J] (:meth:`ShapeReconstructor.elastic_energy`).
+    candidates : int
+        Candidate fits that reached the tolerance (the kept one among them).
+    spread : float
+        Largest node distance between the kept shape and another candidate within tolerance [m] (0 for one).
+    ambiguous : bool
+        ``spread`` exceeds the options' ``ambiguity_distance``: other equilibria reach the same end
+        poses, and the kept one is only the lowest in elastic energy.
     """
 
     solution: RodSolution
@@ -106,6 +131,10 @@ class Reconstruction:
     status: Literal["ok", "not_converged"]
     iterations: int
     seconds: float
+    energy: float = float("nan")
+    candidates: int = 1
+    spread: float = 0.0
+    ambiguous: bool = False
 
 
 class ShapeReconstructor:
@@ -169,6 +198,12 @@ class ShapeReconstructor:
         self._residual = ca.Function("reconstruction_residual", inputs, [residual, ca.jacobian(residual, z)])
         self._shape = ca.Function("reconstruction_shape", inputs, [states, loads_out])
         self.s = np.array(s_nodes)
+        segment = np.concatenate([[0], np.repeat(np.arange(len(arm.segments)), n)])
+        rods = [seg.rod for seg in arm.segments]
+        self._bending = np.stack([1.0 / rods[k].K_bt for k in segment], axis=1)  # (3, S) compliances
+        self._shear = np.stack(
+            [np.zeros(3) if rods[k].model == "kirchhoff" else 1.0 / rods[k].K_se for k in segment], axis=1
+        )
 
     def _pose_inputs(self, base: Pose, tip: Pose, length: float | None) -> list[np.ndarray | float]:
         scale = 1.0 if length is None else float(length) / self.arm.length
@@ -221,22 +256,44 @@ class ShapeReconstructor:
         z, r, cost, more = self._fit(z, args, self.options.tolerance, self.options.max_iterations)
         return z, r, cost, iterations + more
 
-    def reconstruct(
-        self, base_pose: Pose, tip_pose: Pose, length: float | None = None, guess: np.ndarray | None = None
-    ) -> tuple[Reconstruction, np.ndarray]:
-        """One shape: ``(reconstruction, base-and-load unknowns)`` (the second starts the next sample's fit).
+    def elastic_energy(self, states: np.ndarray, scale: float = 1.0) -> float:
+        """Elastic energy [J] of a shape ``states`` ``(13, S)`` on this reconstructor's nodes.
 
-        Parameters
-        ----------
-        base_pose, tip_pose : tuple of numpy.ndarray
-            Measured ``(position (3,) [m], quaternion (4,))`` of the clamp and the tip.
-        length : float, optional
-            Reference length of the arm [m]; None: the arm's own.
-        guess : numpy.ndarray, optional
-            ``(6,)`` or ``(9,)`` start: base wrench (then distributed force); default zero.
+        ``int 1/2 (m_b . K_bt^-1 m_b + n_b . K_se^-1 n_b) ds`` with ``n_b, m_b`` the internal force and
+        moment in the material frame (the constitutive law of :mod:`optikin.physics.rod` inverted),
+        trapezoidal over the nodes at ``scale`` times their reference arc length; a Kirchhoff
+        segment has no shear-extension term (its ``n`` is a constraint force).
         """
-        tic = time.perf_counter()
-        args = self._pose_inputs(base_pose, tip_pose, length)
+        to_material = quat_conjugate(states[3:7].T)
+        n_b = quat_rotate(to_material, states[7:10].T, check=False).T
+        m_b = quat_rotate(to_material, states[10:13].T, check=False).T
+        density = 0.5 * (np.sum(m_b**2 * self._bending, axis=0) + np.sum(n_b**2 * self._shear, axis=0))
+        s = self.s * float(scale)
+        return float(np.sum(0.5 * (density[1:] + density[:-1]) * np.diff(s)))
+
+    def arc_start(self, base_pose: Pose, tip_pose: Pose, length: float | None = None) -> np.ndarray:
+        """The unknowns of the circular arc of the end poses: the start every fit should have.
+
+        A pure couple ``E I theta / L`` about ``t0 x t1`` (``theta`` the angle between the end
+        tangents, ``E I`` the first segment's) bends a weightless rod into that arc (Euler's
+        elastica under an end couple); the clamp force ``n(0) = int rho A g ds`` carries the rods'
+        weight (``n' + f = 0``, free tip); a fitted distributed force starts at zero.
+        """
+        t0 = matrix_from_quat(np.asarray(base_pose[1], dtype=float), check=False)[:, 2]
+        t1 = matrix_from_quat(np.asarray(tip_pose[1], dtype=float), check=False)[:, 2]
+        scale = 1.0 if length is None else float(length) / self.arm.length
+        axis = np.cross(t0, t1)
+        sine = float(np.linalg.norm(axis))
+        theta = float(np.arctan2(sine, float(t0 @ t1)))
+        bending = self.arm.segments[0].rod.EI
+        L = scale * self.arm.length
+        couple = bending * theta / L * axis / sine if sine > 1e-12 else np.zeros(3)
+        mass = sum(seg.rod.density * seg.rod.A * seg.rod.length for seg in self.arm.segments) * scale
+        force = mass * np.asarray(self.P_fixed[9:12], dtype=float)
+        return np.concatenate([force, couple] + ([np.zeros(3)] if self.options.distributed_force else []))
+
+    def _start_fit(self, args: list, guess: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, float, int]:
+        """The fit from ``guess``, or by continuation from the unknowns zero when there is none or it fails."""
         iterations, tol = 0, self.options.tolerance
         if guess is not None:
             z, r, cost, iterations = self._fit(np.array(guess, dtype=float), args, tol, self.options.max_iterations)
@@ -247,10 +304,75 @@ class ShapeReconstructor:
             if np.sqrt(cost) <= tol or steps >= 8 * self.options.continuation_steps:
                 break
             steps *= 2
-        states, loads = (np.asarray(a) for a in self._shape(z, *args))
+        return z, r, cost, iterations
+
+    def reconstruct(
+        self,
+        base_pose: Pose,
+        tip_pose: Pose,
+        length: float | None = None,
+        guess: np.ndarray | None = None,
+        candidates: Sequence[np.ndarray] = (),
+    ) -> tuple[Reconstruction, np.ndarray]:
+        """One shape: ``(reconstruction, base-and-load unknowns)`` (the second can be a candidate of the next fit).
+
+        The fit from ``guess`` (by continuation when it has none or fails) and one plain fit from
+        each of ``candidates``; of those reaching the tolerance, the shape of lowest elastic energy
+        (:meth:`elastic_energy`) is kept, the one from ``guess`` unless another is lower by more than
+        a millionth. Equilibria other than the intended one can reach the same end poses (a coiled,
+        stretched rod under a tip force of a hundred newtons), so a candidate carried over from
+        another posture must not win by having been tried first; when two candidates within
+        tolerance differ by more than ``ambiguity_distance`` at some node the result is marked
+        ``ambiguous``.
+
+        Parameters
+        ----------
+        base_pose, tip_pose : tuple of numpy.ndarray
+            Measured ``(position (3,) [m], quaternion (4,))`` of the clamp and the tip.
+        length : float, optional
+            Reference length of the arm [m]; None: the arm's own.
+        guess : numpy.ndarray, optional
+            ``(6,)`` or ``(9,)`` start: base wrench (then distributed force); default: by continuation
+            from zero (:meth:`arc_start` is the better start for a bent rod).
+        candidates : sequence of numpy.ndarray
+            More starts of the same layout (e.g. the previous posture's fit).
+        """
+        tic = time.perf_counter()
+        args = self._pose_inputs(base_pose, tip_pose, length)
+        tol = self.options.tolerance
+        fits = [self._start_fit(args, guess)]
+        fits += [self._fit(np.array(c, dtype=float), args, tol, self.options.max_iterations) for c in candidates]
+        shapes = []
+        for z, r, cost, iterations in fits:
+            states, loads = (np.asarray(a) for a in self._shape(z, *args))
+            energy = self.elastic_energy(states, float(args[2])) if np.all(np.isfinite(states)) else np.inf
+            shapes.append((z, r, cost, iterations, states, loads, energy))
+        within = [f for f in shapes if np.sqrt(f[2]) <= tol]
+        spread = 0.0
+        if within:
+            kept = within[0]
+            for other in within[1:]:
+                if other[6] < kept[6] - 1e-6 * abs(kept[6]):
+                    kept = other
+            for other in within:
+                spread = max(spread, float(np.max(np.linalg.norm(other[4][0:3] - kept[4][0:3], axis=0))))
+        else:
+            kept = min(shapes, key=lambda f: f[2] if np.isfinite(f[2]) else np.inf)
+        z, r, cost, iterations, states, loads, energy = kept
         solution = RodSolution.from_states(self.s * float(args[2]), states, 0.0, np.inf, iterations)
         status: Literal["ok", "not_converged"] = "ok" if np.sqrt(cost) <= tol else "not_converged"
-        result = Reconstruction(solution, loads.ravel(), r, status, iterations, time.perf_counter() - tic)
+        result = Reconstruction(
+            solution,
+            loads.ravel(),
+            r,
+            status,
+            iterations,
+            time.perf_counter() - tic,
+            energy,
+            len(within),
+            spread,
+            spread > self.options.ambiguity_distance,
+        )
         return result, z
 
     def reconstruct_sequence(
@@ -259,8 +381,9 @@ class ShapeReconstructor:
         tip_poses: Sequence[Pose],
         lengths: Sequence[float] | np.ndarray | None = None,
         start: Start | None = None,
+        previous_candidate: bool = True,
     ) -> list[Reconstruction]:
-        """Shapes along a recording, each fit started from ``start`` (default: the previous sample's solution).
+        """Shapes along a recording, each fit started from ``start`` (default: the arc of its own end poses).
 
         Parameters
         ----------
@@ -269,17 +392,23 @@ class ShapeReconstructor:
         lengths : sequence of float, optional
             Reference length per sample [m]; None: the arm's own.
         start : callable, optional
-            ``start(i, previous) -> guess``: the start of sample ``i``'s fit from ``previous``,
+            ``start(i, previous) -> guess``: the start of sample ``i``'s fit given ``previous``,
             the unknowns ``(6,)`` or ``(9,)`` (base wrench, then distributed force) the fit of
             sample ``i - 1`` ended at (None for the first sample and after a non-finite one);
             a None guess starts from the unknowns zero by continuation (:meth:`reconstruct`).
-            Default: ``previous`` itself.
+            Default: :meth:`arc_start` of the sample's end poses.
+        previous_candidate : bool
+            Also fit from ``previous`` and keep it only if its shape has less elastic energy
+            (:meth:`reconstruct`): never as the only start, since the last posture's equilibrium
+            branch need not be this one's.
         """
         out: list[Reconstruction] = []
         previous: np.ndarray | None = None
         for i, (base, tip) in enumerate(zip(base_poses, tip_poses)):
-            guess = previous if start is None else start(i, previous)
-            result, z = self.reconstruct(base, tip, None if lengths is None else float(lengths[i]), guess)
+            length = None if lengths is None else float(lengths[i])
+            guess = self.arc_start(base, tip, length) if start is None else start(i, previous)
+            extra = [previous] if previous_candidate and previous is not None else []
+            result, z = self.reconstruct(base, tip, length, guess, extra)
             out.append(result)
             previous = z if np.all(np.isfinite(z)) else None
         return out

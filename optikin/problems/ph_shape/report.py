@@ -102,12 +102,21 @@ def wrench_row(outcome: ShapeOutcome) -> tuple[MethodRow, dict[str, np.ndarray]]
         "mean marker distance [mm]": float(np.nanmean(distance)) if converged.any() else float("nan"),
         "mean distance per marker [mm]": np.nanmean(distance, axis=0) if converged.any() else float("nan"),
         "max distance per marker [mm]": np.nanmax(distance, axis=0) if converged.any() else float("nan"),
+        "ambiguous fits": int(np.sum(wrench.ambiguous & converged)),
+        "fitted tip force median / max [N]": [float(np.median(wrench.tip_forces)), float(np.max(wrench.tip_forces))],
+        "elastic energy median / max [J]": [float(np.median(wrench.energies)), float(np.max(wrench.energies))],
         "median iterations": float(np.median(wrench.iterations)),
         "median time per sample [us]": float(np.median(wrench.seconds) * 1e6),
         "mean time per sample [us]": float(np.mean(wrench.seconds) * 1e6),
         "build [s]": wrench.build_seconds,
     }
-    arrays = {f"seconds_{NAME}": wrench.seconds, f"marker_distance_{NAME}": distance / MM}
+    arrays = {
+        f"seconds_{NAME}": wrench.seconds,
+        f"marker_distance_{NAME}": distance / MM,
+        f"tip_wrench_{NAME}": np.stack([f.wrench for f in wrench.fits]),
+        f"elastic_energy_{NAME}": wrench.energies,
+        f"ambiguous_{NAME}": wrench.ambiguous,
+    }
     truth = outcome.recording.truth
     if truth is not None:
         backbone = distances_to_polylines(wrench.backbones, truth.vertebrae) * MM  # (N, nodes)

@@ -9,12 +9,14 @@ posture is the backbone length the PH methods use for it. A fit that does not re
 the tip pose (status ``not_converged``) has no backbone: its distances are NaN.
 
 The fit has more than one exact solution: from the unloaded rod (the reconstructor's
-cold start) the continuation can end on a stretched, sheared, coiled rod under a
-tip force of hundreds of newtons that reaches the same tip pose. So the first
-posture, and every posture after a failed fit, starts from the clamp wrench of the
-circular arc of the end poses (:func:`arc_guess`: the pure couple ``E I theta / L``
-about ``t0 x t1`` that bends a weightless rod into the arc, plus the force carrying
-the rod's weight); every other posture from the previous posture's fit.
+cold start) the continuation, or a start carried over from another posture, can end on a
+stretched, sheared, coiled rod under a tip force of hundreds of newtons that reaches the
+same tip pose. So every posture starts from the clamp wrench of the circular arc of its end
+poses (:meth:`~optikin.physics.reconstruction.ShapeReconstructor.arc_start`: the pure couple
+``E I theta / L`` about ``t0 x t1`` that bends a weightless rod into the arc, plus the force
+carrying the rod's weight); the previous posture's fit is only a second candidate, kept when
+its shape has less elastic energy. A posture whose two candidates both reach the tip pose
+with shapes more than ``ambiguity_distance`` apart is counted ``ambiguous``.
 """
 
 from __future__ import annotations
@@ -66,6 +68,21 @@ class WrenchRun:
     def iterations(self) -> np.ndarray:
         return np.array([f.iterations for f in self.fits])
 
+    @property
+    def energies(self) -> np.ndarray:
+        """Elastic energy of each kept shape [J]."""
+        return np.array([f.energy for f in self.fits])
+
+    @property
+    def tip_forces(self) -> np.ndarray:
+        """``|F|`` of each fitted tip force [N]."""
+        return np.array([float(np.linalg.norm(f.wrench[:3])) for f in self.fits])
+
+    @property
+    def ambiguous(self) -> np.ndarray:
+        """Per posture: other candidates reached the tip pose with another shape."""
+        return np.array([f.ambiguous for f in self.fits])
+
 
 def wrench_arm(options: CosseratWrenchOptions, length: float) -> RodArm:
     """One uniform unactuated rod of reference length ``length`` [m] with the stiffness and mass of ``options``."""
@@ -85,24 +102,8 @@ def wrench_arm(options: CosseratWrenchOptions, length: float) -> RodArm:
     return RodArm.single(rod)
 
 
-def arc_guess(options: CosseratWrenchOptions, t0: np.ndarray, t1: np.ndarray, length: float) -> np.ndarray:
-    """Clamp wrench ``(n(0) [N], m(0) [N m])`` of the circular arc from tangent ``t0`` to ``t1`` of length ``length``.
-
-    A pure couple ``E I kappa`` with ``kappa = theta / L`` (``theta`` the angle between the
-    unit tangents) about ``t0 x t1`` bends the rod into that arc (Euler's elastica under an
-    end couple); ``n(0) = (rho A L) g`` carries the rod's weight (``n' + f = 0`` with ``f = rho A g``
-    and a free tip, ``n(L) = 0``).
-    """
-    axis = np.cross(t0, t1)
-    sine = float(np.linalg.norm(axis))
-    theta = float(np.arctan2(sine, float(np.dot(t0, t1))))
-    couple = options.EI * theta / length * axis / sine if sine > 1e-12 else np.zeros(3)
-    force = options.mass_per_length * length * np.asarray(options.gravity, dtype=float)
-    return np.concatenate([force, couple])
-
-
 def run_wrench(recording: MarkerRecording, lengths: np.ndarray, options: CosseratWrenchOptions) -> WrenchRun:
-    """Fit every posture of ``recording`` in order, each started from the previous fit (module docstring).
+    """Fit every posture of ``recording`` from its arc, the previous fit as a candidate (module docstring).
 
     Parameters
     ----------
@@ -117,17 +118,9 @@ def run_wrench(recording: MarkerRecording, lengths: np.ndarray, options: Cossera
     arm = wrench_arm(options, float(np.median(lengths)))
     reconstructor = ShapeReconstructor(arm, ReconstructionOptions(steps_per_segment=options.steps))
     build = time.perf_counter() - tic
-    t0, t1 = recording.base_direction, recording.tip_direction
-    fits: list[Reconstruction] = []
-    guess: np.ndarray | None = None
-    for i in range(len(recording)):
-        if guess is None:
-            guess = arc_guess(options, t0[i], t1[i], float(lengths[i]))
-        base = (recording.base_position[i], recording.base_orientation[i])
-        tip = (recording.tip_position[i], recording.tip_orientation[i])
-        fit, z = reconstructor.reconstruct(base, tip, float(lengths[i]), guess)
-        fits.append(fit)
-        guess = z if fit.status == "ok" and np.all(np.isfinite(z)) else None
+    base_poses = list(zip(recording.base_position, recording.base_orientation))
+    tip_poses = list(zip(recording.tip_position, recording.tip_orientation))
+    fits = reconstructor.reconstruct_sequence(base_poses, tip_poses, lengths)
     backbones = np.stack([f.solution.positions for f in fits])
     backbones[np.array([f.status != "ok" for f in fits])] = np.nan
     return WrenchRun(fits, backbones, build)
