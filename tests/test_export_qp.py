@@ -13,6 +13,7 @@ from __future__ import annotations
 import shutil
 import subprocess
 
+import casadi as ca
 import numpy as np
 import pytest
 
@@ -84,7 +85,8 @@ def random_steps(setup: QPExportSetup, count: int, seed: int, spread: float = 1.
     arm, rng = setup.arm, np.random.default_rng(seed)
     from optikin.control.task import TASK_FUNCTIONS
 
-    fk = arm.function(TASK_FUNCTIONS[setup.task][0])
+    q_symbol = ca.SX.sym("q", arm.n_config)  # a plain Function: the configurations go beyond the limits
+    fk = ca.Function("fk", [q_symbol], [arm.function(TASK_FUNCTIONS[setup.task][0])(q_symbol)])
     middle, half = 0.5 * (arm.upper + arm.lower), 0.5 * (arm.upper - arm.lower)
     rows = []
     for _ in range(count):
