@@ -159,7 +159,7 @@ def _cmd_solve(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(result.summary(), indent=2))
     else:
-        print_result(result, wide=args.wide)
+        print_result(result, wide=args.wide, verbose=args.verbose)
         print(f"written to {written}")
     return EXIT_OK if result.succeeded else EXIT_FAILED_SAMPLES
 
@@ -259,7 +259,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default="results", help="output folder (default: ./results)")
     p.add_argument("--json", action="store_true", help="print the result summary as JSON")
     p.add_argument("--no-figures", action="store_true", help="skip drawing figures")
-    p.add_argument("--wide", action="store_true", help="print every column of the comparison")
+    p.add_argument("--wide", action="store_true", help="print every column of the comparison (-v: every metric too)")
     p.add_argument(
         "--set",
         action="append",
@@ -287,6 +287,10 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("bench", help="forward-kinematics throughput of every evaluation path against numpy")
     p.defer("optikin.bench")
 
+    p = sub.add_parser("examples", help="copy the shipped example problems and the data they read into a new folder")
+    p.add_argument("folder", nargs="?", help="the new folder, which must not exist (default: ./optikin-examples)")
+    p.set_defaults(run=_cmd_examples)
+
     p = sub.add_parser("export", help="a problem's kinematics, IK, PH shape or QP step as a self-contained C library")
     p.add_argument("problem", help="problem name or path to a problem file")
     p.add_argument(
@@ -305,6 +309,19 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _cmd_examples(args: argparse.Namespace) -> int:
+    from optikin.examples import DEFAULT_FOLDER, copy_examples, example_problems
+
+    folder = copy_examples(DEFAULT_FOLDER if args.folder is None else args.folder)
+    print(f"copied the examples into {folder}; try:")
+    for problem in example_problems(folder):
+        print(f"  optikin solve {folder / problem.name}")
+    print(f"(the data files and the columns and units each reader expects: {folder / 'README.md'})")
+    if (folder / "plugin").is_dir():
+        print(f"your own arm as a plugin, worked through: {folder / 'plugin' / 'README.md'}")
+    return EXIT_OK
+
+
 def _cmd_export(args: argparse.Namespace) -> int:
     from optikin import export
 
@@ -312,19 +329,27 @@ def _cmd_export(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from optikin.interrupt import deferred_interrupts
+    """Run the command line ``argv`` (default: the program's arguments); returns the exit status.
+
+    Run as the program (``argv`` None), an interrupted run ends at once (:func:`optikin.interrupt.exit_now`):
+    the interpreter's own teardown of a run's CasADi graphs and models can take seconds.
+    """
+    from optikin.interrupt import deferred_interrupts, exit_now
     from optikin.progress import command_line_logging
 
     args = build_parser().parse_args(argv)
     try:
         with deferred_interrupts(), command_line_logging(args.verbose, args.quiet):
-            return args.run(args)
+            code = args.run(args)
     except OptikinError as exc:
         print(f"optikin: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         print("optikin: interrupted; nothing was written", file=sys.stderr)
-        return EXIT_INTERRUPTED
+        code = EXIT_INTERRUPTED
+    if code == EXIT_INTERRUPTED and argv is None:
+        exit_now(code)
+    return code
     except Exception as exc:
         if args.debug:
             traceback.print_exc()

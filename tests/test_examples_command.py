@@ -54,3 +54,15 @@ def test_a_copied_example_solves_from_another_folder(tmp_path, monkeypatch):
     monkeypatch.chdir(elsewhere)
     result, written = solve(str(folder / "dmp-my-demo.yaml"), out=elsewhere / "out", figures=False)
     assert result.samples > 0 and written.is_dir()
+
+
+def test_the_command_copies_names_the_next_step_and_refuses_an_existing_folder(tmp_path, monkeypatch, capsys):
+    from optikin.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    assert main(["examples"]) == 0
+    out = capsys.readouterr().out
+    assert (tmp_path / "optikin-examples" / "track-my-demo.yaml").is_file()
+    assert "optikin solve optikin-examples/track-my-demo.yaml" in out and "plugin" in out
+    assert main(["examples"]) == 2
+    assert "already exists" in capsys.readouterr().err

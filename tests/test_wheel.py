@@ -89,3 +89,16 @@ def test_the_installed_package_is_the_wheel_not_the_checkout(installed, tmp_path
     )
     module, problems = out.stdout.split()
     assert Path(module).is_relative_to(installed) and Path(problems).is_relative_to(installed)
+
+
+def test_optikin_examples_copies_them_out_of_the_wheel_and_they_solve_there(installed, tmp_path):
+    copied = run(installed, tmp_path, "examples", "mine")
+    assert copied.returncode == 0, copied.stderr
+    assert "optikin solve mine/track-my-demo.yaml" in copied.stdout
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    for problem in ("dmp-my-demo.yaml", "track-my-demo.yaml"):
+        solved = run(installed, elsewhere, "solve", str(tmp_path / "mine" / problem), "--out", "out", "--no-figures")
+        assert solved.returncode == 0, solved.stderr
+    again = run(installed, tmp_path, "examples", "mine")
+    assert again.returncode == 2 and "already exists" in again.stderr
