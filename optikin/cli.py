@@ -329,27 +329,19 @@ def _cmd_export(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the command line ``argv`` (default: the program's arguments); returns the exit status.
-
-    Run as the program (``argv`` None), an interrupted run ends at once (:func:`optikin.interrupt.exit_now`):
-    the interpreter's own teardown of a run's CasADi graphs and models can take seconds.
-    """
-    from optikin.interrupt import deferred_interrupts, exit_now
+    from optikin.interrupt import deferred_interrupts
     from optikin.progress import command_line_logging
 
     args = build_parser().parse_args(argv)
     try:
         with deferred_interrupts(), command_line_logging(args.verbose, args.quiet):
-            code = args.run(args)
+            return args.run(args)
     except OptikinError as exc:
         print(f"optikin: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         print("optikin: interrupted; nothing was written", file=sys.stderr)
-        code = EXIT_INTERRUPTED
-    if code == EXIT_INTERRUPTED and argv is None:
-        exit_now(code)
-    return code
+        return EXIT_INTERRUPTED
     except Exception as exc:
         if args.debug:
             traceback.print_exc()
