@@ -6,10 +6,10 @@ CasADi Functions of the base wrench ``w = (N(0), M(0))``, the loads ``P`` (the s
 load vector, :attr:`optikin.physics.RodArm.load_names`) and the history ``H`` of every
 RK4 stage: the shape (every node's state, the tip residual, the new stage values and the
 energy). Newton on the residual finds the unknowns; in numpy on the shape compiled to C
-(``compiled``, the default, :mod:`optikin.codegen`), keeping the Jacobian (forward
-sensitivities along the RK4 steps, evaluated in CasADi's VM: compiling it takes a minute
-and it is needed seldom) across steps while it contracts, or by CasADi's ``rootfinder``
-in the VM. Each step starts from the unknowns extrapolated linearly from the two before.
+(``compiled``, the default, :mod:`optikin.codegen`), its Jacobian by forward differences
+(all columns in one batched C call: compiling the exact forward sensitivities takes about
+a minute) kept across steps while Newton contracts, or by CasADi's ``rootfinder`` (exact
+derivatives) in the VM. Each step starts from the unknowns extrapolated linearly from the two before.
 
 The discrete state after step ``i`` is :class:`DynamicState`: the history of step ``i + 1``
 (``H = c1 y_i + c2 y_{i-1} + d1 (y_t)_i``) and the stage values ``y_i``; a rod at rest in an
@@ -60,6 +60,8 @@ MAX_SHOOTING_EXPONENT = 36.0
 INTERVAL_EXPONENT = 6.0
 """Largest spatial exponent of one shooting interval (its Jacobian grows like ``exp(6) ~ 400``)."""
 MIN_STEPS_PER_PERIOD = 4.0
+FD_STEP = 1e-7
+"""Relative step of the forward differences of the shooting Jacobian."""
 """Fewest time steps per first bending period accepted."""
 EULER_BERNOULLI_BETA1 = 1.8751040687
 """``beta_1 L`` of the first bending mode of a clamped-free Euler-Bernoulli beam."""
@@ -392,7 +394,6 @@ class RodDynamics:
         zero = ca.DM.zeros(HISTORY_ROWS, self.n_steps)
         self._static_residual = ca.Function("rod_rest_residual", [z, P], [self.static_shape(z, P, zero)[1]])
         self._compiled: CompiledFunction | None = None
-        self._jacobian = self._packed_jacobian()
         if options.compiled:
             self._compiled = CompiledFunction(self._packed_shape(), options.flags)
         self._jacobian_inverse: np.ndarray | None = None
@@ -457,58 +458,6 @@ class RodDynamics:
         states, r, Y, E = self.shape(*self._split(packed))
         return ca.Function("rod_dynamics_packed", [packed], [ca.vertcat(r, E, ca.vec(Y), ca.vec(states))])
 
-    def _packed_jacobian(self) -> ca.Function:
-        """``(z, P, vec H) -> vec d residual / d z``, forward sensitivities carried along each RK4 step.
-
-        The sensitivity ``S = dx / d(start of the interval)`` (19 x 6 on the first interval,
-        19 x 19 on the others) is propagated with the state by an SX step
-        ``(x, S) -> (x+, dx+/dx S)``; the residual's Jacobian is assembled from the
-        interval ends (continuity: ``S_end`` and ``-I``; tip: its Jacobian times ``S_end``).
-        """
-        eq, n, bounds = self.equations, self.options.steps_per_segment, self.arm.boundaries
-        xs, ss, Ps = ca.SX.sym("x", STATE_SIZE), ca.SX.sym("s"), ca.SX.sym("P", self.n_loads)
-        Hs = ca.SX.sym("H", HISTORY_ROWS)
-        z, P, H = self._symbols()
-        x = eq.base_state(z[:6])
-        nz = self.n_unknowns
-        blocks = ca.MX.zeros(nz, nz)
-        carried: dict[tuple[int, int, int], ca.Function] = {}
-        row = 0
-        for j in range(self.intervals):
-            width = 6 if j == 0 else STATE_SIZE
-            sens = ca.MX(ca.vertcat(ca.DM.zeros(7, 6), ca.DM.eye(6), ca.DM.zeros(6, 6))) if j == 0 else ca.MX.eye(width)
-            if j > 0:
-                x = z[6 + STATE_SIZE * (j - 1) : 6 + STATE_SIZE * j]
-            col = 0 if j == 0 else 6 + STATE_SIZE * (j - 1)
-            a, b = int(self.cuts[j]), int(self.cuts[j + 1])
-            while a < b:
-                k = a // n
-                end = min(b, (k + 1) * n)
-                h = (bounds[k + 1] - bounds[k]) / n
-                key = (k, end - a, width)
-                if key not in carried:
-                    S = ca.SX.sym("S", STATE_SIZE, width)
-                    out = eq.rk4_step(k, h)(xs, ss, Hs, Ps)[0]
-                    one = ca.Function(
-                        f"rod_dynamics_sens_{k}_{width}", [xs, S, ss, Hs, Ps], [out, ca.jtimes(out, xs, S)]
-                    )
-                    carried[key] = one.mapaccum(f"rod_dynamics_sweep_{k}_{end - a}_{width}", end - a, 2)
-                s_row = ca.DM(bounds[k] + h * np.arange(a - k * n, end - k * n)).T
-                X, SS = carried[key](x, sens, s_row, H[:, a:end], ca.repmat(P, 1, end - a))
-                x, sens = X[:, -1], SS[:, -width:]
-                a = end
-            if j < self.intervals - 1:
-                blocks[row : row + STATE_SIZE, col : col + width] = sens
-                blocks[row : row + STATE_SIZE, 6 + STATE_SIZE * j : 6 + STATE_SIZE * (j + 1)] = -ca.MX.eye(STATE_SIZE)
-                row += STATE_SIZE
-            else:
-                tip = eq.tip_residual(xs, Ps)
-                tip_jac = ca.Function("rod_dynamics_tip_jac", [xs, Ps], [ca.jacobian(tip, xs)])
-                blocks[row : row + 6, col : col + width] = tip_jac(x, P) @ sens
-        inner = ca.Function("rod_dynamics_jac_inner", [z, P, H], [ca.vec(ca.densify(blocks))])
-        packed = ca.MX.sym("packed", self._packed_size)
-        return ca.Function("rod_dynamics_jacobian", [packed], [inner(*self._split(packed))])
-
     # ----------------------------------------------------------------- Newton
 
     def _evaluate(self, z: np.ndarray, P: np.ndarray, H: np.ndarray, rest: bool = False):
@@ -528,9 +477,18 @@ class RodDynamics:
         )
 
     def _fresh_jacobian_inverse(self, z: np.ndarray, P: np.ndarray, H: np.ndarray) -> np.ndarray | None:
-        packed = np.concatenate([z, P, H.ravel(order="F")])
+        """The inverse of the residual's Jacobian at ``z`` by forward differences, all columns in one C call.
+
+        The steps ``1e-7 (1 + |z_j|)`` leave a relative error near ``1e-6``, which only slows Newton
+        by that factor per iteration.
+        """
+        assert self._compiled is not None
         nz = self.n_unknowns
-        J = np.asarray(self._jacobian(packed)).reshape(nz, nz, order="F")
+        steps = FD_STEP * (1.0 + np.abs(z))
+        packed = np.tile(np.concatenate([z, P, H.ravel(order="F")]), (nz + 1, 1))
+        packed[np.arange(1, nz + 1), np.arange(nz)] += steps
+        r = self._compiled.raw(packed)[:, :nz]
+        J = ((r[1:] - r[0]) / steps[:, None]).T
         try:
             inverse = np.linalg.inv(J)
         except np.linalg.LinAlgError:
@@ -578,7 +536,7 @@ class RodDynamics:
             z, out, norm = trial, trial_out, trial_norm
             if norm <= tol:
                 return z, out, it, True
-            if contraction > 0.1:
+            if contraction > 0.5:
                 self._jacobian_inverse = None
             fresh = False
         return z, out, self.options.max_iterations, False
