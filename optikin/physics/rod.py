@@ -24,10 +24,16 @@ Elasticity*, ch. 8; in the notation of Rucker & Webster, IEEE T-RO 27(6), 2011, 
     n' + f = 0,   m' + p' x n + l = 0,
     m = R K_bt (u - u*),   n = R K_se (v - v*),
 
-with ``K_bt = diag(E I, E I, G J)``, ``K_se = diag(G A, G A, E A)``, ``v* = (0, 0, 1)``
-and ``u*`` the intrinsic curvature (zero by default). ``f`` and ``l`` are the
-distributed force and moment per unit reference length: gravity ``rho A g`` plus an
-optional uniform force. In the Kirchhoff model the rod is inextensible and
+with ``K_bt = diag(E I, E I, G J)``, ``K_se = diag(k G A, k G A, E A)``, ``v* = (0, 0, 1)``
+and ``u*`` the intrinsic curvature (zero by default). ``k`` is the shear coefficient
+(Timoshenko's; 1 by default; PyElastica uses ``27/28``, its ``alpha_c`` for a solid circular
+section, so ``shear_coefficient=27/28`` matches its rods). ``f`` and ``l`` are the
+distributed force and moment per unit reference length: the weight ``rho A g`` plus an
+optional uniform force.
+
+Gravity is explicit: ``gravity`` defaults to zero, so a rod has no weight unless it is
+given (a ``density`` alone adds none: it is the mass of the dynamics and of a weight asked
+for elsewhere, e.g. ``Loads(gravity=...)``). In the Kirchhoff model the rod is inextensible and
 unshearable, ``v = v*``, and ``n`` is the constraint force (it still obeys ``n' + f = 0``).
 """
 
@@ -59,7 +65,8 @@ class Rod(Options):
     ------
     pydantic.ValidationError
         Naming the field, for a non-positive length, modulus, radius, area or moment,
-        a negative density, a Poisson ratio outside ``(-1, 1/2]``, neither or both of
+        a negative density, a Poisson ratio outside ``(-1, 1/2]``, a shear coefficient outside ``(0, 1]``,
+        neither or both of
         ``shear_modulus`` and ``poisson_ratio``, or an incomplete cross-section.
     """
 
@@ -72,8 +79,18 @@ class Rod(Options):
     youngs_modulus: float = Field(gt=0, description="Young's modulus E [Pa]")
     shear_modulus: float | None = Field(None, gt=0, description="shear modulus G [Pa] (or give poisson_ratio)")
     poisson_ratio: float | None = Field(None, gt=-1, le=0.5, description="nu, for G = E / (2 (1 + nu)) [-]")
-    density: float = Field(0.0, ge=0, description="mass density rho [kg/m^3]")
-    gravity: Vector3 = Field((0.0, 0.0, -9.81), description="gravitational acceleration g [m/s^2], global frame")
+    density: float = Field(0.0, ge=0, description="mass density rho [kg/m^3]; alone it adds no weight (gravity)")
+    gravity: Vector3 = Field(
+        (0.0, 0.0, 0.0),
+        description="gravitational acceleration g [m/s^2], global frame; default none: give (0, 0, -9.81) for "
+        "the weight of a rod clamped pointing up",
+    )
+    shear_coefficient: float = Field(
+        1.0,
+        gt=0,
+        le=1,
+        description="k of the shear stiffness k G A [-]; 1 by default, 27/28 as PyElastica (its alpha_c)",
+    )
     model: Literal["cosserat", "kirchhoff"] = Field(
         "cosserat", description="'cosserat' (shear-extensible) or 'kirchhoff' (inextensible, unshearable)"
     )
@@ -136,8 +153,9 @@ class Rod(Options):
 
     @property
     def K_se(self) -> np.ndarray:
-        """Shear and extension stiffness ``diag(G A, G A, E A)`` [N], (3,)."""
-        return np.array([self.G * self.A, self.G * self.A, self.youngs_modulus * self.A])
+        """Shear and extension stiffness ``diag(k G A, k G A, E A)`` [N], (3,)."""
+        shear = self.shear_coefficient * self.G * self.A
+        return np.array([shear, shear, self.youngs_modulus * self.A])
 
     @property
     def weight_per_length(self) -> np.ndarray:

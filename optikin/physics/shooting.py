@@ -139,6 +139,7 @@ class ShootingSolver:
                 "abstolStep": 1e-14,
                 "max_iter": self.options.max_iterations,
                 "error_on_fail": False,
+                "show_eval_warnings": False,  # a trial step can integrate to NaN: Newton rejects it, no print
             },
         )
         self._compiled_newton: CompiledFunction | None = None

@@ -33,7 +33,9 @@ def loads() -> list[Loads]:
 
 @pytest.mark.parametrize("compiled", [False, True], ids=["vm_rootfinder", "compiled_newton"])
 def test_equilibrium_sequence(benchmark, compiled):
-    rod = Rod(length=0.3, radius=0.01, youngs_modulus=1e6, shear_modulus=1e6 / 3, density=1000.0)
+    rod = Rod(
+        length=0.3, radius=0.01, youngs_modulus=1e6, shear_modulus=1e6 / 3, density=1000.0, gravity=(0.0, 0.0, -9.81)
+    )
     try:
         solver = ShootingSolver(RodArm.single(rod), ShootingOptions(steps_per_segment=100, compiled=compiled))
     except SolverError as exc:
