@@ -43,6 +43,10 @@ BOUND_TOLERANCE = 1e-9
 MAX_MAGNITUDE = 1e6
 """Largest plausible angle [rad] or translation [m] taken by the algebra: beyond it an angle has lost a
 turn's worth of digits to rounding (the spacing of doubles near 1e6 is 1e-10) and a length is a unit mistake."""
+NEAR_SPANS = 1.0
+"""How far outside its bounds a variable of one configuration may lie in a numeric call of an arm Function
+(:func:`check_configuration` with ``within="near"``), in multiples of its range: a solver's trial point
+or a reference step past a bound passes, ``theta = 10`` rad against a bound of 2.09 rad does not."""
 PLAUSIBLE_SPANS = 10.0
 """How far outside its bounds a configuration variable may plausibly lie, in multiples of its range
 (:func:`check_configuration` with ``within="plausible"``): a solver's or a network's overshoot passes,
@@ -410,6 +414,9 @@ def check_rotation_matrix(R: object, name: str = "R", tolerance: float = UNIT_TO
     return values
 
 
+SPANS = {"bounds": 0.0, "near": NEAR_SPANS, "plausible": PLAUSIBLE_SPANS}
+"""The intervals of :func:`configuration_limits`: how many ranges they reach past the bounds."""
+
 _LIMITS: weakref.WeakKeyDictionary[Any, dict[tuple[str, float], tuple[np.ndarray, ...]]] = weakref.WeakKeyDictionary()
 """The intervals of :func:`configuration_limits` per arm, computed once (recomputed when a bound array is replaced)."""
 
@@ -423,10 +430,13 @@ def configuration_limits(
     ----------
     arm : ArmModel
         The arm whose bounds apply.
-    within : {"bounds", "plausible"}
+    within : {"bounds", "near", "plausible"}
         ``"bounds"``: the arm's bounds with a slack of ``tolerance`` times each variable's range;
-        ``"plausible"``: the bounds widened by :data:`PLAUSIBLE_SPANS` ranges on each side. A periodic
-        variable (a CC section's ``phi``) always gets the plausible interval: its bounds are one turn.
+        ``"near"``: the bounds widened by :data:`NEAR_SPANS` ranges on each side; ``"plausible"``: by
+        :data:`PLAUSIBLE_SPANS` ranges. A fixed variable's range is its magnitude (1 at 0). A length
+        the arm marks ``positive`` (a CC section's ``S``, a CBHA platform's ``Z``) must stay above 0. A periodic
+        variable (a CC section's ``phi``, whose bounds are one turn) is only held to
+        ``+-`` :data:`MAX_MAGNITUDE`, as every angle of the algebra.
     tolerance : float
         See ``within``.
 
@@ -440,15 +450,18 @@ def configuration_limits(
     ValueError
         For an unknown ``within``.
     """
-    if within not in ("bounds", "plausible"):
-        raise ValueError(f"within: expected 'bounds' or 'plausible', got {within!r}")
+    if within not in SPANS:
+        raise ValueError(f"within: expected one of {', '.join(SPANS)}, got {within!r}")
     cached = _LIMITS.setdefault(arm, {}).get((within, tolerance))
     if cached is not None and cached[0] is arm.lower and cached[1] is arm.upper:
         return cached[2], cached[3]
-    span = np.where(arm.upper > arm.lower, arm.upper - arm.lower, 1.0)
-    wide = PLAUSIBLE_SPANS * span
-    slack = np.where(arm.periodic, wide, tolerance * span) if within == "bounds" else wide
-    low, high = arm.lower - slack, arm.upper + slack
+    size = np.maximum(np.abs(arm.lower), np.abs(arm.upper))
+    span = np.where(arm.upper > arm.lower, arm.upper - arm.lower, np.where(size > 0, size, 1.0))
+    slack = (tolerance if within == "bounds" else SPANS[within]) * span
+    low = np.where(arm.periodic, -MAX_MAGNITUDE, arm.lower - slack)
+    high = np.where(arm.periodic, MAX_MAGNITUDE, arm.upper + slack)
+    positive = getattr(arm, "positive", np.zeros(arm.n_config, dtype=bool))
+    low = np.where(positive, np.maximum(low, np.finfo(float).tiny), low)
     _LIMITS[arm][(within, tolerance)] = (arm.lower, arm.upper, low, high)
     return low, high
 
@@ -463,7 +476,7 @@ def check_configuration(
 ) -> np.ndarray:
     """Check configurations of ``arm``: numbers, shape, finite values inside the arm's bounds (or near them).
 
-    Periodic variables (e.g. the ``phi`` of a CC section) are only held to a plausible interval
+    Periodic variables (e.g. the ``phi`` of a CC section) are only held to ``+-`` :data:`MAX_MAGNITUDE`
     (:func:`configuration_limits`): the kinematics are 2 pi-periodic in them.
 
     Parameters
@@ -474,9 +487,10 @@ def check_configuration(
         One configuration ``(n_config,)``; with ``batch`` also ``(..., n_config)``. SI units.
     name : str
         The argument's name, for the message.
-    within : {"bounds", "plausible"}
-        ``"bounds"``: ``lower <= q <= upper`` (to ``tolerance``); ``"plausible"``: within
-        :data:`PLAUSIBLE_SPANS` ranges of the bounds (what a batch evaluation asks).
+    within : {"bounds", "near", "plausible"}
+        ``"bounds"``: ``lower <= q <= upper`` (to ``tolerance``); ``"near"``: within :data:`NEAR_SPANS`
+        ranges of the bounds (a numeric call of an arm Function); ``"plausible"``: within
+        :data:`PLAUSIBLE_SPANS` ranges (a batch evaluation). See :func:`configuration_limits`.
     batch : bool
         Whether a batch ``(..., n_config)`` is accepted.
     tolerance : float
@@ -505,7 +519,7 @@ def check_configuration(
             f"({', '.join(arm.config_names)}), got shape {values.shape}{hint}"
         )
     low, high = configuration_limits(arm, within, tolerance)
-    if ((values >= low) & (values <= high)).all():
+    if ((values >= low) & (values <= high)).all():  # NaN fails both comparisons
         return values
     rows = values.reshape(-1, n)
 
@@ -519,12 +533,15 @@ def check_configuration(
     i, j = (int(k) for k in np.argwhere((rows < low) | (rows > high))[0])
     value = f"{arm.config_names[j]} = {rows[i, j]:.6g}"
     if arm.periodic[j]:
-        raise ValueError(
-            f"{where(i)}: {value} is beyond the plausible range [{low[j]:.6g}, {high[j]:.6g}] of a periodic angle"
-        )
+        raise ValueError(f"{where(i)}: {value} is beyond the plausible magnitude {MAX_MAGNITUDE:g} of a periodic angle")
     bounds = f"[{arm.lower[j]:.6g}, {arm.upper[j]:.6g}]"
+    positive = getattr(arm, "positive", np.zeros(n, dtype=bool))
+    if positive[j] and not rows[i, j] > 0:
+        raise ValueError(f"{where(i)}: {value} is not positive (a length; bounds {bounds})")
     if within == "bounds":
         raise ValueError(f"{where(i)}: {value} outside its bounds {bounds}")
+    if within == "near":
+        raise ValueError(f"{where(i)}: {value} outside its bounds {bounds} by more than {NEAR_SPANS:g} range")
     raise ValueError(
         f"{where(i)}: {value} is far outside its bounds {bounds} (more than {PLAUSIBLE_SPANS:g} ranges away: "
         "a unit mistake, millimetres or degrees for metres or radians?)"

@@ -19,6 +19,14 @@ controllers and baselines call (one model, many uses):
 :meth:`ArmModel.evaluate` runs any of them over a batch of configurations with
 ``Function.map``; :meth:`ArmModel.validate` rejects NaNs, wrong shapes and
 configurations outside the bounds, naming the sample and the variable.
+
+Checked inputs (``docs/conventions.md``): a numeric call of a Function (``arm.fk_dq(q)``)
+refuses ``q`` that is not numbers (:class:`TypeError`), not one configuration, not finite
+or outside the arm's bounds (:class:`ValueError`), naming ``q`` and the variable;
+:meth:`ArmModel.evaluate` and the numeric paths of :meth:`ArmModel.section_frames` refuse
+non-finite and implausible configurations (:data:`optikin.checks.PLAUSIBLE_SPANS`). Symbolic
+calls, ``map``, buffers, code generation and :attr:`ArmFunction.unchecked` are the raw
+CasADi Function: unchecked, for the inner loops of solvers.
 """
 
 from __future__ import annotations
@@ -32,9 +40,9 @@ import casadi as ca
 import numpy as np
 
 from optikin.algebra import dq_from_rotation_translation, dq_translation, transform_from_dq
-from optikin.algebra.backend import Array
+from optikin.algebra.backend import Array, is_casadi
 from optikin.batch import batch_evaluate
-from optikin.checks import ParameterError, check_configuration
+from optikin.checks import ParameterError, check_configuration, check_numbers, configuration_limits
 from optikin.errors import InputDataError
 from optikin.fk_soa import soa_evaluate
 
@@ -45,20 +53,26 @@ CALLING = """
 
 ``f(q)``, with one configuration ``q`` (numpy ``(n_config,)``, a list, or a CasADi column
 ``n_config x 1``), returns a ``casadi.DM`` (``numpy.asarray(f(q))`` or ``f(q).full()`` convert it); a
-symbolic ``q`` (``SX``/``MX``) gives the expression. It is a :class:`casadi.Function`: ``map``, code
-generation and buffers work as usual. For a batch ``Q (N, n_config)`` use ``arm.evaluate(name, Q)``,
-one call for all rows.
+symbolic ``q`` (``SX``/``MX``) gives the expression. A numeric ``q`` is checked: numbers
+(else :class:`TypeError`), one configuration, finite and inside the arm's bounds, periodic angles
+excepted (else :class:`ValueError` naming the variable). It is a :class:`casadi.Function`: ``map``,
+code generation, buffers and ``f.unchecked`` (the raw Function) work as usual and are not checked,
+for speed. For a batch ``Q (N, n_config)`` use ``arm.evaluate(name, Q)``, one call for all rows.
 """
 """How to call an arm Function; ends the docstring of every :class:`ArmFunction`."""
 
 
 class ArmFunction(ca.Function):
-    """A CasADi Function of one configuration that names the batch method when given a numpy batch.
+    """A CasADi Function of one configuration that checks a numeric configuration before calling CasADi.
 
     It is a :class:`casadi.Function` (symbolic calls, ``map``, code generation and buffers work
-    as usual); a call with a numpy array or a list of shape ``(N, n_config)``, ``N > 1``, or of
-    a wrong length raises a :class:`ValueError` instead of CasADi's shape error (batches go
-    through :meth:`ArmModel.evaluate`).
+    as usual and are not checked). A numeric call ``f(q)`` (numpy, list, tuple, number or
+    ``casadi.DM``) checks ``q`` first (:func:`optikin.checks.check_configuration` against the
+    arm's bounds): a string, ``None`` or a complex value is a :class:`TypeError` naming ``q``
+    (instead of CasADi's "Wrong number or type of arguments"); a batch ``(N, n_config)`` or
+    ``(n_config, N)``, a wrong length, a non-finite value or a value outside the bounds is a
+    :class:`ValueError` naming ``q`` and the variable (batches go through :meth:`ArmModel.evaluate`).
+    :attr:`unchecked` is the raw Function, for inner loops.
 
     ``help(arm.fk_dq)`` shows ``doc`` (what the Function computes: shapes, units, frame), not the
     help of :class:`casadi.Function`.
@@ -67,26 +81,64 @@ class ArmFunction(ca.Function):
     ----------
     function : casadi.Function
         The Function, one input ``q`` (``n_config x 1``).
-    arm_name, short_name : str
-        For the message: the arm and the Function's name on it (``fk_dq``).
+    arm : ArmModel
+        The arm whose configuration ``q`` is (names and bounds, for the checks and messages).
+    short_name : str
+        The Function's name on the arm (``fk_dq``), for the message.
     doc : str
         The docstring of this Function (the arm's property that builds it).
     """
 
-    def __init__(self, function: ca.Function, arm_name: str, short_name: str, doc: str = "") -> None:
+    def __init__(self, function: ca.Function, arm: ArmModel, short_name: str, doc: str = "") -> None:
         super().__init__(function)
-        self.arm_name, self.short_name = arm_name, short_name
+        self._raw, self._arm = function, arm
+        self.arm_name, self.short_name = arm.name, short_name
+        self._low, self._high = configuration_limits(arm, "near")
         self.__doc__ = inspect.cleandoc(doc) + CALLING if doc else CALLING.lstrip()
 
+    @property
+    def unchecked(self) -> ca.Function:
+        """The raw :class:`casadi.Function`: the same computation without the input checks of a numeric call.
+
+        For inner loops that have checked their configurations once; NaN in gives NaN out, and a
+        configuration outside the bounds is evaluated as given.
+        """
+        return self._raw
+
+    def _checked(self, q: Any) -> Any:
+        """``q`` as a checked ``(n_config,)`` float array; a symbolic ``q`` unchanged."""
+        if isinstance(q, (ca.SX, ca.MX)):
+            return q
+        values = check_numbers(np.asarray(q) if isinstance(q, ca.DM) else q, "q")
+        n = self.size1_in(0)
+        shape = values.shape
+        if shape in ((n,), (n, 1), (1, n)) or (n == 1 and values.ndim == 0):
+            flat = values.reshape(n)
+            if ((flat >= self._low) & (flat <= self._high)).all():
+                return flat
+            return check_configuration(self._arm, flat, within="near")
+        evaluate = f"arm.evaluate({self.short_name!r}, Q)"
+        if values.ndim == 2 and shape[1] == n:
+            raise ValueError(
+                f"q: takes one configuration of shape ({n},), got shape {shape}; for a batch (N, {n}) use {evaluate}"
+            )
+        if values.ndim == 2 and shape[0] == n:
+            raise ValueError(
+                f"q: takes one configuration of shape ({n},), got shape {shape}, a batch as columns; batches are "
+                f"rows (N, {n}): use {evaluate} with Q = q.T"
+            )
+        raise ValueError(
+            f"q: takes one configuration of shape ({n},), got shape {shape} ({', '.join(self._arm.config_names)})"
+        )
+
     def __call__(self, *args: Any, **kwargs: Any) -> Any:
-        if len(args) == 1 and isinstance(args[0], (np.ndarray, list, tuple)):
-            shape = np.shape(args[0])
-            n = self.size1_in(0)
-            if (len(shape) == 1 and shape[0] != n) or (len(shape) == 2 and shape[1] == n and shape[0] != 1):
-                raise ValueError(
-                    f"{self.arm_name}.{self.short_name} takes one configuration of shape ({n},), got shape {shape}; "
-                    f"for a batch (N, {n}) use arm.evaluate({self.short_name!r}, Q)"
-                )
+        try:
+            if len(args) == 1 and not kwargs:
+                args = (self._checked(args[0]),)
+            elif not args and set(kwargs) == {"q"}:
+                kwargs = {"q": self._checked(kwargs["q"])}
+        except (TypeError, ValueError) as exc:
+            raise type(exc)(f"{self.arm_name}.{self.short_name}: {exc}") from None
         return super().__call__(*args, **kwargs)
 
 
@@ -107,6 +159,9 @@ class ArmModel(ABC):
         One flag per variable: True for angles the kinematics are 2 pi-periodic in
         (solvers and controllers wrap them instead of clipping at the bounds).
         Default: none.
+    positive : tuple of bool, optional
+        One flag per variable: True for lengths that must stay above 0 whatever the slack of a
+        check (:func:`optikin.checks.configuration_limits`). Default: none.
 
     Raises
     ------
@@ -125,6 +180,7 @@ class ArmModel(ABC):
         upper: np.ndarray,
         backbone_points_per_section: int = 20,
         periodic: tuple[bool, ...] | None = None,
+        positive: tuple[bool, ...] | None = None,
     ) -> None:
         if not isinstance(name, str) or not name.isidentifier():
             raise ParameterError(
@@ -150,6 +206,9 @@ class ArmModel(ABC):
         self.periodic = np.zeros(self.n_config, dtype=bool) if periodic is None else np.asarray(periodic, dtype=bool)
         if self.periodic.shape != (self.n_config,):
             raise ValueError(f"{name}: periodic must have one flag per configuration variable")
+        self.positive = np.zeros(self.n_config, dtype=bool) if positive is None else np.asarray(positive, dtype=bool)
+        if self.positive.shape != (self.n_config,):
+            raise ValueError(f"{name}: positive must have one flag per configuration variable")
 
     @property
     def n_config(self) -> int:
@@ -235,7 +294,36 @@ class ArmModel(ABC):
 
     def _function(self, name: str, out: ca.SX, out_name: str) -> ca.Function:
         f = ca.Function(f"{self.name}_{name}", [self._q], [out], ["q"], [out_name], {"cse": True})
-        return ArmFunction(f, self.name, name, getattr(type(self), name).__doc__ or "")
+        return ArmFunction(f, self, name, getattr(type(self), name).__doc__ or "")
+
+    def checked_numeric(self, q: Array, name: str = "q") -> Array:
+        """A numeric ``q`` checked as configurations ``(..., n_config)``, finite and plausible; CasADi unchanged.
+
+        The check of the numeric paths of :meth:`section_frames` and the other kinematic methods
+        (:func:`optikin.checks.check_configuration` with ``within="plausible"``).
+
+        Parameters
+        ----------
+        q : Array
+            Configurations: numpy (any batch shape), a list, or a CasADi matrix (not checked).
+        name : str
+            The argument's name, for the message.
+
+        Returns
+        -------
+        Array
+            ``q`` as a float array, or the CasADi matrix itself.
+
+        Raises
+        ------
+        TypeError
+            For values that are not numbers.
+        ValueError
+            For a wrong shape, a non-finite value or one far outside the bounds.
+        """
+        if is_casadi(q):
+            return q
+        return check_configuration(self, q, name, within="plausible", batch=True)
 
     @cached_property
     def fk_dq(self) -> ca.Function:
@@ -331,15 +419,16 @@ class ArmModel(ABC):
             raise KeyError(f"{self.name} has no function {name!r}; known: {', '.join(known)}")
         return getattr(self, name)
 
-    def evaluate(self, name: str, configurations: np.ndarray, check: bool = False) -> np.ndarray:
+    def evaluate(self, name: str, configurations: np.ndarray, check: bool = True, bounds: bool = False) -> np.ndarray:
         """Evaluate the Function ``name`` on a batch of configurations.
 
         One zero-copy call into CasADi for the whole batch (:func:`optikin.batch.batch_evaluate`);
         the tip pose of a constant-curvature arm through a vectorised C loop instead
         (:func:`optikin.fk_soa.soa_evaluate`, within 1e-14 of it).
-        The shape is always checked. A row with a NaN gives NaN outputs (a failed sample of a
-        batch stays failed); ``check=True`` rejects it, and values outside the bounds, with
-        :func:`optikin.checks.check_configuration`.
+        The type and the shape are always checked. ``check`` refuses NaN, infinite and implausible
+        values (more than :data:`optikin.checks.PLAUSIBLE_SPANS` ranges outside the bounds: a unit
+        mistake); ``bounds`` refuses any value outside the bounds (periodic angles excepted). With
+        ``check=False`` a row with a NaN gives NaN outputs (a failed sample stays failed).
 
         Parameters
         ----------
@@ -348,7 +437,9 @@ class ArmModel(ABC):
         configurations : numpy.ndarray
             ``(N, n_config)``, or one configuration ``(n_config,)``.
         check : bool
-            Whether to require finite configurations inside the bounds.
+            Whether to require finite, plausible configurations (:func:`optikin.checks.check_configuration`).
+        bounds : bool
+            Whether to require configurations inside the bounds.
 
         Returns
         -------
@@ -356,15 +447,23 @@ class ArmModel(ABC):
             ``(N, rows)`` for a column output (e.g. ``fk_dq``: ``(N, 8)``), ``(N, rows, cols)``
             otherwise (e.g. ``section_dq``: ``(N, 8, m)``); without the leading ``N`` for one
             configuration.
+
+        Raises
+        ------
+        TypeError
+            For configurations that are not numbers, naming ``configurations``.
+        ValueError
+            For a wrong shape; with ``check`` or ``bounds``, naming the sample and the variable.
         """
-        Q = np.asarray(configurations, dtype=float)
+        Q = check_numbers(configurations, "configurations")
         if Q.ndim not in (1, 2) or Q.shape[-1] != self.n_config:
             raise ValueError(
                 f"configurations: expected shape (N, {self.n_config}) or ({self.n_config},) for {self.name} "
                 f"({', '.join(self.config_names)}), got shape {Q.shape}"
             )
-        if check:
-            check_configuration(self, Q, name="configurations", batch=True)
+        if check or bounds:
+            within = "bounds" if bounds else "plausible"
+            check_configuration(self, Q, name="configurations", within=within, batch=True)
         single = Q.ndim == 1
         fast = soa_evaluate(self, name, np.atleast_2d(Q))
         if fast is not None:
@@ -491,4 +590,4 @@ class ArmModel(ABC):
         """
         if check:
             check_configuration(self, q, batch=True)
-        return self.evaluate("fk_transform", q)
+        return self.evaluate("fk_transform", q, check=False)

@@ -63,6 +63,13 @@ TABLE_I_LEG_MAX_MM = (19.5, 19.5, 19.5, 16.5, 16.5, 16.5, 20.0, 22.0, 16.0, 20.5
 LEG_DIRECTIONS = np.array([[-1.0, 0.0, 0.0], [0.5, np.sqrt(3.0) / 2.0, 0.0], [0.5, -np.sqrt(3.0) / 2.0, 0.0]])
 """Rows ``u_m``: the attachment points of eq. (3) are ``A_{m,n} = r_n u_m`` in the frame of vertebra ``n``."""
 
+MAX_RADIUS = 1.0
+"""Largest accepted vertebra radius and leg length [m] (the CBHA's are tens of millimetres)."""
+MAX_TOOL_OFFSET = 10.0
+"""Largest accepted ``|tool_offset|`` [m]."""
+MAX_VERTEBRAE = 1000
+"""Largest accepted number of vertebrae."""
+
 CBHA_FUNCTION_NAMES = ("leg_lengths", "vertebra_positions", "vertebra_frames", "tube_points", "tube_lengths")
 """The CBHA's Functions beyond :data:`optikin.arms.base.FUNCTION_NAMES` (table in :class:`CBHAArm`)."""
 
@@ -93,11 +100,14 @@ class CBHAGeometry:
 
     Raises
     ------
+    optikin.checks.ParameterTypeError
+        A :class:`TypeError` naming the field for a value that is not a number (``"0.04"``).
     optikin.checks.ParameterError
         A :class:`ValueError` naming the field (``leg_min.3``): a value that is not a finite
-        number, fewer than 2 vertebrae, radii not ``0 < r_min <= r_max``, limits not one per
-        platform or not ``|r_k - r_{k+1}| < leg_min <= leg_max``, or sections that do not add
-        up to the platforms.
+        number, fewer than 2 or more than :data:`MAX_VERTEBRAE` vertebrae, radii not
+        ``0 < r_min <= r_max <= MAX_RADIUS``, limits not one per platform, above :data:`MAX_RADIUS`
+        or not ``|r_k - r_{k+1}| < leg_min <= leg_max``, a tool offset beyond :data:`MAX_TOOL_OFFSET`,
+        or sections that do not add up to the platforms.
     """
 
     n_vertebrae: int = 17
@@ -110,17 +120,19 @@ class CBHAGeometry:
 
     def __post_init__(self) -> None:
         n = self.n_vertebrae
-        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 2:
-            raise ParameterError("n_vertebrae", f"must be an integer of at least 2, got {n!r}")
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not 2 <= n <= MAX_VERTEBRAE:
+            raise ParameterError("n_vertebrae", f"must be an integer in [2, {MAX_VERTEBRAE}], got {n!r}")
         n_platforms = n - 1
         for name in ("r_max", "r_min"):
-            object.__setattr__(self, name, float(check_parameter(getattr(self, name), name, positive=True)))
+            value = check_parameter(getattr(self, name), name, positive=True, maximum=MAX_RADIUS, unit="m")
+            object.__setattr__(self, name, float(value))
         for name in ("leg_min", "leg_max"):
-            values = check_parameter(getattr(self, name), name, positive=True)
+            values = check_parameter(getattr(self, name), name, positive=True, maximum=MAX_RADIUS, unit="m")
             if values.shape != (n_platforms,):
                 raise ParameterError(name, f"leg_min and leg_max need one value per platform ({n_platforms})")
             object.__setattr__(self, name, tuple(float(v) for v in values))
-        object.__setattr__(self, "tool_offset", float(check_parameter(self.tool_offset, "tool_offset")))
+        offset = check_parameter(self.tool_offset, "tool_offset", maximum=MAX_TOOL_OFFSET, unit="m")
+        object.__setattr__(self, "tool_offset", float(offset))
         sections = self.platforms_per_section
         if not all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in sections):
             raise ParameterError("platforms_per_section", f"expected integers, got {sections!r}")
@@ -233,7 +245,8 @@ def platform_quaternion(theta: Array, psi: Array) -> Array:
         ``(w, x, y, z)``: numpy ``(..., 4)`` or CasADi ``4 x N``.
     """
     return quat_multiply(
-        quat_from_axis_angle(np.array([0.0, 1.0, 0.0]), theta), quat_from_axis_angle(np.array([1.0, 0.0, 0.0]), psi)
+        quat_from_axis_angle(np.array([0.0, 1.0, 0.0]), theta, check=False),
+        quat_from_axis_angle(np.array([1.0, 0.0, 0.0]), psi, check=False),
     )
 
 
@@ -416,7 +429,8 @@ class CBHAArm(ArmModel):
         names = tuple(f"{v}{k}" for k in range(1, geometry.n_platforms + 1) for v in ("Z", "theta", "psi"))
         self.leg_names = tuple(f"q{m}_{k}" for k in range(1, geometry.n_platforms + 1) for m in (1, 2, 3))
         lower, upper = platform_bounds(geometry)
-        super().__init__(name, names, lower.ravel(), upper.ravel(), backbone_points_per_section)
+        positive = tuple(v == "Z" for _ in range(geometry.n_platforms) for v in ("Z", "theta", "psi"))
+        super().__init__(name, names, lower.ravel(), upper.ravel(), backbone_points_per_section, positive=positive)
 
     @property
     def n_sections(self) -> int:
@@ -444,8 +458,17 @@ class CBHAArm(ArmModel):
         list of (Array, Array)
             ``N`` pairs ``(quaternion, position [m])``, vertebra 1 (the identity) first: CasADi
             ``4 x 1`` and ``3 x 1``, or numpy ``(..., 4)`` and ``(..., 3)``.
+
+        Raises
+        ------
+        TypeError, ValueError
+            For a numeric ``q`` that is not finite, plausible configurations (:meth:`ArmModel.checked_numeric`).
         """
-        v = B.components(q, self.n_config)
+        return self._vertebra_chain(self.checked_numeric(q))
+
+    def _vertebra_chain(self, q: Array) -> list[tuple[Array, Array]]:
+        """:meth:`vertebra_chain` without the check."""
+        v = B.components(q, self.n_config, "q")
         zero = 0.0 * v[0]
         quat, pos = B.stack([zero + 1.0, zero, zero, zero]), B.stack([zero, zero, zero])
         frames = [(quat, pos)]
@@ -468,8 +491,13 @@ class CBHAArm(ArmModel):
         -------
         list of (Array, Array)
             One ``(quaternion, position [m])`` per section, as :meth:`vertebra_chain`.
+
+        Raises
+        ------
+        TypeError, ValueError
+            For a numeric ``q`` that is not finite, plausible configurations (:meth:`ArmModel.checked_numeric`).
         """
-        chain = self._chain_of(q)
+        chain = self._chain_of(self.checked_numeric(q))
         frames = [chain[i] for i in self.section_end_vertebrae]
         quat, pos = frames[-1]
         if self.geometry.tool_offset != 0.0:
@@ -532,11 +560,11 @@ class CBHAArm(ArmModel):
     # ------------------------------------------------------------------ extra Functions
     @cached_property
     def _chain_expr(self) -> list[tuple[ca.SX, ca.SX]]:
-        return self.vertebra_chain(self._q)
+        return self._vertebra_chain(self._q)
 
     def _chain_of(self, q: Array) -> list[tuple[Array, Array]]:
         """The chain of ``q``, built once for the arm's own symbol."""
-        return self._chain_expr if q is self._q else self.vertebra_chain(q)
+        return self._chain_expr if q is self._q else self._vertebra_chain(q)
 
     @cached_property
     def leg_lengths(self) -> ca.Function:

@@ -35,7 +35,7 @@ from optikin.algebra import backend as B
 from optikin.algebra import check_unit_quaternions, quat_conjugate, quat_multiply, quat_rotate
 from optikin.algebra.backend import Array
 from optikin.arms.base import ArmModel
-from optikin.checks import ParameterError, check_parameter
+from optikin.checks import ParameterError, check_parameter, check_quaternion
 
 DEFAULT_SECTION_LENGTH = 0.18
 """Seed 000 section VII: two rods of 18 cm each."""
@@ -43,6 +43,11 @@ DEFAULT_LENGTH_RANGE = (0.9, 1.1)
 """Section length bounds as fractions of the nominal length (an assumption: Table 1 of seed 000 is lost)."""
 DEFAULT_THETA_MAX = 2.0 * np.pi / 3.0
 """|theta| <= 120 degrees per section (an assumption, typical of cable-driven sections)."""
+MAX_SECTION_LENGTH = 10.0
+"""Largest accepted nominal section length [m]: above the longest continuum sections built (about 2 m), far
+below a length in millimetres (180 for 18 cm)."""
+MAX_LENGTH_FACTOR = 10.0
+"""Largest accepted ``length_range`` factor: a section stretching to 10 times its nominal length."""
 
 
 def section_quaternion(theta: Array, phi: Array) -> Array:
@@ -92,7 +97,7 @@ def section_position(length: Array, theta: Array, phi: Array) -> Array:
     return B.stack([radial * B.cos(phi), radial * B.sin(phi), length * B.sinc(theta)])
 
 
-def section_angles_from_quaternion(q: Array) -> tuple[Array, Array]:
+def section_angles_from_quaternion(q: Array, check: bool = True) -> tuple[Array, Array]:
     """Section angles from the orientation of a CC section relative to its base (seed 000 eq. 8, derived again).
 
     The tip z axis is ``R e_z = (sin theta cos phi, sin theta sin phi, cos theta)``, so
@@ -103,14 +108,24 @@ def section_angles_from_quaternion(q: Array) -> tuple[Array, Array]:
     ----------
     q : Array
         Unit quaternions ``(w, x, y, z)``: numpy ``(..., 4)`` or CasADi ``4 x N``.
+    check : bool
+        Refuse a numpy ``q`` that is not a finite unit quaternion (:func:`optikin.checks.check_quaternion`);
+        False in inner loops.
 
     Returns
     -------
     tuple of Array
         ``(theta, phi)`` [rad], each numpy ``(...)`` or CasADi ``1 x N``; ``theta`` in
         ``[0, pi]``, ``phi`` in ``(-pi, pi]`` (0 when the section is straight).
+
+    Raises
+    ------
+    ValueError
+        With ``check``, for a non-finite, zero or non-unit numpy quaternion, naming ``q``.
     """
-    w, x, y, z = B.components(q, 4)
+    if check and not B.is_casadi(q):
+        q = check_quaternion(q, unit=True, name="q")
+    w, x, y, z = B.components(q, 4, "q")
     r13 = 2 * (x * z + w * y)
     r23 = 2 * (y * z - w * x)
     r33 = 1 - 2 * (x * x + y * y)
@@ -156,9 +171,11 @@ class ConstantCurvatureArm(ArmModel):
     Parameters
     ----------
     section_lengths : tuple of float
-        Nominal length of each section [m] (default: two 18 cm sections, seed 000 section VII).
+        Nominal length of each section [m], in ``(0, MAX_SECTION_LENGTH]`` (default: two 18 cm
+        sections, seed 000 section VII).
     length_range : tuple of float
-        Bounds ``(low, high)`` of ``S_i`` as fractions of the nominal length, ``0 < low <= high``.
+        Bounds ``(low, high)`` of ``S_i`` as fractions of the nominal length,
+        ``0 < low <= high <= MAX_LENGTH_FACTOR``.
     theta_max : float
         Bound on ``|theta_i|`` [rad], in ``(0, pi]``.
     name : str
@@ -168,11 +185,11 @@ class ConstantCurvatureArm(ArmModel):
 
     Raises
     ------
+    optikin.checks.ParameterTypeError
+        A :class:`TypeError` naming the parameter for a value that is not a number (``"1"``, ``None``).
     optikin.checks.ParameterError
         A :class:`ValueError` naming the parameter (``section_lengths.0``) for a value that is not
-        a finite number or not positive.
-    ValueError
-        For bounds outside the ranges above.
+        a finite number, not positive or outside the ranges above.
     """
 
     def __init__(
@@ -183,15 +200,16 @@ class ConstantCurvatureArm(ArmModel):
         name: str = "cc",
         backbone_points_per_section: int = 20,
     ) -> None:
-        lengths = check_parameter(section_lengths, "section_lengths", positive=True)
+        lengths = check_parameter(
+            section_lengths, "section_lengths", positive=True, maximum=MAX_SECTION_LENGTH, unit="m"
+        )
         if lengths.ndim != 1 or len(lengths) == 0:
             raise ParameterError("section_lengths", f"expected a list of section lengths, got {section_lengths!r}")
-        lo, hi = (float(v) for v in check_parameter(length_range, "length_range", positive=True, size=2))
+        range_ = check_parameter(length_range, "length_range", positive=True, size=2, maximum=MAX_LENGTH_FACTOR)
+        lo, hi = (float(v) for v in range_)
         if not lo <= hi:
-            raise ValueError(f"length_range must satisfy 0 < low <= high, got {length_range}")
-        theta_max = float(check_parameter(theta_max, "theta_max", positive=True, size=None))
-        if not theta_max <= np.pi:
-            raise ValueError(f"theta_max must be in (0, pi], got {theta_max}")
+            raise ParameterError("length_range", f"must satisfy 0 < low <= high, got {list(length_range)}")
+        theta_max = float(check_parameter(theta_max, "theta_max", positive=True, maximum=np.pi, unit="rad"))
         self.section_lengths = lengths
         self.length_range = (float(lo), float(hi))
         self.theta_max = float(theta_max)
@@ -200,7 +218,8 @@ class ConstantCurvatureArm(ArmModel):
         lower = np.ravel([[lo * L, -theta_max, -np.pi] for L in lengths])
         upper = np.ravel([[hi * L, theta_max, np.pi] for L in lengths])
         periodic = tuple(v == "phi" for _ in range(m) for v in ("S", "theta", "phi"))
-        super().__init__(name, names, lower, upper, backbone_points_per_section, periodic)
+        positive = tuple(v == "S" for _ in range(m) for v in ("S", "theta", "phi"))
+        super().__init__(name, names, lower, upper, backbone_points_per_section, periodic, positive)
 
     @property
     def n_sections(self) -> int:
@@ -225,7 +244,7 @@ class ConstantCurvatureArm(ArmModel):
             ``m`` pairs ``(quaternion, position [m])``: CasADi ``4 x 1`` and ``3 x 1``, or numpy
             ``(..., 4)`` and ``(..., 3)``.
         """
-        return self._chain(q, fractions=())[0]
+        return self._chain(self.checked_numeric(q), fractions=())[0]
 
     def frame_at(self, q: Array, section: int, fraction: float = 1.0) -> tuple[Array, Array]:
         """Pose of the backbone frame at ``fraction`` of section ``section``'s arc (from 0), base frame.
@@ -252,12 +271,13 @@ class ConstantCurvatureArm(ArmModel):
             raise ValueError(f"section {section + 1} out of range: {self.name} has {self.n_sections} sections")
         if not 0.0 < fraction <= 1.0:
             raise ValueError(f"fraction must lie in (0, 1], got {fraction:g}")
-        S, theta, phi = B.components(q, self.n_config)[3 * section : 3 * section + 3]
+        q = self.checked_numeric(q)
+        S, theta, phi = B.components(q, self.n_config, "q")[3 * section : 3 * section + 3]
         quat = section_quaternion(fraction * theta, phi)
         position = section_position(fraction * S, fraction * theta, phi)
         if section == 0:
             return quat, position
-        base_quat, base_position = self.section_frames(q)[section - 1]
+        base_quat, base_position = self._chain(q, fractions=())[0][section - 1]
         return quat_multiply(base_quat, quat), base_position + quat_rotate(base_quat, position, check=False)
 
     def backbone_points(self, q: ca.SX, points_per_section: int) -> ca.SX:

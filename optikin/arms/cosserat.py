@@ -55,11 +55,14 @@ Vector3 = tuple[StrictFloat, StrictFloat, StrictFloat]
 class SegmentParams(Options):
     """One segment: its length and cross-section."""
 
-    length: StrictFloat = Field(gt=0, description="length of the segment [m]")
-    radius: StrictFloat = Field(gt=0, description="radius of the solid circular backbone (A, I, J) [m]")
+    length: StrictFloat = Field(gt=0, le=100.0, description="length of the segment [m], at most 100 m")
+    radius: StrictFloat = Field(
+        gt=0, le=1.0, description="radius of the solid circular backbone (A, I, J) [m], at most 1 m"
+    )
     outer_radius: StrictFloat | None = Field(
         None,
         gt=0,
+        le=1.0,
         description="radius actuators must stay inside (spacer disks of a tendon robot) [m]; default: radius",
     )
 

@@ -71,12 +71,23 @@ def test_transform_of_rejects_bad_configurations(q, match):
     ARM.transform_of(q, check=False)  # the opt-out computes without looking
 
 
-def test_evaluate_checks_on_request_naming_the_sample():
+def test_evaluate_checks_by_default_naming_the_sample():
     Q = np.stack([BENT, BENT, BENT])
     Q[2, 4] = np.nan
     with pytest.raises(ValueError, match=r"configurations\[2\]: theta2 = nan"):
-        ARM.evaluate("fk_position", Q, check=True)
-    assert np.isnan(ARM.evaluate("fk_position", Q)[2]).all()  # a failed sample stays failed by default
+        ARM.evaluate("fk_position", Q)
+    assert np.isnan(ARM.evaluate("fk_position", Q, check=False)[2]).all()  # the opt-out: a failed sample stays failed
+
+
+def test_evaluate_refuses_implausible_values_and_on_request_values_outside_the_bounds():
+    Q = np.stack([BENT, BENT * [1, 1.5, 1, 1, 1, 1]])  # theta1 = 0.9: inside the bounds
+    Q[1, 1] = 2.5  # past theta_max = 2.094: a solver's overshoot, evaluated by default
+    assert ARM.evaluate("fk_position", Q).shape == (2, 3)
+    with pytest.raises(ValueError, match=r"configurations\[1\]: theta1 = 2.5 outside its bounds"):
+        ARM.evaluate("fk_position", Q, bounds=True)
+    Q[1, 3] = 170.0  # S2 in millimetres
+    with pytest.raises(ValueError, match=r"configurations\[1\]: S2 = 170 is far outside its bounds .*unit mistake"):
+        ARM.evaluate("fk_position", Q)
 
 
 def test_periodic_angles_are_not_bound_checked():
