@@ -42,9 +42,19 @@ from typing import Any, Mapping
 import numpy as np
 
 from optikin.algebra import dq_rotation, dq_translation, quat_rotate
-from optikin.algebra.quaternion import refuse_degenerate
 from optikin.arms.base import ArmModel
 from optikin.baselines.pseudo_inverse import DampedLeastSquaresController, PseudoInverseController
+from optikin.checks import (
+    MAX_MAGNITUDE,
+    ParameterError,
+    check_configuration,
+    check_dual_quaternion,
+    check_finite,
+    check_magnitude,
+    check_numbers,
+    check_parameter,
+    check_rotation_matrix,
+)
 from optikin.control.base import Controller
 from optikin.control.mpc import MPCController
 from optikin.control.qp import QPController
@@ -64,6 +74,34 @@ from optikin.solvers import load_preset
 from optikin.solvers.nonlinear import LeastSquaresProblem, NonlinearAdapter
 
 logger = logging.getLogger(__name__)
+
+
+def _arm(arm: object) -> ArmModel:
+    """``arm`` itself, or a :class:`TypeError` naming the argument."""
+    if not isinstance(arm, ArmModel):
+        raise TypeError(
+            f"arm: expected an ArmModel (e.g. optikin.arms.ConstantCurvatureArm()), got {type(arm).__name__}"
+        )
+    return arm
+
+
+def _count(value: object, name: str, minimum: int) -> int:
+    """An integer argument of at least ``minimum``, or a :class:`TypeError` / :class:`ValueError` naming it."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise TypeError(f"{name}: expected an integer, got {type(value).__name__} {value!r}")
+    if value < minimum:
+        raise ValueError(f"{name}: must be at least {minimum}, got {value}")
+    return int(value)
+
+
+def _number(value: object, name: str, positive: bool = False) -> float:
+    """A finite number argument (``positive``: above zero; else at least zero), naming it when it is not."""
+    number = float(check_parameter(value, name, positive=positive, size=None))
+    if np.ndim(value) != 0:
+        raise ParameterError(name, f"expected one number, got {value!r}")
+    if not positive and number < 0:
+        raise ParameterError(name, f"must not be negative, got {number:g}")
+    return number
 
 
 @dataclass(frozen=True)
@@ -153,11 +191,26 @@ def solve_ik(
     Returns
     -------
     IkSolution
+
+    Raises
+    ------
+    TypeError
+        ``arm`` not an arm, or an argument that is not numbers, naming it.
+    ValueError
+        A target of the wrong size, not finite, beyond :data:`optikin.checks.MAX_MAGNITUDE` m or (a pose)
+        not a unit dual quaternion; a ``start`` that is not a plausible configuration; a ``noise`` or
+        ``tolerance`` that is not a finite number of the right sign; naming the argument.
     """
-    target = np.asarray(target, dtype=float).ravel()
+    arm = _arm(arm)
+    target = check_magnitude(check_finite(check_numbers(target, "target"), "target"), "target", MAX_MAGNITUDE, "m")
+    target = target.ravel()
     kind = "points" if points is not None else {3: "position", 8: "pose"}.get(target.size)
     if kind is None:
         raise ValueError(f"target must be a position (3) or a dual quaternion (8), got {target.size} values")
+    if kind == "pose":
+        check_dual_quaternion(target, name="target")
+    noise = None if noise is None else _number(noise, "noise")
+    tolerance = _number(tolerance, "tolerance", positive=True)
     measured = point_set(points) if points is not None else None
     if measured is not None:
         measured.check(arm)
@@ -180,7 +233,7 @@ def solve_ik(
     if loaded.backend.family != "nonlinear":
         raise ValueError(f"preset {preset!r} is of family {loaded.backend.family}, not nonlinear")
     adapter: NonlinearAdapter = loaded.build()
-    x0 = formulation.rest if start is None else np.asarray(start, dtype=float)
+    x0 = formulation.rest if start is None else check_configuration(arm, start, "start", within="plausible")
     targets = Targets(kind, target[None], np.full((1, arm.n_config), np.nan), np.ones(1, bool), points=measured)
     batch = mark_fits(
         adapter.solve_many(problem, x0, target[None], x_ref=formulation.rest), arm, targets, formulation, noise
@@ -233,15 +286,13 @@ class Backbone:
 
 def _end(pose: np.ndarray, name: str) -> tuple[np.ndarray, np.ndarray]:
     """Position [m] and backbone tangent (the frame's z axis) of a unit dual quaternion ``(8,)`` or a 4x4 transform."""
-    x = np.asarray(pose, dtype=float)
+    x = check_magnitude(check_finite(check_numbers(pose, name), name), name, MAX_MAGNITUDE, "m")
     if x.shape == (4, 4):
-        R = x[:3, :3]
-        if not np.allclose(R.T @ R, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
-            raise ValueError(f"{name}: the upper-left 3x3 block is not a rotation")
+        R = check_rotation_matrix(x[:3, :3], f"{name}[:3, :3]")
         return x[:3, 3], R[:, 2]
     if x.shape == (8,):
-        refuse_degenerate(x[:4], name)
-        return dq_translation(x), quat_rotate(dq_rotation(x), np.array([0.0, 0.0, 1.0]))
+        check_dual_quaternion(x, name=name)
+        return dq_translation(x, check=False), quat_rotate(dq_rotation(x), np.array([0.0, 0.0, 1.0]), check=False)
     raise ValueError(f"{name} must be a unit dual quaternion (8,) or a 4x4 transform, got shape {x.shape}")
 
 
@@ -284,13 +335,20 @@ def reconstruct_backbone(
 
     Raises
     ------
+    TypeError
+        An argument that is not numbers (or ``samples`` not an integer), naming it.
     ValueError
-        A pose of the wrong shape or not a rigid transform.
+        A pose of the wrong shape, not finite or not a rigid transform; ``samples`` below 2, a
+        ``length`` or ``twist_weight`` that is not a finite number of the right sign; naming the argument.
     optikin.errors.InputDataError
         ``length`` not longer than the chord (naming the field).
     """
     p0, t0 = _end(base_pose, "base_pose")
     p1, t1 = _end(tip_pose, "tip_pose")
+    samples = _count(samples, "samples", 2)
+    twist_weight = _number(twist_weight, "twist_weight")
+    if length is not None:
+        length = _number(length, "length", positive=True)
     if length is None:
         length = float(arc_length_estimate(p0, t0, p1, t1))
     data = ShapeData.checked(p0, t0, p1, t1, length=length, source="reconstruct_backbone")
@@ -356,7 +414,9 @@ def _reference(
             raise ValueError(f"waypoints need rows of {arm.n_config} values ({', '.join(arm.config_names)})")
         t, Q, Qdot = minimum_jerk_path(W, params.segment_time, params.rate, params.hold)
         return reference_from_configurations(arm, t, Q, Qdot, params.task), W[0]
-    value = np.asarray(reference, dtype=float)
+    value = check_magnitude(
+        check_finite(check_numbers(reference, "reference"), "reference"), "reference", MAX_MAGNITUDE, "m"
+    )
     task = {3: "position", 8: "pose"}.get(value.shape[-1]) if value.ndim == 2 else None
     if task is None:
         raise ValueError(f"a reference array must be (N, 3) positions or (N, 8) dual quaternions, got {value.shape}")
@@ -418,10 +478,19 @@ def track(
     ------
     optikin.errors.SpecError
         A waypoint mapping its model refuses (naming ``reference.<field>``).
+    TypeError
+        ``arm`` not an arm, an argument that is not numbers or ``horizon`` not an integer, naming it.
     ValueError
-        An unknown controller, a preset not of family ``qp``, a reference array of the wrong shape, waypoints
-        of the wrong length, or a first reference sample that no configuration reaches.
+        An unknown controller, a preset not of family ``qp``, a reference array of the wrong shape or not
+        finite, waypoints of the wrong length, a first reference sample that no configuration reaches, a
+        ``start`` that is not a plausible configuration, or a ``rate``, ``gain``, ``damping`` or ``horizon``
+        out of range, naming the argument.
     """
+    arm = _arm(arm)
+    rate, gain, damping = _number(rate, "rate", positive=True), _number(gain, "gain"), _number(damping, "damping")
+    horizon = _count(horizon, "horizon", 1)
+    if start is not None:
+        start = check_configuration(arm, start, "start", within="plausible")
     ref, first = _reference(arm, reference, rate)
     if start is None:
         if first is None:

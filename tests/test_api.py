@@ -181,3 +181,40 @@ def test_help_of_an_arm_function_is_optikin_s_docstring():
     value = arm.fk_dq(q)  # what the README says: a DM, 8 x 1, equal to the batch path
     assert value.shape == (8, 1) and type(value).__name__ == "DM"
     np.testing.assert_allclose(np.asarray(value).ravel(), arm.evaluate("fk_dq", q), atol=1e-15)
+
+
+@pytest.mark.parametrize(
+    "call, error, match",
+    [
+        (lambda arm: optikin.solve_ik(arm, [0.1, np.nan, 0.3]), ValueError, r"target\[1\]: nan is not a finite"),
+        (lambda arm: optikin.solve_ik(arm, [0.1, 1e300, 0.3]), ValueError, r"target\[1\]: 1e\+300 m is beyond"),
+        (lambda arm: optikin.solve_ik(arm, "0.1 0.2 0.3"), TypeError, r"target: expected numbers, got str"),
+        (
+            lambda arm: optikin.solve_ik(arm, np.r_[2.0, 0, 0, 0, 0, 0, 0, 0]),
+            ValueError,
+            r"target: real part .* norm 2",
+        ),
+        (lambda arm: optikin.solve_ik("cc", [0.1, 0.0, 0.3]), TypeError, r"arm: expected an ArmModel .*, got str"),
+        (lambda arm: optikin.solve_ik(arm, [0.1, 0.0, 0.3], noise=-1.0), ValueError, r"noise: must not be negative"),
+        (
+            lambda arm: optikin.solve_ik(arm, [0.1, 0.0, 0.3], start=np.full(6, np.nan)),
+            ValueError,
+            r"start: S1 = nan is not a finite number",
+        ),
+        (lambda arm: optikin.reconstruct_backbone(np.eye(4), np.eye(4), samples=1.5), TypeError, r"samples: expected"),
+        (
+            lambda arm: optikin.reconstruct_backbone(np.eye(4), 2 * np.eye(4)),
+            ValueError,
+            r"tip_pose\[:3, :3\]: not a rotation matrix",
+        ),
+        (lambda arm: optikin.track(arm, np.zeros((5, 3)), rate=0.0), ValueError, r"rate: must be positive"),
+        (
+            lambda arm: optikin.track(arm, np.full((5, 3), np.inf)),
+            ValueError,
+            r"reference\[0, 0\]: inf is not a finite",
+        ),
+    ],
+)
+def test_entry_points_name_the_bad_argument(call, error, match):
+    with pytest.raises(error, match=match):
+        call(ConstantCurvatureArm())
