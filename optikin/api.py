@@ -96,9 +96,7 @@ def _count(value: object, name: str, minimum: int) -> int:
 
 def _number(value: object, name: str, positive: bool = False) -> float:
     """A finite number argument (``positive``: above zero; else at least zero), naming it when it is not."""
-    number = float(check_parameter(value, name, positive=positive, size=None))
-    if np.ndim(value) != 0:
-        raise ParameterError(name, f"expected one number, got {value!r}")
+    number = float(check_parameter(value, name, positive=positive, scalar=True))
     if not positive and number < 0:
         raise ParameterError(name, f"must not be negative, got {number:g}")
     return number

@@ -555,6 +555,7 @@ def check_parameter(
     size: int | None = None,
     maximum: float | None = None,
     unit: str = "",
+    scalar: bool = False,
 ) -> np.ndarray:
     """Check a numeric model parameter: numbers, finite, optionally positive, below a bound and of a given length.
 
@@ -573,6 +574,8 @@ def check_parameter(
         The largest physically plausible magnitude ``|value|`` of an entry; ``None``: no bound.
     unit : str
         The parameter's unit, for the message (``"m"`` adds a hint about millimetres).
+    scalar : bool
+        Whether the parameter is one number (a list is refused naming it).
 
     Returns
     -------
@@ -592,8 +595,8 @@ def check_parameter(
         raise ParameterTypeError(field, f"expected a number or a list of numbers, got {_describe(value)}") from None
     except ValueError:
         raise ParameterError(field, f"expected numbers, got {value!r}") from None
-    if values.ndim > 1 or (size is not None and values.shape != (size,)):
-        wanted = f"{size} numbers" if size is not None else "a number or a list of numbers"
+    if values.ndim > 1 or (size is not None and values.shape != (size,)) or (scalar and values.ndim != 0):
+        wanted = "one number" if scalar else f"{size} numbers" if size is not None else "a number or a list of numbers"
         raise ParameterError(field, f"expected {wanted}, got {value!r}")
     flat = np.atleast_1d(values)
     for i, v in enumerate(flat):

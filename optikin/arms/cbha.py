@@ -124,14 +124,14 @@ class CBHAGeometry:
             raise ParameterError("n_vertebrae", f"must be an integer in [2, {MAX_VERTEBRAE}], got {n!r}")
         n_platforms = n - 1
         for name in ("r_max", "r_min"):
-            value = check_parameter(getattr(self, name), name, positive=True, maximum=MAX_RADIUS, unit="m")
+            value = check_parameter(getattr(self, name), name, positive=True, maximum=MAX_RADIUS, unit="m", scalar=True)
             object.__setattr__(self, name, float(value))
         for name in ("leg_min", "leg_max"):
             values = check_parameter(getattr(self, name), name, positive=True, maximum=MAX_RADIUS, unit="m")
             if values.shape != (n_platforms,):
                 raise ParameterError(name, f"leg_min and leg_max need one value per platform ({n_platforms})")
             object.__setattr__(self, name, tuple(float(v) for v in values))
-        offset = check_parameter(self.tool_offset, "tool_offset", maximum=MAX_TOOL_OFFSET, unit="m")
+        offset = check_parameter(self.tool_offset, "tool_offset", maximum=MAX_TOOL_OFFSET, unit="m", scalar=True)
         object.__setattr__(self, "tool_offset", float(offset))
         sections = self.platforms_per_section
         if not all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in sections):
@@ -461,7 +461,9 @@ class CBHAArm(ArmModel):
 
         Raises
         ------
-        TypeError, ValueError
+        TypeError
+            For a numeric ``q`` that is not numbers.
+        ValueError
             For a numeric ``q`` that is not finite, plausible configurations (:meth:`ArmModel.checked_numeric`).
         """
         return self._vertebra_chain(self.checked_numeric(q))
@@ -494,7 +496,9 @@ class CBHAArm(ArmModel):
 
         Raises
         ------
-        TypeError, ValueError
+        TypeError
+            For a numeric ``q`` that is not numbers.
+        ValueError
             For a numeric ``q`` that is not finite, plausible configurations (:meth:`ArmModel.checked_numeric`).
         """
         chain = self._chain_of(self.checked_numeric(q))

@@ -35,7 +35,7 @@ from optikin.algebra import backend as B
 from optikin.algebra import check_unit_quaternions, quat_conjugate, quat_multiply, quat_rotate
 from optikin.algebra.backend import Array
 from optikin.arms.base import ArmModel
-from optikin.checks import ParameterError, check_parameter, check_quaternion
+from optikin.checks import ParameterError, check_numbers, check_parameter, check_quaternion
 
 DEFAULT_SECTION_LENGTH = 0.18
 """Seed 000 section VII: two rods of 18 cm each."""
@@ -209,7 +209,9 @@ class ConstantCurvatureArm(ArmModel):
         lo, hi = (float(v) for v in range_)
         if not lo <= hi:
             raise ParameterError("length_range", f"must satisfy 0 < low <= high, got {list(length_range)}")
-        theta_max = float(check_parameter(theta_max, "theta_max", positive=True, maximum=np.pi, unit="rad"))
+        theta_max = float(
+            check_parameter(theta_max, "theta_max", positive=True, maximum=np.pi, unit="rad", scalar=True)
+        )
         self.section_lengths = lengths
         self.length_range = (float(lo), float(hi))
         self.theta_max = float(theta_max)
@@ -243,6 +245,13 @@ class ConstantCurvatureArm(ArmModel):
         list of (Array, Array)
             ``m`` pairs ``(quaternion, position [m])``: CasADi ``4 x 1`` and ``3 x 1``, or numpy
             ``(..., 4)`` and ``(..., 3)``.
+
+        Raises
+        ------
+        TypeError
+            For a numeric ``q`` that is not numbers.
+        ValueError
+            For a numeric ``q`` that is not finite, plausible configurations (:meth:`ArmModel.checked_numeric`).
         """
         return self._chain(self.checked_numeric(q), fractions=())[0]
 
@@ -266,7 +275,18 @@ class ConstantCurvatureArm(ArmModel):
         -------
         (Array, Array)
             ``(quaternion, position [m])`` in the base frame.
+
+        Raises
+        ------
+        TypeError
+            A ``section`` that is not an integer, a ``fraction`` or numeric ``q`` that is not numbers.
+        ValueError
+            ``section`` out of range, ``fraction`` outside ``(0, 1]``, or a numeric ``q`` that is not finite,
+            plausible configurations.
         """
+        if isinstance(section, bool) or not isinstance(section, (int, np.integer)):
+            raise TypeError(f"section: expected an integer index from 0, got {type(section).__name__} {section!r}")
+        fraction = float(check_numbers(fraction, "fraction"))
         if not 0 <= section < self.n_sections:
             raise ValueError(f"section {section + 1} out of range: {self.name} has {self.n_sections} sections")
         if not 0.0 < fraction <= 1.0:

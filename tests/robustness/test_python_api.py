@@ -152,6 +152,10 @@ def test_check_dual_quaternion():
         ({"length_range": [0.9, float("nan")]}, "length_range.1: not a finite number"),
         ({"length_range": [0.9, -1.0]}, "length_range.1: must be positive"),
         ({"theta_max": float("nan")}, "theta_max: not a finite number"),
+        ({"theta_max": 4.0}, r"theta_max: 4 rad is beyond the physical bound 3.14159 rad"),
+        ({"length_range": [0.9, 50.0]}, "length_range.1: 50 is beyond the physical bound 10"),
+        ({"length_range": [1.1, 0.9]}, r"length_range: must satisfy 0 < low <= high"),
+        ({"theta_max": [1.0, 2.0]}, r"theta_max: expected one number, got \[1.0, 2.0\]"),
         ({"backbone_points_per_section": 2.5}, "backbone_points_per_section: must be a positive integer"),
     ],
 )
@@ -172,6 +176,9 @@ def test_constant_curvature_parameters_are_named(params, field):
         ({"tool_offset": float("inf")}, "geometry.tool_offset: not a finite number"),
         ({"leg_min": [0.0085] * 15 + [float("nan")]}, "geometry.leg_min.15: not a finite number"),
         ({"leg_max": [0.02] * 3}, r"geometry.leg_max: leg_min and leg_max need one value per platform \(16\)"),
+        ({"r_max": 40.0}, r"geometry.r_max: 40 m is beyond the physical bound 1 m \(millimetres given for metres\?\)"),
+        ({"tool_offset": "0.1"}, r"geometry.tool_offset: expected a number or a list of numbers, got str"),
+        ({"n_vertebrae": 10**6}, r"geometry.n_vertebrae: must be an integer in \[2, 1000\]"),
     ],
 )
 def test_cbha_geometry_fields_are_named(geometry, field):
