@@ -2,11 +2,11 @@
 
 ``solve("cc-two-section-fk")`` loads and validates the problem file, picks the
 solver preset (the ``--solver`` argument, else the file's ``solver``, else the
-kind's default), checks that the kind accepts that backend and every listed
-baseline, validates ``options`` and ``data.params`` against the kind's and the
-data source's models, builds the arm, refuses a run whose estimated memory
-passes the limit (:mod:`optikin.resources`), runs the kind, and optionally writes
-the result. Every error found before the run names the file and the dotted field;
+kind's default), checks that the kind accepts that backend, resolves every listed
+baseline to the one the kind runs (:func:`resolve_baselines`), validates ``options``
+and ``data.params`` against the kind's and the data source's models, builds the
+arm, refuses a run whose estimated memory passes the limit (:mod:`optikin.resources`),
+runs the kind, and optionally writes the result. Every error found before the run names the file and the dotted field;
 a run that runs out of memory all the same is a :class:`~optikin.errors.SpecError`
 on ``data.samples`` too (exit 2), not a traceback.
 """
@@ -23,7 +23,7 @@ from optikin.arms.base import ArmModel
 from optikin.data.sources import DATA_SOURCES, DataSource, source_of
 from optikin.errors import SpecError, UnknownNameError
 from optikin.options import validate_options
-from optikin.problems import ProblemContext, ProblemKind, load_kind, load_kinds
+from optikin.problems import Baseline, ProblemContext, ProblemKind, load_kind, load_kinds
 from optikin.progress import SILENT, Progress
 from optikin.provenance import now, provenance_of
 from optikin.resources import check_memory
@@ -55,27 +55,43 @@ def _data_source(kind: ProblemKind, name: str, path: Path) -> DataSource:
     return source_of(kind.data_family, name, path)
 
 
-def _check_baselines(spec: ProblemSpec, path: Path, kind: ProblemKind) -> None:
-    """Each baseline is one the kind implements, or a solver preset of a backend family the kind accepts."""
+def resolve_baselines(spec: ProblemSpec, path: Path, kind: ProblemKind) -> tuple[Baseline[Any, Any], ...]:
+    """Every name of ``baselines:``, in order, as the :class:`~optikin.problems.Baseline` the kind runs.
+
+    A name is the kind's own baseline, else a solver preset of a backend family the kind accepts, which
+    the kind's :attr:`~optikin.problems.ProblemKind.preset_baseline` turns into its baseline. A name given
+    twice, an unknown one, a preset of another family and a preset of a kind that runs none are
+    :class:`SpecError` on ``baselines.<i>``.
+    """
     presets = available("solvers")
-    for i, baseline in enumerate(spec.baselines):
-        if baseline in kind.baselines:
+    resolved: list[Baseline[Any, Any]] = []
+    for i, name in enumerate(spec.baselines):
+        if name in spec.baselines[:i]:
+            first = spec.baselines.index(name)
+            raise SpecError(path, f"baselines.{i}", f"{name!r} is listed twice (first as baselines.{first})")
+        if name in kind.baselines:
+            resolved.append(kind.baselines[name])
             continue
-        if baseline not in presets:
+        if name not in presets:
             raise SpecError(
                 path,
                 f"baselines.{i}",
-                f"{baseline!r} is neither a baseline of kind {kind.name!r} "
+                f"{name!r} is neither a baseline of kind {kind.name!r} "
                 f"(known: {', '.join(kind.baselines) or 'none'}) nor a solver preset",
             )
-        family = load_preset(baseline).backend.family
-        if family not in kind.backend_families:
+        preset = load_preset(name)
+        family = preset.backend.family
+        if family not in kind.backend_families or kind.preset_baseline is None:
+            takes = " or ".join(kind.backend_families) if kind.preset_baseline is not None else ""
             raise SpecError(
                 path,
                 f"baselines.{i}",
-                f"solver preset {baseline!r} ({family}) cannot solve kind "
-                f"{kind.name!r}, which takes {' or '.join(kind.backend_families)}",
+                f"solver preset {name!r} ({family}) cannot be a baseline of kind {kind.name!r}, which runs "
+                f"{f'presets of {takes}' if takes else 'no solver presets'} as baselines "
+                f"(its own: {', '.join(kind.baselines) or 'none'})",
             )
+        resolved.append(kind.preset_baseline(name, preset))
+    return tuple(resolved)
 
 
 def _preset(name: str | None, kind: ProblemKind) -> LoadedPreset | None:
@@ -140,8 +156,7 @@ def prepare_spec(
     baselines and the memory of the run are not checked, and no baseline's backend is imported.
     """
     kind = kind_of(spec, path)
-    if run:
-        _check_baselines(spec, path, kind)
+    baselines = resolve_baselines(spec, path, kind) if run else ()
     options = validate_options(kind.options, spec.options, path, "options")
     data_source = _data_source(kind, spec.data.source, path)
     data_params = validate_options(data_source.params, spec.data.params, path, "data.params")
@@ -165,6 +180,7 @@ def prepare_spec(
         data_params=data_params,
         preset=preset,
         adapter=adapter,
+        baselines=baselines,
     )
     return kind, ctx
 

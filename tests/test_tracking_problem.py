@@ -117,7 +117,9 @@ def test_mrac_starts_from_the_task_gain_and_mrac_seed_from_the_seeds_optimised_g
     np.testing.assert_allclose(first["mrac"], 10.0, rtol=1e-3)  # options.gain, after one adaptation step
     np.testing.assert_allclose(first["mrac_seed"], [7.45, 3.43, 3.70, 3.02, 9.62, 5.06, 4.69, 8.15], rtol=1e-3)
     methods = [row.method for row in result.comparison]
-    assert methods == ["qp (daqp-active-set)", "mrac", "mrac (seed gains)", "pseudo-inverse", "damped least squares"]
+    unlimited = ["mrac", "mrac (seed gains)", "pseudo-inverse", "damped least squares"]
+    saturated = ["mrac (saturated)", "pseudo-inverse (saturated)", "damped least squares (saturated)"]
+    assert methods == ["qp (daqp-active-set)", *unlimited, *saturated]
 
 
 def test_every_method_settles_after_the_disturbance_and_the_settling_times_are_reported(tmp_path):
@@ -149,8 +151,10 @@ def test_every_scenario_runs_and_the_qp_never_takes_the_arm_outside_a_limit(tmp_
 def test_nominal_scenario_compares_the_qp_with_every_baseline_and_draws_its_figures(tmp_path):
     problem = shortened(tmp_path, "track-nominal", baselines=True, **{"data.params.hold": 2.0})
     result, written = solve(str(problem), out=tmp_path / "out")
-    assert [row.role for row in result.comparison] == ["solver"] + ["baseline"] * 4
-    assert all(row.metrics["converged"] for row in result.comparison)
+    assert [row.role for row in result.comparison] == ["solver"] + ["baseline"] * 7
+    saturated = [row for row in result.comparison if row.method.endswith("(saturated)")]
+    assert len(saturated) == 3 and all(row.metrics["outside limits"] == 0 for row in saturated)
+    assert all(row.metrics["converged"] for row in result.comparison if row not in saturated)
     for figure in ("tracking", "errors", "limits", "lyapunov", "step_times"):
         assert (written / f"{figure}.png").stat().st_size > 10_000
     assert "gains_mrac" in result.arrays and result.arrays["gains_mrac"].shape[1] == 8

@@ -5,11 +5,11 @@ differences, the sampling bound against densely sampled backbones, the shipped s
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any, Sequence
 
 import casadi as ca
 import numpy as np
 import pytest
-import yaml
 
 from optikin.arms.constant_curvature import ConstantCurvatureArm
 from optikin.control.self_collision import PlacedArm, TwoTubes, collision_density, rotation_from_quaternion
@@ -93,7 +93,8 @@ def test_sampled_clearance_less_half_the_spacings_bounds_the_dense_backbones():
         q = np.concatenate([ARM.sample_configurations(1, rng)[0] for _ in range(2)])
         sampled = tubes.clearance_matrix(first.points_at(q[:6]), second.points_at(q[6:])).min()
         continuous = tubes.clearance_matrix(dense(first, q[:6]), dense(second, q[6:])).min()
-        assert sampled - tubes.between_samples <= continuous + 1e-12 <= sampled + 1e-12
+        assert sampled - tubes.between_samples <= continuous + 1e-12  # the bound between samples holds
+        assert continuous <= sampled + 1e-12  # the dense backbones hold the samples: one rounding apart at most
 
 
 def test_joint_qp_without_active_rows_is_the_damped_least_squares_step():
@@ -111,8 +112,7 @@ def test_joint_qp_without_active_rows_is_the_damped_least_squares_step():
 
 @pytest.mark.parametrize("name", ["rope-skipping", "track-two-arms-shared-space"])
 def test_shipped_scenario_has_no_collision_for_the_joint_qp_and_reports_the_baselines(tmp_path, name):
-    problem = variant(tmp_path, name, lambda d: d.update(baselines=["no_collision_rows"]))
-    result, _ = solve(str(problem), out=tmp_path / "out", figures=False)
+    result, _ = solve(name, out=tmp_path / "out", figures=False, overrides=[("baselines", ["no_collision_rows"])])
     rows = {row.role + ":" + row.method: row.metrics for row in result.comparison}
     qp = rows["solver:joint QP"]
     baseline = rows["baseline:joint QP without collision rows"]
@@ -122,6 +122,23 @@ def test_shipped_scenario_has_no_collision_for_the_joint_qp_and_reports_the_base
     assert qp["clearance [mm]"] >= 20.0 - 0.5  # the margin, to the linearisation over one step
     assert baseline["collision steps"] > 0 and baseline["depth [mm]"] > 0
     assert any("interpenetrate" in note for note in result.notes)
+
+
+def test_saturated_pseudo_inverse_keeps_both_arms_inside_the_limits_and_rates():
+    """Both arms' configurations and their steps of the saturated pseudo-inverse, checked against the arm's limits
+    and the default rate limits, on the shared-space scenario where the plain pseudo-inverse leaves them."""
+    from optikin.control.limits import rate_limit_vector
+
+    overrides = [("data.params.rate", 100), ("baselines", ["pseudo_inverse", "pseudo_inverse_saturated"])]
+    result, _ = solve("track-two-arms-shared-space", figures=False, overrides=overrides)
+    rows = {row.method: row.metrics for row in result.comparison}
+    assert rows["pseudo-inverse"]["outside limits"] > 0 and rows["pseudo-inverse (saturated)"]["outside limits"] == 0
+    q, dt = result.arrays["q_pseudo_inverse_saturated"], float(np.diff(result.arrays["t"])[0])
+    bounded = np.tile(~ARM.periodic, 2)
+    lower, upper = np.tile(ARM.lower, 2)[bounded], np.tile(ARM.upper, 2)[bounded]
+    assert np.all(q[:, bounded] >= lower - 1e-12) and np.all(q[:, bounded] <= upper + 1e-12)
+    steps = np.abs(np.diff(q[:, bounded], axis=0))
+    assert np.all(steps <= np.tile(rate_limit_vector(ARM), 2)[bounded] * dt * (1 + 1e-9))
 
 
 def test_joint_qp_of_the_shipped_rope_problem_is_the_exact_qp_warm_started_where_its_rows_bind():
@@ -151,30 +168,20 @@ def test_joint_qp_of_the_shipped_rope_problem_is_the_exact_qp_warm_started_where
     assert np.median(iterations) == 1
 
 
-def variant(tmp_path: Path, name: str, change) -> Path:
-    _, path = load_problem(name)
-    data = yaml.safe_load(path.read_text())
-    change(data)
-    out = tmp_path / f"{name}.yaml"
-    out.write_text(yaml.safe_dump(data, sort_keys=False))
-    return out
-
-
-def error_field(problem: Path) -> str:
-    kind, ctx = prepare(str(problem))
+def error_field(problem: str | Path, overrides: Sequence[tuple[str, Any]] = ()) -> str:
+    kind, ctx = prepare(str(problem), overrides=overrides)
     with pytest.raises(SpecError) as err:
         kind.run(ctx)
     return err.value.field
 
 
-def test_rope_shorter_than_the_grips_distance_is_refused_naming_the_length(tmp_path):
-    problem = variant(tmp_path, "rope-skipping", lambda d: d["options"]["rope"].update(length=0.2))
-    assert error_field(problem) == "options.rope.length"
+def test_rope_shorter_than_the_grips_distance_is_refused_naming_the_length():
+    assert error_field("rope-skipping", [("options.rope.length", 0.2)]) == "options.rope.length"
 
 
-def test_overlapping_bases_are_refused_naming_the_base(tmp_path):
-    problem = variant(
-        tmp_path, "track-two-arms-shared-space", lambda d: d["options"]["arms"][1].update(base=[-0.13, 0, 0])
+def test_overlapping_bases_are_refused_naming_the_base(problem_variant):
+    problem = problem_variant(
+        "track-two-arms-shared-space", lambda d: d["options"]["arms"][1].update(base=[-0.13, 0, 0])
     )
     assert error_field(problem) == "options.arms.1.base"
 
@@ -188,25 +195,26 @@ def test_overlapping_bases_are_refused_naming_the_base(tmp_path):
         (lambda d: d["options"]["rope"].update(floor=0.3), "options.rope.floor"),
     ],
 )
-def test_bad_rope_task_input_names_the_field(tmp_path, change, field):
-    assert error_field(variant(tmp_path, "rope-skipping", change)) == field
+def test_bad_rope_task_input_names_the_field(problem_variant, change, field):
+    assert error_field(problem_variant("rope-skipping", change)) == field
 
 
-def test_start_with_the_tubes_within_the_margin_is_refused(tmp_path):
+def test_start_with_the_tubes_within_the_margin_is_refused(problem_variant):
     def closer(d):
         d["options"]["arms"][0]["base"] = [-0.1, 0.0, 0.0]
         d["options"]["arms"][1]["base"] = [0.1, 0.0, 0.0]
 
-    assert error_field(variant(tmp_path, "rope-skipping", closer)) == "options.arms"
+    assert error_field(problem_variant("rope-skipping", closer)) == "options.arms"
 
 
 def test_floor_row_keeps_the_ropes_lowest_point_above_a_floor_the_loop_dips_below(tmp_path):
-    def floor(d):
-        d["baselines"] = []
-        d["data"]["params"].update(cycles=1, hold=0.0)
-        d["options"]["rope"]["floor"] = 0.12  # the loop's bottom lies at about 95 mm
-
-    result, _ = solve(str(variant(tmp_path, "rope-skipping", floor)), out=tmp_path / "out", figures=False)
+    floor = [
+        ("baselines", []),
+        ("data.params.cycles", 1),
+        ("data.params.hold", 0.0),
+        ("options.rope.floor", 0.12),  # the loop's bottom lies at about 95 mm
+    ]
+    result, _ = solve("rope-skipping", out=tmp_path / "out", figures=False, overrides=floor)
     reference_low = float(result.arrays["reference"][:, 2].min())
     assert reference_low < 0.12
     assert result.metrics["lowest point above the floor min [mm]"] >= 20.0 - 0.5  # the margin, to one step's error
@@ -244,11 +252,8 @@ def test_rope_rows_are_the_derivative_of_the_rope_samples_clearance_to_each_tube
 
 
 def test_rope_rows_keep_the_rope_off_the_tubes_where_the_baseline_comes_closer(tmp_path):
-    def margin(d):
-        d["baselines"] = ["no_collision_rows"]
-        d["options"]["collision"]["rope_margin"] = 0.044  # the start: 44.8 mm
-
-    result, _ = solve(str(variant(tmp_path, "rope-skipping", margin)), out=tmp_path / "out", figures=False)
+    margin = [("baselines", ["no_collision_rows"]), ("options.collision.rope_margin", 0.044)]  # the start: 44.8 mm
+    result, _ = solve("rope-skipping", out=tmp_path / "out", figures=False, overrides=margin)
     assert result.criteria == {"no collision": True, "within limits": True}
     # Dense rope points on every 10th step; between the QP's samples the rope may come (5 + 9.9)/2 mm closer.
     assert result.metrics["rope to the arms' tubes min [mm]"] >= 44.0 - 7.5
@@ -283,10 +288,10 @@ def two_arms_of(name: str) -> tuple[PlacedArm, PlacedArm]:
 def test_solve_of_a_rope_shorter_than_its_grips_exits_2_naming_file_and_field(tmp_path, capsys):
     from optikin.cli import EXIT_BAD_INPUT, main
 
-    problem = variant(tmp_path, "rope-skipping", lambda d: d["options"]["rope"].update(length=0.2))
-    assert main(["solve", str(problem), "--out", str(tmp_path / "out")]) == EXIT_BAD_INPUT
+    shorter = ["--set", "options.rope.length=0.2"]
+    assert main(["solve", "rope-skipping", *shorter, "--out", str(tmp_path / "out")]) == EXIT_BAD_INPUT
     message = capsys.readouterr().err
-    assert str(problem) in message and "options.rope.length" in message
+    assert str(load_problem("rope-skipping")[1]) in message and "options.rope.length" in message
     assert not (tmp_path / "out").exists()
 
 
@@ -329,11 +334,11 @@ def test_obstacle_rows_are_the_derivative_of_each_bodys_clearance_and_hold_a_mov
     [("track-two-arms-shared-space", [0.0, 0.0, 0.35], "arm 1"), ("rope-skipping", [0.0, 0.04, 0.12], "rope")],
 )
 def test_obstacle_kept_off_the_arms_and_the_rope_where_the_baseline_goes_through(tmp_path, name, center, body):
-    def sphere(d):
-        d["baselines"] = ["no_collision_rows"]
-        d["options"]["obstacles"] = [{"type": "sphere", "center": center, "radius": 0.03}]
-
-    result, _ = solve(str(variant(tmp_path, name, sphere)), out=tmp_path / "out", figures=False)
+    sphere = [
+        ("baselines", ["no_collision_rows"]),
+        ("options.obstacles", [{"type": "sphere", "center": center, "radius": 0.03}]),
+    ]
+    result, _ = solve(name, out=tmp_path / "out", figures=False, overrides=sphere)
     assert result.criteria["no obstacle penetration"] and result.criteria["no collision"]
     assert result.metrics[f"{body} to obstacles min [mm]"] >= 10.0 - 0.5  # the margin, to one step's linearisation
     rows = {row.role: row.metrics for row in result.comparison}
@@ -347,8 +352,6 @@ def test_obstacle_kept_off_the_arms_and_the_rope_where_the_baseline_goes_through
     [([-0.15, 0.0, 0.0], "options.obstacles.0"), ([-0.12, 0.0, 0.2], "options.obstacles")],
     ids=["base", "start"],
 )
-def test_obstacle_at_a_base_or_on_the_start_is_refused_naming_it(tmp_path, center, field):
-    def sphere(d):
-        d["options"]["obstacles"] = [{"type": "sphere", "center": center, "radius": 0.02}]
-
-    assert error_field(variant(tmp_path, "track-two-arms-shared-space", sphere)) == field
+def test_obstacle_at_a_base_or_on_the_start_is_refused_naming_it(center, field):
+    sphere = [("options.obstacles", [{"type": "sphere", "center": center, "radius": 0.02}])]
+    assert error_field("track-two-arms-shared-space", sphere) == field

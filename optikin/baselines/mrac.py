@@ -129,7 +129,7 @@ class MRACController(Controller):
         qdot = np.linalg.pinv(self.model.J, rcond=self.rcond) @ self.model.v
         reference = x_ref if self.task != "pose" or x_ref[:4] @ self.reference_model.value[:4] >= 0 else -x_ref
         self.reference_model.step(reference)
-        return qdot
+        return self.saturated_command(qdot)
 
 
 class SeedGainMRACController(MRACController):

@@ -14,7 +14,8 @@ eq. 34 with a constant gain ``K``):
   Nakamura & Hanafusa 1986), i.e. the QP of :mod:`optikin.control.qp` without bounds.
 
 Neither knows the configuration or rate limits: on a reference that drives the
-arm into a limit they go through it (the tracking tests report how far).
+arm into a limit they go through it (the tracking tests report how far). Saturated
+(:meth:`~optikin.control.base.Controller.saturate_at`), their command is clipped into the QP's box.
 """
 
 from __future__ import annotations
@@ -48,7 +49,7 @@ class PseudoInverseController(Controller):
 
     def command(self, q: np.ndarray, x: np.ndarray, x_ref: np.ndarray, xdot_ref: np.ndarray) -> np.ndarray:
         self.model.evaluate(q, x, x_ref, xdot_ref)
-        return np.linalg.pinv(self.model.J, rcond=self.rcond) @ self.model.v
+        return self.saturated_command(np.linalg.pinv(self.model.J, rcond=self.rcond) @ self.model.v)
 
 
 class DampedLeastSquaresController(Controller):
@@ -67,4 +68,4 @@ class DampedLeastSquaresController(Controller):
 
     def command(self, q: np.ndarray, x: np.ndarray, x_ref: np.ndarray, xdot_ref: np.ndarray) -> np.ndarray:
         self.model.evaluate(q, x, x_ref, xdot_ref)
-        return np.linalg.solve(self.model.H, -self.model.g)
+        return self.saturated_command(np.linalg.solve(self.model.H, -self.model.g))

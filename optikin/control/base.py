@@ -7,6 +7,11 @@ commanded configuration rate ``qdot`` held over the step. After each
 :meth:`Controller.command` it states how the step went in :attr:`Controller.status`
 (``"ok"``, or ``"fallback: <reason>"`` when its solver failed and a stated
 safe command was applied instead).
+
+A controller that knows no limits can be given some (:meth:`Controller.saturate_at`): its command is then
+clipped into the box of :class:`~optikin.control.limits.RateBounds` -- the rate limits, and the
+configuration limits reached after the step -- the box the QP's solution is kept in, so a comparison
+with the QP is not one between a controller inside the limits and others outside them by construction.
 """
 
 from __future__ import annotations
@@ -16,6 +21,7 @@ from abc import ABC, abstractmethod
 import numpy as np
 
 from optikin.arms.base import ArmModel
+from optikin.control.limits import RateBounds
 from optikin.control.task import Task, TaskModel, task_dimension
 
 
@@ -35,6 +41,8 @@ class Controller(ABC):
     """A Jacobian-based tracking controller on ``arm`` for ``task`` at control period ``dt``."""
 
     name = "controller"
+    limits: RateBounds | None = None
+    """The box its commands are clipped into (:meth:`saturate_at`); ``None``: none."""
 
     def __init__(self, arm: ArmModel, dt: float, task: Task = "pose", gain=10.0, compiled: bool = False):
         if not dt > 0:
@@ -48,6 +56,21 @@ class Controller(ABC):
     def reset(self, q: np.ndarray, x: np.ndarray) -> None:
         """Start a new run from measured configuration ``q`` and task value ``x``."""
         self.status = "ok"
+
+    def saturate_at(self, limits: RateBounds) -> None:
+        """Clip every later command into ``limits``' box at the configuration the command was computed at;
+        the controller's :attr:`name` says so (``"<name> (saturated)"``)."""
+        limits.read_configuration_from(self.model.q)
+        self.limits = limits
+        self.name = f"{self.name} (saturated)"
+
+    def saturated_command(self, qdot: np.ndarray) -> np.ndarray:
+        """``qdot`` clipped (in place) into the box of :attr:`limits` at the configuration the task model
+        last evaluated; unchanged without limits."""
+        if self.limits is None:
+            return qdot
+        self.limits.refresh()
+        return np.clip(qdot, self.limits.lb, self.limits.ub, out=qdot)
 
     @abstractmethod
     def command(self, q: np.ndarray, x: np.ndarray, x_ref: np.ndarray, xdot_ref: np.ndarray) -> np.ndarray:

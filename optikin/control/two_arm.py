@@ -246,19 +246,40 @@ class TwoArmController:
 
 
 class TwoArmPseudoInverse(TwoArmController):
-    """``qdot = J^+ (xdot_ref + K e)``: per arm for the tips task, of the rope Jacobian for the rope task; no limits."""
+    """``qdot = J^+ (xdot_ref + K e)``: per arm for the tips task, of the rope Jacobian for the rope task; no limits.
+
+    ``limits``: one :class:`~optikin.control.limits.RateBounds` per arm (the joint QP's): the command is then
+    clipped into their boxes (the rate limits, and the configuration limits after the step), and the
+    controller is named ``"pseudo-inverse (saturated)"``.
+    """
 
     name = "pseudo-inverse"
+
+    def __init__(
+        self, model: TwoArmModel, dt: float, gain: float = 10.0, limits: Sequence[RateBounds] | None = None
+    ) -> None:
+        super().__init__(model, dt, gain)
+        if limits is not None and len(limits) != len(model.arms):
+            raise ValueError(f"limits need one box per arm ({len(model.arms)}), got {len(limits)}")
+        self.limits = None if limits is None else list(limits)
+        if self.limits is not None:
+            self.name = f"{self.name} (saturated)"
 
     def command(self, q: np.ndarray, x_ref: np.ndarray, xdot_ref: np.ndarray) -> np.ndarray:
         m = self.model
         m.evaluate(q)
         v = self.task_velocity(x_ref, xdot_ref)
         if m.task == "rope":
-            return np.linalg.pinv(m.J, rcond=1e-10) @ v
-        first = np.linalg.pinv(m.J[:3, : m.n1], rcond=1e-10) @ v[:3]
-        second = np.linalg.pinv(m.J[3:, m.n1 :], rcond=1e-10) @ v[3:]
-        return np.concatenate([first, second])
+            qdot = np.linalg.pinv(m.J, rcond=1e-10) @ v
+        else:
+            first = np.linalg.pinv(m.J[:3, : m.n1], rcond=1e-10) @ v[:3]
+            second = np.linalg.pinv(m.J[3:, m.n1 :], rcond=1e-10) @ v[3:]
+            qdot = np.concatenate([first, second])
+        if self.limits is not None:
+            for bounds, part, rate in zip(self.limits, m.split(q), m.split(qdot)):
+                bounds.update(part)
+                np.clip(rate, bounds.lb, bounds.ub, out=rate)
+        return qdot
 
 
 class TwoArmQP(TwoArmController):

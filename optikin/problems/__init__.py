@@ -14,21 +14,22 @@ Each kind is a package ``optikin/problems/<kind>/``:
     redraws a written result without solving again;
 ``__init__.py``
     registers a :class:`ProblemKind` under the name used in the ``kind`` field of
-    problem files, with its options model and data family.
+    problem files, with its options model, data family and baselines (:class:`Baseline`).
 
 The runner validates ``options`` and ``data.params`` against the kind's models
 before the run, and hands the kind a :class:`ProblemContext` holding the spec,
 the typed options, the data source, the solver preset and its adapter, the arm
-model and a progress reporter.
+model, a progress reporter and every baseline the file lists, resolved once (:class:`Baseline`: the
+kind's own, or a solver preset of a family the kind runs).
 """
 
 from __future__ import annotations
 
 import importlib
 import importlib.util
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable, Mapping, Protocol, Sequence, TypeVar
+from typing import TYPE_CHECKING, Any, Callable, Generic, Mapping, Protocol, Sequence, TypeVar
 
 import numpy as np
 
@@ -46,6 +47,52 @@ if TYPE_CHECKING:
     from optikin.solvers import LoadedPreset
 
 A = TypeVar("A")
+S = TypeVar("S")
+M = TypeVar("M")
+
+
+@dataclass(frozen=True)
+class Baseline(Generic[S, M]):
+    """A method a kind compares its solver with, listed by :attr:`name` in a problem's ``baselines:``.
+
+    Attributes
+    ----------
+    name:
+        The name in ``baselines:`` (a kind's own, or a solver preset's).
+    title:
+        The label of its comparison row (and of its curves).
+    role:
+        The row's role: ``baseline`` (a method compared with), ``solver`` (optikin's own, e.g. the MPC).
+    build:
+        ``build(ctx, setup) -> method``: the method, made from the context and what the kind's run
+        prepared for every method (``setup``: the kind's own type). ``None``: the kind's run solves the
+        baseline by its name.
+    preset:
+        The loaded solver preset of a preset baseline (:func:`optikin.runner.resolve_baselines`); ``None``
+        for the kind's own.
+    """
+
+    name: str
+    title: str
+    role: str = "baseline"
+    build: Callable[["ProblemContext", S], M] | None = None
+    preset: "LoadedPreset | None" = None
+
+    def method(self, ctx: "ProblemContext", setup: S) -> M:
+        """:attr:`build` of ``ctx`` and ``setup``; a baseline without one is a :class:`SolverError`."""
+        if self.build is None:
+            raise SolverError(f"baseline {self.name!r} of kind {ctx.spec.kind!r} has no builder")
+        return self.build(ctx, setup)
+
+
+def baselines_of(*baselines: Baseline[Any, Any]) -> dict[str, Baseline[Any, Any]]:
+    """``baselines`` by name, in order (a name given twice is a ``ValueError``)."""
+    out: dict[str, Baseline[Any, Any]] = {}
+    for baseline in baselines:
+        if baseline.name in out:
+            raise ValueError(f"baseline {baseline.name!r} is declared twice")
+        out[baseline.name] = baseline
+    return out
 
 
 @dataclass
@@ -70,6 +117,10 @@ class ProblemContext:
     adapter:
         The preset's adapter, keeping its family's protocol (:mod:`optikin.solvers.base`);
         :meth:`backend` gives it with the type a kind expects.
+    baselines:
+        Every name of ``baselines:``, in order, resolved by the runner (:func:`optikin.runner.resolve_baselines`):
+        the kind's own :class:`Baseline` or the one it makes of a solver preset. Empty for a context that
+        is not run (an export).
     """
 
     spec: ProblemSpec
@@ -81,6 +132,7 @@ class ProblemContext:
     data_params: Any = None
     preset: "LoadedPreset | None" = None
     adapter: Adapter | None = None
+    baselines: tuple[Baseline[Any, Any], ...] = ()
 
     @property
     def arm(self) -> ArmModel:
@@ -164,8 +216,11 @@ class ProblemKind:
         The backend families whose presets may solve it, and the preset used when
         the file names none.
     baselines:
-        Baselines the kind implements itself (presets of an accepted family are
-        accepted as baselines too).
+        The baselines the kind implements itself, by name (:func:`baselines_of`).
+    preset_baseline:
+        ``preset_baseline(name, preset) -> Baseline``: how the kind runs a solver preset of one of its
+        :attr:`backend_families` listed in ``baselines:``. ``None``: it runs none, and a file listing one
+        is refused when it is validated.
     data_family:
         The family of :data:`optikin.data.sources.DATA_SOURCES` that ``data.source`` names.
     options:
@@ -191,7 +246,8 @@ class ProblemKind:
     backend_families: tuple[str, ...]
     default_solver: str | None
     data_family: str
-    baselines: tuple[str, ...] = ()
+    baselines: Mapping[str, Baseline[Any, Any]] = field(default_factory=dict)
+    preset_baseline: Callable[[str, "LoadedPreset"], Baseline[Any, Any]] | None = None
     options: type[Options] = NoOptions
     figures: FigureBuilder | None = None
     headline: tuple[str, ...] = ()
@@ -214,7 +270,16 @@ def figures_of(module: str) -> FigureBuilder:
     return figures
 
 
+def preset_row(name: str, preset: "LoadedPreset") -> Baseline[Any, Any]:
+    """A solver preset run as a baseline by the kind's own code, its row labelled with the preset's name."""
+    return Baseline(name, name, preset=preset)
+
+
 def register_kind(kind: ProblemKind) -> ProblemKind:
+    """Register ``kind`` under its name; a baseline declared under another name than its own is a ``ValueError``."""
+    for key, baseline in kind.baselines.items():
+        if key != baseline.name:
+            raise ValueError(f"kind {kind.name!r} declares baseline {baseline.name!r} under the name {key!r}")
     PROBLEM_KINDS.register(kind.name)(kind)
     return kind
 

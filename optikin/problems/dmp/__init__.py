@@ -63,7 +63,7 @@ Modules: :mod:`~optikin.problems.dmp.options` (the options model),
 from __future__ import annotations
 
 from optikin.data import demonstrations as _demonstrations  # noqa: F401  (registers the data sources)
-from optikin.problems import ProblemContext, ProblemKind, figures_of, register_kind
+from optikin.problems import Baseline, ProblemContext, ProblemKind, baselines_of, figures_of, register_kind
 from optikin.problems.dmp import report, run
 from optikin.problems.dmp.options import DmpOptions
 from optikin.results import Result
@@ -81,7 +81,7 @@ register_kind(
         run=solve,
         backend_families=(),
         default_solver=None,
-        baselines=("lstsq", "lwr", "genetic"),
+        baselines=baselines_of(*(Baseline(name, name) for name in ("lstsq", "lwr", "genetic"))),
         options=DmpOptions,
         data_family="demonstrations",
         figures=figures_of("optikin.problems.dmp.figures"),

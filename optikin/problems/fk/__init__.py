@@ -32,7 +32,7 @@ processes, with the single-process run's per-sample arrays (:mod:`optikin.proble
 from __future__ import annotations
 
 import optikin.data.configurations  # noqa: F401 - registers the sources of data family "configurations"
-from optikin.problems import ProblemContext, ProblemKind, figures_of, register_kind
+from optikin.problems import Baseline, ProblemContext, ProblemKind, baselines_of, figures_of, preset_row, register_kind
 from optikin.problems.fk.chunks import run_chunked
 from optikin.problems.fk.options import FkOptions
 from optikin.problems.fk.report import report
@@ -54,7 +54,8 @@ register_kind(
         run=solve,
         backend_families=("evaluation",),
         default_solver="casadi-map",
-        baselines=("numpy",),
+        baselines=baselines_of(Baseline("numpy", "numpy")),
+        preset_baseline=preset_row,
         options=FkOptions,
         data_family="configurations",
         figures=figures_of("optikin.problems.fk.figures"),

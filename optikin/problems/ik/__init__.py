@@ -102,7 +102,7 @@ per-sample answer equals the single-process run's (:mod:`optikin.problems.ik.chu
 from __future__ import annotations
 
 from optikin.data.targets import FAMILY as TARGETS
-from optikin.problems import ProblemContext, ProblemKind, figures_of, register_kind
+from optikin.problems import ProblemContext, ProblemKind, figures_of, preset_row, register_kind
 from optikin.problems.ik.chunks import run_chunked
 from optikin.problems.ik.options import FormulationOptions, IkOptions
 from optikin.problems.ik.report import array_key, result_of
@@ -124,6 +124,7 @@ register_kind(
         summary="inverse kinematics by Newton / nonlinear least squares, backends compared on the same targets",
         run=run,
         backend_families=(FAMILY,),
+        preset_baseline=preset_row,
         default_solver="gauss-newton",
         options=IkOptions,
         data_family=TARGETS,

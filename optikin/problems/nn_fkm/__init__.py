@@ -55,7 +55,7 @@ scored on the Cosserat tips (:mod:`optikin.data.cosserat_nn`).
 
 from __future__ import annotations
 
-from optikin.problems import ProblemContext, ProblemKind, figures_of, register_kind
+from optikin.problems import ProblemContext, ProblemKind, figures_of, preset_row, register_kind
 from optikin.problems.nn_fkm.report import report
 from optikin.problems.nn_fkm.run import run
 from optikin.problems.nn_shared import NNOptions
@@ -73,6 +73,7 @@ register_kind(
         summary="seed 004 hybrid forward kinematics (MLP per section) against exact platform solvers",
         run=solve,
         backend_families=("nonlinear",),
+        preset_baseline=preset_row,
         default_solver=None,
         options=NNOptions,
         data_family="nn_database",

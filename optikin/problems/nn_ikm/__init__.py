@@ -54,7 +54,7 @@ constant-curvature and direct-mlp rows.
 
 from __future__ import annotations
 
-from optikin.problems import ProblemContext, ProblemKind, figures_of, register_kind
+from optikin.problems import ProblemContext, ProblemKind, figures_of, preset_row, register_kind
 from optikin.problems.nn_ikm.report import report
 from optikin.problems.nn_ikm.run import run
 from optikin.problems.nn_shared import NNOptions
@@ -72,6 +72,7 @@ register_kind(
         summary="seed 004 hybrid inverse kinematics (MLPs NN1-NN4, eq. 11) against exact tip IK solvers",
         run=solve,
         backend_families=("nonlinear",),
+        preset_baseline=preset_row,
         default_solver=None,
         options=NNOptions,
         data_family="nn_database",

@@ -41,7 +41,7 @@ from __future__ import annotations
 
 import optikin.data.markers  # noqa: F401 - registers source "synthetic" of data family "rope_chains"
 import optikin.data.cosserat_rope  # noqa: F401 - registers source "cosserat" of data family "rope_chains"
-from optikin.problems import ProblemContext, ProblemKind, figures_of, register_kind
+from optikin.problems import ProblemContext, ProblemKind, figures_of, preset_row, register_kind
 from optikin.problems.ph_chain.options import PHChainOptions
 from optikin.problems.ph_chain.report import report
 from optikin.problems.ph_chain.run import LINKS, ChainOutcome, run
@@ -62,7 +62,7 @@ register_kind(
         run=solve,
         backend_families=("ph",),
         default_solver="ph-newton",
-        baselines=(),
+        preset_baseline=preset_row,
         options=PHChainOptions,
         data_family="rope_chains",
         figures=figures_of("optikin.problems.ph_chain.figures"),

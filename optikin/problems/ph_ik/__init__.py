@@ -37,7 +37,7 @@ from __future__ import annotations
 import optikin.data.markers  # noqa: F401 - registers the sources of data family "markers"
 import optikin.data.cosserat_markers  # noqa: F401 - registers source "cosserat" of data family "markers"
 from optikin.baselines.ph_comparators import COMPARATORS
-from optikin.problems import ProblemContext, ProblemKind, figures_of, register_kind
+from optikin.problems import Baseline, ProblemContext, ProblemKind, baselines_of, figures_of, preset_row, register_kind
 from optikin.problems.ph_ik.options import PHIkOptions
 from optikin.problems.ph_ik.report import report
 from optikin.problems.ph_ik.run import IkOutcome, run, tube_length_function
@@ -58,7 +58,8 @@ register_kind(
         run=solve,
         backend_families=("ph",),
         default_solver="ph-newton",
-        baselines=COMPARATORS,
+        baselines=baselines_of(*(Baseline(name, name) for name in COMPARATORS)),
+        preset_baseline=preset_row,
         options=PHIkOptions,
         data_family="markers",
         figures=figures_of("optikin.problems.ph_ik.figures"),

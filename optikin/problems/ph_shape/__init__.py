@@ -67,7 +67,7 @@ from __future__ import annotations
 
 import optikin.data.markers  # noqa: F401 - registers the sources of data family "markers"
 import optikin.data.cosserat_markers  # noqa: F401 - registers source "cosserat" of data family "markers"
-from optikin.problems import ProblemContext, ProblemKind, figures_of, register_kind
+from optikin.problems import Baseline, ProblemContext, ProblemKind, baselines_of, figures_of, preset_row, register_kind
 from optikin.problems.ph_shape import cc
 from optikin.problems.ph_shape.options import PHShapeOptions
 from optikin.problems.ph_shape.report import report
@@ -90,7 +90,8 @@ register_kind(
         run=solve,
         backend_families=("ph",),
         default_solver="ph-newton",
-        baselines=(NAME, cc.NAME, cc.TWO_ARCS),
+        baselines=baselines_of(*(Baseline(name, name) for name in (NAME, cc.NAME, cc.TWO_ARCS))),
+        preset_baseline=preset_row,
         options=PHShapeOptions,
         data_family="markers",
         figures=figures_of("optikin.problems.ph_shape.figures"),

@@ -51,7 +51,7 @@ from __future__ import annotations
 
 import optikin.data.cosserat_sensors  # noqa: F401 - registers source "cosserat" of data families "targets", "actuations"
 from optikin.data.actuations import FAMILY as ACTUATIONS
-from optikin.problems import ProblemContext, ProblemKind, figures_of, register_kind
+from optikin.problems import Baseline, ProblemContext, ProblemKind, baselines_of, figures_of, preset_row, register_kind
 from optikin.problems.statics.options import LoadOptions, StaticsOptions
 from optikin.problems.statics.report import result_of
 from optikin.problems.statics.run import COLLOCATION, solve
@@ -73,7 +73,8 @@ register_kind(
         run=run,
         backend_families=(FAMILY,),
         default_solver="gauss-newton",
-        baselines=(COLLOCATION,),
+        baselines=baselines_of(Baseline(COLLOCATION, COLLOCATION)),
+        preset_baseline=preset_row,
         options=StaticsOptions,
         data_family=ACTUATIONS,
         figures=figures_of("optikin.problems.statics.figures"),

@@ -11,7 +11,11 @@ optimised gains (``mrac_seed``), the plain pseudo-inverse (``pseudo_inverse``) a
 squares (``damped_least_squares``); two more controllers on the same footing, listed there too,
 are the MPC (``mpc``, :mod:`optikin.control.mpc`: a horizon of ``options.mpc.horizon`` steps, one
 sparse QP per step by OSQP) and its nonlinear reference by IPOPT (``mpc_ipopt``,
-:mod:`optikin.control.mpc_nlp`), with the QP's gain, limits and obstacles.
+:mod:`optikin.control.mpc_nlp`), with the QP's gain, limits and obstacles. Each baseline that knows no
+limits is also listed saturated (``mrac_saturated``, ``mrac_seed_saturated``, ``pseudo_inverse_saturated``,
+``damped_least_squares_saturated``): its command clipped into the QP's box, the same rate limits and the
+configuration limits after the step, so that it stays inside them too. A ``qp`` preset listed there
+(``qp-osqp``) is the QP controller with that preset's step solver, its row labelled with the preset's name.
 
 The reference (``data``, family ``references`` of :mod:`optikin.data.references`)
 is either the forward kinematics of a minimum-jerk configuration path (source
@@ -82,7 +86,7 @@ import optikin.data.references  # noqa: F401  (registers the references sources)
 from optikin.problems import ProblemContext, ProblemKind, figures_of, register_kind
 from optikin.problems.tracking import report
 from optikin.problems.tracking.options import TrackingOptions
-from optikin.problems.tracking.run import BASELINES, run
+from optikin.problems.tracking.run import BASELINES, preset_baseline, run
 from optikin.results import Result
 
 
@@ -98,7 +102,8 @@ register_kind(
         run=solve,
         backend_families=("qp",),
         default_solver="qp-active-set",
-        baselines=tuple(BASELINES),
+        baselines=BASELINES,
+        preset_baseline=preset_baseline,
         options=TrackingOptions,
         data_family="references",
         figures=figures_of("optikin.problems.tracking.figures"),

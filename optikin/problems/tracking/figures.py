@@ -161,7 +161,7 @@ def _label(name: str, summary: Mapping[str, Any]) -> str:
     if name == "qp":
         rows = [row["method"] for row in summary.get("comparison", []) if row.get("role") == "solver"]
         return rows[0] if rows else name
-    return str(BASELINES[name].name) if name in BASELINES else name
+    return BASELINES[name].title if name in BASELINES else name
 
 
 def _trace(arrays: Mapping[str, np.ndarray], name: str) -> Trace:

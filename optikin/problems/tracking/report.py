@@ -10,7 +10,7 @@ from optikin.control.obstacles import Obstacle
 from optikin.control.simulate import DEG, MM, TrackingRun
 from optikin.problems import ProblemContext
 from optikin.problems.tracking.options import ToleranceOptions
-from optikin.problems.tracking.run import MPC_NAMES, ObstacleOutcome, TrackingOutcome
+from optikin.problems.tracking.run import BASELINES, MPC_NAMES, ObstacleOutcome, TrackingOutcome
 from optikin.results import MethodRow, Result
 
 COMPARED = {
@@ -134,7 +134,8 @@ def obstacle_notes(
 def _row(name: str, tracking: TrackingRun, full: dict[str, Any], tolerance: ToleranceOptions) -> MethodRow:
     row = {short: full[key] for short, key in COMPARED.items() if key in full}
     row["converged"] = converged(full, tolerance)
-    return MethodRow(tracking.controller, "solver" if name in ("qp", "mpc") else "baseline", row)
+    role = "solver" if name == "qp" else BASELINES[name].role if name in BASELINES else "baseline"
+    return MethodRow(tracking.controller, role, row)
 
 
 def settling_time(tracking: TrackingRun, after: float, tolerance: ToleranceOptions) -> float | None:

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from typing import Any
+from functools import partial
+from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 
@@ -12,6 +13,7 @@ from optikin.arms.constant_curvature import ConstantCurvatureArm
 from optikin.baselines.mrac import MRACController, SeedGainMRACController
 from optikin.baselines.pseudo_inverse import DampedLeastSquaresController, PseudoInverseController
 from optikin.control.base import Controller
+from optikin.control.limits import RateBounds
 from optikin.control.mpc import MPCController
 from optikin.control.mpc_nlp import NonlinearMPCController
 from optikin.control.obstacles import BarrierRows, Obstacle
@@ -21,7 +23,7 @@ from optikin.control.rod_plant import PneumaticRod, RodPlantSimulator
 from optikin.control.simulate import Plant, TrackingRun, simulate
 from optikin.control.task import Task, task_dimension
 from optikin.data.references import TrackingReference
-from optikin.problems import ProblemContext
+from optikin.problems import Baseline, ProblemContext, baselines_of
 from optikin.problems.tracking.options import (
     CosseratPlantOptions,
     ObstacleOptions,
@@ -32,22 +34,155 @@ from optikin.problems.tracking.options import (
 from optikin.solvers.base import QPBackend
 from optikin.solvers.qp.common import StepSolverFactory
 
-BASELINES: dict[str, type[Controller]] = {
-    "mrac": MRACController,
-    "mrac_seed": SeedGainMRACController,
-    "pseudo_inverse": PseudoInverseController,
-    "damped_least_squares": DampedLeastSquaresController,
-    "mpc": MPCController,
-    "mpc_ipopt": NonlinearMPCController,
-}
-"""The kind's own baselines: ``baselines:`` name -> controller (its ``name`` labels its rows and curves).
+if TYPE_CHECKING:
+    from optikin.solvers import LoadedPreset
 
-``mpc`` and ``mpc_ipopt`` are the MPC of ``options.mpc`` (:mod:`optikin.control.mpc`), with the QP's
-gain, limits and obstacles: ``mpc`` by ``options.mpc.solver``, ``mpc_ipopt`` the IPOPT reference.
-"""
+
+@dataclass(frozen=True)
+class ControllerSetup:
+    """What every controller of a run is built from (:attr:`optikin.problems.Baseline.build`'s ``setup``).
+
+    Attributes
+    ----------
+    options:
+        ``options:`` of the file.
+    dt, task:
+        The control period [s] and the task the reference states.
+    barrier:
+        The QP's backbone barrier rows; ``None`` without obstacles.
+    reference:
+        The reference (the MPC's preview).
+    """
+
+    options: TrackingOptions
+    dt: float
+    task: Task
+    barrier: BarrierRows | None = None
+    reference: Reference | None = None
+
+    def limits(self, ctx: ProblemContext) -> RateBounds:
+        """The QP's box: its rate limits, limit margin and limit gain (:class:`optikin.control.limits.RateBounds`)."""
+        o = self.options
+        return RateBounds(ctx.arm, self.dt, o.rate_limits, o.limit_margin, gain=o.limit_gain, compiled=o.compiled)
+
+
+def _mrac(ctx: ProblemContext, setup: ControllerSetup) -> Controller:
+    o = setup.options
+    mrac = o.mrac.model_dump() | {"gain": o.gain if o.mrac.gain is None else o.mrac.gain}
+    return MRACController(ctx.arm, setup.dt, setup.task, **mrac, compiled=o.compiled)
+
+
+def _mrac_seed(ctx: ProblemContext, setup: ControllerSetup) -> Controller:
+    o = setup.options
+    seed = o.mrac.model_dump(exclude={"gain"})
+    return SeedGainMRACController(ctx.arm, setup.dt, setup.task, **seed, compiled=o.compiled)
+
+
+def _pseudo_inverse(ctx: ProblemContext, setup: ControllerSetup) -> Controller:
+    o = setup.options
+    return PseudoInverseController(ctx.arm, setup.dt, setup.task, o.gain, compiled=o.compiled)
+
+
+def _damped_least_squares(ctx: ProblemContext, setup: ControllerSetup) -> Controller:
+    o = setup.options
+    return DampedLeastSquaresController(ctx.arm, setup.dt, setup.task, o.gain, o.damping, compiled=o.compiled)
+
+
+def _mpc(ctx: ProblemContext, setup: ControllerSetup, name: str) -> Controller:
+    """The MPC baseline ``name`` of ``options.mpc``; a bad horizon or weight is an error naming ``options.mpc``."""
+    o, m = setup.options, setup.options.mpc
+    dt, task, barrier, reference = setup.dt, setup.task, setup.barrier, setup.reference
+    rows = None
+    if barrier is not None:
+        rows = BarrierRows(
+            ctx.arm,
+            barrier.dt,
+            barrier.distances.obstacles,
+            barrier.margin,
+            barrier.gamma,
+            barrier.points_per_obstacle,
+            barrier.distances.points_per_section,
+            compiled=barrier.distances.compiled,
+        )
+    horizon: dict[str, Any] = dict(
+        horizon=m.horizon,
+        rate_limits=o.rate_limits,
+        margin=o.limit_margin,
+        limit_gain=o.limit_gain,
+        barrier=rows,
+        preview=reference if m.preview else None,
+        compiled=o.compiled,
+    )
+    weight = o.damping if m.effort_weight is None else m.effort_weight
+    try:
+        if name == "mpc_ipopt" or m.solver == "ipopt":
+            return NonlinearMPCController(
+                ctx.arm, dt, task, o.gain, weight, tolerance=m.ipopt_tolerance, max_iter=m.ipopt_max_iter, **horizon
+            )
+        return MPCController(
+            ctx.arm,
+            dt,
+            task,
+            o.gain,
+            weight,
+            eps_abs=m.eps,
+            eps_rel=m.eps,
+            rho=m.rho,
+            max_iter=m.max_iter,
+            polishing=m.polishing,
+            **horizon,
+        )
+    except ValueError as exc:
+        raise ctx.error("options.mpc", str(exc)) from None
+
+
+def _saturated(build: Callable[[ProblemContext, ControllerSetup], Controller]) -> Callable[..., Controller]:
+    """``build``'s controller with its commands clipped into the QP's box (:meth:`Controller.saturate_at`)."""
+
+    def saturated(ctx: ProblemContext, setup: ControllerSetup) -> Controller:
+        controller = build(ctx, setup)
+        controller.saturate_at(setup.limits(ctx))
+        return controller
+
+    return saturated
+
+
+UNLIMITED: tuple[tuple[str, str, Callable[[ProblemContext, ControllerSetup], Controller]], ...] = (
+    ("mrac", MRACController.name, _mrac),
+    ("mrac_seed", SeedGainMRACController.name, _mrac_seed),
+    ("pseudo_inverse", PseudoInverseController.name, _pseudo_inverse),
+    ("damped_least_squares", DampedLeastSquaresController.name, _damped_least_squares),
+)
+"""The baselines that know no limits: name, row label, builder; each is also a ``<name>_saturated`` baseline."""
 
 MPC_NAMES = ("mpc", "mpc_ipopt")
 """The baselines that are MPC controllers (held to the no-penetration criterion like the QP)."""
+
+BASELINES: dict[str, Baseline[ControllerSetup, Controller]] = baselines_of(
+    *(Baseline(name, title, build=build) for name, title, build in UNLIMITED),
+    *(Baseline(f"{name}_saturated", f"{title} (saturated)", build=_saturated(b)) for name, title, b in UNLIMITED),
+    Baseline("mpc", MPCController.name, "solver", partial(_mpc, name="mpc")),
+    Baseline("mpc_ipopt", NonlinearMPCController.name, build=partial(_mpc, name="mpc_ipopt")),
+)
+"""The kind's own baselines: ``baselines:`` name -> :class:`~optikin.problems.Baseline` (its ``title``, the name of
+its controller, labels its rows and curves; ``mpc`` with ``options.mpc.solver: ipopt`` is ``mpc (ipopt)``).
+
+``<name>_saturated`` is baseline ``<name>`` with its commands clipped into the QP's box (the rate limits and the
+configuration limits after the step, with ``options.limit_margin`` and ``options.limit_gain``), so that it too stays
+inside the limits. ``mpc`` and ``mpc_ipopt`` are the MPC of ``options.mpc`` (:mod:`optikin.control.mpc`), with the
+QP's gain, limits and obstacles: ``mpc`` by ``options.mpc.solver``, ``mpc_ipopt`` the IPOPT reference.
+"""
+
+
+def preset_baseline(name: str, preset: LoadedPreset) -> Baseline[ControllerSetup, Controller]:
+    """A ``qp`` preset listed in ``baselines``: the QP controller with that preset's step solver, labelled ``name``."""
+
+    def build(ctx: ProblemContext, setup: ControllerSetup) -> Controller:
+        controller = _qp(ctx, setup, preset.build(), f"baselines.{ctx.spec.baselines.index(name)}")
+        controller.name = name
+        return controller
+
+    return Baseline(name, name, build=build, preset=preset)
 
 
 @dataclass
@@ -304,100 +439,39 @@ def _controllers(
     The MPC baselines get barrier rows of their own (same obstacles and settings; each keeps its
     own clock) and ``reference`` as their preview when ``options.mpc.preview``.
     """
-    arm, o = ctx.arm, options
-    compiled = o.compiled
-    factory = ctx.backend(QPBackend)
-    if barrier is None:
-        solver = factory.create(arm.n_config, task_dimension(task))
-    elif isinstance(factory, StepSolverFactory):
-        solver = factory.create(arm.n_config, task_dimension(task), rows=barrier.rows)
-    else:
-        raise ctx.error("solver", f"{type(factory).__name__} takes no inequality rows; obstacles need a qp backend")
+    setup = ControllerSetup(options, dt, task, barrier, reference)
     try:
-        controllers: dict[str, Controller] = {
-            "qp": QPController(
-                arm,
-                dt,
-                task,
-                o.gain,
-                o.damping,
-                solver=solver,
-                rate_limits=o.rate_limits,
-                margin=o.limit_margin,
-                limit_gain=o.limit_gain,
-                fallback=o.fallback,
-                compiled=compiled,
-                barrier=barrier,
-            )
-        }
-        for name in ctx.spec.baselines:
-            if name == "mrac":
-                mrac = o.mrac.model_dump() | {"gain": o.gain if o.mrac.gain is None else o.mrac.gain}
-                controllers[name] = MRACController(arm, dt, task, **mrac, compiled=compiled)
-            elif name == "mrac_seed":
-                seed = o.mrac.model_dump(exclude={"gain"})
-                controllers[name] = SeedGainMRACController(arm, dt, task, **seed, compiled=compiled)
-            elif name in MPC_NAMES:
-                controllers[name] = _mpc(ctx, options, dt, task, name, barrier, reference)
-            elif name == "damped_least_squares":
-                controllers[name] = DampedLeastSquaresController(arm, dt, task, o.gain, o.damping, compiled=compiled)
-            else:
-                controllers[name] = PseudoInverseController(arm, dt, task, o.gain, compiled=compiled)
+        controllers = {"qp": _qp(ctx, setup, ctx.backend(QPBackend), "solver")}
+        for baseline in ctx.baselines:
+            controllers[baseline.name] = baseline.method(ctx, setup)
     except ValueError as exc:
         raise ctx.error("options", str(exc)) from None
     return controllers
 
 
-def _mpc(
-    ctx: ProblemContext,
-    options: TrackingOptions,
-    dt: float,
-    task: Task,
-    name: str,
-    barrier: BarrierRows | None,
-    reference: Reference | None,
-) -> Controller:
-    """The MPC baseline ``name`` of ``options.mpc``; a bad horizon or weight is an error naming ``options.mpc``."""
-    o, m = options, options.mpc
-    rows = None
-    if barrier is not None:
-        rows = BarrierRows(
-            ctx.arm,
-            barrier.dt,
-            barrier.distances.obstacles,
-            barrier.margin,
-            barrier.gamma,
-            barrier.points_per_obstacle,
-            barrier.distances.points_per_section,
-            compiled=barrier.distances.compiled,
-        )
-    horizon: dict[str, Any] = dict(
-        horizon=m.horizon,
+def _qp(ctx: ProblemContext, setup: ControllerSetup, factory: Any, field: str) -> Controller:
+    """The QP controller with ``factory``'s step solver (a ``qp`` backend's; with the barrier's rows); a factory
+    taking no rows where obstacles need them is an error naming ``field``."""
+    arm, o, barrier = ctx.arm, setup.options, setup.barrier
+    if not isinstance(factory, QPBackend):
+        raise ctx.error(field, f"{type(factory).__name__} is not a qp backend")
+    if barrier is None:
+        solver = factory.create(arm.n_config, task_dimension(setup.task))
+    elif isinstance(factory, StepSolverFactory):
+        solver = factory.create(arm.n_config, task_dimension(setup.task), rows=barrier.rows)
+    else:
+        raise ctx.error(field, f"{type(factory).__name__} takes no inequality rows; obstacles need a qp backend")
+    return QPController(
+        arm,
+        setup.dt,
+        setup.task,
+        o.gain,
+        o.damping,
+        solver=solver,
         rate_limits=o.rate_limits,
         margin=o.limit_margin,
         limit_gain=o.limit_gain,
-        barrier=rows,
-        preview=reference if m.preview else None,
+        fallback=o.fallback,
         compiled=o.compiled,
+        barrier=barrier,
     )
-    weight = o.damping if m.effort_weight is None else m.effort_weight
-    try:
-        if name == "mpc_ipopt" or m.solver == "ipopt":
-            return NonlinearMPCController(
-                ctx.arm, dt, task, o.gain, weight, tolerance=m.ipopt_tolerance, max_iter=m.ipopt_max_iter, **horizon
-            )
-        return MPCController(
-            ctx.arm,
-            dt,
-            task,
-            o.gain,
-            weight,
-            eps_abs=m.eps,
-            eps_rel=m.eps,
-            rho=m.rho,
-            max_iter=m.max_iter,
-            polishing=m.polishing,
-            **horizon,
-        )
-    except ValueError as exc:
-        raise ctx.error("options.mpc", str(exc)) from None

@@ -35,11 +35,13 @@ rate limits, and keeps the two tubes apart by self-collision barrier rows
                   obstacle_margin: 0.01, points_per_obstacle: 3}
       obstacles: [{type: sphere, center: [0, 0.04, 0.12], radius: 0.03}]   # optional
 
-Baselines: ``no_collision_rows`` (the same QP without the self-collision, rope and obstacle rows) and
-``pseudo_inverse`` (no limits, no rows); their collisions are reported (columns ``collision steps``,
-``depth [mm]``), not hidden. Per-step status: ``ok``, or ``failed`` where the QP found no solution
-and the arms were held. Criteria of the joint QP: ``no collision`` (the continuous tubes, between
-samples too, never touch: least sampled clearance less half the two sample spacings stays
+Baselines: ``no_collision_rows`` (the same QP without the self-collision, rope and obstacle rows),
+``pseudo_inverse`` (no limits, no rows), ``pseudo_inverse_saturated`` (its command clipped into the joint
+QP's boxes: the same rate limits and configuration limits, no rows) and any ``qp`` preset (the joint QP
+with that preset's step solver, its row labelled with the preset's name); their collisions are reported
+(columns ``collision steps``, ``depth [mm]``), not hidden. Per-step status: ``ok``, or ``failed`` where
+the QP found no solution and the arms were held. Criteria of the joint QP: ``no collision`` (the
+continuous tubes, between samples too, never touch: least sampled clearance less half the two sample spacings stays
 positive), ``within limits`` and, with obstacles, ``no obstacle penetration`` (every body's least
 sampled clearance less half its sample spacing stays positive; the rope is checked beyond
 ``collision.rope_exclusion`` of its grips).
@@ -50,7 +52,7 @@ from __future__ import annotations
 from optikin.problems import ProblemContext, ProblemKind, figures_of, register_kind
 from optikin.problems.two_arms import references, report  # noqa: F401  (references registers its sources)
 from optikin.problems.two_arms.options import TwoArmOptions
-from optikin.problems.two_arms.run import BASELINES, run
+from optikin.problems.two_arms.run import BASELINES, preset_baseline, run
 from optikin.results import Result
 
 
@@ -66,7 +68,8 @@ register_kind(
         run=solve,
         backend_families=("qp",),
         default_solver="qp-active-set",
-        baselines=tuple(BASELINES),
+        baselines=BASELINES,
+        preset_baseline=preset_baseline,
         options=TwoArmOptions,
         data_family="two_arm_references",
         figures=figures_of("optikin.problems.two_arms.figures"),

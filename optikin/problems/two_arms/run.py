@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
+from optikin.control.limits import RateBounds
 from optikin.control.self_collision import PlacedArm, TwoTubes, collision_density, rotation_from_quaternion
 from optikin.control.two_arm import (
     Rope,
@@ -24,18 +26,108 @@ from optikin.control.two_arm import (
 from optikin.control.two_arm_obstacles import TwoArmObstacleRows
 from optikin.curves.catenary_sensitivity import CatenarySensitivity
 from optikin.errors import InputDataError
-from optikin.problems import ProblemContext
+from optikin.problems import Baseline, ProblemContext, baselines_of
 from optikin.problems.tracking.run import obstacle_from_options
 from optikin.problems.two_arms.options import TwoArmOptions
 from optikin.problems.two_arms.references import RopeLoop, TipPaths
-from optikin.solvers.base import QPBackend
 from optikin.solvers.qp.common import StepSolverFactory
 
-BASELINES = {
-    "no_collision_rows": "the same joint QP without the self-collision rows",
-    "pseudo_inverse": "the pseudo-inverse (per arm for tips, of the rope Jacobian for the rope), no limits",
-}
-"""The kind's own baselines: ``baselines:`` name -> what it is."""
+if TYPE_CHECKING:
+    from optikin.solvers import LoadedPreset
+
+
+@dataclass(frozen=True)
+class JointSetup:
+    """What every controller of a run is built from (:attr:`optikin.problems.Baseline.build`'s ``setup``).
+
+    Attributes
+    ----------
+    options:
+        ``options:`` of the file.
+    plant:
+        Both arms placed, the task (and the rope).
+    tubes, rope_tubes, obstacle_rows:
+        The joint QP's collision rows (tubes, rope off the tubes, obstacles; the latter two may be ``None``).
+    dt:
+        The control period [s].
+    q0:
+        The start of both arms, the posture term's ``q_nom``.
+    """
+
+    options: TwoArmOptions
+    plant: TwoArmModel
+    tubes: TwoTubes
+    rope_tubes: RopeTubes | None
+    obstacle_rows: TwoArmObstacleRows | None
+    dt: float
+    q0: np.ndarray
+
+    def joint(self, factory: StepSolverFactory, with_rows: bool = True) -> TwoArmQP:
+        """The joint QP with ``factory``'s step solver; ``with_rows=False``: without any collision rows."""
+        o = self.options
+        return TwoArmQP(
+            self.plant,
+            self.dt,
+            o.gain,
+            factory=factory,
+            damping=o.damping,
+            posture=self.q0,
+            posture_weight=o.posture_weight,
+            posture_gain=o.posture_gain,
+            rate_limits=o.rate_limits,
+            limit_margin=o.limit_margin,
+            tubes=self.tubes if with_rows else None,
+            rope_tubes=self.rope_tubes if with_rows else None,
+            obstacle_rows=self.obstacle_rows if with_rows else None,
+            gamma=o.collision.gamma,
+            margin=o.collision.margin,
+        )
+
+    def limits(self) -> list[RateBounds]:
+        """The joint QP's boxes, one per arm (its rate limits and limit margin)."""
+        o = self.options
+        return [RateBounds(placed.arm, self.dt, o.rate_limits, o.limit_margin) for placed in self.plant.arms]
+
+
+def _step_solvers(ctx: ProblemContext, adapter: object, field: str) -> StepSolverFactory:
+    """``adapter`` as a ``qp`` factory taking inequality rows; another is an error naming ``field``."""
+    if not isinstance(adapter, StepSolverFactory):
+        raise ctx.error(field, f"{type(adapter).__name__} takes no inequality rows; two_arms needs a qp backend")
+    return adapter
+
+
+def _no_collision_rows(ctx: ProblemContext, setup: JointSetup) -> TwoArmController:
+    return setup.joint(_step_solvers(ctx, ctx.adapter, "solver"), with_rows=False)
+
+
+def _pseudo_inverse(ctx: ProblemContext, setup: JointSetup) -> TwoArmController:
+    return TwoArmPseudoInverse(setup.plant, setup.dt, setup.options.gain)
+
+
+def _pseudo_inverse_saturated(ctx: ProblemContext, setup: JointSetup) -> TwoArmController:
+    return TwoArmPseudoInverse(setup.plant, setup.dt, setup.options.gain, limits=setup.limits())
+
+
+BASELINES: dict[str, Baseline[JointSetup, TwoArmController]] = baselines_of(
+    Baseline("no_collision_rows", "joint QP without collision rows", build=_no_collision_rows),
+    Baseline("pseudo_inverse", TwoArmPseudoInverse.name, build=_pseudo_inverse),
+    Baseline("pseudo_inverse_saturated", f"{TwoArmPseudoInverse.name} (saturated)", build=_pseudo_inverse_saturated),
+)
+"""The kind's own baselines: ``no_collision_rows``, the same joint QP without the self-collision, rope and obstacle
+rows; ``pseudo_inverse``, the pseudo-inverse (per arm for tips, of the rope Jacobian for the rope), no limits;
+``pseudo_inverse_saturated``, the same with its command clipped into the joint QP's boxes (rate limits, and the
+configuration limits after the step)."""
+
+
+def preset_baseline(name: str, preset: LoadedPreset) -> Baseline[JointSetup, TwoArmController]:
+    """A ``qp`` preset listed in ``baselines``: the joint QP with that preset's step solver, labelled ``name``."""
+
+    def build(ctx: ProblemContext, setup: JointSetup) -> TwoArmController:
+        controller = setup.joint(_step_solvers(ctx, preset.build(), f"baselines.{ctx.spec.baselines.index(name)}"))
+        controller.name = name
+        return controller
+
+    return Baseline(name, name, build=build, preset=preset)
 
 
 @dataclass
@@ -331,39 +423,12 @@ def _controllers(
     dt: float,
     q0: np.ndarray,
 ) -> dict[str, TwoArmController]:
-    """The joint QP (the preset's step solver, with the collision rows) and every baseline, by name (the QP
-    without collision rows has none: neither the tubes', the rope's nor the obstacles')."""
-    factory = ctx.backend(QPBackend)
-    if not isinstance(factory, StepSolverFactory):
-        raise ctx.error("solver", f"{type(factory).__name__} takes no inequality rows; two_arms needs a qp backend")
-    o = options
-
-    def joint(with_tubes: bool) -> TwoArmQP:
-        return TwoArmQP(
-            plant,
-            dt,
-            o.gain,
-            factory=factory,
-            damping=o.damping,
-            posture=q0,
-            posture_weight=o.posture_weight,
-            posture_gain=o.posture_gain,
-            rate_limits=o.rate_limits,
-            limit_margin=o.limit_margin,
-            tubes=tubes if with_tubes else None,
-            rope_tubes=rope_tubes if with_tubes else None,
-            obstacle_rows=obstacle_rows if with_tubes else None,
-            gamma=o.collision.gamma,
-            margin=o.collision.margin,
-        )
-
+    """The joint QP (the preset's step solver, with the collision rows) and every baseline, by name."""
+    setup = JointSetup(options, plant, tubes, rope_tubes, obstacle_rows, dt, q0)
     try:
-        controllers: dict[str, TwoArmController] = {"qp": joint(True)}
-        for name in ctx.spec.baselines:
-            if name == "no_collision_rows":
-                controllers[name] = joint(False)
-            else:
-                controllers[name] = TwoArmPseudoInverse(plant, dt, o.gain)
+        controllers: dict[str, TwoArmController] = {"qp": setup.joint(_step_solvers(ctx, ctx.adapter, "solver"))}
+        for baseline in ctx.baselines:
+            controllers[baseline.name] = baseline.method(ctx, setup)
     except ValueError as exc:
         raise ctx.error("options", str(exc)) from None
     return controllers
