@@ -39,7 +39,7 @@ import os
 import re
 from importlib import resources
 from pathlib import Path
-from typing import Any, Literal, Sequence
+from typing import Any, ClassVar, Literal, Sequence, cast
 
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
@@ -220,7 +220,7 @@ class _StrictLoader(yaml.SafeLoader):
     """
 
     yaml_implicit_resolvers: dict[Any, Any] = {}
-    yaml_constructors: dict[Any, Any] = {}
+    yaml_constructors: ClassVar[dict[Any, Any]] = {}
 
     def __init__(self, stream: str) -> None:
         super().__init__(stream)
@@ -241,7 +241,7 @@ class _StrictLoader(yaml.SafeLoader):
             node = super().compose_node(parent, index)
         finally:
             self._depth -= 1
-        if not node.tag.startswith(_CORE) or node.tag[len(_CORE) :] not in _CORE_TAGS:
+        if node is not None and (not node.tag.startswith(_CORE) or node.tag[len(_CORE) :] not in _CORE_TAGS):
             shown = "!!" + node.tag[len(_CORE) :] if node.tag.startswith(_CORE) else node.tag
             raise yaml.constructor.ConstructorError(
                 None,
@@ -299,9 +299,9 @@ _StrictLoader.add_constructor(_CORE + "null", _StrictLoader.construct_core_null)
 _StrictLoader.add_constructor(_CORE + "bool", _StrictLoader.construct_core_bool)
 _StrictLoader.add_constructor(_CORE + "int", _StrictLoader.construct_core_int)
 _StrictLoader.add_constructor(_CORE + "float", _StrictLoader.construct_core_float)
-_StrictLoader.add_constructor(_CORE + "str", yaml.SafeLoader.construct_yaml_str)
-_StrictLoader.add_constructor(_CORE + "seq", yaml.SafeLoader.construct_yaml_seq)
-_StrictLoader.add_constructor(_CORE + "map", yaml.SafeLoader.construct_yaml_map)
+_StrictLoader.add_constructor(_CORE + "str", cast(Any, yaml.SafeLoader.construct_yaml_str))
+_StrictLoader.add_constructor(_CORE + "seq", cast(Any, yaml.SafeLoader.construct_yaml_seq))
+_StrictLoader.add_constructor(_CORE + "map", cast(Any, yaml.SafeLoader.construct_yaml_map))
 _StrictLoader.add_implicit_resolver(_CORE + "null", _NULL_RE, ["~", "n", "N", ""])
 _StrictLoader.add_implicit_resolver(_CORE + "bool", _BOOL_RE, list("tTfF"))
 _StrictLoader.add_implicit_resolver(_CORE + "int", _INT_RE, list("-+0123456789"))

@@ -281,7 +281,7 @@ BAD_FILES = {
     "millimetres": (
         POSE_HEADER,
         lambda r: scaled(r, slice(1, 4), 1000.0),
-        r"sample 0: x, y, z: the first tip position",
+        r"sample 0: x: coordinate 165\.133 m is beyond 10 m.*values look like millimetres: set data\.params\.units: mm",
     ),
 }
 
@@ -367,3 +367,48 @@ def test_units_and_content_are_read_as_declared(tmp_path):
     np.testing.assert_allclose(reference_of(millimetres).reference.value, metres.reference.value, atol=1e-12)
     positions = read_demonstration(DATA / "demo-pose.csv", content="position")
     assert positions.content == "position" and positions.quaternion is None
+
+
+def test_ik_targets_in_a_y_up_file_are_read_with_frame_up_y(tmp_path):
+    from optikin.data.targets import CsvParams, csv_targets
+    from optikin.ik.points import MeasuredPoint, PointSet
+    from optikin.spec import DataSpec
+
+    header, *rows = (PROBLEMS / "trunk-points.csv").read_text().splitlines()
+    y_up = []
+    for row in rows:
+        xyz = np.array(row.split(","), dtype=float).reshape(-1, 3)
+        y_up.append(",".join(repr(float(v)) for v in np.column_stack([xyz[:, 0], xyz[:, 2], -xyz[:, 1]]).ravel()))
+    (tmp_path / "y-up.csv").write_text("\n".join([header, *y_up]) + "\n")
+    (tmp_path / "z-up.csv").write_text((PROBLEMS / "trunk-points.csv").read_text())
+    points = PointSet(tuple(MeasuredPoint(f"disk{k}", section=k) for k in (1, 2, 3)))
+    data = DataSpec(source="csv", samples=5)
+
+    def read(file: str, **extra: Any) -> np.ndarray:
+        params = CsvParams(file=file, **extra)
+        return csv_targets(ARM, data, params, tmp_path / "p.yaml", "points", points).values
+
+    np.testing.assert_allclose(read("y-up.csv", frame={"up": "y"}), read("z-up.csv"), atol=1e-15)
+    assert not np.allclose(read("y-up.csv"), read("z-up.csv"))
+
+
+def test_a_pose_demonstration_in_a_y_up_file_is_read_with_frame_up_y(tmp_path):
+    from optikin.algebra import quat_conjugate, quat_from_matrix, quat_multiply
+    from optikin.data.demonstrations import CsvParams, read_params_file
+    from optikin.data.recording import frame_matrix
+
+    matrix = frame_matrix(FrameOptions(up="y"))
+    header, *rows = (DATA / "demo-pose.csv").read_text().splitlines()
+    values = np.array([row.split(",") for row in rows], dtype=float)
+    position = values[:, 1:4] @ matrix  # A^T p, row-wise
+    quaternion = quat_multiply(
+        np.broadcast_to(quat_conjugate(quat_from_matrix(matrix)), (len(values), 4)), values[:, 4:]
+    )
+    y_up = np.column_stack([values[:, 0], position, quaternion])
+    (tmp_path / "y-up.csv").write_text(header + "\n" + "\n".join(",".join(repr(float(v)) for v in r) for r in y_up))
+    (tmp_path / "z-up.csv").write_text((DATA / "demo-pose.csv").read_text())
+    problem = tmp_path / "p.yaml"
+    converted = read_params_file(None, CsvParams(file="y-up.csv", frame={"up": "y"}), problem)
+    original = read_params_file(None, CsvParams(file="z-up.csv"), problem)
+    np.testing.assert_allclose(converted.position, original.position, atol=1e-12)
+    np.testing.assert_allclose(converted.quaternion, original.quaternion, atol=1e-12)

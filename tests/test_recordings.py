@@ -420,7 +420,7 @@ def test_malformed_c3d_names_file_frame_and_channel(tmp_path):
         read_c3d(ok, units="mm")
     truncated = tmp_path / "truncated.c3d"
     truncated.write_bytes((RECORDINGS / "trunk.c3d").read_bytes()[:700])
-    with pytest.raises(InputDataError, match="truncated.c3d: not a readable C3D file"):
+    with pytest.raises(InputDataError, match="truncated.c3d: truncated: the header declares 40 frames, the file ends"):
         read_c3d(truncated)
 
 
@@ -496,3 +496,23 @@ def test_a_missing_optional_dependency_names_the_extra(monkeypatch, module, read
     monkeypatch.setitem(sys.modules, module, None)
     with pytest.raises(ImportError, match=re.escape(f"pip install {extra}")):
         read()
+
+
+def test_plain_csv_without_a_time_column_numbers_its_postures(tmp_path):
+    header, *rows = (RECORDINGS / "trunk_plain.csv").read_text().splitlines()
+    assert header.startswith("t,")
+    (tmp_path / "postures.csv").write_text("\n".join(line.split(",", 1)[1] for line in [header, *rows]) + "\n")
+    mapping = yaml.safe_load((RECORDINGS / "trunk_plain.yaml").read_text()) | {"time": None, "imu_columns": {}}
+    rec = read_plain_csv(tmp_path / "postures.csv", PlainCsvParams(file="postures.csv", **mapping))
+    timed = read_plain_csv(
+        RECORDINGS / "trunk_plain.csv", PlainCsvParams(file="trunk_plain.csv", **mapping | {"time": "t"})
+    )
+    np.testing.assert_array_equal(rec.time, np.arange(len(rows)))
+    for name, positions in timed.markers.items():
+        np.testing.assert_array_equal(rec.markers[name], positions)
+
+
+def test_plain_csv_without_a_time_column_takes_no_imu(tmp_path):
+    imu = {"angular_velocity": ["a", "b", "c"], "linear_acceleration": ["d", "e", "f"]}
+    with pytest.raises(ValueError, match="imu_columns need a time column"):
+        PlainCsvParams(file="x.csv", time=None, imu_columns={"imu": imu})

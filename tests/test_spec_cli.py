@@ -46,6 +46,31 @@ def good(tmp_path: Path, name: str = "small", **replace: str) -> Path:
     return write(tmp_path, name, text)
 
 
+CHECKOUT = Path(__file__).resolve().parent.parent
+SHIPPED_FILES = sorted(
+    [*(CHECKOUT / "problems").glob("*.yaml"), *(CHECKOUT / "examples").glob("*.yaml")], key=lambda p: p.name
+)
+
+
+@pytest.mark.parametrize("path", SHIPPED_FILES, ids=lambda p: p.name)
+def test_every_shipped_and_example_problem_shows(path, capsys):
+    """``optikin show`` validates the whole file: its kind's options, its data source's params and its arm."""
+    assert main(["show", str(path)]) == EXIT_OK, capsys.readouterr().err
+
+
+@pytest.mark.parametrize("path", sorted((CHECKOUT / "solvers").glob("*.yaml")), ids=lambda p: p.name)
+def test_every_shipped_solver_preset_shows(path, capsys):
+    assert main(["show", "--solver", str(path)]) == EXIT_OK, capsys.readouterr().err
+
+
+@pytest.mark.parametrize("path", sorted((CHECKOUT / "sweeps").glob("*.yaml")), ids=lambda p: p.name)
+def test_every_shipped_sweep_validates(path):
+    from optikin.sweep.spec import load_sweep
+
+    spec, _ = load_sweep(str(path))
+    assert spec.name == path.stem
+
+
 def test_shipped_problems_and_solvers_validate():
     problems, solvers = available("problems"), available("solvers")
     assert {"cc-two-section-fk", "cbha-fk"} <= set(problems)

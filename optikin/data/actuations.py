@@ -32,6 +32,7 @@ from pydantic import Field, StrictBool, StrictFloat, StrictInt
 
 from optikin.arms.base import ArmModel
 from optikin.data.configurations import TrajectoryParams, first_rows, read_configuration_csv, smooth_motion
+from optikin.data.files import data_file
 from optikin.data.sources import register_source
 from optikin.data.targets import read_target_csv
 from optikin.errors import SpecError
@@ -151,7 +152,7 @@ def csv_actuations(arm: ArmModel, data: DataSpec, params: CsvParams, path: Path)
     The format is :func:`optikin.data.configurations.read_configuration_csv` with the
     actuator names as columns (tensions in N, pressures in Pa).
     """
-    values, t = read_configuration_csv((Path(path).parent / params.file).resolve(), arm.config_names)
+    values, t = read_configuration_csv(data_file(path, params.file), arm.config_names)
     keep, skipped = first_rows(data, len(values))
     return Actuations(
         values[:keep], t=None if t is None else t[:keep], trajectory=params.trajectory, skipped_rows=skipped
@@ -167,7 +168,7 @@ def csv_actuations(arm: ArmModel, data: DataSpec, params: CsvParams, path: Path)
 def csv_targets(arm: ArmModel, data: DataSpec, params: CsvParams, path: Path, kind: str = "position") -> Actuations:
     """Tip targets of ``params.file`` (:func:`optikin.data.targets.read_target_csv`), ``kind`` ``position`` or
     ``pose``."""
-    targets, t = read_target_csv((Path(path).parent / params.file).resolve(), kind)
+    targets, t = read_target_csv(data_file(path, params.file), kind)
     keep, skipped = first_rows(data, len(targets))
     return Actuations(
         None,

@@ -28,6 +28,7 @@ from pydantic import Field, StrictFloat, field_validator
 
 from optikin.arms.base import ArmModel
 from optikin.data.csvread import columns_of, read_table
+from optikin.data.files import data_file
 from optikin.data.sources import register_source
 from optikin.errors import SpecError
 from optikin.options import NoOptions, Options
@@ -187,7 +188,7 @@ def sweep(arm: ArmModel, data: DataSpec, params: SweepParams, path: Path) -> Con
 def configurations_from_csv(arm: ArmModel, data: DataSpec, params: CsvParams, path: Path) -> Configurations:
     """The rows of ``params.file`` (relative to the problem file's folder): all of them, or the first
     ``data.samples`` when the problem file gives it (:func:`first_rows`)."""
-    csv_path = (Path(path).parent / params.file).resolve()
+    csv_path = data_file(path, params.file)
     Q, t = read_configuration_csv(csv_path, arm.config_names)
     keep, skipped = first_rows(data, len(Q))
     return Configurations(Q[:keep], None if t is None else t[:keep], skipped)

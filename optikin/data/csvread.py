@@ -37,6 +37,61 @@ EXCERPT_LENGTH = 20
 """Most characters of a file's text an error message shows (cell or header name, escaped)."""
 HEADER_NAMES_SHOWN = 4
 """Header names an error about a missing column shows."""
+MAX_COORDINATE = 10.0
+"""Largest magnitude of a position coordinate read from a file [m], after its declared unit is applied: no
+continuum arm or its workspace reaches 10 m from the origin of the frame it is recorded in, so a larger value is
+a unit error (millimetres read as metres) or a corrupt cell, refused with a unit hint."""
+UNIT_METRES: dict[str, float] = {"m": 1.0, "cm": 1e-2, "mm": 1e-3}
+"""Metres per length unit a file may be written in."""
+
+
+def unit_hint(largest: float, unit: str, key: str = "units", declared: str | None = None) -> str:
+    """``": values look like millimetres: set units: mm"`` when positions whose largest magnitude is ``largest``
+    [m], read in ``unit``, come within :data:`MAX_COORDINATE` in a smaller unit; else ``""``. With ``declared``
+    (the unit the file itself states) the hint says that the file's declaration is wrong instead."""
+    for smaller, name in (("cm", "centimetres"), ("mm", "millimetres")):
+        ratio = UNIT_METRES[unit] / UNIT_METRES[smaller]
+        if ratio > 1 and largest / ratio <= MAX_COORDINATE and (smaller == "mm" or largest / ratio < 1.0):
+            if declared is not None:
+                return f": values look like {name}, though the file declares {excerpt(declared)}"
+            return f": values look like {name}: set {key}: {smaller}"
+    return ""
+
+
+def check_coordinates(
+    values: np.ndarray,
+    source: str,
+    unit: str,
+    where: Callable[[int, int], tuple[int, str, str]],
+    key: str = "units",
+    declared: str | None = None,
+) -> None:
+    """Refuse a finite coordinate of ``values`` ``(rows, k)`` [m] above :data:`MAX_COORDINATE` in magnitude.
+
+    ``where(row, column) -> (sample, field, message suffix)`` names the cell; ``unit`` is the unit the values
+    were read in, ``key`` the problem file's key that sets it and ``declared`` the file's own statement of its
+    unit (if any), for the hint (:func:`unit_hint`).
+
+    Raises
+    ------
+    InputDataError
+        Naming the file, the sample and the field of the first such cell, with the largest magnitude of all.
+    """
+    values = np.asarray(values, dtype=float).reshape(len(values), -1)
+    with np.errstate(invalid="ignore"):
+        large = np.isfinite(values) & (np.abs(values) > MAX_COORDINATE)
+    if not large.any():
+        return
+    i, k = (int(v) for v in np.argwhere(large)[0])
+    largest = float(np.max(np.abs(values[np.isfinite(values)])))
+    sample, field, suffix = where(i, k)
+    raise InputDataError(
+        f"coordinate {values[i, k]:.6g} m is beyond {MAX_COORDINATE:g} m, the largest a continuum arm's recording "
+        f"holds (largest: {largest:.6g} m){unit_hint(largest, unit, key, declared)}{suffix}",
+        source=source,
+        sample=sample,
+        field=field,
+    )
 
 
 def excerpt(text: str, limit: int = EXCERPT_LENGTH) -> str:
@@ -98,6 +153,17 @@ class Table:
             f"{message} (line {int(self.lines[row])})", source=self.source, sample=int(row), field=column
         )
 
+    def check_coordinates(self, names: Sequence[str], scale: float, unit: str, key: str = "units") -> None:
+        """Refuse a coordinate of the columns ``names`` (times ``scale``, metres per unit) above
+        :data:`MAX_COORDINATE` (:func:`check_coordinates`)."""
+        check_coordinates(
+            self.stacked(names) * scale,
+            self.source,
+            unit,
+            lambda i, k: (i, names[k], f" (line {int(self.lines[i])})"),
+            key,
+        )
+
     def check_finite(self, names: Sequence[str]) -> None:
         """Raise on the first row (then column) of ``names`` holding NaN or an infinity."""
         block = self.stacked(names)
@@ -150,6 +216,19 @@ def missing_columns(source: str, header: Sequence[str], names: Sequence[str], hi
         source=source,
         field=missing[0],
     )
+
+
+def check_unique(header: Sequence[str], source: str) -> None:
+    """Refuse a header naming one column twice (which of the two would be read is a guess), naming both."""
+    first: dict[str, int] = {}
+    for k, name in enumerate(header):
+        if name and name in first:
+            raise InputDataError(
+                f"column {excerpt(name)} appears twice in the header: columns {first[name] + 1} and {k + 1}",
+                source=source,
+                field=name,
+            )
+        first.setdefault(name, k)
 
 
 def read_text(path: Path, source: str) -> str:
@@ -226,6 +305,7 @@ def read_table(path: str | Path, select: Selection, exact: bool = False) -> Tabl
         if header_row is None:
             raise InputDataError("empty file", source=source)
         header = tuple(h.strip() for h in header_row)
+        check_unique(header, source)
         columns, finite = select(header)
         columns = tuple(columns)
         index = [header.index(c) for c in columns]

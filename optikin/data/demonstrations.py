@@ -42,7 +42,7 @@ in it.
 from __future__ import annotations
 
 import csv
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Callable, Literal, Sequence, get_args
 
@@ -71,6 +71,7 @@ from optikin.arms.constant_curvature import (
 from optikin.arms.base import ArmModel
 from optikin.data.csvread import missing_columns, read_table
 from optikin.data.files import FileParams
+from optikin.data.recording import FrameOptions, convert_body_orientations, convert_vectors, frame_matrix
 from optikin.data.sources import register_source
 from optikin.errors import InputDataError, SpecError
 from optikin.options import Options
@@ -546,6 +547,7 @@ def read_demonstration(
     t = table.column("t")
     if kind == "configuration":
         return RecordedDemonstration(source, kind, t, configuration=table.stacked(columns[1:]), lines=table.lines)
+    table.check_coordinates(POSITION_COLUMNS[1:], LENGTH_UNITS[units], units, "data.params.units")
     position = table.stacked(POSITION_COLUMNS[1:]) * LENGTH_UNITS[units]
     quaternion = None
     if kind == "pose":
@@ -673,6 +675,11 @@ class DemonstrationFileParams(FileParams):
         None, description="pose | position | configuration; null: from the header (qw..qz: pose, x: position)"
     )
     units: Literal["m", "cm", "mm"] = Field("m", description="length unit of the file's x, y, z")
+    frame: FrameOptions = Field(
+        default_factory=FrameOptions,
+        description="axes of the file's frame (frame: {up: y} for a y-up recording), converted to optikin's z-up "
+        "frame as a recording's (optikin.data.recording)",
+    )
 
 
 class CsvParams(DemonstrationFileParams):
@@ -689,7 +696,20 @@ class CsvParams(DemonstrationFileParams):
 def read_params_file(arm: ArmModel | None, params: DemonstrationFileParams, path: Path) -> RecordedDemonstration:
     """:func:`read_demonstration` of ``params.file`` (relative to the problem file ``path``), for ``arm``."""
     names = () if arm is None else arm.config_names
-    return read_demonstration(params.resolve(path), params.content, names, params.units)
+    demonstration = read_demonstration(params.resolve(path), params.content, names, params.units)
+    matrix = frame_matrix(params.frame)
+    if demonstration.position is None or np.array_equal(matrix, np.eye(3)):
+        return demonstration
+    if demonstration.quaternion is not None and np.linalg.det(matrix) < 0:
+        raise SpecError(path, "data.params.frame", "a left-handed frame cannot carry orientations of an arm's frames")
+    quaternion = demonstration.quaternion
+    return replace(
+        demonstration,
+        position=convert_vectors(demonstration.position, matrix),
+        quaternion=None
+        if quaternion is None
+        else quat_hemisphere_continuous(convert_body_orientations(quaternion, matrix)),
+    )
 
 
 def _generated(maker: Callable[..., Any], data: DataSpec, path: Path, **params: Any) -> Any:

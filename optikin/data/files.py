@@ -24,6 +24,7 @@ from typing import Any
 from pydantic import Field, PrivateAttr, model_validator
 from pydantic_core.core_schema import ValidatorFunctionWrapHandler
 
+from optikin.errors import SpecError
 from optikin.options import Options
 
 DEPRECATED_KEY = "path"
@@ -62,7 +63,24 @@ class FileParams(Options):
                 str(problem),
                 former_key_line(Path(problem)),
             )
-        return (Path(problem).parent / self.file).resolve()
+        return data_file(problem, self.file)
+
+
+def data_file(problem: str | Path, file: str, field: str = "data.params.file") -> Path:
+    """The data file ``file`` of the problem file ``problem``: relative to its folder (an absolute path as it is),
+    symbolic links resolved.
+
+    Raises
+    ------
+    SpecError
+        Naming ``problem`` and ``field`` when the path cannot be resolved (a loop of symbolic links).
+    """
+    try:
+        return (Path(problem).parent / file).resolve()
+    except RuntimeError:  # Python < 3.13: a loop of symbolic links
+        raise SpecError(problem, field, f"{file[:80]!r} is a loop of symbolic links") from None
+    except OSError as exc:
+        raise SpecError(problem, field, f"cannot resolve {file[:80]!r}: {exc.strerror or exc}") from None
 
 
 def former_key_line(problem: Path) -> int:

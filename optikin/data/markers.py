@@ -69,7 +69,7 @@ import csv
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import casadi as ca
 import numpy as np
@@ -80,7 +80,9 @@ from optikin.arms.base import ArmModel
 from optikin.arms.cbha import LEG_DIRECTIONS, PLATFORM_LEG_LENGTHS, CBHAArm
 from optikin.curves.catenary import Catenary, catenary
 from optikin.data.configurations import first_rows
-from optikin.data.csvread import missing_columns, read_table
+from optikin.data.csvread import UNIT_METRES, missing_columns, read_table
+from optikin.data.files import data_file
+from optikin.data.recording import FrameOptions, convert_body_orientations, convert_vectors, frame_matrix
 from optikin.data.sources import register_source
 from optikin.errors import SpecError
 from optikin.options import Options
@@ -94,6 +96,9 @@ INTERMEDIATE_VERTEBRAE = (5, 9, 13)
 """1-based vertebrae carrying the three intermediate markers (base: 1, tip: 17)."""
 QUATERNION_TOLERANCE = 1e-3
 """| |q| - 1 | accepted in a CSV file before normalising."""
+COINCIDENT = 1e-6
+"""Largest distance [m] between a posture's base and tip positions that counts as the same point (refused: an arm
+has a length, so a tip at the base is a marker labelled twice)."""
 
 POSE_COLUMNS = ("x", "y", "z", "qw", "qx", "qy", "qz")
 
@@ -359,17 +364,24 @@ def write_marker_csv(recording: MarkerRecording, path: Path) -> Path:
     return path
 
 
-def read_marker_csv(path: Path) -> MarkerRecording:
+def read_marker_csv(
+    path: Path, units: Literal["m", "cm", "mm"] = "m", frame: FrameOptions | None = None
+) -> MarkerRecording:
     """Read a recording from a CSV file in the documented columns (module docstring).
 
-    Columns ``t`` [s]; ``base_x ... base_qz`` and ``tip_x ... tip_qz`` (positions [m],
-    unit quaternions ``(w, x, y, z)``); ``m1_x, m1_y, m1_z, ...`` [m], at least one marker;
-    optionally ``L1, L2, L3`` and ``S1_L1, S1_L2, S1_L3`` [m]. Other columns are ignored.
+    Columns ``t`` [s]; ``base_x ... base_qz`` and ``tip_x ... tip_qz`` (positions [``units``],
+    unit quaternions ``(w, x, y, z)``); ``m1_x, m1_y, m1_z, ...`` [``units``], at least one marker;
+    optionally ``L1, L2, L3`` and ``S1_L1, S1_L2, S1_L3`` [``units``]. Other columns are ignored.
 
     Parameters
     ----------
     path:
         The file (:mod:`optikin.data.csvread`: UTF-8 text with a header row).
+    units:
+        The length unit of the file's positions and lengths; they are returned in metres.
+    frame:
+        The axes of the file's frame (default z-up): positions and orientations are returned in optikin's
+        z-up axes, converted as a recording's (:func:`optikin.data.recording.frame_matrix`).
 
     Returns
     -------
@@ -381,10 +393,13 @@ def read_marker_csv(path: Path) -> MarkerRecording:
     InputDataError
         The file cannot be read or is refused, lacks a column, has no data rows or a cell
         that is not a finite number; a quaternion's norm is more than
-        :data:`QUATERNION_TOLERANCE` from 1; ``t`` does not increase strictly.
+        :data:`QUATERNION_TOLERANCE` from 1; ``t`` does not increase strictly; a position is beyond
+        :data:`~optikin.data.csvread.MAX_COORDINATE` (with a unit hint); the tip's position is the base's
+        (within :data:`COINCIDENT`).
     """
     path = Path(path)
     source = str(path)
+    scale = UNIT_METRES[units]
 
     def select(header: tuple[str, ...]) -> tuple[list[str], list[str]]:
         n_markers = 0
@@ -411,15 +426,28 @@ def read_marker_csv(path: Path) -> MarkerRecording:
     n_markers = sum(1 for c in table.columns if c.startswith("m") and c.endswith("_x"))
     n = len(table)
     has = set(table.columns)
+    marker_columns = [f"m{k}_{c}" for k in range(1, n_markers + 1) for c in "xyz"]
+    table.check_coordinates(
+        [f"{body}_{c}" for body in ("base", "tip") for c in "xyz"] + marker_columns, scale, units, "data.params.units"
+    )
+    base, tip = (table.stacked([f"{body}_{c}" for c in "xyz"]) * scale for body in ("base", "tip"))
+    distance = np.linalg.norm(tip - base, axis=1)
+    close = np.flatnonzero(distance <= COINCIDENT)
+    if close.size:
+        i = int(close[0])
+        raise table.error(
+            f"the tip's position is the base's ({distance[i]:.3g} m apart): a marker labelled twice?", i, "tip_x"
+        )
+    matrix = frame_matrix(frame or FrameOptions())
     return MarkerRecording(
         t=table.column("t"),
-        base_position=table.stacked(["base_x", "base_y", "base_z"]),
-        base_orientation=base_q,
-        tip_position=table.stacked(["tip_x", "tip_y", "tip_z"]),
-        tip_orientation=tip_q,
-        markers=table.stacked([f"m{k}_{c}" for k in range(1, n_markers + 1) for c in "xyz"]).reshape(n, n_markers, 3),
-        tube_lengths=table.stacked(["L1", "L2", "L3"]) if "L1" in has else None,
-        section_tube_lengths=table.stacked(["S1_L1", "S1_L2", "S1_L3"]) if "S1_L1" in has else None,
+        base_position=convert_vectors(base, matrix),
+        base_orientation=convert_body_orientations(base_q, matrix),
+        tip_position=convert_vectors(tip, matrix),
+        tip_orientation=convert_body_orientations(tip_q, matrix),
+        markers=convert_vectors(table.stacked(marker_columns).reshape(n, n_markers, 3) * scale, matrix),
+        tube_lengths=table.stacked(["L1", "L2", "L3"]) * scale if "L1" in has else None,
+        section_tube_lengths=table.stacked(["S1_L1", "S1_L2", "S1_L3"]) * scale if "S1_L1" in has else None,
         source=source,
     )
 
@@ -460,6 +488,12 @@ class CsvMarkerParams(Options):
     """``data.params`` of source ``csv`` (family ``markers``)."""
 
     file: str = Field(description="the recording (columns in the module docstring), relative to the problem file")
+    units: Literal["m", "cm", "mm"] = Field("m", description="length unit of the file's positions and lengths")
+    frame: FrameOptions = Field(
+        default_factory=FrameOptions,
+        description="axes of the file's frame (frame: {up: y} for a y-up recording), converted to optikin's z-up "
+        "frame as a recording's (optikin.data.recording)",
+    )
     intermediate: tuple[int, ...] | None = Field(
         None,
         description="1-based vertebra of each intermediate marker, in column order (comparators that use "
@@ -502,7 +536,10 @@ def synthetic_source(arm: ArmModel, data: DataSpec, params: SyntheticMarkerParam
 def csv_source(arm: ArmModel | None, data: DataSpec, params: CsvMarkerParams, path: Path) -> MarkerRecording:
     """:func:`read_marker_csv` of ``params.file`` (relative to the problem file): every row, or the first
     ``data.samples`` when the problem file gives it."""
-    recording = read_marker_csv((Path(path).parent / params.file).resolve())
+    try:
+        recording = read_marker_csv(data_file(path, params.file), params.units, params.frame)
+    except ValueError as exc:
+        raise SpecError(path, "data.params.frame", str(exc)) from None
     if params.intermediate is not None:
         try:
             recording = replace(recording, marker_vertebrae=params.intermediate)

@@ -38,6 +38,7 @@ from typing import Literal, Mapping, Sequence
 import numpy as np
 from pydantic import Field, model_validator
 
+from optikin.algebra import quat_from_matrix, quat_multiply
 from optikin.options import Options
 
 Axis = Literal["x", "y", "z"]
@@ -122,6 +123,26 @@ def convert_quaternions(quaternions: np.ndarray, matrix: np.ndarray) -> np.ndarr
     q = np.asarray(quaternions, dtype=float)
     sign = float(np.sign(np.linalg.det(matrix)))
     return np.concatenate([q[..., :1], sign * (q[..., 1:] @ matrix.T)], axis=-1)
+
+
+def convert_body_orientations(quaternions: np.ndarray, matrix: np.ndarray) -> np.ndarray:
+    """Orientations ``R`` ``(..., 4)`` (``w, x, y, z``) of frames whose own axes the body defines (an arm's base
+    or tip frame: z along the backbone), given in a file's axes, in optikin's axes: ``A R``, the quaternion of
+    ``A`` times each.
+
+    Unlike :func:`convert_quaternions` (``A R A^T``, for rigid bodies created aligned with the file's world, as
+    Motive's are), the body's own axes are kept.
+
+    Raises
+    ------
+    ValueError
+        For a left-handed file frame (``det A = -1``): ``A R`` is then not a rotation.
+    """
+    if np.linalg.det(matrix) < 0:
+        raise ValueError("a left-handed frame cannot carry orientations of an arm's frames")
+    q = np.asarray(quaternions, dtype=float)
+    a = quat_from_matrix(matrix)
+    return np.asarray(quat_multiply(np.broadcast_to(a, q.shape), q))
 
 
 @dataclass(frozen=True)

@@ -99,6 +99,13 @@ class ReferenceParams(Options):
     rate: float = Field(500.0, ge=100.0, le=1000.0, description="control rate [Hz]")
 
 
+WAYPOINT_REACH = 0.5
+"""How far a waypoint may lie outside the arm's limits of a (non-periodic) variable, as a fraction of the larger
+magnitude of its two limits: a reference the arm cannot follow within its limits is a scenario (track-into-limits
+takes theta_1 to 1.3 x its limit), a waypoint far beyond them (theta at 5 rad for a 2.09 rad limit) a typing
+error."""
+
+
 class WaypointParams(ReferenceParams):
     """A minimum-jerk configuration path through waypoints, held at the last one."""
 
@@ -188,13 +195,16 @@ def waypoint_reference(arm: ArmModel, data: DataSpec, params: WaypointParams, pa
             "data.params.waypoints",
             f"expected at least two rows of {arm.n_config} numbers ({', '.join(arm.config_names)})",
         )
+    reach = WAYPOINT_REACH * np.maximum(np.abs(arm.lower), np.abs(arm.upper))
     for i, row in enumerate(W):
         for j, name in enumerate(arm.config_names):
-            if not arm.periodic[j] and not arm.lower[j] <= row[j] <= arm.upper[j]:
+            low, high = arm.lower[j] - reach[j], arm.upper[j] + reach[j]
+            if not arm.periodic[j] and not low <= row[j] <= high:
                 raise SpecError(
                     str(path),
                     f"data.params.waypoints.{i}.{j}",
-                    f"{name} = {row[j]:g} is outside the arm's limits [{arm.lower[j]:g}, {arm.upper[j]:g}]",
+                    f"{name} = {row[j]:g} is too far outside the arm's limits [{arm.lower[j]:g}, {arm.upper[j]:g}]: "
+                    f"a waypoint may lie in [{low:g}, {high:g}]",
                 )
     try:
         t, Q, Qdot = minimum_jerk_path(W, params.segment_time, params.rate, params.hold)

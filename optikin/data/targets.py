@@ -42,7 +42,9 @@ from optikin.algebra import (
 from optikin.arms.base import ArmModel
 from optikin.arms.constant_curvature import ConstantCurvatureArm
 from optikin.data.configurations import TrajectoryParams, first_rows, smooth_motion
-from optikin.data.csvread import columns_of, read_table
+from optikin.data.csvread import UNIT_METRES, columns_of, read_table
+from optikin.data.files import data_file
+from optikin.data.recording import FrameOptions, convert_body_orientations, convert_vectors, frame_matrix
 from optikin.data.sources import register_source
 from optikin.errors import SpecError
 from optikin.ik.points import PointSet
@@ -208,10 +210,15 @@ class CsvParams(Options):
         False, description="solve the rows in order, each warm-started from the previous solution"
     )
     units: Literal["m", "cm", "mm"] = Field("m", description="length unit of the file's positions")
+    frame: FrameOptions = Field(
+        default_factory=FrameOptions,
+        description="axes of the file's frame (frame: {up: y} for a y-up recording), converted to optikin's z-up "
+        "frame as a recording's (optikin.data.recording)",
+    )
     base: BasePose | None = Field(
         None,
-        description="the arm's base pose in the file's frame (e.g. from a calibration); "
-        "null: the file is in the base frame",
+        description="the arm's base pose in the file's frame after the frame conversion (e.g. from a calibration "
+        "of the same recording); null: the file is in the base frame",
     )
 
 
@@ -278,7 +285,11 @@ def csv_targets(
     ``params.base``); reachability unknown (treated as reachable)."""
     if kind == "legs":
         raise SpecError(str(path), "data.source", "leg-length targets cannot be read from a CSV file")
-    values, t = read_target_csv((Path(path).parent / params.file).resolve(), kind, points, UNITS[params.units])
+    values, t = read_target_csv(data_file(path, params.file), kind, points, UNITS[params.units])
+    try:
+        values = from_file_frame(values, kind, points, params.frame)
+    except ValueError as exc:
+        raise SpecError(str(path), "data.params.frame", str(exc)) from None
     if params.base is not None:
         values = to_base_frame(values, kind, points, params.base)
     keep, skipped = first_rows(data, len(values))
@@ -294,6 +305,26 @@ def csv_targets(
         skipped_rows=skipped,
         points=points,
     )
+
+
+def from_file_frame(values: np.ndarray, kind: str, points: PointSet | None, frame: FrameOptions) -> np.ndarray:
+    """Targets in a file's axes (``frame``) expressed in optikin's z-up axes, as a recording is
+    (:func:`optikin.data.recording.frame_matrix`): positions and directions ``A v``, orientations ``A R A^T``."""
+    matrix = frame_matrix(frame)
+    if np.array_equal(matrix, np.eye(3)):
+        return values
+    if kind == "position":
+        return convert_vectors(values, matrix)
+    if kind == "pose":
+        rotation = convert_body_orientations(dq_rotation(values), matrix)
+        return dq_from_rotation_translation(rotation, convert_vectors(dq_translation(values), matrix), check=False)
+    assert points is not None
+    out = values.copy()
+    for where in points.slices():
+        for component, s in where.items():
+            convert = convert_body_orientations if component == "orientation" else convert_vectors
+            out[:, s] = convert(values[:, s], matrix)
+    return out
 
 
 def to_base_frame(values: np.ndarray, kind: str, points: PointSet | None, base: BasePose) -> np.ndarray:
@@ -372,7 +403,8 @@ def read_target_csv(
         cannot be read or is refused (not a regular file, over 200 MiB, binary, not UTF-8),
         is empty, lacks a column, has no data rows, a short row or a cell that is not a
         finite number (``nan``, ``inf``); ``t`` does not increase strictly; a quaternion's
-        norm is not 1 to within :data:`QUATERNION_TOLERANCE`.
+        norm is not 1 to within :data:`QUATERNION_TOLERANCE`; a position is beyond
+        :data:`~optikin.data.csvread.MAX_COORDINATE` (with a unit hint).
     """
     if kind == "points":
         if points is None:
@@ -385,16 +417,19 @@ def read_target_csv(
     if "t" in table.columns:
         table.check_increasing("t")
         t = table.column("t")
+    unit = next((u for u, f in UNIT_METRES.items() if f == scale), "m")
     if kind == "points":
         assert points is not None
         values = table.stacked(names)
         for where in points.slices():
             for component, s in where.items():
                 if component == "position":
+                    table.check_coordinates(names[s], scale, unit, "data.params.units")
                     values[:, s] *= scale
                 else:  # unit directions and quaternions: the norm check
                     values[:, s] = table.check_unit_quaternions(names[s], QUATERNION_TOLERANCE)
         return values, t
+    table.check_coordinates(("x", "y", "z"), scale, unit, "data.params.units")
     position = table.stacked(("x", "y", "z")) * scale
     if kind == "position":
         return position, t

@@ -6,6 +6,7 @@ line (``optikin show`` or ``solve``): exit 2 and one line naming the file and th
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 from typing import Any, Callable
 
@@ -206,5 +207,142 @@ def test_a_waypoint_outside_the_arms_limits_names_the_entry_and_the_limits(tmp_p
 
     problem = copied(tmp_path, "track-into-limits", edit)
     err = refused(capsys, "solve", str(problem), "--out", str(tmp_path / "out"))
-    assert "data.params.waypoints.0.1: theta1 = 5 is outside the arm's limits [-2.0944, 2.0944]" in err
+    assert "data.params.waypoints.0.1: theta1 = 5 is too far outside the arm's limits [-2.0944, 2.0944]: " in err
+    assert "a waypoint may lie in [-3.14159, 3.14159]" in err
     assert not (tmp_path / "out").exists()
+
+
+# --------------------------------------------------------------------------- file sources
+
+SHIPPED = Path(load_problem("trunk-ik")[1]).parent
+RECORDINGS = SHIPPED / "data" / "recordings"
+
+
+def with_file(tmp_path: Path, name: str, content: str | bytes, **params: Any) -> Path:
+    """The shipped problem ``name`` reading ``content`` (written as ``data.csv``), ``params`` set in ``data.params``."""
+    data_path = tmp_path / "data.csv"
+    data_path.write_bytes(content if isinstance(content, bytes) else content.encode())
+
+    def edit(data: dict[str, Any]) -> None:
+        data["data"]["params"].update(file=str(data_path), **params)
+        data["data"]["samples"] = 3
+
+    return copied(tmp_path, name, edit)
+
+
+def rewritten(path: Path, change: Callable[[int, str, str], str]) -> str:
+    """The CSV file ``path`` with each cell of data row ``i`` under header name ``h`` replaced by
+    ``change(i, h, cell)``."""
+    header, *rows = path.read_text().splitlines()
+    names = header.split(",")
+    out = [header]
+    for i, row in enumerate(rows):
+        out.append(",".join(change(i, h, c) for h, c in zip(names, row.split(","))))
+    return "\n".join(out) + "\n"
+
+
+def solve_refused(capsys: pytest.CaptureFixture[str], problem: Path, tmp_path: Path) -> str:
+    err = refused(capsys, "solve", str(problem), "--out", str(tmp_path / "out"))
+    assert not (tmp_path / "out").exists()
+    return err
+
+
+def test_a_duplicate_column_name_is_refused_naming_both_columns(tmp_path, capsys):
+    header, *rows = (SHIPPED / "trunk-markers.csv").read_text().splitlines()
+    content = "\n".join([header.replace("m2_x", "m1_x"), *rows]) + "\n"
+    err = solve_refused(capsys, with_file(tmp_path, "trunk-ph-shape", content), tmp_path)
+    assert "column 'm1_x' appears twice in the header: columns 16 and 19" in err
+
+
+def test_marker_positions_in_millimetres_read_as_metres_get_a_unit_hint(tmp_path, capsys):
+    content = rewritten(SHIPPED / "trunk-markers.csv", lambda i, h, c: str(float(c) * 1e3) if h[-2:] in XYZ else c)
+    err = solve_refused(capsys, with_file(tmp_path, "trunk-ph-shape", content), tmp_path)
+    assert "sample 0: base_x: coordinate 30.0809 m is beyond 10 m" in err
+    assert "values look like millimetres: set data.params.units: mm" in err
+
+
+def test_marker_positions_in_millimetres_are_read_with_units_mm(tmp_path):
+    content = rewritten(SHIPPED / "trunk-markers.csv", lambda i, h, c: str(float(c) * 1e3) if h[-2:] in XYZ else c)
+    problem = with_file(tmp_path, "trunk-ph-shape", content, units="mm")
+    assert main(["solve", str(problem), "--out", str(tmp_path / "out")]) == 0
+
+
+XYZ = ("_x", "_y", "_z")
+
+
+def test_a_tip_at_the_base_is_refused_naming_the_row(tmp_path, capsys):
+    header = (SHIPPED / "trunk-markers.csv").read_text().splitlines()[0].split(",")
+    rows = [r.split(",") for r in (SHIPPED / "trunk-markers.csv").read_text().splitlines()[1:]]
+    for c in "xyz":
+        rows[2][header.index(f"tip_{c}")] = rows[2][header.index(f"base_{c}")]
+    content = "\n".join([",".join(header), *(",".join(r) for r in rows)]) + "\n"
+    err = solve_refused(capsys, with_file(tmp_path, "trunk-ph-shape", content), tmp_path)
+    assert "sample 2: tip_x: the tip's position is the base's (0 m apart)" in err and "(line 4)" in err
+
+
+def test_targets_in_millimetres_get_a_unit_hint(tmp_path, capsys):
+    content = rewritten(SHIPPED / "trunk-points.csv", lambda i, h, c: str(float(c) * 1e3))
+    err = solve_refused(capsys, with_file(tmp_path, "trunk-ik", content), tmp_path)
+    assert "disk1_x: coordinate 65.6658 m is beyond 10 m" in err and "set data.params.units: mm" in err
+
+
+def test_a_target_at_1e200_is_refused_without_a_warning(tmp_path, capsys):
+    content = rewritten(SHIPPED / "trunk-points.csv", lambda i, h, c: "1e200" if (i, h) == (1, "disk2_y") else c)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        err = solve_refused(capsys, with_file(tmp_path, "trunk-ik", content), tmp_path)
+    assert "sample 1: disk2_y: coordinate 1e+200 m is beyond 10 m" in err
+
+
+@pytest.mark.parametrize("value", ["1e150", "1e299"])
+def test_demonstration_positions_far_beyond_any_arm_are_refused(tmp_path, capsys, value):
+    _, path = load_problem("examples/dmp-my-demo.yaml")
+    demo = path.parent / "data" / "demo-pose.csv"
+    content = rewritten(demo, lambda i, h, c: value if (i, h) == (5, "x") else c)
+    data_path = tmp_path / "demo.csv"
+    data_path.write_text(content)
+    problem = copied(tmp_path, "examples/dmp-my-demo.yaml", setter("data", "params", "file", value=str(data_path)))
+    err = solve_refused(capsys, problem, tmp_path)
+    assert f"sample 5: x: coordinate {float(value):g} m is beyond 10 m" in err
+
+
+def motive_problem(tmp_path: Path, text: str) -> Path:
+    return with_file(tmp_path, "trunk-calibrate-motive", text)
+
+
+def test_a_motive_cell_of_1e300_is_refused_naming_the_marker_and_frame(tmp_path, capsys):
+    lines = (RECORDINGS / "trunk_motive_faults.csv").read_text().splitlines()
+    cells = lines[9].split(",")
+    cells[6] = "1e300"  # the x of rigid body disk1's position
+    lines[9] = ",".join(cells)
+    err = solve_refused(capsys, motive_problem(tmp_path, "\n".join(lines) + "\n"), tmp_path)
+    assert "bodies.disk1: coordinate" in err and "is beyond 10 m" in err and "(frame 1)" in err
+
+
+def test_a_motive_file_declaring_metres_for_millimetres_says_so(tmp_path, capsys):
+    text = (
+        (RECORDINGS / "trunk_motive_faults.csv").read_text().replace("Length Units,Millimeters", "Length Units,Meters")
+    )
+    err = solve_refused(capsys, motive_problem(tmp_path, text), tmp_path)
+    assert "values look like millimetres, though the file declares 'Meters'" in err
+
+
+def test_a_data_file_that_is_a_symlink_loop_is_refused(tmp_path, capsys):
+    (tmp_path / "a.csv").symlink_to(tmp_path / "b.csv")
+    (tmp_path / "b.csv").symlink_to(tmp_path / "a.csv")
+    problem = copied(tmp_path, "trunk-ik", setter("data", "params", "file", value=str(tmp_path / "a.csv")))
+    err = solve_refused(capsys, problem, tmp_path)
+    assert "data.params.file:" in err and "is a loop of symbolic links" in err
+
+
+@pytest.mark.parametrize("fraction", [0.5, 0.3, 0.05])
+def test_a_c3d_file_cut_short_is_reported_as_truncated(tmp_path, capsys, fraction):
+    pytest.importorskip("ezc3d")
+    from optikin.data.readers import read_c3d
+    from optikin.errors import InputDataError
+
+    raw = (RECORDINGS / "trunk.c3d").read_bytes()
+    cut = tmp_path / "cut.c3d"
+    cut.write_bytes(raw[: int(len(raw) * fraction)])
+    with pytest.raises(InputDataError, match="truncated: the header declares 40 frames"):
+        read_c3d(cut)

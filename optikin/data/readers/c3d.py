@@ -26,7 +26,7 @@ rotation or analog label).
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -39,6 +39,25 @@ from optikin.spec import DataSpec
 
 ROTATION_TOLERANCE = 1e-3
 """Largest ``|R^T R - I|`` entry (and ``|det R - 1|``) of a ROTATION matrix."""
+
+
+def _declared_frames(path: Path) -> tuple[int, int] | None:
+    """The frames the file's header declares (``last - first + 1``) and the byte its data starts at, read from the
+    raw header (ezc3d shortens both to what a cut file holds); None when the header is not a C3D header."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(512)
+            if len(head) < 20 or head[1] != 0x50 or head[0] < 2:
+                return None
+            fh.seek((head[0] - 1) * 512 + 3)
+            processor = fh.read(1)
+    except OSError:
+        return None
+    order: Literal["big", "little"] = "big" if processor == b"V" else "little"  # type 86: MIPS; else Intel, DEC
+    first, last, start = (int.from_bytes(head[k : k + 2], order) for k in (6, 8, 16))
+    if last == 0xFFFF or last < first:  # more frames than the header holds: the count is in the parameters
+        return None
+    return last - first + 1, (start - 1) * 512
 
 
 def _ezc3d() -> Any:
@@ -105,9 +124,14 @@ def read_c3d(path: str | Path, frame: FrameOptions | None = None, units: Units |
     source = str(path)
     if not path.is_file():
         raise InputDataError("cannot read: not a regular file", source=source)
+    declared = _declared_frames(path)
     try:
         c3d = ezc3d.c3d(source, extract_forceplat_data=False)
     except Exception as exc:  # ezc3d raises RuntimeError / ValueError / IndexError on a corrupt file
+        if declared is not None and declared[0] > 0 and path.stat().st_size <= declared[1]:
+            raise InputDataError(
+                f"truncated: the header declares {declared[0]} frames, the file ends before its data", source=source
+            ) from None
         raise InputDataError(
             f"not a readable C3D file ({type(exc).__name__}: {str(exc)[:80]})", source=source
         ) from None
@@ -117,6 +141,10 @@ def read_c3d(path: str | Path, frame: FrameOptions | None = None, units: Units |
     first = int(header["points"]["first_frame"])
     points = np.asarray(c3d["data"]["points"], dtype=float)
     n = points.shape[2]
+    if declared is not None and n < declared[0]:
+        raise InputDataError(
+            f"truncated: the header declares {declared[0]} frames, the file holds {n} (cut short?)", source=source
+        )
     if n == 0:
         raise InputDataError("no frames", source=source)
     if not rate > 0:
@@ -151,7 +179,7 @@ def read_c3d(path: str | Path, frame: FrameOptions | None = None, units: Units |
         source=source,
         frames=first + np.arange(n),
     )
-    return finish(raw, frame or FrameOptions(), unit, numbered=True)
+    return finish(raw, frame or FrameOptions(), unit, numbered=True, declared=_value(point, "UNITS"))
 
 
 def _rotations(c3d: Any, parameters: Any, n: int, first: int, source: str) -> dict[str, RigidBodyTrack]:

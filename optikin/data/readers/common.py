@@ -19,6 +19,7 @@ import numpy as np
 from pydantic import Field
 
 from optikin.data.configurations import first_rows
+from optikin.data.csvread import check_coordinates
 from optikin.data.files import FileParams
 from optikin.data.recording import FrameOptions, Recording, Units, inspect_frames, to_base_frame
 from optikin.errors import InputDataError
@@ -119,9 +120,28 @@ def normalised_quaternions(
     return q / norm[:, None]
 
 
-def finish(raw: Recording, frame: FrameOptions, units: Units, numbered: bool) -> Recording:
-    """``raw`` (file frame and units) converted to SI and the base frame, with its frame notes."""
-    return inspect_frames(to_base_frame(raw, frame, units), numbered)
+def finish(raw: Recording, frame: FrameOptions, units: Units, numbered: bool, declared: str | None = None) -> Recording:
+    """``raw`` (file frame and units) converted to SI and the base frame, with its frame notes.
+
+    ``declared`` is the file's own statement of its length unit (Motive's ``Length Units``, C3D's
+    ``POINT:UNITS``), for the hint of the error.
+
+    Raises
+    ------
+    InputDataError
+        Naming the marker or rigid body (``markers.NAME``, ``bodies.NAME``) and the frame of the first position
+        beyond :data:`~optikin.data.csvread.MAX_COORDINATE`, with a unit hint (``set data.params.units: mm``).
+    """
+    recording = to_base_frame(raw, frame, units)
+    tracks = [(f"markers.{n}", p) for n, p in recording.markers.items()]
+    tracks += [(f"bodies.{n}", b.positions) for n, b in recording.bodies.items()]
+    for field, positions in tracks:
+
+        def where(i: int, k: int, field: str = field) -> tuple[int, str, str]:
+            return i, field, f" (frame {i})"
+
+        check_coordinates(positions, recording.source, units, where, "data.params.units", declared)
+    return inspect_frames(recording, numbered)
 
 
 def select(recording: Recording, params: RecordingParams) -> Recording:

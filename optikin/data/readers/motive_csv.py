@@ -299,7 +299,7 @@ def read_motive_csv(
         source=source,
         frames=frames,
     )
-    return finish(raw, frame or FrameOptions(), unit, numbered=True)
+    return finish(raw, frame or FrameOptions(), unit, numbered=True, declared=metadata.get("Length Units"))
 
 
 class MotiveParams(RecordingParams):

@@ -18,7 +18,8 @@ The problem file says which column is what::
 A missing marker or body is written ``nan`` in its cells (noted per frame, dropped
 unless ``drop_incomplete: false``); time, actuator and IMU cells must be finite, times
 must increase strictly, quaternions (``w, x, y, z``) be within 1e-3 of unit length
-(then normalised). Other columns are ignored. Errors name the file, the row
+(then normalised). A steady-state file (postures, no time column) is read with ``time: null``:
+its rows are numbered 0, 1, 2, ... as their times. Other columns are ignored. Errors name the file, the row
 (``sample``, data rows from 0; the message gives the line) and the column.
 """
 
@@ -27,7 +28,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-from pydantic import Field
+from pydantic import Field, model_validator
 
 from optikin.data.csvread import columns_of, read_table
 from optikin.data.readers.common import FAMILY, RecordingParams, finish, load_recording, normalised_quaternions
@@ -62,7 +63,11 @@ class ImuColumns(Options):
 class PlainCsvParams(RecordingParams):
     """``data.params`` of source ``csv`` (family ``recordings``): the file and its column mapping."""
 
-    time: str = Field("t", description="the time column")
+    time: str | None = Field(
+        "t",
+        description="the time column; null: a steady-state file without one, its rows postures whose times are "
+        "their numbers 0, 1, 2, ... (no IMU columns then)",
+    )
     time_scale: float = Field(1.0, gt=0, description="seconds per unit of the time column (0.001 for ms)")
     marker_columns: dict[str, tuple[str, str, str]] = Field(
         default_factory=dict, description="marker name -> its x, y, z columns"
@@ -72,6 +77,12 @@ class PlainCsvParams(RecordingParams):
     actuator_columns: dict[str, ActuatorColumn | str] = Field(
         default_factory=dict, description="channel name -> its column (SI), or column and scale"
     )
+
+    @model_validator(mode="after")
+    def _imu_needs_time(self) -> PlainCsvParams:
+        if self.time is None and self.imu_columns:
+            raise ValueError("imu_columns need a time column: give time")
+        return self
 
 
 def read_plain_csv(path: str | Path, params: PlainCsvParams) -> Recording:
@@ -102,12 +113,13 @@ def read_plain_csv(path: str | Path, params: PlainCsvParams) -> Recording:
     }
     nan_allowed = [c for cols in params.marker_columns.values() for c in cols]
     nan_allowed += [c for b in params.body_columns.values() for c in (*b.position, *b.quaternion)]
-    finite = [params.time] + [c for c, _ in actuators.values()]
+    finite = ([params.time] if params.time is not None else []) + [c for c, _ in actuators.values()]
     for imu in params.imu_columns.values():
         finite += [*imu.angular_velocity, *imu.linear_acceleration, *(imu.orientation or ())]
     names = list(dict.fromkeys(finite + nan_allowed))
     table = read_table(path, lambda header: (columns_of(source, names)(header)[0], finite))
-    table.check_increasing(params.time)
+    if params.time is not None:
+        table.check_increasing(params.time)
 
     def where(row: int) -> tuple[int, str]:
         return row, f" (line {int(table.lines[row])})"
@@ -125,7 +137,7 @@ def read_plain_csv(path: str | Path, params: PlainCsvParams) -> Recording:
         block = table.stacked(xyz)
         block[np.isnan(block).any(axis=1)] = np.nan
         markers[name] = block
-    time = table.column(params.time) * params.time_scale
+    time = np.arange(len(table), dtype=float) if params.time is None else table.column(params.time) * params.time_scale
     imus = {}
     for name, imu in params.imu_columns.items():
         orientation = None
