@@ -159,6 +159,8 @@ def test_the_export_subcommand_writes_the_files(tmp_path, capsys):
         "main.c",
         "Makefile",
         "CMakeLists.txt",
+        "README.md",
+        "targets.txt",
     }
     assert main(["export", "cbha-fk", "--what", "ik-step", "--out", str(tmp_path / "x")]) == 2
 

@@ -37,9 +37,11 @@ is generated (:func:`check_output_folder`) and a failed write leaves none of the
 
 The folder written holds ``<stem>.c`` (the generated code and the template), ``<stem>.h``
 (the documented API: sizes, work structure, status codes), ``main.c`` (an example that runs
-the problem's first samples or a file of them and times the calls), a ``Makefile`` and a
-``CMakeLists.txt``. The problem is read importing only its own kind
-(:mod:`optikin.export.context`).
+the problem's first samples or a file of them and times the calls), a ``Makefile``, a
+``CMakeLists.txt``, a ``README.md`` (building with make or CMake, running the example, what its
+input file holds) and the example's input file (:data:`INPUT_FILES`: ``targets.txt`` for IK), which
+holds the samples compiled into ``main.c``, so ``./example targets.txt`` prints what ``./example``
+does. The problem is read importing only its own kind (:mod:`optikin.export.context`).
 The library depends on libm only and allocates nothing: the caller owns the work structure.
 :func:`build` compiles the example with a compiler of :data:`optikin.codegen.COMPILERS` and
 flags checked against :data:`optikin.codegen.ALLOWED_FLAGS`.
@@ -108,15 +110,30 @@ class Export:
 
     @property
     def files(self) -> tuple[Path, ...]:
-        return tuple(self.folder / name for name in file_names(self.stem))
+        return tuple(self.folder / name for name in file_names(self.stem, self.what))
 
 
-def file_names(stem: str) -> tuple[str, ...]:
-    """The names of the files an export of ``stem`` writes, in the order :func:`main` lists them."""
-    return f"{stem}.c", f"{stem}.h", "main.c", "Makefile", "CMakeLists.txt"
+INPUT_FILES = {
+    "fk": "configurations.txt",
+    "ik-step": "targets.txt",
+    "ik-trajectory": "targets.txt",
+    "ph-shape": "samples.txt",
+    "qp-step": "steps.txt",
+}
+"""The example's input file of each ``--what``: the inputs compiled into ``main.c``, one per line."""
 
 
-def check_output_folder(out: Path | str, stem: str | None = None) -> Path:
+def file_names(stem: str, what: str | None = None) -> tuple[str, ...]:
+    """The names of the files an export of ``stem`` writes, in the order :func:`main` lists them.
+
+    With ``what`` (one of :data:`WHATS`), also ``README.md`` and the example's input file
+    (:data:`INPUT_FILES`); without, the code and build files only.
+    """
+    names = (f"{stem}.c", f"{stem}.h", "main.c", "Makefile", "CMakeLists.txt")
+    return names if what is None else (*names, "README.md", INPUT_FILES[what])
+
+
+def check_output_folder(out: Path | str, stem: str | None = None, what: str | None = None) -> Path:
     """The folder of ``--out`` ``out`` if an export can write into it; creates nothing.
 
     Parameters
@@ -126,6 +143,8 @@ def check_output_folder(out: Path | str, stem: str | None = None) -> Path:
         current folder).
     stem:
         The export's stem: its files (:func:`file_names`) may not be symlinks or folders.
+    what:
+        What is exported (:data:`WHATS`), which adds the README and the input file to the files checked.
 
     Raises
     ------
@@ -146,7 +165,7 @@ def check_output_folder(out: Path | str, stem: str | None = None) -> Path:
     if not os.access(existing, os.W_OK | os.X_OK):
         raise OutputError(f"{existing}: cannot write the export there: permission denied")
     if existing == folder and stem is not None:
-        for name in file_names(stem):
+        for name in file_names(stem, what):
             path = folder / name
             if path.is_symlink() or (os.path.lexists(path) and not path.is_file()):
                 raise OutputError(f"{path}: a symlink or folder is where the export writes a file")
@@ -200,8 +219,53 @@ def _generated(functions: list[ca.Function], stem: str) -> tuple[str, dict[str, 
     return generator.dump(), sizes
 
 
-def _write(folder: Path, stem: str, code: str, header: str, source: str, main: str) -> None:
-    """Write the five files of export ``stem`` into ``folder`` (created).
+@dataclass(frozen=True)
+class ExampleText:
+    """What the README says of an export's example, and the example's input file.
+
+    ``what`` is one of :data:`WHATS`; ``title`` a phrase naming the library; ``inputs`` the text of the
+    input file (:data:`INPUT_FILES`), one input per line, the inputs compiled into ``main.c``;
+    ``count`` how many; ``input_format`` what a line holds; ``usage`` the example's command line;
+    ``output_format`` what it prints; ``max_inputs`` how many inputs the example reads at most.
+    """
+
+    what: str
+    title: str
+    inputs: str
+    count: int
+    input_format: str
+    usage: str
+    output_format: str
+    max_inputs: int = MAX_FILE_SAMPLES
+
+
+def _readme(example: ExampleText, stem: str, problem: str) -> str:
+    """The ``README.md`` of export ``stem`` of problem ``problem`` (named by its file stem, made plain text)."""
+    name = problem_comment(problem).replace("`", "_")
+    return _template("README.md.in").substitute(
+        stem=stem,
+        title=example.title,
+        problem_name=name,
+        what=example.what,
+        input=INPUT_FILES[example.what],
+        n_samples=example.count,
+        input_format=example.input_format,
+        max_inputs=example.max_inputs,
+        usage=example.usage,
+        output_format=example.output_format,
+    )
+
+
+def _lines(rows: np.ndarray) -> str:
+    """One line per row of ``rows``, each number printed so that it parses back to the same double."""
+    return "".join(" ".join(repr(float(v)) for v in row) + "\n" for row in np.atleast_2d(rows))
+
+
+def _write(
+    folder: Path, stem: str, code: str, header: str, source: str, main: str, problem: str, example: ExampleText
+) -> None:
+    """Write the files of export ``stem`` of ``problem`` into ``folder`` (created): code, header, example,
+    build files, README and the example's input file (:func:`file_names`).
 
     Each file is written under a temporary name first and all are then renamed into place, so an
     error while writing (a full disk) leaves none of them, whole or half-written: the temporaries
@@ -216,7 +280,7 @@ def _write(folder: Path, stem: str, code: str, header: str, source: str, main: s
     word = make_word(stem, "stem")
     texts = dict(
         zip(
-            file_names(stem),
+            file_names(stem, example.what),
             (
                 f"/* {stem}.c: written by optikin export */\n{code}\n{source}",
                 header,
@@ -227,10 +291,12 @@ def _write(folder: Path, stem: str, code: str, header: str, source: str, main: s
                     target=cmake_value(stem, "stem"),
                     source=cmake_value(f"{stem}.c", "stem"),
                 ),
+                _readme(example, stem, problem),
+                example.inputs,
             ),
         )
     )
-    check_output_folder(folder, stem)
+    check_output_folder(folder, stem, example.what)
     created: list[Path] = []
     staged: list[tuple[Path, Path]] = []
     try:
@@ -302,26 +368,57 @@ def export_fk(problem: str, arm, folder: Path, samples: np.ndarray) -> Export:
         name_list=", ".join(c_string(name) for name in FK_FUNCTIONS),
         size_list=", ".join(str(f.nnz_out(0)) for f in functions),
     )
-    _write(folder, common["stem"], code, header, source, main)
+    example = ExampleText(
+        "fk",
+        "forward kinematics",
+        _lines(samples),
+        len(samples),
+        f"one configuration per line, {arm.n_config} numbers ({c_comment(', '.join(arm.config_names))}).",
+        "`./example [configurations.txt]`.",
+        "For each configuration and function, a line `<name> <status> <values...>` (status 0: ok); then, on "
+        "standard error, `per_call_us <name> <microseconds>` per function from a 0.1 s timing loop.",
+    )
+    _write(folder, common["stem"], code, header, source, main, problem, example)
     return Export("fk", folder, common["stem"], samples)
 
 
 # --------------------------------------------------------------------------- inverse kinematics
-def export_ik(what: str, problem_name: str, problem, adapter, start: np.ndarray, folder: Path, samples: np.ndarray):
-    """Write the IK library of least-squares ``problem`` solved as ``adapter`` (a GaussNewton) would.
+@dataclass(frozen=True)
+class IkLibrary:
+    """The C of an IK library: CasADi's code, the header, the solver (``#include``-ing the header) and
+    the template values (``common``: ``stem``, ``prefix``, ``PREFIX``, sizes)."""
+
+    code: str
+    header: str
+    source: str
+    common: dict[str, Any]
+
+    def translation_unit(self) -> str:
+        """Code, header and solver as one C file (the header in place of its ``#include``)."""
+        include = f'#include "{self.common["stem"]}.h"'
+        return f"{self.code}\n{self.source.replace(include, self.header)}"
+
+
+def ik_library(problem_name: str, problem, adapter, start: np.ndarray, stem: str) -> IkLibrary:
+    """The C of the IK library ``stem`` of least-squares ``problem`` solved as ``adapter`` (a GaussNewton) would.
 
     Parameters
     ----------
-    what:
-        ``ik-step`` (independent targets) or ``ik-trajectory`` (warm-started), for the example.
+    problem_name:
+        How comments name the problem (its file stem is kept).
     problem:
         :class:`~optikin.solvers.nonlinear.LeastSquaresProblem` without constraints.
     adapter:
         The :class:`~optikin.solvers.gauss_newton.GaussNewton` whose options and limits are exported.
     start:
         ``(N,)`` start configuration of independent targets and of a trajectory's first one.
-    samples:
-        ``(k, NP)`` targets compiled into the example.
+    stem:
+        The library's name and prefix (a C identifier).
+
+    Raises
+    ------
+    SolverError
+        The problem has constraints, or every variable is fixed.
     """
     from optikin.solvers.gauss_newton import LAMBDA_FLOOR, SLOW_PROGRESS, SLOW_STEPS
 
@@ -331,7 +428,7 @@ def export_ik(what: str, problem_name: str, problem, adapter, start: np.ndarray,
     problem = full.reduced  # the variables solved for (fixed ones substituted), as the Python adapters do
     if problem.n == 0:
         raise SolverError(f"{full.name}: every variable is fixed, nothing to solve")
-    common: dict[str, Any] = _common(f"optikin_{what.replace('-', '_')}", problem_name)
+    common: dict[str, Any] = _common(stem, problem_name)
     stem, prefix = common["stem"], common["prefix"]
     x, p, r, J = problem.symbols
     hessian = ca.hessian(0.5 * ca.sumsqr(r), x)[0]
@@ -385,6 +482,28 @@ def export_ik(what: str, problem_name: str, problem, adapter, start: np.ndarray,
         slow_progress=repr(SLOW_PROGRESS),
         slow_steps=int(SLOW_STEPS),
     )
+    return IkLibrary(code, header, source, common)
+
+
+def export_ik(what: str, problem_name: str, problem, adapter, start: np.ndarray, folder: Path, samples: np.ndarray):
+    """Write the IK library of least-squares ``problem`` solved as ``adapter`` (a GaussNewton) would.
+
+    Parameters
+    ----------
+    what:
+        ``ik-step`` (independent targets) or ``ik-trajectory`` (warm-started), for the example.
+    problem:
+        :class:`~optikin.solvers.nonlinear.LeastSquaresProblem` without constraints.
+    adapter:
+        The :class:`~optikin.solvers.gauss_newton.GaussNewton` whose options and limits are exported.
+    start:
+        ``(N,)`` start configuration of independent targets and of a trajectory's first one.
+    samples:
+        ``(k, NP)`` targets compiled into the example.
+    """
+    library = ik_library(problem_name, problem, adapter, start, f"optikin_{what.replace('-', '_')}")
+    code, header, source, common = library.code, library.header, library.source, library.common
+    stem, n_p = common["stem"], common["n_p"]
     trajectory = what == "ik-trajectory"
     main = _template("ik_main.c").substitute(
         common,
@@ -394,7 +513,19 @@ def export_ik(what: str, problem_name: str, problem, adapter, start: np.ndarray,
         mode="trajectory" if trajectory else "independent",
         trajectory=int(trajectory),
     )
-    _write(folder, stem, code, header, source, main)
+    example = ExampleText(
+        what,
+        "inverse kinematics, " + ("warm-started along a trajectory" if trajectory else "independent targets"),
+        _lines(samples),
+        len(samples),
+        f"one target per line, {n_p} numbers ({c_comment(problem.residual.name_in(1))}).",
+        "`./example [targets.txt [rounds]]` (rounds: repeat the whole set that many times; 0: no timing loop).",
+        "One line per target: `status iterations ||r|| x[0] ... x[N-1]` (status 0: ok, 1: unreachable, "
+        "2: not converged, 3: invalid input, 4: failed; see the header). Then, on standard error, "
+        "`per_call_us` (wall microseconds per target) and `cpu_us` (process CPU microseconds per target) "
+        "from repeating the whole set for 0.2 s.",
+    )
+    _write(folder, stem, code, header, source, main, problem_name, example)
     return Export(what, folder, stem, samples, np.asarray(start, dtype=float))
 
 

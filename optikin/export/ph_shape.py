@@ -115,7 +115,17 @@ def export_ph_shape(problem: str, setup: PHExportSetup, folder: Path, samples: i
     """Write the PH library of ``setup`` into ``folder``; its first ``samples`` samples go into the example."""
     from optikin.curves.min_energy import N_PARAMETERS
     from optikin.curves.newton import CURVATURE_SAFETY, ENERGY_NOISE, PREDICTION_SAFETY
-    from optikin.export import MAX_FILE_SAMPLES, Export, _common, _generated, _rows, _template, _write
+    from optikin.export import (
+        MAX_FILE_SAMPLES,
+        Export,
+        ExampleText,
+        _common,
+        _generated,
+        _lines,
+        _rows,
+        _template,
+        _write,
+    )
     from optikin.export._escape import c_comment, c_identifier
     from optikin.export.grid_loops import grid_source
 
@@ -154,5 +164,19 @@ def export_ph_shape(problem: str, setup: PHExportSetup, folder: Path, samples: i
     main = _template("ph_main.c").substitute(
         common, n_samples=len(rows), samples=_rows(rows), max_samples=MAX_FILE_SAMPLES
     )
-    _write(folder, stem, code, header, source, main)
+    example = ExampleText(
+        "ph-shape",
+        "minimum-energy PH quintic backbones along a trajectory",
+        _lines(rows),
+        len(rows),
+        f"one sample per line, the {N_PARAMETERS} entries of its parameter vector P: base point p0 (3) [m], "
+        "unit base tangent t0 (3), tip point p1 (3) [m], unit tip tangent t1 (3), end speeds s0, s1 [m] "
+        "and the backbone length L [m] (see the header). The samples are solved as one trajectory.",
+        "`./example [samples.txt [max_iterations restart basin_check [seconds]]]` (the options override the "
+        "preset's; seconds: length of the timing loop, 0.2 unless given, 0 for none).",
+        "One line per sample: `status iterations E S phi0 phi2` (status 0: ok; E the bending energy, S the "
+        "length, phi0 and phi2 the angles in [-pi, pi)). Then, on standard error, `per_call_us` (wall "
+        "microseconds per sample) and `cpu_us` (process CPU microseconds per sample).",
+    )
+    _write(folder, stem, code, header, source, main, problem, example)
     return Export("ph-shape", folder, stem, rows)

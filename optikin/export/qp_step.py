@@ -125,7 +125,7 @@ def qp_setup(problem: str, overrides: Sequence[tuple[str, Any]] = (), samples: i
 def export_qp_step(problem: str, setup: QPExportSetup, folder: Path, samples: int) -> Export:
     """Write the QP step library of ``setup`` into ``folder``; its first ``samples`` steps go into the example."""
     from optikin.control.task import task_dimension, task_step_function
-    from optikin.export import Export, _common, _generated, _numbers, _rows, _template, _write
+    from optikin.export import Export, ExampleText, _common, _generated, _numbers, _rows, _template, _write
     from optikin.export._escape import c_comment
 
     arm = setup.arm
@@ -183,5 +183,18 @@ def export_qp_step(problem: str, setup: QPExportSetup, folder: Path, samples: in
     main = _template("qp_main.c").substitute(
         common, n_samples=len(steps), samples=_rows(steps), max_samples=MAX_FILE_STEPS
     )
-    _write(folder, stem, code, header, source, main)
+    example = ExampleText(
+        "qp-step",
+        "one step of the tracking QP controller",
+        "".join(" ".join(repr(float(v)) for v in s) + " 0\n" for s in steps),
+        len(steps),
+        f"one step per line: q ({n}), x ({m}), x_ref ({m}), xdot_ref ({m}), the number of extra rows "
+        f"A qdot >= b (at most {setup.max_rows}), then for each row a ({n}) and b (see the header).",
+        "`./example [steps.txt]`.",
+        f"One line per step: `status iterations qdot[0] ... qdot[{n - 1}]` (status 0: ok). Then, on standard "
+        "error, `per_call_us` (wall microseconds per step) and `cpu_us` (process CPU microseconds per step) "
+        "from repeating the whole set for 0.2 s.",
+        MAX_FILE_STEPS,
+    )
+    _write(folder, stem, code, header, source, main, problem, example)
     return Export("qp-step", folder, stem, steps)
