@@ -203,3 +203,44 @@ def test_points_along_a_trajectory_draw_their_figures(tmp_path):
     path = write_problem(tmp_path, data={"source": "trajectory", "samples": 20})
     _, written = solve(str(path), out=tmp_path / "out")
     assert {"targets.png", "trajectory.png", "comparison.png"} <= {p.name for p in written.iterdir()}
+
+
+def test_fits_within_the_calibrated_noise_level(tmp_path: Path):
+    """A calibrated arm file carries the noise level its held-out postures set; noise: calibrated reads it, and
+    every posture gets a residual and a status by it (fit within, unreachable beyond)."""
+    source = Path(__file__).resolve().parent.parent / "problems" / "trunk-calibrate.yaml"
+    spec = yaml.safe_load(source.read_text())
+    spec["name"] = "cal"
+    spec["data"]["samples"] = 80
+    spec["data"]["params"]["corrupted_fraction"] = 0.0
+    spec["options"] |= {"arm_file": "arm.yaml", "points_file": "points.csv", "base": {"starts": "data"}}
+    (tmp_path / "cal.yaml").write_text(yaml.safe_dump(spec))
+    calibrated, _ = solve(str(tmp_path / "cal.yaml"), figures=False)
+    facts = yaml.safe_load((tmp_path / "arm.yaml").read_text())["calibration"]
+    level = facts["noise_level"]
+    assert calibrated.metrics["verdict"] == "ok" and 0.2e-3 < level < 2e-3
+    base = {"position": facts["base_position"], "quaternion": facts["base_quaternion"]}
+    path = write_problem(
+        tmp_path,
+        "refit",
+        arm="arm.yaml",
+        data={"source": "csv", "samples": 80, "params": {"file": "points.csv", "base": base}},
+        options={"points": {"disk1": {"section": 1}, "disk2": {"section": 2}, "disk3": {"section": 3}}},
+    )
+    problem = yaml.safe_load(path.read_text())
+    problem["options"]["noise"] = "calibrated"
+    path.write_text(yaml.safe_dump(problem))
+    result, _ = solve(str(path), figures=False)
+    assert result.metrics["noise [m]"] == level
+    assert set(result.status) <= {"fit", "unreachable"} and len(result.status) == 80
+    # 95 % of held-out postures are within the level, so nearly all of the same postures refitted in sample are
+    assert result.status.count("fit") >= 72
+    # the table covers every posture: its largest RMS distance is that of the worst, fitted or not
+    row = next(r for r in result.comparison if r.role == "solver").metrics
+    assert row["max RMS point distance [mm]"] >= level * 1e3 or result.status.count("unreachable") == 0
+
+
+def test_calibrated_noise_needs_a_calibrated_arm_file(tmp_path: Path):
+    path = write_problem(tmp_path, options={"noise": "calibrated"})
+    with pytest.raises(SpecError, match="options.noise"):
+        solve(str(path), figures=False)

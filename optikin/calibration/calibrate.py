@@ -1,4 +1,5 @@
-"""Calibration of a constant-curvature arm from measured marker positions: start, robust fit, outliers, refit.
+"""Calibration of a constant-curvature arm from measured marker positions: start, robust fit, outliers, refit,
+identifiability, held-out test.
 
 :func:`calibrate` runs the steps:
 
@@ -18,7 +19,17 @@
    and, when exchanging two markers' labels explains the posture, the swap;
 5. **refit** without the rejected postures (robust loss still on), to convergence, screened
    again the same way (a posture the first screen missed is rejected and the fit repeated, up
-   to :data:`SCREENING_ROUNDS` times).
+   to :data:`SCREENING_ROUNDS` times);
+6. **least squares**: every posture, rejected ones included, fitted by least squares with the
+   final geometry held: the errors reported (the robust loss only estimates the geometry);
+7. **identifiability** (:mod:`optikin.calibration.identifiability`) at the start and at the
+   solution: a geometry weakly determined or on a bound makes the verdict ``not_identifiable``.
+
+The base is estimated, started from the data or a given pose, or held in part: components by
+``fix``, in a mount plane (``plane``: one coordinate held) and along an exit direction
+(``direction``: the base axis held). Section lengths may be bounded (``length_bounds``, fractions
+of the nominal). :func:`held_out` repeats steps 3-5 in each training fold and scores the test
+postures by least squares, over every posture.
 
 Without measured orientations, the rotation of the base about its own axis (yaw) is
 not observable: a torsion-free CC arm turned about its base axis reaches the same
@@ -688,6 +699,14 @@ class HeldOut:
         finite = np.isfinite(self.errors)
         largest = np.max(np.where(finite, self.errors, -np.inf), axis=1)
         return np.where(finite.any(axis=1), largest, np.nan)
+
+    @property
+    def posture_rms(self) -> np.ndarray:
+        """``(N,)`` each posture's RMS held-out marker error [m] (NaN where not tested or nothing seen)."""
+        finite = np.isfinite(self.errors)
+        squares = np.sum(np.where(finite, self.errors**2, 0.0), axis=1)
+        count = finite.sum(axis=1)
+        return np.where(count > 0, np.sqrt(squares / np.maximum(count, 1)), np.nan)
 
     def headline(self, screened: bool | None = None) -> dict[str, float]:
         """Median, p95 and max [m] of :attr:`posture_errors` over every tested posture (``screened``: only the

@@ -98,12 +98,20 @@ class IkOptions(FormulationOptions):
     points: dict[str, PointOptions] | None = Field(
         None, description="target points only: name -> the measured point (its section, where, offset, components)"
     )
-    noise: StrictFloat | None = Field(
+    noise: StrictFloat | Literal["calibrated"] | None = Field(
         None,
-        gt=0.0,
         description="measurement noise level [m]: a least-squares minimum whose RMS point distance is at most "
-        "this is a fit, beyond it unreachable; null: targets are exact (noise-free)",
+        "this is a fit, beyond it unreachable; calibrated: the noise_level of the calibrated arm file the "
+        "problem's arm: includes (what the calibration leaves on 95 % of its held-out postures); null: targets "
+        "are exact (noise-free)",
     )
+
+    @field_validator("noise")
+    @classmethod
+    def _positive_noise(cls, value: float | str | None) -> float | str | None:
+        if isinstance(value, float) and not value > 0:
+            raise ValueError(f"noise must be positive, got {value}")
+        return value
     start: Literal["rest"] | list[StrictFloat] = Field(
         "rest",
         description="start configuration of independent targets and of a trajectory's first one: "

@@ -58,10 +58,11 @@ def tip_metrics(
     return metrics
 
 
-def point_metrics(checks: dict[str, np.ndarray], solved: np.ndarray) -> dict[str, Any]:
-    """Metrics of measured-point targets: the RMS point distance of solved samples (median, 95th
-    percentile, max) [mm], the median distance of each point [mm] and its median angle error [deg]."""
-    rms = checks["rms_distance"][solved] * 1e3
+def point_metrics(checks: dict[str, np.ndarray]) -> dict[str, Any]:
+    """Metrics of measured-point targets: the RMS point distance of every sample, whatever its status (median,
+    95th percentile, max) [mm]: each posture has a residual, fitted or not."""
+    rms = checks["rms_distance"] * 1e3
+    rms = rms[np.isfinite(rms)]
     metrics: dict[str, Any] = {
         "median RMS point distance [mm]": _stat(np.median, rms),
         "95th percentile RMS point distance [mm]": _stat(lambda v: np.percentile(v, 95), rms),
@@ -86,7 +87,7 @@ def method_metrics(run: MethodRun, targets: Targets) -> dict[str, Any]:
     if formulation.noise is not None:
         metrics["fit (within the noise)"] = int((status == "fit").sum())
     if targets.kind == "points":
-        metrics.update(point_metrics(checks, solved))
+        metrics.update(point_metrics(checks))
     elif targets.kind == "legs":
         metrics["max leg error ok, eqs. (7)-(9) [m]"] = _stat(np.max, checks["leg_error"][ok])
         metrics["ok within Table I"] = f"{int(checks['within_table_i'][ok].sum())}/{int(ok.sum())}"

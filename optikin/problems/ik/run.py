@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
+import yaml
 
 from optikin.algebra import dq_translation, quat_angle, quat_conjugate, quat_multiply
 from optikin.arms.base import ArmModel
@@ -54,7 +55,8 @@ def setup_of(ctx: ProblemContext) -> IkSetup:
     if options.target == "legs" and not isinstance(ctx.arm, CBHAArm):
         raise ctx.error("options.target", f"leg-length targets need a cbha arm, not {ctx.arm_type!r}")
     points = point_set_of(ctx, options)
-    formulation = formulation_of(ctx, options.target, options, lambda key: f"options.{key}", points, options.noise)
+    noise = calibrated_noise(ctx) if options.noise == "calibrated" else options.noise
+    formulation = formulation_of(ctx, options.target, options, lambda key: f"options.{key}", points, noise)
     start = formulation.rest if options.start == "rest" else configuration(ctx, "options.start", options.start)
     variants = {}
     for label, variant in options.variants.items():
@@ -68,8 +70,33 @@ def setup_of(ctx: ProblemContext) -> IkSetup:
         def where(key: str, label: str = label, variant: FormulationOptions = variant) -> str:
             return f"options.variants.{label}.{key}" if key in variant.model_fields_set else f"options.{key}"
 
-        variants[label] = formulation_of(ctx, options.target, merged, where, points, options.noise)
-    return IkSetup(options.target, formulation, start, options.restarts, variants, options.noise)
+        variants[label] = formulation_of(ctx, options.target, merged, where, points, noise)
+    return IkSetup(options.target, formulation, start, options.restarts, variants, noise)
+
+
+def calibrated_noise(ctx: ProblemContext) -> float:
+    """``calibration.noise_level`` [m] of the arm file the problem file's ``arm:`` names (written by kind
+    ``calibrate``: the 95th percentile of its held-out postures' RMS marker errors); a :class:`SpecError` on
+    ``options.noise`` when the arm is not included from such a file."""
+    try:
+        arm = yaml.safe_load(ctx.path.read_text()).get("arm")
+    except (OSError, yaml.YAMLError, AttributeError) as exc:
+        raise ctx.error("options.noise", f"cannot read the problem file again: {exc}") from None
+    if not isinstance(arm, str):
+        raise ctx.error("options.noise", "calibrated needs arm: <file> naming a calibrated arm file (kind calibrate)")
+    included = (ctx.path.parent / arm).resolve()
+    try:
+        facts = yaml.safe_load(included.read_text()).get("calibration") or {}
+    except (OSError, yaml.YAMLError, AttributeError) as exc:
+        raise ctx.error("options.noise", f"cannot read {included}: {exc}") from None
+    level = facts.get("noise_level")
+    if not isinstance(level, (int, float)) or isinstance(level, bool) or not level > 0:
+        raise ctx.error(
+            "options.noise",
+            f"{included} has no calibration.noise_level (written by kind calibrate with a held-out test): "
+            "calibrate again, or give the noise in metres",
+        )
+    return float(level)
 
 
 def point_set_of(ctx: ProblemContext, options: IkOptions) -> PointSet | None:
