@@ -9,7 +9,7 @@ energy). Newton on the residual finds the unknowns; in numpy on the shape compil
 (``compiled``, the default, :mod:`optikin.codegen`), its Jacobian by forward differences
 (all columns in one batched C call: compiling the exact forward sensitivities takes about
 a minute) kept across steps while Newton contracts, or by CasADi's ``rootfinder`` (exact
-derivatives) in the VM. Each step starts from the unknowns extrapolated linearly from the two before.
+derivatives) in the VM. Each step starts from the unknowns extrapolated quadratically from the three before.
 
 The discrete state after step ``i`` is :class:`DynamicState`: the history of step ``i + 1``
 (``H = c1 y_i + c2 y_{i-1} + d1 (y_t)_i``) and the stage values ``y_i``; a rod at rest in an
@@ -158,8 +158,8 @@ class DynamicState:
         ``(48, S)`` the next step's history ``H`` at every stage of the ``S`` grid steps.
     rates : numpy.ndarray
         ``(48, S)`` the stage values ``y = (v, u, q, w)`` of this step.
-    unknowns, previous_unknowns : numpy.ndarray
-        The shooting unknowns of this step and of the one before (the warm start): the base wrench
+    unknowns, previous_unknowns, older_unknowns : numpy.ndarray
+        The shooting unknowns of this step and of the two before (the warm start): the base wrench
         ``(N(0), M(0))`` then the full state (19) at the start of every further shooting interval.
     states : numpy.ndarray
         ``(19, K)`` the nodes' ``(p, quaternion, N, M, q, w)``.
@@ -177,6 +177,7 @@ class DynamicState:
     rates: np.ndarray
     unknowns: np.ndarray
     previous_unknowns: np.ndarray
+    older_unknowns: np.ndarray
     states: np.ndarray
     energy: np.ndarray
     residual: float
@@ -627,6 +628,7 @@ class RodDynamics:
             rates=Y,
             unknowns=z,
             previous_unknowns=z,
+            older_unknowns=z,
             states=states,
             energy=np.array([0.0, E[1], E[2]]),
             residual=float(np.linalg.norm(residual)),
@@ -637,6 +639,11 @@ class RodDynamics:
         c = self.coefficients
         return c.c1 * Y + c.c2 * state.rates + c.d1 * (c.c0 * Y + state.history)
 
+    @staticmethod
+    def prediction(state: DynamicState) -> np.ndarray:
+        """The next step's start: the unknowns extrapolated quadratically from the last three steps."""
+        return 3 * state.unknowns - 3 * state.previous_unknowns + state.older_unknowns
+
     def step(self, state: DynamicState, loads: Loads | np.ndarray) -> DynamicState:
         """One time step from ``state`` under ``loads`` (those at the new time).
 
@@ -646,7 +653,7 @@ class RodDynamics:
             When Newton does not converge, from the extrapolated unknowns nor from the previous ones.
         """
         P = self.load_vector(loads)
-        guess = 2 * state.unknowns - state.previous_unknowns
+        guess = self.prediction(state)
         z, out, iterations, ok = self._solve(guess, P, state.history)
         if not ok:
             self._jacobian_inverse = None
@@ -663,6 +670,7 @@ class RodDynamics:
             rates=Y,
             unknowns=z,
             previous_unknowns=state.unknowns,
+            older_unknowns=state.previous_unknowns,
             states=states,
             energy=E,
             residual=float(np.linalg.norm(r)),
@@ -764,7 +772,7 @@ class RodDynamics:
         """
         P = self.load_vector(loads)
         small, full = self._derivative_functions
-        args = (2 * state.unknowns - state.previous_unknowns, state.vector, P)
+        args = (self.prediction(state), state.vector, P)
         dx_dP, dtip_dx, dtip_dP = (np.asarray(a) for a in small(*args))
         return StepDerivatives(
             wrt_state=np.asarray(full(*args)) if wrt_state else None,

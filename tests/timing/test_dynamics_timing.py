@@ -1,0 +1,73 @@
+"""Implicit Cosserat-rod dynamics: wall time of one warm-started time step (pytest-benchmark).
+
+Skipped in the normal run (``--benchmark-skip`` in pyproject's addopts); run with
+
+    OPENBLAS_NUM_THREADS=1 pytest tests/timing/test_dynamics_timing.py --benchmark-only
+
+The soft rod of the PyElastica comparisons (0.3 m, r = 10 mm, E = 1 MPa, G = E / 3,
+1000 kg/m^3) clamped horizontally under gravity, released from a 20 mN tip load and
+vibrating: N = 40 points, dt = 2 ms, BDF2, the shape compiled to C
+(:class:`optikin.physics.dynamics.RodDynamics`). One round is 100 consecutive steps
+from the same state 50 steps after the release, each warm-started from the two before
+(the kept Jacobian carries over between rounds, as along a run). The target of the issue
+is 20 us per step (100x real time). ``extra_info`` holds the time per step [us], the
+real-time factor, the shape evaluations and Newton iterations per step, and the shooting
+intervals.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+
+from optikin.physics import Loads, Rod, RodArm
+from optikin.physics.dynamics import DynamicsOptions, RodDynamics
+
+STEPS = 100
+DT = 0.002
+
+
+@pytest.fixture(scope="module")
+def setup():
+    rod = Rod(
+        length=0.3, radius=0.01, youngs_modulus=1e6, shear_modulus=1e6 / 3, density=1000.0, gravity=(0.0, 0.0, -9.81)
+    )
+    arm = RodArm.single(rod, base_orientation=(np.cos(np.pi / 4), 0.0, np.sin(np.pi / 4), 0.0))
+    dyn = RodDynamics(arm, DynamicsOptions(dt=DT, steps_per_segment=39))
+    start = dyn.rest(Loads(tip_force=(0.0, 0.0, -0.02)))
+    free = dyn.load_vector(Loads())
+    state = dyn.simulate(start, np.tile(free, (50, 1)), keep_shapes=False).final
+    return dyn, state, free
+
+
+def test_one_time_step_at_40_points(benchmark, setup):
+    dyn, state, free = setup
+    evaluations = [0]
+    evaluate = dyn._evaluate
+
+    def counted(*args, **kwargs):
+        evaluations[0] += 1
+        return evaluate(*args, **kwargs)
+
+    dyn._evaluate = counted
+
+    def run():
+        x = state
+        iterations = 0
+        began = time.perf_counter()
+        for _ in range(STEPS):
+            x = dyn.step(x, free)
+            iterations += x.iterations
+        per_step = (time.perf_counter() - began) / STEPS
+        benchmark.extra_info["us_per_step"] = per_step * 1e6
+        benchmark.extra_info["real_time_factor"] = DT / per_step
+        benchmark.extra_info["newton_iterations_per_step"] = iterations / STEPS
+        return x
+
+    evaluations[0] = 0
+    final = benchmark.pedantic(run, rounds=5, iterations=1, warmup_rounds=1)
+    benchmark.extra_info["evaluations_per_step"] = evaluations[0] / (6 * STEPS)
+    benchmark.extra_info["intervals"] = dyn.intervals
+    assert final.step == state.step + STEPS
