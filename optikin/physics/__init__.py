@@ -10,6 +10,8 @@
 :mod:`.reconstruction`      a shape from its end poses (the fitted tip wrench)
 :mod:`.comparison`          backbones from end poses: PH, arc and tip-wrench fit against a relaxed rod
 :mod:`.solution`            :class:`RodSolution`, what both solvers return
+:mod:`.dynamics_equations`  the rod with inertia and damping, one BDF-alpha time step as a BVP in ``s``
+:mod:`.dynamics`            time steps by multiple shooting (:class:`RodDynamics`), their derivatives
 ==========================  ==========================================================
 
 Example
@@ -23,6 +25,15 @@ Example
 """
 
 from optikin.physics.collocation import CollocationOptions, CollocationSolver
+from optikin.physics.dynamics import (
+    Damping,
+    DynamicsOptions,
+    DynamicState,
+    RodDynamics,
+    StepDerivatives,
+    StepError,
+    Trajectory,
+)
 from optikin.physics.model import LOAD_NAMES, ArmEquations, Loads, RodArm, Segment, load_vector
 from optikin.physics.pneumatic import Chamber, cbha_chambers
 from optikin.physics.reconstruction import Reconstruction, ReconstructionOptions, ShapeReconstructor, reconstruct_shape
@@ -37,18 +48,25 @@ __all__ = [
     "Chamber",
     "CollocationOptions",
     "CollocationSolver",
+    "Damping",
+    "DynamicState",
+    "DynamicsOptions",
     "LoadSensitivity",
     "Loads",
     "Reconstruction",
     "ReconstructionOptions",
     "Rod",
     "RodArm",
+    "RodDynamics",
     "RodSolution",
     "Segment",
     "ShootingOptions",
     "ShapeReconstructor",
     "ShootingSolver",
+    "StepDerivatives",
+    "StepError",
     "Tendon",
+    "Trajectory",
     "cbha_chambers",
     "load_vector",
     "reconstruct_shape",
