@@ -165,3 +165,20 @@ def test_without_a_compiler_one_log_line_and_the_python_path(monkeypatch, caplog
     lines = [r.getMessage() for r in caplog.records if r.name == "optikin.native"]
     assert len(lines) == 1 and "gcc" in lines[0] and "reference path" in lines[0]
     assert batch.status == ["ok"] * 5
+
+
+@pytest.mark.slow
+def test_cbha_platforms_through_the_c_match(monkeypatch):
+    """solve_platforms (16 platform problems of the CBHA, one C library each) with and without the C path."""
+    from optikin.arms.cbha import CBHAArm
+    from optikin.ik.formulation import rest_configuration
+    from optikin.ik.platform import platform_problems, solve_platforms
+    from optikin.solvers import build_preset
+
+    arm = CBHAArm()
+    legs = arm.evaluate("leg_lengths", arm.sample_configurations(30, np.random.default_rng(5))).reshape(30, -1)
+    problems, adapter, rest = platform_problems(arm, 1e-12), build_preset("gauss-newton"), rest_configuration(arm)
+    ours = solve_platforms(adapter, problems, legs, rest)
+    assert ours.batched and ours.status == ["ok"] * 30
+    monkeypatch.setenv(optikin.native.ENVIRONMENT, "0")
+    assert_same(ours, solve_platforms(adapter, problems, legs, rest))

@@ -10,7 +10,8 @@ with ``legs_k`` the arm's leg lengths of eqs. (3)-(6) (equal to the printed eqs.
 (7)-(9), :func:`optikin.arms.cbha.printed_leg_lengths`) and the bounds on
 ``(Z_k, theta_k, psi_k)`` that Table I implies (:func:`optikin.arms.cbha.platform_bounds`).
 The 16 platforms of a sample are independent: every platform is solved for all
-samples at once by the backend's :meth:`solve_many`, and a sample is ``ok`` when
+samples at once by the backend's :meth:`solve_many` (for ``gauss_newton``, one call into its
+compiled C, :mod:`optikin.native.ik`, with the same answers), and a sample is ``ok`` when
 all 16 of its platforms are.
 
 Two helpers serve the hybrid networks of seed 004 (kinds ``nn_fkm`` and ``nn_ikm``):
@@ -26,6 +27,7 @@ import casadi as ca
 import numpy as np
 
 from optikin.arms.cbha import PLATFORM_LEG_LENGTHS, CBHAArm
+from optikin.native.ik import solve_many
 from optikin.solvers.nonlinear import LeastSquaresProblem, NonlinearAdapter
 from optikin.solvers.base import SolutionBatch
 
@@ -85,7 +87,8 @@ def solve_platforms(
     Parameters
     ----------
     adapter:
-        A ``nonlinear`` backend's adapter; each platform is one :meth:`solve_many` call over the samples.
+        A ``nonlinear`` backend's adapter; each platform is one :meth:`solve_many` call over the samples (in
+        C for ``gauss_newton``, :func:`optikin.native.ik.solve_many`).
     problems:
         The platform problems of :func:`platform_problems`.
     legs:
@@ -102,7 +105,7 @@ def solve_platforms(
         (:data:`STATUS_PRIORITY`), its iterations and time add up over them, its residual is the largest.
     """
     reports = [
-        adapter.solve_many(problem, start[..., 3 * k : 3 * k + 3], legs[:, 3 * k : 3 * k + 3], warm_start)
+        solve_many(adapter, problem, start[..., 3 * k : 3 * k + 3], legs[:, 3 * k : 3 * k + 3], warm_start)
         for k, problem in enumerate(problems)
     ]
     statuses = np.array([r.status for r in reports])  # (platform, sample)
