@@ -52,6 +52,13 @@ DMP_SMALL = [
     ("options.tuning.max_iterations", 3),
     ("options.tuning.population", 6),
 ]
+NN_SMALL = [
+    ("data.samples", 40_000),
+    ("options.setting", "small"),
+    ("options.exact_samples", 3),
+    ("options.latency_repeats", 3),
+    ("options.variants", ["adam"]),
+]
 CASES: dict[str, list[tuple[str, list[tuple[str, Any]], list[str], Labels]]] = {
     "fk": [("cc-two-section-fk", [("data.samples", 20)], ["numpy", "casadi-call"], one)],
     "ik": [("cc-ik-position", [("data.samples", 5)], ["lm"], one)],
@@ -100,7 +107,7 @@ CASES: dict[str, list[tuple[str, list[tuple[str, Any]], list[str], Labels]]] = {
     "ph_ik": [
         (
             "cbha-ph-ik",
-            [("data.samples", 2)],
+            [("data.samples", 3)],
             ["ph-ipopt", "newton-raphson", "newton-raphson-pose", "hybrid", "hybrid-coupled"],
             one,
         )
@@ -108,7 +115,7 @@ CASES: dict[str, list[tuple[str, list[tuple[str, Any]], list[str], Labels]]] = {
     "nn_fkm": [
         (
             "cbha-nn-fkm",
-            [("data.samples", 2000), ("options.exact_samples", 3), ("options.variants", ["seed"])],
+            NN_SMALL,
             ["newton"],
             one,
         )
@@ -116,7 +123,7 @@ CASES: dict[str, list[tuple[str, list[tuple[str, Any]], list[str], Labels]]] = {
     "nn_ikm": [
         (
             "cbha-nn-ikm",
-            [("data.samples", 2000), ("options.exact_samples", 3), ("options.variants", ["seed"])],
+            NN_SMALL,
             ["ipopt"],
             one,
         )
@@ -124,7 +131,7 @@ CASES: dict[str, list[tuple[str, list[tuple[str, Any]], list[str], Labels]]] = {
 }
 """Per kind that runs baselines: ``(problem, overrides making it small, baselines listed, the labels of a
 baseline's rows)``."""
-FAST = {"fk", "ik", "ph_chain", "two_arms", "dmp"}
+FAST = {"fk", "ik", "ph_chain", "tracking", "two_arms", "dmp"}
 """The kinds whose contract run takes a few seconds; the others are marked slow."""
 
 
