@@ -1,8 +1,10 @@
-"""The ``tracking`` problem kind end to end: shipped scenarios run (shortened), QP presets solve, bad input is named."""
+"""The ``tracking`` problem kind end to end: shipped scenarios run (shortened by ``overrides``), QP presets solve,
+bad input is named."""
 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -17,30 +19,22 @@ from optikin.spec import available, load_problem, project_root
 SCENARIOS = sorted(name for name in available("problems") if name.startswith("track-"))
 
 
-def shortened(tmp_path: Path, name: str, baselines: bool = False, **changes) -> Path:
-    """A copy of a shipped scenario at 100 Hz with short segments (and no baselines unless asked)."""
-    _, path = load_problem(name)
-    spec = yaml.safe_load(path.read_text())
-    if spec["data"]["source"] == "dmp":
-        spec["data"]["params"] |= {"rate": 100, "demonstration_samples": 300, "basis": 20}
-    elif spec["data"]["source"] == "kinect-dmp":
-        spec["data"]["params"] |= {"rate": 100, "demonstration_samples": 60, "basis": 10, "hold": 0.5}
+def short(name: str, baselines: bool = False, **changes: Any) -> list[tuple[str, Any]]:
+    """``overrides`` running shipped scenario ``name`` at 100 Hz with short segments (and no baselines unless
+    asked), then ``changes`` (dotted field -> value)."""
+    spec, _ = load_problem(name)
+    if spec.data.source == "dmp":
+        params = {"rate": 100, "demonstration_samples": 300, "basis": 20}
+    elif spec.data.source == "kinect-dmp":
+        params = {"rate": 100, "demonstration_samples": 60, "basis": 10, "hold": 0.5}
     else:
-        spec["data"]["params"] |= {"rate": 100, "segment_time": 0.6, "hold": 0.6}
-    spec["options"] = spec.get("options") or {}
+        params = {"rate": 100, "segment_time": 0.6, "hold": 0.6}
+    overrides: list[tuple[str, Any]] = [(f"data.params.{key}", value) for key, value in params.items()]
     if not baselines:
-        spec["baselines"] = []
-    if "disturbance_window" in spec["options"].get("plant", {}):
-        spec["options"]["plant"]["disturbance_window"] = [0.3, 0.6]
-    for key, value in changes.items():
-        target = spec
-        *parents, leaf = key.split(".")
-        for part in parents:
-            target = target.setdefault(part, {})
-        target[leaf] = value
-    out = tmp_path / f"{name}.yaml"
-    out.write_text(yaml.safe_dump(spec))
-    return out
+        overrides.append(("baselines", []))
+    if "disturbance_window" in spec.options.get("plant", {}):
+        overrides.append(("options.plant.disturbance_window", [0.3, 0.6]))
+    return overrides + list(changes.items())
 
 
 def test_the_shipped_scenarios_cover_the_issue():
@@ -59,12 +53,12 @@ def test_the_shipped_scenarios_cover_the_issue():
     } <= set(SCENARIOS)
 
 
-def test_dmp_reference_starts_at_the_demonstration_and_is_tracked_within_limits(tmp_path):
+def test_dmp_reference_starts_at_the_demonstration_and_is_tracked_within_limits():
     """The reference is a DMP roll-out of the (smoothed) IMU demonstration: it starts and ends at its poses."""
     from optikin.algebra import dq_rotation, dq_translation, quat_angle, quat_conjugate, quat_multiply
     from optikin.data.demonstrations import imu_interface_recording
 
-    result, _ = solve(str(shortened(tmp_path, "track-dmp", baselines=True)), figures=False)
+    result, _ = solve("track-dmp", figures=False, overrides=short("track-dmp", baselines=True))
     recording = imu_interface_recording(samples=300, seed=load_problem("track-dmp")[0].data.seed)
     demo = recording.demonstration.dual_quaternion
     reference = result.arrays["reference"]
@@ -79,12 +73,12 @@ def test_dmp_reference_starts_at_the_demonstration_and_is_tracked_within_limits(
     )  # 100 Hz on a 3 s demonstration; the shipped 500 Hz run: ~1 mm
 
 
-def test_kinect_chain_reference_is_the_dmp_of_the_filtered_wrist_and_the_arm_starts_on_it(tmp_path):
+def test_kinect_chain_reference_is_the_dmp_of_the_filtered_wrist_and_the_arm_starts_on_it():
     """Seed 000 Figs. 26-27: Kinect wrist -> moving average (eq. 31) -> DMP -> tip-position reference."""
     from optikin.arms.constant_curvature import ConstantCurvatureArm
     from optikin.data.demonstrations import kinect_recording
 
-    result, _ = solve(str(shortened(tmp_path, "track-kinect-dmp", baselines=True)), figures=False)
+    result, _ = solve("track-kinect-dmp", figures=False, overrides=short("track-kinect-dmp", baselines=True))
     spec = load_problem("track-kinect-dmp")[0]
     recording = kinect_recording(
         samples=60, seed=spec.data.seed, cube_edge=0.10, workspace_centre=(0.18, 0.0, 0.26), window=5
@@ -103,16 +97,16 @@ def test_kinect_chain_reference_is_the_dmp_of_the_filtered_wrist_and_the_arm_sta
     assert result.metrics["steps the controller kept or took outside"] == 0
 
 
-def test_a_kinect_cube_outside_the_workspace_is_named(tmp_path):
-    problem = shortened(tmp_path, "track-kinect-dmp", **{"data.params.workspace_centre": [0.0, 0.0, 0.6]})
+def test_a_kinect_cube_outside_the_workspace_is_named():
+    far = short("track-kinect-dmp", **{"data.params.workspace_centre": [0.0, 0.0, 0.6]})
     with pytest.raises(SpecError) as error:
-        solve(str(problem))
+        solve("track-kinect-dmp", overrides=far)
     assert error.value.field == "data.params.workspace_centre"
 
 
-def test_mrac_starts_from_the_task_gain_and_mrac_seed_from_the_seeds_optimised_gains(tmp_path):
+def test_mrac_starts_from_the_task_gain_and_mrac_seed_from_the_seeds_optimised_gains():
     """Seed 000 section VII prints K = diag(7.45, 3.43, 3.70, 3.02, 9.62, 5.06, 4.69, 8.15) for the pose task."""
-    result, _ = solve(str(shortened(tmp_path, "track-nominal", baselines=True)), figures=False)
+    result, _ = solve("track-nominal", figures=False, overrides=short("track-nominal", baselines=True))
     first = {name: result.arrays[f"gains_{name}"][0] for name in ("mrac", "mrac_seed")}
     np.testing.assert_allclose(first["mrac"], 10.0, rtol=1e-3)  # options.gain, after one adaptation step
     np.testing.assert_allclose(first["mrac_seed"], [7.45, 3.43, 3.70, 3.02, 9.62, 5.06, 4.69, 8.15], rtol=1e-3)
@@ -122,20 +116,20 @@ def test_mrac_starts_from_the_task_gain_and_mrac_seed_from_the_seeds_optimised_g
     assert methods == ["qp (daqp-active-set)", *unlimited, *saturated]
 
 
-def test_every_method_settles_after_the_disturbance_and_the_settling_times_are_reported(tmp_path):
-    problem = shortened(tmp_path, "track-disturbance", baselines=True, **{"data.params.hold": 2.5})
-    result, _ = solve(str(problem), figures=False)
+def test_every_method_settles_after_the_disturbance_and_the_settling_times_are_reported():
+    overrides = short("track-disturbance", baselines=True, **{"data.params.hold": 2.5})
+    result, _ = solve("track-disturbance", figures=False, overrides=overrides)
     settle = {row.method: row.metrics["settle [s]"] for row in result.comparison}
     assert all(value is not None and 0 < value < 2.5 for value in settle.values()), settle
     assert settle["mrac (seed gains)"] > settle["mrac"]  # the seed's K is below 10 on most rows
-    short = shortened(tmp_path, "track-disturbance", baselines=True, **{"data.params.hold": 0.7})
-    notes = solve(str(short), figures=False)[0].notes
+    brief = short("track-disturbance", baselines=True, **{"data.params.hold": 0.7})
+    notes = solve("track-disturbance", figures=False, overrides=brief)[0].notes
     assert any("not settled within the tolerance by the end of the run" in note for note in notes)
 
 
 @pytest.mark.parametrize("name", SCENARIOS)
 def test_every_scenario_runs_and_the_qp_never_takes_the_arm_outside_a_limit(tmp_path, name):
-    result, written = solve(str(shortened(tmp_path, name)), out=tmp_path / "out", figures=False)
+    result, written = solve(name, out=tmp_path / "out", figures=False, overrides=short(name))
     assert (written / "result.json").is_file() and (written / "arrays.npz").is_file()
     assert result.status_counts() == {"ok": result.samples}  # no QP failure on any step
     q = result.arrays["q_qp"]
@@ -149,8 +143,8 @@ def test_every_scenario_runs_and_the_qp_never_takes_the_arm_outside_a_limit(tmp_
 
 
 def test_nominal_scenario_compares_the_qp_with_every_baseline_and_draws_its_figures(tmp_path):
-    problem = shortened(tmp_path, "track-nominal", baselines=True, **{"data.params.hold": 2.0})
-    result, written = solve(str(problem), out=tmp_path / "out")
+    overrides = short("track-nominal", baselines=True, **{"data.params.hold": 2.0})
+    result, written = solve("track-nominal", out=tmp_path / "out", overrides=overrides)
     assert [row.role for row in result.comparison] == ["solver"] + ["baseline"] * 7
     saturated = [row for row in result.comparison if row.method.endswith("(saturated)")]
     assert len(saturated) == 3 and all(row.metrics["outside limits"] == 0 for row in saturated)
@@ -161,11 +155,11 @@ def test_nominal_scenario_compares_the_qp_with_every_baseline_and_draws_its_figu
 
 
 @pytest.mark.parametrize("preset", ["qp-osqp", "qp-daqp", "qp-cvxpy"])
-def test_other_qp_presets_give_the_same_run(tmp_path, preset):
-    problem = str(shortened(tmp_path, "track-into-limits"))
-    reference, _ = solve(problem)
+def test_other_qp_presets_give_the_same_run(preset):
+    overrides = short("track-into-limits")
+    reference, _ = solve("track-into-limits", overrides=overrides)
     assert reference.comparison[0].method == "qp (daqp-active-set)"  # the shipped preset: qp-active-set
-    other, _ = solve(problem, solver=preset)
+    other, _ = solve("track-into-limits", solver=preset, overrides=overrides)
     np.testing.assert_allclose(other.arrays["q_qp"], reference.arrays["q_qp"], atol=1e-5)
 
 
@@ -184,9 +178,9 @@ def test_other_qp_presets_give_the_same_run(tmp_path, preset):
         ("data.samples", 10, "data.samples"),
     ],
 )
-def test_bad_tracking_input_names_the_field(tmp_path, key, value, field):
+def test_bad_tracking_input_names_the_field(key, value, field):
     with pytest.raises(SpecError) as error:
-        solve(str(shortened(tmp_path, "track-nominal", **{key: value})))
+        solve("track-nominal", overrides=short("track-nominal", **{key: value}))
     assert field in str(error.value)
 
 
@@ -194,20 +188,20 @@ def test_a_qp_preset_with_an_unknown_solver_is_named(tmp_path):
     preset = tmp_path / "qp-nothing.yaml"
     preset.write_text("name: qp-nothing\nbackend: qp_qpsolvers\noptions: {solver: nothing}\n")
     with pytest.raises(SpecError, match="qp-nothing.yaml: options.solver: .*'nothing'") as error:
-        solve(str(shortened(tmp_path, "track-nominal")), solver=str(preset))
+        solve("track-nominal", solver=str(preset), overrides=short("track-nominal"))
     assert error.value.field == "options.solver"
 
 
-def test_an_evaluation_preset_cannot_solve_a_tracking_problem(tmp_path):
+def test_an_evaluation_preset_cannot_solve_a_tracking_problem():
     with pytest.raises(SpecError, match="cannot solve kind 'tracking'"):
-        solve(str(shortened(tmp_path, "track-nominal")), solver=str(project_root() / "solvers/casadi-map.yaml"))
+        solve("track-nominal", solver=str(project_root() / "solvers/casadi-map.yaml"), overrides=short("track-nominal"))
 
 
 FIGURES = {"tracking", "errors", "limits", "lyapunov", "step_times"}
 
 
 def test_the_figures_are_drawn_again_from_the_written_arrays_and_summary(tmp_path):
-    result, written = solve(str(shortened(tmp_path, "track-position", baselines=True)), out=tmp_path / "out")
+    result, written = solve("track-position", out=tmp_path / "out", overrides=short("track-position", baselines=True))
     assert {path.stem for path in written.glob("*.png")} == FIGURES
     summary, arrays = read_result(written)
     drawers = figures(arrays, summary)
@@ -223,7 +217,7 @@ def test_the_figures_are_drawn_again_from_the_written_arrays_and_summary(tmp_pat
 
 
 def test_a_figure_whose_arrays_are_missing_is_left_out(tmp_path):
-    _, written = solve(str(shortened(tmp_path, "track-nominal")), out=tmp_path / "out", figures=False)
+    _, written = solve("track-nominal", out=tmp_path / "out", figures=False, overrides=short("track-nominal"))
     summary, arrays = read_result(written)
     kept = {k: v for k, v in arrays.items() if not k.startswith(("V_", "step_time_"))}
     assert set(figures(kept, summary)) == FIGURES - {"lyapunov", "step_times"}
@@ -251,9 +245,9 @@ def preset(tmp_path: Path, backend: str, options: dict) -> Path:
         ("track-dmp", "data.params.basis_functions"),
     ],
 )
-def test_a_typo_in_an_option_section_is_an_unknown_field(tmp_path, problem, key):
+def test_a_typo_in_an_option_section_is_an_unknown_field(problem, key):
     with pytest.raises(SpecError) as error:
-        solve(str(shortened(tmp_path, problem, **{key: 1.0})))
+        solve(problem, overrides=short(problem, **{key: 1.0}))
     assert error.value.field == key
     assert "unknown field" in str(error.value)
 
@@ -273,6 +267,6 @@ def test_a_typo_in_an_option_section_is_an_unknown_field(tmp_path, problem, key)
 def test_a_bad_qp_preset_option_names_the_preset_and_the_field(tmp_path, backend, options, field, words):
     path = preset(tmp_path, backend, options)
     with pytest.raises(SpecError) as error:
-        solve(str(shortened(tmp_path, "track-nominal")), solver=str(path))
+        solve("track-nominal", solver=str(path), overrides=short("track-nominal"))
     assert error.value.path == str(path) and error.value.field == field
     assert words in str(error.value)
