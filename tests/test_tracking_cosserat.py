@@ -17,7 +17,7 @@ from optikin.control.simulate import Plant, simulate
 from optikin.errors import SpecError
 from optikin.runner import solve
 from optikin.solvers.qp import step_solver
-from tests.test_tracking_problem import shortened
+from tests.test_tracking_problem import short
 
 ARM = ConstantCurvatureArm()
 CBHA = PneumaticRod(
@@ -132,9 +132,9 @@ def test_the_qp_tracks_the_tip_position_of_the_heavy_rod_within_the_limits():
         ("options.plant.length_scale", 1.05, "options.plant.length_scale"),
     ],
 )
-def test_bad_rod_plant_options_name_the_field(tmp_path, key, value, field):
+def test_bad_rod_plant_options_name_the_field(key, value, field):
     with pytest.raises(SpecError) as error:
-        solve(str(shortened(tmp_path, "track-nominal-cosserat", **{key: value})))
+        solve("track-nominal-cosserat", overrides=short("track-nominal-cosserat", **{key: value}))
     assert error.value.field == field
 
 
