@@ -277,6 +277,8 @@ class ShapeEnergyModel:
         self._x, self._P, self._curve, self._energy, self._length = x, P, curve, energy, curve.arc_length()
         self.energy_function = ca.Function("ph_energy", [x, P], [energy, self._length], ["x", "P"], ["E", "S"])
         self._maps: dict[int, BufferedFunction] = {}
+        self.native: dict[str, Any] = {}
+        """The compiled C of this model's fast path (:mod:`optikin.native.ph`), by what shapes its code."""
 
     # -- curves -------------------------------------------------------------------
     def _member(self, x: Any, P: ShapeParameters) -> PHQuintic:
@@ -322,6 +324,19 @@ class ShapeEnergyModel:
                 "give the end speeds or the backbone length", source=source, sample=sample, field="speeds"
             )
         return data.parameters()
+
+    def parameters_of(self, samples: Sequence[ShapeData]) -> np.ndarray:
+        """``(N, N_PARAMETERS)`` parameter vectors of ``samples``, each checked as :meth:`solve_newton` checks it.
+
+        Raises
+        ------
+        InputDataError
+            A sample lacks what the model needs (the backbone length for free speeds; speeds or length).
+        """
+        P = np.empty((len(samples), N_PARAMETERS))
+        for k, data in enumerate(samples):
+            P[k] = self._check(data)
+        return P
 
     def _bounds(self, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         if not self.free_speeds:

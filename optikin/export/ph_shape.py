@@ -111,28 +111,39 @@ def newton_functions(model: ShapeEnergyModel, prefix: str) -> tuple[list[ca.Func
     ], ca.Function(f"{prefix}_grid_energy", [x, F], [ca.cse(energy)])
 
 
-def export_ph_shape(problem: str, setup: PHExportSetup, folder: Path, samples: int) -> "Export":
-    """Write the PH library of ``setup`` into ``folder``; its first ``samples`` samples go into the example."""
+@dataclass(frozen=True)
+class PHLibrary:
+    """The C of a PH library: CasADi's code, the header, the solver (``#include``-ing the header) and the
+    template values (``common``)."""
+
+    code: str
+    header: str
+    source: str
+    common: dict[str, object]
+
+    def translation_unit(self) -> str:
+        """Code, header and solver as one C file (the header in place of its ``#include``)."""
+        include = f'#include "{self.common["stem"]}.h"'
+        return f"{self.code}\n{self.source.replace(include, self.header)}"
+
+
+def ph_library(problem: str, model: ShapeEnergyModel, adapter: NewtonAdapter, stem: str) -> PHLibrary:
+    """The C of the PH library ``stem`` of ``model`` (given end speeds) solved as ``adapter`` (``ph_newton``) would.
+
+    Raises
+    ------
+    SolverError
+        The model frees the end speeds.
+    """
     from optikin.curves.min_energy import N_PARAMETERS
     from optikin.curves.newton import CURVATURE_SAFETY, ENERGY_NOISE, PREDICTION_SAFETY
-    from optikin.export import (
-        MAX_FILE_SAMPLES,
-        Export,
-        ExampleText,
-        _common,
-        _generated,
-        _lines,
-        _rows,
-        _template,
-        _write,
-    )
+    from optikin.export import _common, _generated, _template
     from optikin.export._escape import c_comment, c_identifier
     from optikin.export.grid_loops import grid_source
 
-    model, adapter = setup.model, setup.adapter
     if model.free_speeds:
         raise SolverError(f"{problem}: --what ph-shape exports given end speeds only")
-    common: dict[str, object] = dict(_common("optikin_ph_shape", problem), n_p=N_PARAMETERS)
+    common: dict[str, object] = dict(_common(stem, problem), n_p=N_PARAMETERS)
     stem = prefix = str(common["stem"])
     functions, grid = newton_functions(model, prefix)
     code, sizes = _generated(functions, stem)
@@ -160,6 +171,17 @@ def export_ph_shape(problem: str, setup: PHExportSetup, folder: Path, samples: i
         coarse_grid=int(model.coarse_grid),
         grid_energy=grid_source(grid, model.coarse_grid, c_identifier(grid.name(), "Function name")),
     )
+    return PHLibrary(code, header, source, common)
+
+
+def export_ph_shape(problem: str, setup: PHExportSetup, folder: Path, samples: int) -> "Export":
+    """Write the PH library of ``setup`` into ``folder``; its first ``samples`` samples go into the example."""
+    from optikin.curves.min_energy import N_PARAMETERS
+    from optikin.export import MAX_FILE_SAMPLES, Export, ExampleText, _lines, _rows, _template, _write
+
+    library = ph_library(problem, setup.model, setup.adapter, "optikin_ph_shape")
+    code, header, source, common = library.code, library.header, library.source, library.common
+    stem = str(common["stem"])
     rows = setup.parameters[:samples]
     main = _template("ph_main.c").substitute(
         common, n_samples=len(rows), samples=_rows(rows), max_samples=MAX_FILE_SAMPLES

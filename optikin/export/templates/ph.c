@@ -124,10 +124,13 @@ static void coarse_start(${prefix}_work* w, double* x) {
     }
 }
 
-int ${prefix}_solve(${prefix}_work* w, const double* P, const double* x0, double* x, double* energy_length,
-                    int* iterations) {
+/* ${prefix}_solve, and *notes (when not NULL) what happened on the way: bit 1 the warm start failed and
+   Newton restarted from the coarse grid, bit 2 the basin check kept the coarse grid's lower minimum. */
+static int solve_noted(${prefix}_work* w, const double* P, const double* x0, double* x, double* energy_length,
+                       int* iterations, int* notes) {
   int i, ok, ok2, more = 0, total;
   double E = NAN, S = NAN, E2, S2, x2[NX];
+  if (notes) *notes = 0;
   if (!w || !P || !x || !w->ready) return ${PREFIX}_INVALID_INPUT;
   x[0] = x[1] = NAN;
   if (energy_length) energy_length[0] = energy_length[1] = NAN;
@@ -147,6 +150,7 @@ int ${prefix}_solve(${prefix}_work* w, const double* P, const double* x0, double
   }
   ok = newton(w, x, &E, &S, &total);
   if (!ok && w->restart && x0) { /* warm start failed: restart from the coarse grid */
+    if (notes) *notes |= 1;
     coarse_start(w, x);
     ok = newton(w, x, &E, &S, &more);
     total += more;
@@ -156,6 +160,7 @@ int ${prefix}_solve(${prefix}_work* w, const double* P, const double* x0, double
     ok2 = newton(w, x2, &E2, &S2, &more);
     total += more;
     if (ok2 && E2 < E - 1e-9 * fabs(E)) {
+      if (notes) *notes |= 2;
       x[0] = x2[0];
       x[1] = x2[1];
       E = E2;
@@ -170,6 +175,11 @@ int ${prefix}_solve(${prefix}_work* w, const double* P, const double* x0, double
   }
   if (iterations) *iterations = total;
   return ok ? ${PREFIX}_OK : ${PREFIX}_NOT_CONVERGED;
+}
+
+int ${prefix}_solve(${prefix}_work* w, const double* P, const double* x0, double* x, double* energy_length,
+                    int* iterations) {
+  return solve_noted(w, P, x0, x, energy_length, iterations, 0);
 }
 
 long ${prefix}_trajectory(${prefix}_work* w, const double* P, long n, double* X, double* energy_length,
