@@ -1,5 +1,6 @@
-"""Fixtures shared by the test files: the arms most tests use, and shipped problems changed through
-``overrides`` (:func:`optikin.runner.solve`) or written as a changed copy of their YAML."""
+"""Fixtures shared by the test files: the arm most tests use, shipped problems solved once per session with
+``overrides`` (:func:`optikin.runner.solve`), and changed copies of a shipped problem's YAML for the changes
+``overrides`` cannot make."""
 
 from __future__ import annotations
 
@@ -9,7 +10,6 @@ from typing import Any, Callable, Sequence
 import pytest
 import yaml
 
-from optikin.arms.cbha import CBHAArm
 from optikin.arms.constant_curvature import ConstantCurvatureArm
 from optikin.results import Result
 from optikin.runner import solve
@@ -22,12 +22,6 @@ Overrides = Sequence[tuple[str, Any]]
 def cc_arm() -> ConstantCurvatureArm:
     """The default two-section constant-curvature arm (its CasADi Functions built once per session)."""
     return ConstantCurvatureArm()
-
-
-@pytest.fixture(scope="session")
-def cbha_arm() -> CBHAArm:
-    """The default CBHA (seed 002's Table I geometry)."""
-    return CBHAArm()
 
 
 def write_variant(directory: Path, name: str, change: Callable[[dict[str, Any]], None]) -> Path:

@@ -26,6 +26,19 @@ from optikin.runner import prepare, solve
 load_kinds()
 SHORT_PATH = [("data.params.rate", 100), ("data.params.segment_time", 0.5), ("data.params.hold", 0.2)]
 Labels = Callable[[str], list[str]]
+TRACKING = [
+    "qp-osqp",
+    "mrac",
+    "mrac_seed",
+    "pseudo_inverse",
+    "damped_least_squares",
+    "mrac_saturated",
+    "mrac_seed_saturated",
+    "pseudo_inverse_saturated",
+    "damped_least_squares_saturated",
+    "mpc",
+    "mpc_ipopt",
+]
 
 
 def one(title: str) -> list[str]:
@@ -63,26 +76,7 @@ CASES: dict[str, list[tuple[str, list[tuple[str, Any]], list[str], Labels]]] = {
     "fk": [("cc-two-section-fk", [("data.samples", 20)], ["numpy", "casadi-call"], one)],
     "ik": [("cc-ik-position", [("data.samples", 5)], ["lm"], one)],
     "ph_chain": [("cbha-rope-chain", [("data.samples", 2)], ["ph-ipopt"], per_link)],
-    "tracking": [
-        (
-            "track-nominal",
-            SHORT_PATH,
-            [
-                "qp-osqp",
-                "mrac",
-                "mrac_seed",
-                "pseudo_inverse",
-                "damped_least_squares",
-                "mrac_saturated",
-                "mrac_seed_saturated",
-                "pseudo_inverse_saturated",
-                "damped_least_squares_saturated",
-                "mpc",
-                "mpc_ipopt",
-            ],
-            one,
-        )
-    ],
+    "tracking": [("track-nominal", SHORT_PATH, TRACKING, one)],
     "two_arms": [
         (
             "track-two-arms-shared-space",
@@ -157,10 +151,10 @@ def test_every_kind_has_a_contract_case_listing_every_baseline_it_runs():
         for case in cases
     ],
 )
-def test_every_listed_baseline_gets_its_rows_under_its_title(kind, problem, overrides, names, labels):
+def test_every_listed_baseline_gets_its_rows_under_its_title(solved, kind, problem, overrides, names, labels):
     _, ctx = prepare(problem, overrides=[*overrides, ("baselines", names)])
     assert [b.name for b in ctx.baselines] == names
-    result, _ = solve(problem, figures=False, overrides=[*overrides, ("baselines", names)])
+    result = solved(problem, [*overrides, ("baselines", names)])
     methods = [row.method for row in result.comparison]
     for baseline in ctx.baselines:
         for label in labels(baseline.title):
@@ -238,22 +232,17 @@ def test_a_saturated_controllers_command_is_its_own_clipped_into_the_qps_box(cc_
         assert clipped > 0
 
 
-def test_saturated_baselines_stay_inside_the_limits_the_pseudo_inverse_leaves():
+def test_saturated_baselines_stay_inside_the_limits_the_pseudo_inverse_leaves(solved):
     """On ``track-nominal`` the pseudo-inverse leaves the limits; the saturated baselines do not: their
     configurations and commanded rates lie inside the arm's limits on every step."""
-    saturated = {
-        "pseudo_inverse_saturated": "pseudo-inverse (saturated)",
-        "damped_least_squares_saturated": "damped least squares (saturated)",
-        "mrac_saturated": "mrac (saturated)",
-    }
-    overrides = [("data.params.rate", 100), ("baselines", ["pseudo_inverse", *saturated])]
-    result, _ = solve("track-nominal", figures=False, overrides=overrides)
+    result = solved("track-nominal", [*SHORT_PATH, ("baselines", TRACKING)])
     rows = {row.method: row.metrics for row in result.comparison}
     assert rows["pseudo-inverse"]["outside limits"] > 0
     arm = ConstantCurvatureArm()
     rate, bounded = rate_limit_vector(arm), ~arm.periodic
-    for name, title in saturated.items():
-        assert rows[title]["outside limits"] == 0
+    for name in (name for name in TRACKING if name.endswith("_saturated")):
         q, qdot = result.arrays[f"q_{name}"][:, bounded], result.arrays[f"qdot_{name}"]
-        assert np.all(q >= arm.lower[bounded] - 1e-12) and np.all(q <= arm.upper[bounded] + 1e-12)
-        assert np.all(np.abs(qdot) <= rate * (1 + 1e-12))
+        assert np.all(q >= arm.lower[bounded] - 1e-12) and np.all(q <= arm.upper[bounded] + 1e-12), name
+        assert np.all(np.abs(qdot) <= rate * (1 + 1e-12)), name
+    saturated = [row for row in result.comparison if row.method.endswith("(saturated)")]
+    assert len(saturated) == 4 and all(row.metrics["outside limits"] == 0 for row in saturated)
