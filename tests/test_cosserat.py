@@ -274,3 +274,29 @@ def test_weight_only_when_gravity_is_given_and_the_shear_coefficient():
     np.testing.assert_allclose(timoshenko.K_se, [27 / 28 * quiet.G * quiet.A] * 2 + [quiet.youngs_modulus * quiet.A])
     with pytest.raises(ValueError, match="shear_coefficient"):
         rod(shear_coefficient=1.5)
+
+
+def test_one_solver_serves_every_base_pose():
+    """solve_at turns the global loads into the arm's frame and the shape back: the same equilibrium as a solver
+    built for that base pose (gravity, a spatial tip force, a follower couple, tendon-free)."""
+    from optikin.algebra import quat_from_matrix
+
+    heavy = rod(density=1000.0, gravity=(0.0, 0.0, -9.81))
+    loads = Loads(tip_force=(0.01, -0.02, 0.005), tip_couple=(0.0, 0.001, 0.0005))
+    base = quat_from_matrix(np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]]))  # clamped along -y
+    base = base / np.linalg.norm(base)
+    position = (0.1, 0.2, -0.3)
+    mine = ShootingSolver(RodArm.single(heavy, tip_couple_frame="follower"))
+    theirs = ShootingSolver(
+        RodArm.single(heavy, tip_couple_frame="follower", base_position=position, base_orientation=tuple(base))
+    )
+    moved, direct = mine.solve_at(position, base, loads), theirs.solve(loads)
+    assert moved.ok and direct.ok
+    assert np.abs(moved.positions - direct.positions).max() < 1e-8  # measured 9e-10 m
+    assert np.abs(np.abs(np.sum(moved.orientations * direct.orientations, axis=1)) - 1).max() < 1e-12
+    np.testing.assert_allclose(moved.base_wrench, direct.base_wrench, atol=1e-8)
+    # warm-started from the other's base wrench: converged at once
+    again = mine.solve_at(position, base, loads, guess=direct.base_wrench)
+    assert again.ok and again.iterations <= 2 < moved.iterations
+    # the arm's own pose: solve_at is solve
+    np.testing.assert_allclose(mine.solve_at((0, 0, 0), (1, 0, 0, 0), loads).positions, mine.solve(loads).positions)

@@ -34,6 +34,7 @@ import casadi as ca
 import numpy as np
 from pydantic import Field
 
+from optikin.algebra import matrix_from_quat, quat_conjugate, quat_multiply
 from optikin.codegen import CompiledFunction, CompilerFlag
 from optikin.errors import SolverError
 from optikin.options import Options
@@ -313,6 +314,68 @@ class ShootingSolver:
         message = "" if ok else "Newton did not converge, even ramping the loads from zero"
         return RodSolution.from_states(
             self.s, states, float(np.linalg.norm(r)), self.options.tolerance, iterations, message
+        )
+
+    def solve_at(
+        self,
+        base_position: Sequence[float] | np.ndarray,
+        base_orientation: Sequence[float] | np.ndarray,
+        loads: Loads | np.ndarray,
+        guess: np.ndarray | None = None,
+    ) -> RodSolution:
+        """One equilibrium of the same arm clamped at another base pose, without building another solver.
+
+        The static rod is frame-invariant: turned by ``T = R(q_b) R(q_a)^T`` from the arm's own base
+        orientation ``q_a`` to ``q_b`` (and moved to ``p_b``), its equilibrium under loads ``L`` is the
+        equilibrium at the arm's own pose under ``T^T L``, turned by ``T``. So the loads given in the
+        global frame (gravity, the distributed force, a spatial tip force or couple) are turned into the
+        arm's frame, the compiled solver solves there, and the shape is turned back; follower loads and
+        actuation are material and stay. One compile serves every base frame.
+
+        Parameters
+        ----------
+        base_position : array_like
+            ``(3,)`` clamp position [m], global frame.
+        base_orientation : array_like
+            ``(4,)`` unit quaternion ``(w, x, y, z)`` of the clamped cross-section.
+        loads : Loads or numpy.ndarray
+            As for :meth:`solve`, in the global frame.
+        guess : numpy.ndarray, optional
+            ``(6,)`` base wrench ``(n(0), m(0))`` in the global frame.
+
+        Returns
+        -------
+        RodSolution
+            The shape at the given base, every vector in the global frame.
+        """
+        q_b = np.asarray(base_orientation, dtype=float)
+        q_b = q_b / np.linalg.norm(q_b)
+        q_a = np.asarray(self.arm.base_orientation, dtype=float)
+        turn = quat_multiply(q_b, quat_conjugate(q_a))
+        T = np.asarray(matrix_from_quat(turn, check=False), dtype=float)
+        P = self.load_vector(loads).copy()
+        spatial = [slice(6, 9), slice(9, 12)]
+        spatial += [slice(0, 3)] if self.arm.tip_force_frame == "spatial" else []
+        spatial += [slice(3, 6)] if self.arm.tip_couple_frame == "spatial" else []
+        for part in spatial:
+            P[part] = T.T @ P[part]
+        start = None if guess is None else np.concatenate([T.T @ guess[0:3], T.T @ guess[3:6]])
+        local = self.solve(P, start)
+        p_a = np.asarray(self.arm.base_position, dtype=float)
+        positions = np.asarray(base_position, dtype=float) + (local.positions - p_a) @ T.T
+        orientations = quat_multiply(np.broadcast_to(turn, local.orientations.shape), local.orientations)
+        n, m = local.n @ T.T, local.m @ T.T
+        return RodSolution(
+            s=local.s,
+            positions=positions,
+            orientations=orientations,
+            n=n,
+            m=m,
+            base_wrench=np.concatenate([n[0], m[0]]),
+            residual_norm=local.residual_norm,
+            status=local.status,
+            iterations=local.iterations,
+            message=local.message,
         )
 
     def solve_sequence(self, loads: Sequence[Loads | np.ndarray], guess: np.ndarray | None = None) -> list[RodSolution]:
