@@ -223,6 +223,25 @@ def _check_rows(values: np.ndarray, name: str, width: int, what: str) -> np.ndar
     return values.reshape(-1, width)
 
 
+def _squares_within(values: np.ndarray, width: int, tolerance: float | None, orthogonal: float | None = None) -> bool:
+    """Fast acceptance of quaternions (``width`` 4) or dual quaternions (8): True when every element has
+    a finite, nonzero norm of its first 4 components (``| |q| - 1 | <= tolerance`` unless ``tolerance`` is
+    None) and, with ``orthogonal``, ``|Q_r . Q_d| <= orthogonal``; False sends the caller to the detailed
+    check that names the bad element (NaN fails every comparison)."""
+    if values.ndim == 0 or values.shape[-1] != width:
+        return False
+    real = values[..., :4]
+    squares = np.einsum("...i,...i->...", real, real)
+    if tolerance is None:
+        ok = bool(((squares > 0.0) & (squares < np.inf)).all()) and bool(np.isfinite(values).all())
+    else:
+        ok = bool(((squares >= (1.0 - tolerance) ** 2) & (squares <= (1.0 + tolerance) ** 2)).all())
+        ok = ok and (width == 4 or bool(np.isfinite(values[..., 4:]).all()))
+    if ok and orthogonal is not None:
+        ok = bool((np.abs(np.einsum("...i,...i->...", real, values[..., 4:])) <= orthogonal).all())
+    return ok
+
+
 def check_vectors(
     v: object, name: str, width: int = 3, unit: bool = False, nonzero: bool = False, tolerance: float = UNIT_TOLERANCE
 ) -> np.ndarray:
@@ -298,6 +317,8 @@ def check_quaternion(q: object, unit: bool = True, name: str = "q", tolerance: f
         off 1, naming ``name`` and the batch index.
     """
     values = check_numbers(q, name)
+    if _squares_within(values, 4, tolerance if unit else None):
+        return values
     rows = _check_rows(values, name, 4, "quaternions (w, x, y, z)")
     norm = np.linalg.norm(rows, axis=1)
     bad = np.abs(norm - 1.0) > tolerance if unit else norm == 0.0
@@ -345,6 +366,8 @@ def check_dual_quaternion(
         quaternion that is not unit, naming ``name`` and the batch index.
     """
     values = check_numbers(dq, name)
+    if _squares_within(values, 8, tolerance if unit else None, tolerance if unit and orthogonal else None):
+        return values
     rows = _check_rows(values, name, 8, "dual quaternions (Q_r, Q_d)")
     norm = np.linalg.norm(rows[:, :4], axis=1)
     if not unit:
