@@ -6,7 +6,10 @@
 * :mod:`optikin.calibration.solver`: Levenberg-Marquardt on the Schur complement of the shared
   parameters, robust losses, covariance from the Jacobian at the solution;
 * :mod:`optikin.calibration.calibrate`: the start, the robust fit, rejected postures with their
-  reasons (label swaps recognised), the refit, the held-out error;
+  reasons (label swaps recognised), the refit, the least-squares errors, the held-out error over every
+  posture (the outlier rule inside each training fold);
+* :mod:`optikin.calibration.identifiability`: what the postures determine (singular values, weak
+  combinations, correlations, standard deviations, bounds) and the verdict ``ok`` or ``not_identifiable``;
 * :mod:`optikin.calibration.export`: the calibrated ``arm:`` section and the recording re-expressed
   for the ``ik`` and ``ph_shape`` kinds;
 * :mod:`optikin.calibration.synthetic`, :mod:`optikin.calibration.cosserat_source`: sources

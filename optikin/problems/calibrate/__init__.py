@@ -8,11 +8,15 @@ offset per marker from its disk's centre (:mod:`optikin.calibration`). The
 solver is Levenberg-Marquardt on the Schur complement of the shared parameters
 with exact CasADi Jacobians and a robust loss (:mod:`optikin.calibration.solver`);
 postures far from the model are rejected with a reason (a label swap is recognised)
-and the fit repeated without them. The report gives the estimates with standard
-deviations from the Jacobian at the solution, the marker errors per posture and
-marker, the held-out error (k-fold or a train/test split), and the calibrated
-``arm:`` section (:mod:`optikin.calibration.export`), written to ``options.arm_file``
-when given.
+and the fit repeated without them. The base is a tracked rigid body, a mount plane and exit
+direction, a pose, or estimated from several starts (the best by held-out error); the section
+lengths stay within the arm's ``length_range`` of the nominal. The report gives first the verdict,
+``ok`` or ``not_identifiable`` (:mod:`optikin.calibration.identifiability`: the weakly determined
+parameters and the options that would determine them; rc 1), then the held-out largest-marker error
+per posture over every posture (least squares; the outlier rule applied inside each training fold
+and reported apart), the estimates with standard deviations, the fold of every posture, and the
+calibrated ``arm:`` section (:mod:`optikin.calibration.export`), written to ``options.arm_file`` when
+given.
 
 Problem file
 ------------
@@ -23,10 +27,12 @@ Problem file
     a source of family ``recordings`` (:class:`~optikin.data.recording.Recording`):
     ``synthetic`` (:mod:`optikin.calibration.synthetic`: a CC arm of known geometry
     recorded with noise and label swaps), ``cosserat`` (:mod:`optikin.calibration.cosserat_source`:
-    the Cosserat-rod CBHA with markers on its tubes) or a reader of lab files (:mod:`optikin.data.readers`:
-    ``motive``, ``c3d``, ``rosbag``, ``csv``). The points fitted are the markers named in
-    ``options.markers`` (markers or rigid bodies, each with the section whose end disk carries
-    it), else the recording's markers, else its rigid bodies, when there is one per section.
+    the Cosserat-rod CBHA with markers on its tubes), ``tendon_lab`` (:mod:`optikin.simulate.tendon_lab`:
+    a hanging tendon-driven Cosserat trunk with what real recordings have and the models do not) or a
+    reader of lab files (:mod:`optikin.data.readers`: ``motive``, ``c3d``, ``rosbag``, ``csv``). The points
+    fitted are the markers named in ``options.markers`` (markers or rigid bodies, each with the section
+    whose end disk carries it), else the recording's markers, else its rigid bodies, when there is one per
+    section.
 ``options``
     :class:`~optikin.problems.calibrate.options.CalibrateOptions`.
 """
@@ -36,6 +42,7 @@ from __future__ import annotations
 import optikin.calibration.cosserat_source  # noqa: F401 - registers source "cosserat" of data family "recordings"
 import optikin.calibration.synthetic  # noqa: F401 - registers source "synthetic" of data family "recordings"
 import optikin.data.readers  # noqa: F401 - registers the lab-format sources of data family "recordings"
+import optikin.simulate.tendon_lab  # noqa: F401 - registers source "tendon_lab" of data family "recordings"
 from optikin.calibration.synthetic import FAMILY
 from optikin.problems import ProblemContext, ProblemKind, figures_of, register_kind
 from optikin.problems.calibrate.options import CalibrateOptions
