@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
-from pathlib import Path
+from typing import Any, Sequence
 
 import pytest
 import yaml
@@ -18,6 +18,7 @@ from optikin.registry import BACKENDS, PROBLEM_KINDS
 from optikin.runner import prepare, solve
 from optikin.solvers import load_backends, load_preset
 from optikin.spec import available, load_problem
+from tests.conftest import write_variant
 
 load_kinds()
 load_backends()
@@ -32,22 +33,9 @@ def shipped_problem_of(kind: str) -> str:
     raise LookupError(kind)
 
 
-def variant(tmp_path: Path, name: str, change) -> Path:
-    """A copy of shipped problem ``name`` in ``tmp_path`` with ``change(data)`` applied to its YAML."""
-    spec, path = load_problem(name)
-    data = yaml.safe_load(path.read_text())
-    change(data)
-    out = tmp_path / "problems" / f"{name}.yaml"
-    out.parent.mkdir(exist_ok=True)
-    if isinstance(data.get("data", {}).get("params", {}).get("file"), str):
-        data["data"]["params"]["file"] = str((path.parent / data["data"]["params"]["file"]).resolve())
-    out.write_text(yaml.safe_dump(data, sort_keys=False))
-    return out
-
-
-def field_of_error(problem: Path, solver: str | None = None) -> str:
+def field_of_error(problem: str, overrides: Sequence[tuple[str, Any]]) -> str:
     with pytest.raises(SpecError) as err:
-        prepare(str(problem), solver)
+        prepare(problem, overrides=overrides)
     assert "unknown field" in str(err.value)
     return err.value.field
 
@@ -70,25 +58,20 @@ def test_every_backend_declares_typed_options(backend):
 
 @pytest.mark.parametrize("kind", KINDS)
 def test_option_typo_names_file_and_dotted_field(kind, tmp_path, capsys):
-    problem = variant(tmp_path, shipped_problem_of(kind), lambda d: d.setdefault("options", {}).update({TYPO: 1}))
-    assert field_of_error(problem) == f"options.{TYPO}"
-    assert main(["solve", str(problem), "--out", str(tmp_path / "out")]) == EXIT_BAD_INPUT
+    problem = shipped_problem_of(kind)
+    assert field_of_error(problem, [(f"options.{TYPO}", 1)]) == f"options.{TYPO}"
+    assert main(["solve", problem, "--set", f"options.{TYPO}=1", "--out", str(tmp_path / "out")]) == EXIT_BAD_INPUT
     message = capsys.readouterr().err
-    assert str(problem) in message and f"options.{TYPO}" in message
+    assert str(load_problem(problem)[1]) in message and f"options.{TYPO}" in message
     assert not (tmp_path / "out").exists()
 
 
 @pytest.mark.parametrize("family,source", SOURCES)
-def test_data_param_typo_names_the_dotted_field(family, source, tmp_path):
+def test_data_param_typo_names_the_dotted_field(family, source):
     kinds = [k for k in KINDS if PROBLEM_KINDS.get(k).data_family == family]
     assert kinds, f"no kind reads data family {family}"
-
-    def change(data):
-        data["data"]["source"] = source
-        data["data"]["params"] = {TYPO: 1}
-
-    problem = variant(tmp_path, shipped_problem_of(kinds[0]), change)
-    assert field_of_error(problem) == f"data.params.{TYPO}"
+    overrides = [("data.source", source), ("data.params", {TYPO: 1})]
+    assert field_of_error(shipped_problem_of(kinds[0]), overrides) == f"data.params.{TYPO}"
 
 
 @pytest.mark.parametrize("backend", BACKENDS.names())
@@ -101,30 +84,24 @@ def test_preset_option_typo_names_file_and_dotted_field(backend, tmp_path):
     assert err.value.field == f"options.{TYPO}" and err.value.path == str(preset)
 
 
-def test_unknown_data_source_lists_the_family(tmp_path):
+def test_unknown_data_source_lists_the_family():
     kind = next(k for k in KINDS if PROBLEM_KINDS.get(k).data_family)
-    problem = variant(tmp_path, shipped_problem_of(kind), lambda d: d["data"].update(source="nope"))
     with pytest.raises(SpecError) as err:
-        prepare(str(problem))
+        prepare(shipped_problem_of(kind), overrides=[("data.source", "nope")])
     known = DATA_SOURCES[PROBLEM_KINDS.get(kind).data_family].names()
     assert err.value.field == "data.source" and all(name in str(err.value) for name in known)
 
 
 def test_unknown_output_array_is_named(tmp_path):
-    def change(data):
-        data["data"]["samples"] = 4
-        data["outputs"] = {"arrays": ["tip_dq", "nope"]}
-
-    problem = variant(tmp_path, "cc-two-section-fk", change)
+    overrides = [("data.samples", 4), ("outputs", {"arrays": ["tip_dq", "nope"]})]
     with pytest.raises(SpecError) as err:
-        solve(str(problem), out=tmp_path / "out")
+        solve("cc-two-section-fk", out=tmp_path / "out", overrides=overrides)
     assert err.value.field == "outputs.arrays.1" and "tip_dq" not in str(err.value).split("known:")[0]
     assert not (tmp_path / "out").exists()
 
 
 def test_plot_redraws_a_written_result(tmp_path, capsys):
-    problem = variant(tmp_path, "cc-two-section-fk", lambda d: d["data"].update(samples=8))
-    _, folder = solve(str(problem), out=tmp_path / "out")
+    _, folder = solve("cc-two-section-fk", out=tmp_path / "out", overrides=[("data.samples", 8)])
     drawn = sorted(p.name for p in folder.glob("*.png"))
     assert drawn
     for png in folder.glob("*.png"):
@@ -169,10 +146,9 @@ def test_binary_and_huge_files_are_refused(tmp_path, capsys):
     assert "larger than" in capsys.readouterr().err
 
 
-def test_negative_seed_is_a_field_error(tmp_path):
-    problem = variant(tmp_path, "cc-two-section-fk", lambda d: d["data"].update(seed=-5))
+def test_negative_seed_is_a_field_error():
     with pytest.raises(SpecError) as err:
-        prepare(str(problem))
+        prepare("cc-two-section-fk", overrides=[("data.seed", -5)])
     assert err.value.field == "data.seed"
 
 
@@ -181,7 +157,8 @@ def test_a_shadowing_preset_is_announced(tmp_path, monkeypatch, capsys):
     (tmp_path / "solvers").mkdir()
     preset = (shipped.parent.parent / "solvers" / "casadi-map.yaml").read_text()
     (tmp_path / "solvers" / "casadi-map.yaml").write_text(preset)
-    problem = variant(tmp_path, "cc-two-section-fk", lambda d: d["data"].update(samples=4))
+    (tmp_path / "problems").mkdir()
+    problem = write_variant(tmp_path / "problems", "cc-two-section-fk", lambda d: d["data"].update(samples=4))
     monkeypatch.chdir(tmp_path)
     assert main(["solve", "cc-two-section-fk", "--out", str(tmp_path / "out"), "--no-figures", "--json"]) == 0
     err = capsys.readouterr().err
