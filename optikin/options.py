@@ -1,9 +1,12 @@
 """Typed options: every problem kind, solver backend and data source declares what it accepts.
 
 An options model is a pydantic model derived from :class:`Options`: unknown
-fields are errors, NaN and infinite numbers are refused, defaults are stated
-once on the field, units go in the field's ``description`` and bounds are
-constraints (``Field(gt=0)``). :func:`validate_options` checks one section of
+fields are errors, NaN and infinite numbers are refused, numbers and booleans
+are taken only as written (:class:`StrictNumbers`: a quoted number, ``true``
+for an integer or ``1`` for a boolean are field errors), defaults are stated
+once on the field, units go in the field's ``description`` (``[m]``, ``[s]``,
+``[rad]``: a number field so described is bounded by :data:`UNIT_BOUNDS`) and
+other bounds are constraints (``Field(gt=0)``). :func:`validate_options` checks one section of
 a file (``options``, ``data.params``, a preset's ``options``) and turns the
 first pydantic error into a :class:`~optikin.errors.SpecError` naming the file
 and the dotted field, exactly as the rest of the file is checked.

@@ -4,6 +4,12 @@ Both are validated with pydantic; any error is re-raised as
 :class:`optikin.errors.SpecError` naming the file and the dotted field path
 (``arm.params.theta_max``). Unknown fields are errors, not silently ignored.
 
+Every file (and every ``--set`` value) is read as YAML 1.2 with the core schema only
+(:func:`load_yaml`): ``1e6`` is a float, ``yes`` and ``1:30`` are strings, and tags other
+than the core schema's (``!!binary``, ``!!python/...``, ``!custom``), aliases, duplicate
+keys and nesting deeper than :data:`MAX_DEPTH` are refused naming the line. Numbers and
+booleans are strict (a quoted number is not a number, ``true`` is not an integer).
+
 A problem file::
 
     name: cc-two-section-fk          # must match the file name

@@ -94,7 +94,7 @@ def test_shipped_problems_and_solvers_validate():
             "arm.params.section_length",
             "unknown parameter",
         ),
-        ({"params: {section_lengths: [0.18, 0.18]}": "params: {theta_max: 9.0}"}, "arm.params", "theta_max"),
+        ({"params: {section_lengths: [0.18, 0.18]}": "params: {theta_max: 9.0}"}, "arm.params.theta_max", "theta_max"),
         ({"type: constant_curvature": "type: octopus"}, "arm.type", "unknown arm 'octopus'"),
         ({"kind: fk": "kind: teleport"}, "kind", "unknown problem kind 'teleport'"),
         (
@@ -107,7 +107,7 @@ def test_shipped_problems_and_solvers_validate():
             "baselines.1",
             "'oracle' is neither a baseline of kind 'fk'",
         ),
-        ({"baselines: [numpy]": "baselines: [qp-osqp]"}, "baselines.0", "solver preset 'qp-osqp' (qp) cannot solve"),
+        ({"baselines: [numpy]": "baselines: [qp-osqp]"}, "baselines.0", "'qp-osqp' (qp) cannot be a baseline of kind"),
     ],
 )
 def test_bad_problem_fields_are_named(tmp_path, replace, field, message):

@@ -128,6 +128,7 @@ def test_nesting_deeper_than_the_limit_in_a_file_names_the_line(tmp_path, capsys
         ("track-nominal", ("options", "compiled"), "true", "options.compiled", "a boolean (true or false)"),
         ("track-nominal", ("options", "plant", "tip_position_noise"), False, "options.plant.tip_position_noise", ""),
         ("cc-two-section-fk", ("arm", "params", "theta_max"), "2.0", "arm.params.theta_max", "without quotes"),
+        ("cc-two-section-fk", ("arm", "params", "theta_max"), [1.0, 2.0], "arm.params.theta_max", "one number"),
     ],
 )
 def test_a_value_of_the_wrong_type_is_a_field_error(tmp_path, capsys, name, keys, value, field, words):
@@ -346,3 +347,27 @@ def test_a_c3d_file_cut_short_is_reported_as_truncated(tmp_path, capsys, fractio
     cut.write_bytes(raw[: int(len(raw) * fraction)])
     with pytest.raises(InputDataError, match="truncated: the header declares 40 frames"):
         read_c3d(cut)
+
+
+EXAMPLE_DATA = SHIPPED.parent / "examples" / "data"
+
+
+def test_a_configuration_file_with_two_s1_columns_is_refused(tmp_path, capsys):
+    header, *rows = (EXAMPLE_DATA / "configurations.csv").read_text().splitlines()
+    content = "\n".join([header + ",S1", *(row + ",0.2" for row in rows)]) + "\n"
+    (tmp_path / "two-s1.csv").write_text(content)
+    data = {"source": "csv", "params": {"file": str(tmp_path / "two-s1.csv")}}
+    problem = copied(tmp_path, "cc-two-section-fk", setter("data", value=data))
+    assert "column 'S1' appears twice in the header: columns 1 and 7" in solve_refused(capsys, problem, tmp_path)
+
+
+def test_cbha_markers_in_millimetres_get_a_unit_hint(tmp_path, capsys):
+    content = rewritten(EXAMPLE_DATA / "markers.csv", lambda i, h, c: str(float(c) * 1e3) if h[-2:] in XYZ else c)
+
+    def edit(data: dict[str, Any]) -> None:
+        data["data"] = {"source": "csv", "params": {"file": str(tmp_path / "mm.csv")}}
+        data["baselines"] = []
+
+    (tmp_path / "mm.csv").write_text(content)
+    err = solve_refused(capsys, copied(tmp_path, "cbha-ph-shape", edit), tmp_path)
+    assert "is beyond 10 m" in err and "values look like millimetres: set data.params.units: mm" in err
