@@ -277,7 +277,7 @@ class ShapeEnergyModel:
         self._x, self._P, self._curve, self._energy, self._length = x, P, curve, energy, curve.arc_length()
         self.energy_function = ca.Function("ph_energy", [x, P], [energy, self._length], ["x", "P"], ["E", "S"])
         self._maps: dict[int, BufferedFunction] = {}
-        self.native: dict[str, Any] = {}
+        self.native: dict[Any, Any] = {}
         """The compiled C of this model's fast path (:mod:`optikin.native.ph`), by what shapes its code."""
 
     # -- curves -------------------------------------------------------------------
@@ -333,10 +333,9 @@ class ShapeEnergyModel:
         InputDataError
             A sample lacks what the model needs (the backbone length for free speeds; speeds or length).
         """
-        P = np.empty((len(samples), N_PARAMETERS))
-        for k, data in enumerate(samples):
-            P[k] = self._check(data)
-        return P
+        if not samples:
+            return np.empty((0, N_PARAMETERS))
+        return np.array([self._check(data) for data in samples])
 
     def _bounds(self, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         if not self.free_speeds:

@@ -26,7 +26,6 @@ limit: its iterations are bounded by the preset's ``max_iterations``.
 from __future__ import annotations
 
 import ctypes
-import json
 import time
 from dataclasses import dataclass
 from string import Template
@@ -237,11 +236,6 @@ class NativeIK:
     many: Any
 
 
-def _settings(adapter) -> str:
-    """What of ``adapter`` the C is built from, as a key."""
-    return json.dumps([adapter.options.model_dump(mode="json"), adapter.limits.model_dump(mode="json")], sort_keys=True)
-
-
 def not_covered(adapter, problem) -> str | None:
     """Why the C path does not solve ``problem`` for ``adapter`` (None when it does)."""
     from optikin.solvers.gauss_newton import SYMBOLIC_SOLVE_MAX, GaussNewton
@@ -309,7 +303,7 @@ def source(adapter, problem) -> str:
 def native_ik(adapter, problem) -> NativeIK | None:
     """The compiled iteration of ``problem`` (no fixed variables) for ``adapter``, built once per problem and
     adapter settings (kept in ``problem.cache``); None when no compiler is there."""
-    key = ("native_ik", _settings(adapter))
+    key = ("native_ik", adapter.options, adapter.limits)  # frozen models: hashable, equal by value
     if key in problem.cache:
         return problem.cache[key]
     loaded = load_library(STEM, source(adapter, problem))

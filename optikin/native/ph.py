@@ -21,8 +21,6 @@ else (free speeds, another backend, ``OPTIKIN_NATIVE=0``, no ``gcc``) runs the a
 from __future__ import annotations
 
 import ctypes
-import dataclasses
-import json
 import math
 import time
 from collections.abc import Sequence
@@ -106,7 +104,7 @@ def native_ph(adapter, model) -> NativePH | None:
     from optikin.export.ph_shape import ph_library
 
     cache = model.native
-    key = json.dumps([dataclasses.asdict(model.settings), model.coarse_grid], sort_keys=True)
+    key = (model.settings, model.coarse_grid)
     if key in cache:
         return cache[key]
     library = ph_library("native", model, adapter, STEM)
