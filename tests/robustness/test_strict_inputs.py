@@ -371,3 +371,14 @@ def test_cbha_markers_in_millimetres_get_a_unit_hint(tmp_path, capsys):
     (tmp_path / "mm.csv").write_text(content)
     err = solve_refused(capsys, copied(tmp_path, "cbha-ph-shape", edit), tmp_path)
     assert "is beyond 10 m" in err and "values look like millimetres: set data.params.units: mm" in err
+
+
+def test_a_motive_rotation_cell_of_1e300_is_refused_without_a_warning(tmp_path, capsys):
+    lines = (RECORDINGS / "trunk_motive_faults.csv").read_text().splitlines()
+    cells = lines[9].split(",")
+    cells[2] = "1e300"  # the x of rigid body disk1's quaternion
+    lines[9] = ",".join(cells)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        err = solve_refused(capsys, motive_problem(tmp_path, "\n".join(lines) + "\n"), tmp_path)
+    assert "sample 1: disk1 Rotation: norm inf: not a unit quaternion" in err

@@ -105,8 +105,8 @@ def normalised_quaternions(
 
     ``where(row) -> (sample, message suffix)`` names the row in the error.
     """
-    norm = np.linalg.norm(q, axis=1)
-    with np.errstate(invalid="ignore"):
+    with np.errstate(over="ignore", invalid="ignore"):  # a huge cell gives an infinite norm, refused below
+        norm = np.linalg.norm(q, axis=1)
         bad = np.flatnonzero(~np.isnan(norm) & ~(np.abs(norm - 1.0) <= QUATERNION_TOLERANCE))
     if bad.size:
         i = int(bad[0])
