@@ -1,8 +1,9 @@
-"""The C that ``optikin export`` writes, compiled once per model and called from Python once per batch.
+"""Generated C called from Python once per batch, compiled once per model.
 
 The batch paths of :mod:`optikin.native.ik` (damped Gauss-Newton IK, independent targets and
-trajectories) and :mod:`optikin.native.ph` (the minimum-energy PH backbones) generate the same C
-source as ``optikin export``, compile it into the per-user cache of :mod:`optikin.codegen` (keyed by
+trajectories: the Python path's iteration in C around its own code-generated step Functions) and
+:mod:`optikin.native.ph` (the minimum-energy PH backbones: the C of ``optikin export --what ph-shape``)
+generate their C source, compile it into the per-user cache of :mod:`optikin.codegen` (keyed by
 the hash of the source, the compiler and its version and the flags; loaded only when owned by the
 user, private and matching its record) and call it through :mod:`ctypes` on numpy arrays: one C call
 per batch (per chunk of :data:`CHUNK` samples, between which a stop request is honoured), no Python
