@@ -31,6 +31,10 @@ from optikin import __version__
 from optikin.errors import OptikinError
 
 EXIT_OK, EXIT_FAILED_SAMPLES, EXIT_BAD_INPUT, EXIT_INTERNAL, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
+INTERRUPTED = "optikin: interrupted; nothing was written"
+"""What an interrupted run says."""
+INTERRUPTED_SWEEP = "optikin: interrupted; the finished cells are kept (the same command resumes)"
+"""What a sweep stopped inside a long CasADi call says (its finished cells are on disk)."""
 
 
 def _listing(
@@ -329,19 +333,27 @@ def _cmd_export(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from optikin.interrupt import deferred_interrupts
+    """Run the command line ``argv`` (default: the program's arguments); returns the exit status.
+
+    Run as the program (``argv`` None), an interrupted run ends at once (:func:`optikin.interrupt.exit_now`):
+    the interpreter's own teardown of a run's CasADi graphs and models can take seconds; and a signal
+    arriving inside a long CasADi call ends the process after :data:`optikin.interrupt.STOP_GRACE`
+    seconds if the call has not returned by then.
+    """
+    from optikin.interrupt import deferred_interrupts, exit_now
     from optikin.progress import command_line_logging
 
     args = build_parser().parse_args(argv)
+    stopped = INTERRUPTED_SWEEP if args.command == "sweep" else INTERRUPTED
     try:
-        with deferred_interrupts(), command_line_logging(args.verbose, args.quiet):
-            return args.run(args)
+        with deferred_interrupts(stopped if argv is None else None), command_line_logging(args.verbose, args.quiet):
+            code = args.run(args)
     except OptikinError as exc:
         print(f"optikin: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
-        print("optikin: interrupted; nothing was written", file=sys.stderr)
-        return EXIT_INTERRUPTED
+        print(INTERRUPTED, file=sys.stderr)
+        code = EXIT_INTERRUPTED
     except Exception as exc:
         if args.debug:
             traceback.print_exc()
@@ -351,6 +363,9 @@ def main(argv: list[str] | None = None) -> int:
                 file=sys.stderr,
             )
         return EXIT_INTERNAL
+    if code == EXIT_INTERRUPTED and argv is None:
+        exit_now(code)
+    return code
 
 
 if __name__ == "__main__":

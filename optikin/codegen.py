@@ -27,6 +27,7 @@ import hashlib
 import json
 import os
 import shutil
+import signal
 import stat
 import subprocess
 import tempfile
@@ -286,24 +287,45 @@ def _build(
     library: Path,
     sidecar: Path,
 ) -> None:
-    """Compile ``source`` into a temporary name in the cache folder, then rename it and its record into place."""
+    """Compile ``source`` into a temporary name in the cache folder, then rename it and its record into place.
+
+    The compiler runs in a process group of its own; when the build is interrupted (Ctrl-C, SIGTERM, any
+    exception) the whole group (the driver, ``cc1``, ``as``, ``ld``) is killed and waited for before the
+    temporary folder is removed, so nothing keeps running and nothing half-built reaches the cache.
+    """
     with tempfile.TemporaryDirectory(dir=library.parent, prefix=f".{name}-") as work:
         c_file = Path(work) / f"{name}.c"
         c_file.write_text(source)
         partial = Path(work) / library.name
-        run = subprocess.run(
+        process = subprocess.Popen(
             [compiler, "-shared", "-fPIC", *flags, str(c_file), "-o", str(partial), "-lm"],
-            capture_output=True,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
             text=True,
+            start_new_session=True,
         )
-        if run.returncode != 0:
-            raise SolverError(f"compiling {name} with {compiler} failed: {run.stderr.strip()[:500]}")
+        try:
+            _, stderr = process.communicate()
+        except BaseException:
+            _kill_group(process)
+            raise
+        if process.returncode != 0:
+            raise SolverError(f"compiling {name} with {compiler} failed: {stderr.strip()[:500]}")
         os.chmod(partial, 0o700)
         partial_record = Path(work) / sidecar.name
         partial_record.write_text(json.dumps({**record, "library_sha256": _sha256_file(partial)}, indent=1))
         os.chmod(partial_record, 0o600)
         os.replace(partial, library)
         os.replace(partial_record, sidecar)
+
+
+def _kill_group(process: subprocess.Popen) -> None:
+    """Kill the process group ``process`` leads (SIGKILL), then reap its leader and close its pipes."""
+    try:
+        os.killpg(process.pid, signal.SIGKILL)
+    except ProcessLookupError:
+        pass
+    process.communicate()
 
 
 def cached_library(f: ca.Function, flags: Iterable[str] = ("-O3",), compiler: str = "gcc") -> Path:

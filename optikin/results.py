@@ -47,6 +47,7 @@ import numpy as np
 
 from optikin import __version__
 from optikin.errors import OptikinError
+from optikin.interrupt import removed_on_hard_stop
 from optikin.tables import write_comparison
 
 STATUSES = ("ok", "fit", "unreachable", "failed", "not_converged", "timeout")
@@ -236,6 +237,22 @@ def write_result(
     _refuse_non_folder(final)
     _remove_stale(out_dir, name)
     staging = out_dir / _temporary_name(name, "tmp")
+    with removed_on_hard_stop(staging):
+        _write_staged(result, staging, out_dir, final, figures, arrays, figure_builder)
+    return final
+
+
+def _write_staged(
+    result: Result,
+    staging: Path,
+    out_dir: Path,
+    final: Path,
+    figures: bool,
+    arrays: list[str] | None,
+    figure_builder: FigureBuilder | None,
+) -> None:
+    """:func:`write_result`'s work: everything into ``staging``, then swapped in as ``final``."""
+    name = result.problem
     try:
         staging.mkdir()
         kept = result.arrays if arrays is None else {k: v for k, v in result.arrays.items() if k in arrays}
@@ -262,7 +279,6 @@ def write_result(
     except BaseException:
         shutil.rmtree(staging, ignore_errors=True)
         raise
-    return final
 
 
 def _reason(exc: OSError) -> str:

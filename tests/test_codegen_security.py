@@ -56,14 +56,14 @@ def cache(tmp_path, monkeypatch) -> Path:
 def compiles(monkeypatch) -> list[list[str]]:
     """The compile commands run (``--version`` queries and other programs left out)."""
     runs: list[list[str]] = []
-    real = subprocess.run
 
-    def run(argv, *args, **kwargs):
-        if "-shared" in argv:
-            runs.append(list(argv))
-        return real(argv, *args, **kwargs)
+    class Recording(subprocess.Popen):
+        def __init__(self, argv, *args, **kwargs):
+            if "-shared" in argv:
+                runs.append(list(argv))
+            super().__init__(argv, *args, **kwargs)
 
-    monkeypatch.setattr(codegen.subprocess, "run", run)
+    monkeypatch.setattr(codegen.subprocess, "Popen", Recording)
     return runs
 
 

@@ -21,6 +21,8 @@ from typing import Callable
 
 import numpy as np
 
+from optikin.interrupt import check_interrupted
+
 
 @dataclass(frozen=True)
 class GeneticResult:
@@ -123,6 +125,7 @@ def minimise(
     history = [values.min()]
 
     for generation in range(generations):
+        check_interrupted()
         order = np.argsort(values)
         X, values = X[order], values[order]
         contestants = rng.integers(0, population, (population - elite, 2, tournament))

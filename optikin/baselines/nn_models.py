@@ -62,6 +62,7 @@ from scipy.special import expit
 from threadpoolctl import threadpool_limits
 
 from optikin.baselines.nn_database import LearningDatabase
+from optikin.interrupt import check_interrupted
 from optikin.data.cosserat_nn import CosseratDatabase
 
 if TYPE_CHECKING:
@@ -393,6 +394,7 @@ def _fit_width(
     """Epochs of ``partial_fit`` until the validation criterion stalls; restores the best weights."""
     best, best_epoch, best_weights = np.inf, 0, None
     for epoch in range(1, setting.max_epochs + 1):
+        check_interrupted()
         network.partial_fit(Xs, Ys)
         value = criterion()
         if value < best:

@@ -17,6 +17,7 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -102,3 +103,87 @@ def test_handlers_restored_and_signal_outside_casadi_raises_at_once():
         while time.monotonic() < deadline:  # plain Python: the handler raises here
             pass
     assert [signal.getsignal(s) for s in watched] == before
+
+
+def _slow_mapped_function(columns: int):
+    """A CasADi Function of about 20 us per column, mapped over ``columns``, and its input."""
+    import casadi as ca
+
+    x = ca.SX.sym("x", 200)
+    e = x
+    for _ in range(60):
+        e = ca.sin(e) * ca.cos(e) + e
+    return ca.Function("f", [x], [ca.sum1(e)]).map(columns, "serial"), ca.DM.ones(200, columns)
+
+
+def test_a_loop_of_casadi_calls_stops_after_the_call_in_progress():
+    """Back to back CasADi calls from Python: the Python handler only ever runs inside CasADi's wrappers, so
+    before the frames were traced the signal waited for the end of the block (9 s of a 10 s loop)."""
+    from optikin.interrupt import deferred_interrupts
+
+    f, X = _slow_mapped_function(400)
+    started = time.perf_counter()
+    f(X)
+    call = time.perf_counter() - started
+    sent: list[float] = []
+
+    def later() -> None:
+        time.sleep(3 * call)
+        sent.append(time.monotonic())
+        os.kill(os.getpid(), signal.SIGTERM)
+
+    threading.Thread(target=later, daemon=True).start()
+    calls = 0
+    with pytest.raises(KeyboardInterrupt), deferred_interrupts():
+        deadline = time.monotonic() + max(10.0, 30 * call)
+        while time.monotonic() < deadline:
+            f(X)
+            calls += 1
+    waited = time.monotonic() - sent[0]
+    print(f"one call {call:.2f} s; stopped {waited:.2f} s after the signal, after {calls} calls")
+    assert waited < call + 1.0
+    assert sys.gettrace() is None or "coverage" in type(sys.gettrace()).__module__
+
+
+HARD_STOP = """
+import sys
+from pathlib import Path
+from optikin.interrupt import deferred_interrupts, removed_on_hard_stop
+sys.path.insert(0, {tests!r})
+from test_signals import _slow_mapped_function
+f, X = _slow_mapped_function(40000)
+folder = Path({folder!r})
+folder.mkdir()
+print("ready", flush=True)
+with deferred_interrupts(hard_stop="optikin: interrupted; nothing was written"), removed_on_hard_stop(folder):
+    f(X)
+print("the call returned")
+"""
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_a_program_inside_one_long_casadi_call_ends_within_the_grace(tmp_path, signum):
+    from optikin.interrupt import STOP_GRACE
+
+    folder = tmp_path / "staging"
+    script = HARD_STOP.format(tests=str(Path(__file__).parent), folder=str(folder))
+    process = subprocess.Popen(
+        [sys.executable, "-c", script], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path
+    )
+    try:
+        assert process.stdout.readline().strip() == "ready"
+        time.sleep(0.5)
+        sent = time.monotonic()
+        process.send_signal(signum)
+        out, err = process.communicate(timeout=60)
+        waited = time.monotonic() - sent
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.communicate()
+    print(f"{signal.Signals(signum).name}: ended {waited:.2f} s after the signal")
+    assert process.returncode == 130, err
+    assert err.strip() == "optikin: interrupted; nothing was written"
+    assert "the call returned" not in out
+    assert not folder.exists()
+    assert waited < STOP_GRACE + 1.0
