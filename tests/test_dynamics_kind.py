@@ -113,7 +113,27 @@ def test_bad_input_names_the_field(tmp_path):
         solve(str(problem(tmp_path, data=data)))
 
 
-@pytest.mark.parametrize("name", ["cosserat-cantilever-vibration", "cosserat-tendon-step"])
+@pytest.mark.parametrize("name", ["cosserat-cantilever-vibration", "cosserat-tendon-step", "cbha-pneumatic-dynamics"])
 def test_shipped_problems_run(name, tmp_path):
     result, _ = solve(name, overrides=[("data.samples", 15)], figures=False)
     assert result.succeeded and result.samples == 15
+
+
+def test_chamber_pressures_lag_their_commands_by_the_first_order_closed_form(tmp_path):
+    arm = yaml.safe_load(yaml.safe_dump(ARM))
+    arm["params"]["tendons"] = []
+    arm["params"]["chambers"] = [{"offset": 0.005, "area": 1e-5, "pressure_range": [0.0, 1e5]}]
+    data = {"source": "step", "samples": 30, "params": {"initial": [0.0], "final": [2.0e4]}}
+    path = problem(tmp_path, data=data, pressure_time_constant=0.05)
+    spec = yaml.safe_load(path.read_text())
+    spec["arm"] = arm
+    path.write_text(yaml.safe_dump(spec, sort_keys=False))
+    result, _ = solve(str(path))
+    assert result.succeeded
+    t = result.arrays["t"]
+    np.testing.assert_allclose(result.arrays["command"][1:, 0], 2.0e4)
+    np.testing.assert_allclose(result.arrays["actuation"][:, 0], 2.0e4 * (1 - np.exp(-t / 0.05)), rtol=1e-12)
+    spec["options"]["pressure_time_constant"] = 0.0
+    path.write_text(yaml.safe_dump(spec, sort_keys=False))
+    with pytest.raises(SpecError, match="options.pressure_time_constant"):
+        solve(str(path))

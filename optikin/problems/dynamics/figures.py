@@ -3,6 +3,8 @@
 ``tip``        the tip position against time [mm] (array ``tip_position``, ``t``).
 ``energy``     kinetic, elastic, gravitational and total energy against time [J] (``energy``).
 ``backbones``  up to 12 backbones in 3-D at the kept frames (``backbone``, ``frame_t``).
+``actuation``  the applied actuation and, where the chamber pressures lag it, the command (``actuation``,
+               ``command``).
 ``step_time``  wall time per step [us] (``step_time``).
 """
 
@@ -30,6 +32,14 @@ def figures(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -> dic
     if "backbone" in arrays:
         drawers["backbones"] = partial(
             draw_backbones, backbone=arrays["backbone"], t=arrays.get("frame_t"), title=f"{name}: backbones"
+        )
+    if "actuation" in arrays and arrays["actuation"].ndim == 2 and arrays["actuation"].shape[1]:
+        drawers["actuation"] = partial(
+            draw_actuation,
+            t=arrays["t"],
+            applied=arrays["actuation"],
+            command=arrays.get("command"),
+            title=f"{name}: actuation",
         )
     if "step_time" in arrays and len(arrays["step_time"]):
         drawers["step_time"] = partial(draw_step_time, seconds=arrays["step_time"], title=f"{name}: time per step")
@@ -65,6 +75,17 @@ def draw_backbones(path: Path, backbone: np.ndarray, t: np.ndarray | None, title
     from optikin import plots
 
     plots.backbones_3d(path, backbone, title, t=t)
+
+
+def draw_actuation(path: Path, t: np.ndarray, applied: np.ndarray, command: np.ndarray | None, title: str) -> None:
+    """Applied actuation ``(n, n_act)`` and, where it differs, the command, against ``t`` [s]."""
+    from optikin import plots
+
+    series = {"applied": applied}
+    if command is not None and not np.array_equal(command, applied):
+        series["command"] = command
+    names = tuple(f"actuator {j}" for j in range(applied.shape[1]))
+    plots.time_series(path, t, series, "[N or Pa]", title, labels=names)
 
 
 def draw_step_time(path: Path, seconds: np.ndarray, title: str) -> None:

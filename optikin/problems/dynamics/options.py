@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from pydantic import Field, StrictBool, StrictFloat, StrictInt
+from pydantic import Field, StrictBool, StrictFloat, StrictInt, field_validator
 
 from optikin.codegen import CompilerFlag
 from optikin.options import Options
@@ -34,4 +34,17 @@ class DynamicsKindOptions(Options):
     max_iterations: StrictInt = Field(25, ge=1, description="Newton iterations per time step")
     compiled: StrictBool = Field(True, description="Newton on the C-compiled shape (else CasADi's VM)")
     flags: tuple[CompilerFlag, ...] = Field(("-O3",), description="compiler flags of the compiled shape")
+    pressure_time_constant: StrictFloat | list[StrictFloat] | None = Field(
+        None,
+        description="first-order lag of the chamber pressures [s], one for all or one per chamber; None: none",
+    )
     frame_every: StrictInt = Field(10, ge=1, description="keep the backbone of every n-th step (array backbone)")
+
+    @field_validator("pressure_time_constant")
+    @classmethod
+    def _positive(cls, value: float | list[float] | None) -> float | list[float] | None:
+        values = [] if value is None else value if isinstance(value, list) else [value]
+        for i, tau in enumerate(values):
+            if not tau > 0:
+                raise ValueError(f"entry {i} is {tau} s: a time constant must be > 0 (non-physical otherwise)")
+        return value

@@ -6,7 +6,8 @@ residual: the arrays then hold the partial trajectory up to the last converged s
 (metric ``partial``).
 
 Arrays: ``t (n,)`` [s], ``tip_position (n, 3)``, ``tip_orientation (n, 4)``, ``energy (n, 3)``
-(kinetic, elastic, gravitational [J]), ``actuation (n, n_act)``, ``tip_force (n, 3)``,
+(kinetic, elastic, gravitational [J]), ``actuation (n, n_act)`` (applied), ``command (n, n_act)``
+(commanded: the chamber pressures lag it with ``options.pressure_time_constant``), ``tip_force (n, 3)``,
 ``residual (n,)``, ``iterations (n,)``, ``step_time (n - 1,)`` [s], ``backbone (F, K, 3)`` at
 ``frame_t (F,)``, ``s (K,)``, ``static_backbone (K, 3)`` (the static equilibrium under the last
 loads, when the run completed).
@@ -61,6 +62,7 @@ def result_of(ctx: ProblemContext, outcome: DynamicsOutcome) -> Result:
         "tip_orientation": np.array([s.tip_orientation for s in states]),
         "energy": energy,
         "actuation": outcome.actuation[:n],
+        "command": outcome.command[:n],
         "tip_force": outcome.tip_force[:n],
         "residual": residual,
         "iterations": iterations,

@@ -38,8 +38,9 @@ class DynamicsOutcome:
     ----------
     t : numpy.ndarray
         ``(T + 1,)`` the planned times, the start first [s].
-    actuation, tip_force : numpy.ndarray
-        ``(T + 1, n_act)``, ``(T + 1, 3)`` the commands at those times.
+    command, actuation, tip_force : numpy.ndarray
+        ``(T + 1, n_act)`` the commanded and the applied actuation (the chamber pressures lagging their
+        commands with ``options.pressure_time_constant``), ``(T + 1, 3)`` the tip force, at those times.
     states : list of DynamicState
         The start and every converged step.
     frames : list of int
@@ -59,6 +60,7 @@ class DynamicsOutcome:
     """
 
     t: np.ndarray
+    command: np.ndarray
     actuation: np.ndarray
     tip_force: np.ndarray
     states: list[DynamicState]
@@ -105,6 +107,35 @@ def stepper(ctx: ProblemContext, arm: CosseratArm, options: DynamicsKindOptions)
         raise SpecError(ctx.path, field, str(exc).split(": ", 1)[-1]) from None
 
 
+def pressure_lag(
+    ctx: ProblemContext, arm: CosseratArm, options: DynamicsKindOptions, commanded: np.ndarray
+) -> np.ndarray:
+    """The chamber pressures after a first-order lag of the commands, ``(T + 1, n_act)``; tensions unchanged.
+
+    ``tau p' = p_cmd - p`` with the command held over each step (exact:
+    ``p_i = p_{i-1} + (1 - exp(-dt / tau)) (p_cmd,i - p_{i-1})``), starting at rest at the first command.
+
+    Raises
+    ------
+    SpecError
+        On ``options.pressure_time_constant`` when a list does not have one entry per chamber.
+    """
+    tau = options.pressure_time_constant
+    chambers = np.nonzero(~np.asarray(arm.tendon_mask, dtype=bool))[0]
+    if tau is None or chambers.size == 0:
+        return commanded
+    taus = np.asarray(tau if isinstance(tau, list) else [tau] * chambers.size, dtype=float)
+    if taus.shape != chambers.shape:
+        raise ctx.error(
+            "options.pressure_time_constant", f"give one value or one per chamber ({chambers.size}), got {taus.size}"
+        )
+    share = 1.0 - np.exp(-options.dt / taus)
+    out = commanded.copy()
+    for i in range(1, out.shape[0]):
+        out[i, chambers] = out[i - 1, chambers] + share * (commanded[i, chambers] - out[i - 1, chambers])
+    return out
+
+
 def checked_commands(ctx: ProblemContext, arm: CosseratArm, actuation: np.ndarray) -> None:
     """Refuse a negative tendon tension or a non-finite command, naming the step and the actuator."""
     source = f"{ctx.path.name}: data ({ctx.spec.data.source})"
@@ -133,6 +164,7 @@ def solve(ctx: ProblemContext) -> DynamicsOutcome:
     actuation = np.vstack([commands.initial_actuation[None, :], actuation])
     tip = np.vstack([commands.initial_tip_force[None, :], tip])
     checked_commands(ctx, arm, actuation)
+    commanded, actuation = actuation, pressure_lag(ctx, arm, options, actuation)
     loads = load_rows(arm, options, actuation, tip)
     start = time.perf_counter()
     dyn = stepper(ctx, arm, options)
@@ -162,6 +194,7 @@ def solve(ctx: ProblemContext) -> DynamicsOutcome:
         static = solution.positions if solution.ok else None
     return DynamicsOutcome(
         t=t,
+        command=commanded,
         actuation=actuation,
         tip_force=tip,
         states=states,
