@@ -176,6 +176,19 @@ def test_a_preset_of_a_family_the_kind_does_not_run_is_refused_when_validated():
     assert err.value.field == "baselines.1" and "presets of qp" in str(err.value)
 
 
+def test_a_kind_declaring_baselines_by_name_alone_is_refused_when_registered():
+    from optikin.problems import Baseline, ProblemKind, register_kind
+
+    def kind(baselines: Any) -> ProblemKind:
+        return ProblemKind("plugin-kind", "", print, (), None, "", baselines=baselines)
+
+    with pytest.raises(TypeError, match="'plugin-kind': baselines must map names to Baseline"):
+        register_kind(kind(("mine",)))
+    with pytest.raises(ValueError, match="declares baseline 'mine' under the name 'yours'"):
+        register_kind(kind({"yours": Baseline("mine", "mine")}))
+    assert "plugin-kind" not in PROBLEM_KINDS
+
+
 def test_a_baseline_listed_twice_is_refused_naming_the_second():
     with pytest.raises(SpecError) as err:
         prepare("track-nominal", overrides=[("baselines", ["mrac", "pseudo_inverse", "mrac"])])

@@ -276,7 +276,20 @@ def preset_row(name: str, preset: "LoadedPreset") -> Baseline[Any, Any]:
 
 
 def register_kind(kind: ProblemKind) -> ProblemKind:
-    """Register ``kind`` under its name; a baseline declared under another name than its own is a ``ValueError``."""
+    """Register ``kind`` under its name.
+
+    Raises
+    ------
+    TypeError
+        ``kind.baselines`` is not a mapping of :class:`Baseline` (names alone, as a tuple: :func:`baselines_of`).
+    ValueError
+        A baseline declared under another name than its own.
+    """
+    if not isinstance(kind.baselines, Mapping) or not all(isinstance(b, Baseline) for b in kind.baselines.values()):
+        raise TypeError(
+            f"kind {kind.name!r}: baselines must map names to Baseline (optikin.problems.baselines_of), "
+            f"got {type(kind.baselines).__name__}"
+        )
     for key, baseline in kind.baselines.items():
         if key != baseline.name:
             raise ValueError(f"kind {kind.name!r} declares baseline {baseline.name!r} under the name {key!r}")
