@@ -494,7 +494,7 @@ def calibrate(
     screened = screened_fit(problem, X0, beta0, outlier_threshold, names_of_markers, max_iterations, tolerance)
     X_all = screened.robust.X.copy()
     X_all[screened.kept] = screened.fit.X
-    least_squares = fit_postures(problem, screened.fit.beta, X_all, loss="linear")
+    least_squares = least_squares_fit(problem, screened.fit.beta, X_all, screened.kept)
     sigma = screened.fit.sigma if np.isfinite(screened.fit.sigma) else 0.0
     report = analyse(
         screened.problem, screened.fit.X, screened.fit.beta, names, max(sigma, marker_noise), max_std
@@ -518,6 +518,38 @@ def calibrate(
         outlier_threshold=outlier_threshold,
         max_iterations=max_iterations,
         tolerance=tolerance,
+    )
+
+
+def least_squares_fit(problem: Problem, beta: np.ndarray, X0: np.ndarray, kept: np.ndarray) -> Fit:
+    """Every posture fitted by least squares with ``beta`` held (step 6), the kept and the rejected postures in
+    two batches (a rejected posture, far from the model, converges slowly: it does not hold the others back).
+
+    Returns
+    -------
+    Fit
+        Rows in the order of ``problem``'s postures; ``sigma`` and ``converged`` of the kept postures' batch.
+    """
+    N = len(problem.measured)
+    rejected = np.setdiff1d(np.arange(N), kept)
+    fit = fit_postures(problem.subset(kept), beta, X0[kept], loss="linear")
+    if len(rejected) == 0:
+        return fit
+    other = fit_postures(problem.subset(rejected), beta, X0[rejected], loss="linear")
+    X, errors, weights = np.empty_like(X0), np.empty((N, fit.errors.shape[1])), np.empty((N, fit.errors.shape[1]))
+    for rows, part in ((kept, fit), (rejected, other)):
+        X[rows], errors[rows], weights[rows] = part.X, part.errors, part.weights
+    return Fit(
+        X,
+        fit.beta,
+        errors,
+        weights,
+        fit.covariance,
+        fit.sigma,
+        fit.cost + other.cost,
+        max(fit.iterations, other.iterations),
+        fit.converged,
+        fit.seconds + other.seconds,
     )
 
 
