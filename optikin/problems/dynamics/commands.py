@@ -106,6 +106,7 @@ def _actuators(arm: Any) -> int:
 
 @register_source(FAMILY, "step", "actuation and tip force stepping from their values at rest", params=StepParams)
 def step_commands(arm: Any, data: Any, params: StepParams, path: Path) -> Commands:
+    """Source ``step``: ``initial`` until ``at``, then ``final`` (the tip force likewise)."""
     n = _actuators(arm)
     _vector(params.final, n, "data.params.final", path)
     return Commands(
@@ -120,6 +121,7 @@ def step_commands(arm: Any, data: Any, params: StepParams, path: Path) -> Comman
     FAMILY, "ramp", "actuation and tip force ramping linearly from their values at rest", params=RampParams
 )
 def ramp_commands(arm: Any, data: Any, params: RampParams, path: Path) -> Commands:
+    """Source ``ramp``: linear from ``initial`` at ``at`` to ``final`` at ``at + duration``."""
     n = _actuators(arm)
     _vector(params.final, n, "data.params.final", path)
     return Commands(
@@ -132,6 +134,7 @@ def ramp_commands(arm: Any, data: Any, params: RampParams, path: Path) -> Comman
 
 @register_source(FAMILY, "sine", "a sinusoidal actuation about its mean", params=SineParams)
 def sine_commands(arm: Any, data: Any, params: SineParams, path: Path) -> Commands:
+    """Source ``sine``: ``mean + amplitude sin(2 pi frequency t + phase)``, the tip force constant."""
     n = _actuators(arm)
     _vector(params.amplitude, n, "data.params.amplitude", path)
     return Commands(
