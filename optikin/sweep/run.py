@@ -12,6 +12,11 @@ Worker deaths:
   ends the other workers too). The cells whose ``running/`` marker outlived its process are charged one
   try, and the Parallel call is started again on the cells not finished; a cell charged ``1 + retries``
   tries is written as failed with the reason.
+
+``--jobs`` above the machine's CPU count is lowered to it, with a warning (:func:`check_jobs`); joblib's
+workers end when the process that started them is gone, even killed by SIGKILL
+(:func:`optikin.sweep.cell.watch_parent`). A scheduler address is tried once, for :data:`DASK_TIMEOUT`
+seconds.
 """
 
 from __future__ import annotations

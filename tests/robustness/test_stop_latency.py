@@ -27,6 +27,8 @@ from pathlib import Path
 
 import pytest
 
+pytestmark = pytest.mark.slow  # each case starts a real run and waits for its loop (10-60 s on a loaded machine)
+
 STOP_TARGET = 1.0
 """Seconds from the signal to the exit that a run is built for."""
 STOP_LIMIT = 2.0
@@ -46,7 +48,6 @@ class Case:
     overrides: tuple[str, ...]
     trigger: str
     delays: tuple[float, float] = (0.5, 3.0)
-    slow: bool = False
     fresh_cache: bool = False
 
 
@@ -67,7 +68,6 @@ CASES = {
             "options.tuning.generations=200",
         ),
         "of quaternion: 1/2",
-        slow=True,
     ),
     "ik-ipopt": Case(
         "cbha-ik", ("solver=ipopt", "baselines=[]", "options.variants={}", "data.samples=1000"), "x 1 methods: started"
@@ -76,10 +76,9 @@ CASES = {
         "cbha-ik",
         ("solver=trf", "baselines=[lm]", "options.variants={}", "data.samples=1000"),
         "x 2 methods: started",
-        slow=True,
     ),
-    "cosserat-statics": Case("cosserat-tendon-fk", (), "equilibria: started", slow=True),
-    "compile": Case("cosserat-tendon-fk", (), COMPILING, delays=(0.5, 2.0), fresh_cache=True, slow=True),
+    "cosserat-statics": Case("cosserat-tendon-fk", (), "equilibria: started"),
+    "compile": Case("cosserat-tendon-fk", (), COMPILING, delays=(0.5, 2.0), fresh_cache=True),
 }
 """The loops: scikit-learn epochs; the GA's generations; IPOPT iterations and scipy's least squares in IK;
 compiled shooting and IPOPT collocation of Cosserat equilibria; the compiler building that shooting."""
@@ -147,9 +146,8 @@ def _params() -> list:
     params = []
     for name, case in CASES.items():
         for delay, signum in zip(case.delays, (signal.SIGINT, signal.SIGTERM)):
-            marks = [pytest.mark.slow] if case.slow else []
             label = f"{name}-{signal.Signals(signum).name}-{delay:g}s"
-            params.append(pytest.param(name, delay, signum, id=label, marks=marks))
+            params.append(pytest.param(name, delay, signum, id=label))
     return params
 
 
