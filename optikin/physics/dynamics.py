@@ -1,15 +1,17 @@
-"""Implicit Cosserat-rod dynamics: each BDF-alpha time step a BVP solved by shooting, warm-started.
+"""Implicit Cosserat-rod dynamics: each BDF-alpha time step a BVP solved by multiple shooting, warm-started.
 
 The equations and the time discretisation are in :mod:`optikin.physics.dynamics_equations`
 (Till, Aloi and Rucker, IJRR 38(6), 2019). :class:`RodDynamics` builds one time step as
-CasADi Functions of the base wrench ``w = (N(0), M(0))``, the loads ``P`` (the statics'
-load vector, :attr:`optikin.physics.RodArm.load_names`) and the history ``H`` of every
-RK4 stage: the shape (every node's state, the tip residual, the new stage values and the
-energy). Newton on the residual finds the unknowns; in numpy on the shape compiled to C
+CasADi Functions of the shooting unknowns ``z`` (the base wrench ``(N(0), M(0))``, then the
+state at the start of every further shooting interval), the loads ``P`` (the statics' load
+vector, :attr:`optikin.physics.RodArm.load_names`) and the history ``H`` of every RK4
+stage: the shape (every node's state, the residual, the new stage values and the energy).
+Newton on the residual finds the unknowns; in numpy on the shape compiled to C
 (``compiled``, the default, :mod:`optikin.codegen`), its Jacobian by forward differences
 (all columns in one batched C call: compiling the exact forward sensitivities takes about
 a minute) kept across steps while Newton contracts, or by CasADi's ``rootfinder`` (exact
-derivatives) in the VM. Each step starts from the unknowns extrapolated quadratically from the three before.
+derivatives) in the VM. Each step starts from the unknowns extrapolated quadratically from
+the three steps before.
 
 The discrete state after step ``i`` is :class:`DynamicState`: the history of step ``i + 1``
 (``H = c1 y_i + c2 y_{i-1} + d1 (y_t)_i``) and the stage values ``y_i``; a rod at rest in an
@@ -18,13 +20,16 @@ differentiates a step (the implicit function theorem through the rootfinder) wit
 to the state and the loads.
 
 Stability and resolution (checked when the stepper is built, errors naming ``dt``):
-BDF-alpha with ``-1/2 <= alpha <= 0`` is A-stable, so no step is unstable in the linear
-sense; a step longer than a quarter of the first bending period (Euler-Bernoulli, the
-whole arm as one uniform cantilever of its most flexible segment) no longer resolves the
-motion and is refused. A step so short that the spatial exponents of the step's BVP,
-``L sqrt(c0) (rho A / E I)^(1/4)`` (bending) and ``c0 L sqrt(rho / G)`` (shear waves),
-exceed :data:`MAX_SHOOTING_EXPONENT` makes shooting ill-conditioned (its Jacobian grows
-like ``exp`` of the exponent) and is refused too.
+BDF-alpha with ``-1/2 <= alpha <= 0`` is A-stable for a stable semi-discrete system, so
+the step length has no stability limit of its own; a step longer than a quarter of the
+first bending period (Euler-Bernoulli, the whole arm as one uniform cantilever of its most
+flexible segment) no longer resolves the motion and is refused. A step so short that the
+spatial exponents of the step's BVP, ``L sqrt(c0) (rho A / E I)^(1/4)`` (bending) and
+``c0 L sqrt(rho / G)`` (shear waves), exceed :data:`MAX_SHOOTING_EXPONENT` makes shooting
+ill-conditioned (its Jacobian grows like ``exp`` of the exponent) and is refused too. The
+RK4 stage histories add modes that the less dissipative alphas (and coarse grids at short
+steps) can leave growing; ``docs/guide/dynamics.md`` tabulates the spectral radii of the
+linearised step: BDF2 (the default) is the robust choice.
 """
 
 from __future__ import annotations
