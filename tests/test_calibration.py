@@ -260,3 +260,23 @@ def test_the_trunk_workflow_problems_run(name, tmp_path: Path):
     if name == "trunk-ik":
         # the calibrated arm reaches every measured posture within the marker noise
         assert set(result.status) <= {"ok", "fit"}
+
+
+def test_outliers_are_screened_inside_each_training_fold_and_stay_in_the_headline():
+    rec = recording(150, seed=3, corrupted_fraction=0.04)
+    cal = calibrate(rec.marker_array(NAMES), [0.1, 0.1, 0.1], [1, 2, 3], NAMES)
+    test = held_out(cal, "kfold", 3)
+    corrupted = rec.truth.corrupted
+    # every posture is tested once; the swapped ones are flagged by the rule of the fold that trained without them
+    assert test.tested.all() and np.array_equal(test.screened, corrupted)
+    for f, rejected in enumerate(test.training_outliers):
+        assert not np.isin(rejected, np.flatnonzero(test.fold == f)).any()  # decided on training postures only
+        assert set(rejected) == set(np.flatnonzero(corrupted & (test.fold != f)))
+    # the headline counts them: its max is a swapped posture's, the others' figures are reported apart
+    assert test.headline()["max"] > 0.02 and test.headline(screened=False)["max"] < 0.005
+    assert test.headline(screened=True)["median"] > 0.02
+    # reported errors are least squares: each kept posture's sum of squared errors is at most the robust fit's
+    assert cal.least_squares is not None and np.isfinite(cal.least_squares.errors[corrupted]).all()
+    ls = np.nansum(cal.least_squares.errors[cal.kept] ** 2, axis=1)
+    robust = np.nansum(cal.fit.errors**2, axis=1)
+    assert np.all(ls <= robust * (1 + 1e-9) + 1e-18) and np.any(ls < robust * (1 - 1e-6))

@@ -93,3 +93,26 @@ def test_the_lab_is_a_source_the_calibration_reads(tmp_path: Path):
     assert m["postures"] == 64 and "max section length error [mm]" in m
     headline = m["held-out largest-marker error per posture, 64 of 64 postures (kfold) [mm]"]
     assert headline["median"] > 0.3  # the rod is not a constant-curvature arm: more than the noise
+
+
+@pytest.mark.slow
+def test_the_mount_plane_and_direction_are_read_in_the_recordings_frame(tmp_path: Path):
+    """The lab records y up: plane {y: 0} and direction [0, -1, 0] hold the base at z = 0 along -z of optikin's
+    frame (the mount point and straight down), whatever the mount offset the lab really has."""
+    from optikin.runner import solve
+
+    source = Path(__file__).resolve().parent.parent / "problems" / "trunk-lab-calibrate.yaml"
+    data = yaml.safe_load(source.read_text())
+    data["name"] = "lab-mount"
+    data["data"]["samples"] = 64
+    data["data"]["params"] = dict(SMALL)
+    data["options"] = {"base": {"plane": {"y": 0.0}, "direction": [0.0, -1.0, 0.0]}, "holdout": {"folds": 2}}
+    problem = tmp_path / "lab-mount.yaml"
+    problem.write_text(yaml.safe_dump(data))
+    result, _ = solve(str(problem), out=tmp_path / "out", figures=False)
+    m = result.metrics
+    assert m["base position [mm]"][2] == 0.0
+    assert np.allclose(m["base axis (z) in the recording frame"], [0.0, 0.0, -1.0])
+    assert "base_z" not in m["identifiability"]["std [mm or deg]"]
+    assert "base_rx" not in m["identifiability"]["std [mm or deg]"]
+    assert [r.method for r in result.comparison] == ["levenberg-marquardt-schur"]  # a held base: one start
