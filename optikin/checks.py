@@ -437,7 +437,7 @@ def check_rotation_matrix(R: object, name: str = "R", tolerance: float = UNIT_TO
     return values
 
 
-SPANS = {"bounds": 0.0, "near": NEAR_SPANS, "plausible": PLAUSIBLE_SPANS}
+SPANS = {"bounds": 0.0, "near": NEAR_SPANS, "plausible": PLAUSIBLE_SPANS, "finite": np.inf}
 """The intervals of :func:`configuration_limits`: how many ranges they reach past the bounds."""
 
 _LIMITS: weakref.WeakKeyDictionary[Any, dict[tuple[str, float], tuple[np.ndarray, ...]]] = weakref.WeakKeyDictionary()
@@ -453,12 +453,13 @@ def configuration_limits(
     ----------
     arm : ArmModel
         The arm whose bounds apply.
-    within : {"bounds", "near", "plausible"}
+    within : {"bounds", "near", "plausible", "finite"}
         ``"bounds"``: the arm's bounds with a slack of ``tolerance`` times each variable's range;
         ``"near"``: the bounds widened by :data:`NEAR_SPANS` ranges on each side; ``"plausible"``: by
-        :data:`PLAUSIBLE_SPANS` ranges. A fixed variable's range is its magnitude (1 at 0). A length
-        the arm marks ``positive`` (a CC section's ``S``, a CBHA platform's ``Z``) must stay above 0. A periodic
-        variable (a CC section's ``phi``, whose bounds are one turn) is only held to
+        :data:`PLAUSIBLE_SPANS` ranges; ``"finite"``: every finite value. A fixed variable's range is
+        its magnitude (1 at 0). Except for ``"finite"``, a length the arm marks ``positive`` (a CC
+        section's ``S``, a CBHA platform's ``Z``) must stay above 0, and a periodic variable (a CC
+        section's ``phi``, whose bounds are one turn) is only held to
         ``+-`` :data:`MAX_MAGNITUDE`, as every angle of the algebra.
     tolerance : float
         See ``within``.
@@ -475,6 +476,9 @@ def configuration_limits(
     """
     if within not in SPANS:
         raise ValueError(f"within: expected one of {', '.join(SPANS)}, got {within!r}")
+    if within == "finite":
+        largest = np.full(arm.n_config, np.finfo(float).max)
+        return -largest, largest
     cached = _LIMITS.setdefault(arm, {}).get((within, tolerance))
     if cached is not None and cached[0] is arm.lower and cached[1] is arm.upper:
         return cached[2], cached[3]
@@ -510,10 +514,11 @@ def check_configuration(
         One configuration ``(n_config,)``; with ``batch`` also ``(..., n_config)``. SI units.
     name : str
         The argument's name, for the message.
-    within : {"bounds", "near", "plausible"}
+    within : {"bounds", "near", "plausible", "finite"}
         ``"bounds"``: ``lower <= q <= upper`` (to ``tolerance``); ``"near"``: within :data:`NEAR_SPANS`
-        ranges of the bounds (a numeric call of an arm Function); ``"plausible"``: within
-        :data:`PLAUSIBLE_SPANS` ranges (a batch evaluation). See :func:`configuration_limits`.
+        ranges of the bounds (a numeric call of a kinematic arm Function); ``"plausible"``: within
+        :data:`PLAUSIBLE_SPANS` ranges (a batch evaluation); ``"finite"``: any finite value (a
+        constraint Function, evaluated at infeasible points too). See :func:`configuration_limits`.
     batch : bool
         Whether a batch ``(..., n_config)`` is accepted.
     tolerance : float

@@ -87,13 +87,19 @@ class ArmFunction(ca.Function):
         The Function's name on the arm (``fk_dq``), for the message.
     doc : str
         The docstring of this Function (the arm's property that builds it).
+    within : {"near", "finite"}
+        How far from the bounds a numeric ``q`` may lie (:func:`optikin.checks.configuration_limits`):
+        ``"near"`` for the kinematics; ``"finite"`` for a Function that measures feasibility (the CBHA's
+        leg lengths), which solvers evaluate at infeasible configurations too.
     """
 
-    def __init__(self, function: ca.Function, arm: ArmModel, short_name: str, doc: str = "") -> None:
+    def __init__(
+        self, function: ca.Function, arm: ArmModel, short_name: str, doc: str = "", within: str = "near"
+    ) -> None:
         super().__init__(function)
-        self._raw, self._arm = function, arm
+        self._raw, self._arm, self._within = function, arm, within
         self.arm_name, self.short_name = arm.name, short_name
-        self._low, self._high = configuration_limits(arm, "near")
+        self._low, self._high = configuration_limits(arm, within)
         self.__doc__ = inspect.cleandoc(doc) + CALLING if doc else CALLING.lstrip()
 
     @property
@@ -116,7 +122,7 @@ class ArmFunction(ca.Function):
             flat = values.reshape(n)
             if ((flat >= self._low) & (flat <= self._high)).all():
                 return flat
-            return check_configuration(self._arm, flat, within="near")
+            return check_configuration(self._arm, flat, within=self._within)
         evaluate = f"arm.evaluate({self.short_name!r}, Q)"
         if values.ndim == 2 and shape[1] == n:
             raise ValueError(
@@ -292,9 +298,9 @@ class ArmModel(ABC):
     def _section_dq_expr(self) -> list[ca.SX]:
         return [dq_from_rotation_translation(quat, p, check=False) for quat, p in self.section_frames(self._q)]
 
-    def _function(self, name: str, out: ca.SX, out_name: str) -> ca.Function:
+    def _function(self, name: str, out: ca.SX, out_name: str, within: str = "near") -> ca.Function:
         f = ca.Function(f"{self.name}_{name}", [self._q], [out], ["q"], [out_name], {"cse": True})
-        return ArmFunction(f, self, name, getattr(type(self), name).__doc__ or "")
+        return ArmFunction(f, self, name, getattr(type(self), name).__doc__ or "", within)
 
     def checked_numeric(self, q: Array, name: str = "q") -> Array:
         """A numeric ``q`` checked as configurations ``(..., n_config)``, finite and plausible; CasADi unchanged.

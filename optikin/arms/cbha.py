@@ -572,8 +572,11 @@ class CBHAArm(ArmModel):
 
     @cached_property
     def leg_lengths(self) -> ca.Function:
-        """``q -> lengths (3(N-1) x 1)``: every leg [m] (:meth:`leg_length_expressions`)."""
-        return self._function("leg_lengths", self.leg_length_expressions(self._q), "lengths")
+        """``q -> lengths (3(N-1) x 1)``: every leg [m] (:meth:`leg_length_expressions`).
+
+        A numeric ``q`` need only be finite: solvers evaluate this constraint at infeasible configurations.
+        """
+        return self._function("leg_lengths", self.leg_length_expressions(self._q), "lengths", within="finite")
 
     @cached_property
     def vertebra_positions(self) -> ca.Function:
@@ -599,11 +602,14 @@ class CBHAArm(ArmModel):
 
     @cached_property
     def tube_lengths(self) -> ca.Function:
-        """``q -> lengths (sections x 3)``: ``sum_k q_{m,k}`` [m] over each section's platforms, per tube."""
+        """``q -> lengths (sections x 3)``: ``sum_k q_{m,k}`` [m] over each section's platforms, per tube.
+
+        A numeric ``q`` need only be finite, as for :attr:`leg_lengths`.
+        """
         legs = ca.reshape(self.leg_length_expressions(self._q), 3, self.geometry.n_platforms)  # tube x platform
         bounds = (0,) + self.section_end_vertebrae
         rows = [ca.sum2(legs[:, a:b]).T for a, b in zip(bounds[:-1], bounds[1:])]
-        return self._function("tube_lengths", ca.vertcat(*rows), "lengths")
+        return self._function("tube_lengths", ca.vertcat(*rows), "lengths", within="finite")
 
     # ------------------------------------------------------------------ legs and limits
     def leg_limits(self) -> tuple[np.ndarray, np.ndarray]:

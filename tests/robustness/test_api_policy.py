@@ -202,3 +202,14 @@ def test_periodic_angles_and_unchecked_algebra_still_pass():
     q = _with(BENT, 2, BENT[2] + 4 * np.pi)  # phi1 two turns on
     np.testing.assert_allclose(np.asarray(CC.fk_dq(q)), np.asarray(CC.fk_dq(BENT)), atol=1e-12)
     assert np.isnan(quat_normalize(NAN_Q, check=False)).all()
+
+
+def test_the_cbha_leg_lengths_take_any_finite_configuration():
+    # a feasibility measure: solvers report the leg lengths of an infeasible configuration
+    q = CBHA.straight_configuration()
+    q[9] = -0.001  # Z4 below the vertebra under it
+    assert np.isfinite(np.asarray(CBHA.leg_lengths(q))).all()
+    with pytest.raises(ValueError, match=r"cbha\.leg_lengths: q: Z4 = nan is not a finite number"):
+        CBHA.leg_lengths(_with(q, 9, np.nan))
+    with pytest.raises(ValueError, match=r"cbha\.fk_position: q: Z4 = -0\.001 is not positive"):
+        CBHA.fk_position(q)
