@@ -263,3 +263,20 @@ def test_a_step_that_does_not_converge_stops_the_trajectory():
     assert trajectory.failure.step == 1 and trajectory.t.size == 1
     assert "time step 1 (t = 0.01 s)" in str(trajectory.failure)
     assert trajectory.failure.residual > 1e-14
+
+
+@pytest.mark.slow
+def test_linearised_bdf2_step_does_not_amplify():
+    """The soft rod at 7 points, dt = 2 ms: BDF2's step map has spectral radius 1 (the rigid modes), alpha = -0.4's
+    a growing mode (1.69 when written): the reason BDF2 is the default (docs/guide/dynamics.md)."""
+    rod = soft_rod().model_copy(update={"gravity": (0.0, 0.0, 0.0)})
+    radii = {}
+    for alpha in (0.0, -0.4):
+        dyn = RodDynamics(
+            RodArm.single(rod), DynamicsOptions(dt=0.002, alpha=alpha, steps_per_segment=6, compiled=False)
+        )
+        loads = Loads(tip_force=(0.005, 0.0, 0.0))
+        d = dyn.derivatives(dyn.rest(loads), loads, wrt_state=True)
+        radii[alpha] = float(np.abs(np.linalg.eigvals(d.wrt_state)).max())
+    assert radii[0.0] < 1 + 1e-6
+    assert radii[-0.4] > 1.1
