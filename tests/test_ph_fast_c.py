@@ -132,3 +132,21 @@ def test_what_the_c_does_not_cover_runs_the_python_path(setup, monkeypatch):
     assert native_solve(preset.build(), setup.model, samples) is None
     free = setup.adapter.model(setup.model.settings, True)
     assert native_solve(setup.adapter, free, samples) is None
+
+
+def test_without_a_compiler_one_log_line_and_the_python_path(setup, monkeypatch, caplog, tmp_path):
+    import logging
+
+    from optikin.curves.min_energy import ShapeEnergyModel
+
+    monkeypatch.setenv("PATH", str(tmp_path))
+    monkeypatch.setattr(optikin.native, "_reported", set())
+    model = ShapeEnergyModel(setup.model.settings, coarse_grid=setup.model.coarse_grid)  # nothing compiled for it
+    samples = setup.samples[:3]
+    with caplog.at_level(logging.INFO, logger="optikin.native"):
+        for _ in range(2):
+            assert native_solve(setup.adapter, model, samples) is None
+        solutions = solve(setup.adapter, model, samples)
+    lines = [r.getMessage() for r in caplog.records if r.name == "optikin.native"]
+    assert len(lines) == 1 and "gcc" in lines[0] and "reference path" in lines[0]
+    assert [s.status for s in solutions] == ["ok"] * 3

@@ -68,6 +68,18 @@ def report_fallback(what: str, reason: str) -> None:
     logger.info("%s: the Python reference path runs instead of the compiled C: %s", what, reason)
 
 
+def compiler_found(what: str) -> bool:
+    """Whether :data:`COMPILER` is on ``PATH``; when not, :func:`report_fallback` says so for ``what``."""
+    from optikin.codegen import find_compiler
+
+    try:
+        find_compiler(COMPILER)
+    except SolverError as exc:
+        report_fallback(what, str(exc))
+        return False
+    return True
+
+
 def load_library(name: str, source: str) -> ctypes.CDLL | None:
     """The shared library of C ``source`` from the per-user cache (compiled there first if needed), or None
     when no compiler is there or compiling failed (logged once, :func:`report_fallback`).

@@ -39,7 +39,7 @@ import casadi as ca
 import numpy as np
 
 from optikin.interrupt import check_interrupted
-from optikin.native import CHUNK, load_library, native_enabled, pointer, report_fallback
+from optikin.native import CHUNK, compiler_found, load_library, native_enabled, pointer, report_fallback
 from optikin.solvers.base import SolutionBatch
 from optikin.solvers.nonlinear import BOUND_TOLERANCE
 
@@ -310,7 +310,7 @@ def native_ik(adapter, problem) -> NativeIK | None:
     key = ("native_ik", adapter.options, adapter.limits)  # frozen models: hashable, equal by value
     if key in problem.cache:
         return problem.cache[key]
-    loaded = load_library(STEM, source(adapter, problem))
+    loaded = load_library(STEM, source(adapter, problem)) if compiler_found(STEM) else None
     native = None
     if loaded is not None:
         many = loaded.optikin_native_ik_many

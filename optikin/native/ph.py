@@ -31,7 +31,7 @@ import numpy as np
 
 from optikin.curves.min_energy import ShapeSolution
 from optikin.interrupt import check_interrupted
-from optikin.native import CHUNK, load_library, native_enabled, pointer, report_fallback
+from optikin.native import CHUNK, compiler_found, load_library, native_enabled, pointer, report_fallback
 
 STEM = "optikin_native_ph"
 
@@ -107,8 +107,9 @@ def native_ph(adapter, model) -> NativePH | None:
     key = (model.settings, model.coarse_grid)
     if key in cache:
         return cache[key]
-    library = ph_library("native", model, adapter, STEM)
-    loaded = load_library(STEM, library.translation_unit() + _DRIVER)
+    loaded = None
+    if compiler_found(STEM):
+        loaded = load_library(STEM, ph_library("native", model, adapter, STEM).translation_unit() + _DRIVER)
     native = None
     if loaded is not None:
         many = loaded.optikin_native_ph_many
