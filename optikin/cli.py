@@ -160,11 +160,15 @@ def _cmd_solve(args: argparse.Namespace) -> int:
         overrides=overrides,
         chunks=_solve_chunks(args),
     )
-    if args.json:
-        print(json.dumps(result.summary(), indent=2))
-    else:
-        print_result(result, wide=args.wide, verbose=args.verbose)
-        print(f"written to {written}")
+    try:
+        if args.json:
+            print(json.dumps(result.summary(), indent=2))
+        else:
+            print_result(result, wide=args.wide, verbose=args.verbose)
+            print(f"written to {written}")
+    except KeyboardInterrupt:
+        print(f"optikin: interrupted; the result was written to {written}", file=sys.stderr)
+        return EXIT_INTERRUPTED
     return EXIT_OK if result.succeeded else EXIT_FAILED_SAMPLES
 
 

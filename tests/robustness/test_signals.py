@@ -187,3 +187,19 @@ def test_a_program_inside_one_long_casadi_call_ends_within_the_grace(tmp_path, s
     assert "the call returned" not in out
     assert not folder.exists()
     assert waited < STOP_GRACE + 1.0
+
+
+def test_a_signal_after_the_result_is_written_says_so(tmp_path, capsys, monkeypatch):
+    import optikin.report
+    from optikin.cli import main
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(optikin.report, "print_result", interrupted)
+    args = ["solve", "cc-ik-position", "--set", "data.samples=3", "--set", "baselines=[]", "--no-figures"]
+    assert main([*args, "--out", str(tmp_path)]) == 130
+    assert capsys.readouterr().err.splitlines()[-1] == (
+        f"optikin: interrupted; the result was written to {tmp_path / 'cc-ik-position'}"
+    )
+    assert (tmp_path / "cc-ik-position" / "result.json").is_file()
