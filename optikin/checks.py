@@ -547,7 +547,7 @@ def check_configuration(
             f"({', '.join(arm.config_names)}), got shape {values.shape}{hint}"
         )
     low, high = configuration_limits(arm, within, tolerance)
-    if ((values >= low) & (values <= high)).all():  # NaN fails both comparisons
+    if (values >= low).all() and (values <= high).all():  # NaN fails both comparisons
         return values
     rows = values.reshape(-1, n)
 

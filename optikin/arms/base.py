@@ -120,7 +120,7 @@ class ArmFunction(ca.Function):
         shape = values.shape
         if shape in ((n,), (n, 1), (1, n)) or (n == 1 and values.ndim == 0):
             flat = values.reshape(n)
-            if ((flat >= self._low) & (flat <= self._high)).all():
+            if (flat >= self._low).all() and (flat <= self._high).all():
                 return flat
             return check_configuration(self._arm, flat, within=self._within)
         evaluate = f"arm.evaluate({self.short_name!r}, Q)"
