@@ -617,14 +617,18 @@ def check_parameter(
     ParameterError
         Naming the field (and the entry of a vector).
     """
+    wanted = "one number" if scalar else f"{size} numbers" if size is not None else "a number or a list of numbers"
+    if isinstance(value, (list, tuple)):
+        for i, v in enumerate(value):
+            if isinstance(v, (bool, np.bool_)):
+                raise ParameterTypeError(f"{field}.{i}", f"expected a number, got {_describe(v)}")
     try:
         values = check_numbers(value, field)
     except TypeError:
-        raise ParameterTypeError(field, f"expected a number or a list of numbers, got {_describe(value)}") from None
+        raise ParameterTypeError(field, f"expected {wanted}, got {_describe(value)}") from None
     except ValueError:
         raise ParameterError(field, f"expected numbers, got {value!r}") from None
     if values.ndim > 1 or (size is not None and values.shape != (size,)) or (scalar and values.ndim != 0):
-        wanted = "one number" if scalar else f"{size} numbers" if size is not None else "a number or a list of numbers"
         raise ParameterError(field, f"expected {wanted}, got {value!r}")
     flat = np.atleast_1d(values)
     for i, v in enumerate(flat):

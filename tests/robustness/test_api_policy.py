@@ -164,8 +164,10 @@ def test_quat_hemisphere_continuous_refuses_a_zero_row():
 
 # ------------------------------------------------------------------ types
 def test_theta_max_as_a_string_is_a_type_error_naming_it():
-    with pytest.raises(TypeError, match=r"theta_max: expected a number or a list of numbers, got str '1'"):
+    with pytest.raises(TypeError, match=r"theta_max: expected one number, got str '1'"):
         ConstantCurvatureArm(theta_max="1")
+    with pytest.raises(TypeError, match=r"section_lengths\.0: expected a number, got bool True"):
+        ConstantCurvatureArm(section_lengths=[True, 0.18])
 
 
 @pytest.mark.parametrize("bad", ["0.18, 0.6", None, np.full(6, 1 + 2j)], ids=["str", "None", "complex"])

@@ -177,7 +177,7 @@ def test_constant_curvature_parameters_are_named(params, field):
         ({"leg_min": [0.0085] * 15 + [float("nan")]}, "geometry.leg_min.15: not a finite number"),
         ({"leg_max": [0.02] * 3}, r"geometry.leg_max: leg_min and leg_max need one value per platform \(16\)"),
         ({"r_max": 40.0}, r"geometry.r_max: 40 m is beyond the physical bound 1 m \(millimetres given for metres\?\)"),
-        ({"tool_offset": "0.1"}, r"geometry.tool_offset: expected a number or a list of numbers, got str"),
+        ({"tool_offset": "0.1"}, r"geometry.tool_offset: expected one number, got str"),
         ({"n_vertebrae": 10**6}, r"geometry.n_vertebrae: must be an integer in \[2, 1000\]"),
     ],
 )
