@@ -412,3 +412,26 @@ def test_a_pose_demonstration_in_a_y_up_file_is_read_with_frame_up_y(tmp_path):
     original = read_params_file(None, CsvParams(file="z-up.csv"), problem)
     np.testing.assert_allclose(converted.position, original.position, atol=1e-12)
     np.testing.assert_allclose(converted.quaternion, original.quaternion, atol=1e-12)
+
+
+def test_inverse_statics_targets_are_read_in_their_units_and_frame(tmp_path):
+    from optikin.data.actuations import TargetCsvParams, csv_targets
+    from optikin.spec import DataSpec
+
+    header, *rows = (DATA / "targets.csv").read_text().splitlines()
+    names = header.split(",")
+    xyz = [names.index(c) for c in "xyz"]
+    y_up_mm = []
+    for row in rows:
+        cells = row.split(",")
+        x, y, z = (float(cells[k]) * 1e3 for k in xyz)
+        for k, v in zip(xyz, (x, z, -y)):
+            cells[k] = repr(v)
+        y_up_mm.append(",".join(cells))
+    (tmp_path / "y-up-mm.csv").write_text("\n".join([header, *y_up_mm]) + "\n")
+    (tmp_path / "m.csv").write_text((DATA / "targets.csv").read_text())
+    data, problem = DataSpec(source="target_csv"), tmp_path / "p.yaml"
+    converted = csv_targets(ARM, data, TargetCsvParams(file="y-up-mm.csv", units="mm", frame={"up": "y"}), problem)
+    original = csv_targets(ARM, data, TargetCsvParams(file="m.csv"), problem)
+    assert converted.targets is not None and original.targets is not None
+    np.testing.assert_allclose(converted.targets, original.targets, atol=1e-12)

@@ -26,15 +26,18 @@ from __future__ import annotations
 import itertools
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 from pydantic import Field, StrictBool, StrictFloat, StrictInt
 
 from optikin.arms.base import ArmModel
 from optikin.data.configurations import TrajectoryParams, first_rows, read_configuration_csv, smooth_motion
+from optikin.data.csvread import UNIT_METRES
 from optikin.data.files import data_file
+from optikin.data.recording import FrameOptions
 from optikin.data.sources import register_source
-from optikin.data.targets import read_target_csv
+from optikin.data.targets import from_file_frame, read_target_csv
 from optikin.errors import SpecError
 from optikin.options import NoOptions, Options
 from optikin.spec import DataSpec
@@ -90,11 +93,22 @@ class GridParams(Options):
 
 
 class CsvParams(Options):
-    """``data.params`` of sources ``csv`` and ``target_csv``."""
+    """``data.params`` of source ``csv`` (and the base of ``target_csv``'s)."""
 
     file: str = Field(min_length=1, description="CSV file with a header row, relative to the problem file")
     trajectory: StrictBool = Field(
         True, description="solve the rows in order, each warm-started from the previous solution"
+    )
+
+
+class TargetCsvParams(CsvParams):
+    """``data.params`` of source ``target_csv``: a target file, its length unit and its axes."""
+
+    units: Literal["m", "cm", "mm"] = Field("m", description="length unit of the file's positions")
+    frame: FrameOptions = Field(
+        default_factory=FrameOptions,
+        description="axes of the file's frame (frame: {up: y} for a y-up recording), converted to optikin's z-up "
+        "frame as a recording's (optikin.data.recording)",
     )
 
 
@@ -163,12 +177,18 @@ def csv_actuations(arm: ArmModel, data: DataSpec, params: CsvParams, path: Path)
     FAMILY,
     "target_csv",
     "inverse statics: tip targets read from a CSV file (x, y, z [, qw, qx, qy, qz] [, t])",
-    params=CsvParams,
+    params=TargetCsvParams,
 )
-def csv_targets(arm: ArmModel, data: DataSpec, params: CsvParams, path: Path, kind: str = "position") -> Actuations:
+def csv_targets(
+    arm: ArmModel, data: DataSpec, params: TargetCsvParams, path: Path, kind: str = "position"
+) -> Actuations:
     """Tip targets of ``params.file`` (:func:`optikin.data.targets.read_target_csv`), ``kind`` ``position`` or
-    ``pose``."""
-    targets, t = read_target_csv(data_file(path, params.file), kind)
+    ``pose``, in metres and optikin's axes (``params.units``, ``params.frame``)."""
+    targets, t = read_target_csv(data_file(path, params.file), kind, scale=UNIT_METRES[params.units])
+    try:
+        targets = from_file_frame(targets, kind, None, params.frame)
+    except ValueError as exc:
+        raise SpecError(str(path), "data.params.frame", str(exc)) from None
     keep, skipped = first_rows(data, len(targets))
     return Actuations(
         None,
