@@ -225,6 +225,7 @@ def test_pose_and_hybrid_comparators_report_every_posture(tmp_path):
         "cbha-ph-ik",
         samples=6,
         baselines=["newton-raphson-pose", "hybrid", "hybrid-coupled"],
+        options={"coverage": False},
         data_params={"noise": 0.0},
     )
     rows = {row.method: row.metrics for row in result.comparison}

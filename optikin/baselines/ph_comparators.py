@@ -61,6 +61,9 @@ errors are partly by construction.
 
 from __future__ import annotations
 
+import hashlib
+import json
+import os
 import time
 from pathlib import Path
 from typing import NamedTuple
@@ -68,12 +71,14 @@ from typing import NamedTuple
 import numpy as np
 
 from optikin.algebra import dq_from_rotation_translation, quat_conjugate, quat_multiply, quat_rotate
-from optikin.arms.cbha import CBHAArm
+from optikin.arms.cbha import CBHAArm, CBHAGeometry
+from optikin.codegen import cache_dir
 from optikin.data.markers import MarkerRecording
 from optikin.data.targets import reach_bound
 from optikin.errors import InputDataError
 from optikin.ik.formulation import Formulation, build_problem, rest_configuration
 from optikin.baselines.hybrid_tubes import SHIPPED_STORES, hybrid_tube_lengths, load_hybrid_models
+from optikin.baselines.nn_database import DatabaseSpec, build_database
 from optikin.baselines.nn_store import read_metadata
 from optikin.solvers import build_preset
 from optikin.solvers.nonlinear import LeastSquaresProblem, NonlinearAdapter
@@ -215,11 +220,36 @@ def networks_arm(store: Path) -> CBHAArm:
     return CBHAArm(read_metadata(store)["geometry"])
 
 
+def training_tips(store: Path) -> np.ndarray:
+    """``(n, 3)`` tips [m] of the training split the networks of ``store`` learnt from.
+
+    Their database is redrawn from the store's metadata (30-50 s for the shipped ones) once,
+    then read from the per-user cache (:func:`optikin.codegen.cache_dir`), keyed by the
+    store's checksum and database settings.
+    """
+    metadata = read_metadata(store)
+    key = hashlib.sha256(json.dumps([metadata["sha256"], metadata["database"]], sort_keys=True).encode()).hexdigest()
+    cached = cache_dir() / f"training-tips-{key[:32]}.npy"
+    if cached.is_file():
+        return np.load(cached, allow_pickle=False)
+    database = build_database(CBHAGeometry(**metadata["geometry"]), DatabaseSpec(**metadata["database"]))
+    tips = database.tip[database.train]
+    partial = cached.with_suffix(f".{os.getpid()}.tmp.npy")
+    np.save(partial, tips, allow_pickle=False)
+    os.replace(partial, cached)
+    return tips
+
+
+def hybrid_inputs(recording: MarkerRecording) -> np.ndarray:
+    """``(N, 3)`` the hybrid networks' inputs: the tip positions relative to the base."""
+    return relative_section_ends(recording, [])
+
+
 def hybrid_run(store: Path, recording: MarkerRecording) -> ComparatorRun:
     """The hybrid networks of ``store`` from the tip position relative to the base, on their own arm
     (:func:`networks_arm`, module docstring)."""
     arm = networks_arm(store)
-    lengths, seconds = hybrid_tube_lengths(arm, relative_section_ends(recording, []), load_hybrid_models(arm, store))
+    lengths, seconds = hybrid_tube_lengths(arm, hybrid_inputs(recording), load_hybrid_models(arm, store))
     finite = np.all(np.isfinite(lengths), axis=1)
     return ComparatorRun(
         np.where(finite[:, None], lengths, np.nan),

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import Field, PositiveFloat
+from pydantic import Field, PositiveFloat, StrictBool
 
 from optikin.problems.ph_shared import PHOptions
 
@@ -19,4 +19,9 @@ class PHIkOptions(PHOptions):
         None,
         description="[base, tip] offset radius of the tubes [m]; default: the CBHA's r_max, r_min "
         "(required for another arm)",
+    )
+    coverage: StrictBool = Field(
+        False,
+        description="redraw the hybrid networks' training database to report how far the recording's tips lie "
+        "from its training tips (fairness manifest; 30-50 s per store, then cached)",
     )

@@ -15,10 +15,12 @@ from optikin.baselines.ph_comparators import (
     HYBRID_STORES,
     NEWTON_RAPHSON,
     NR_TARGETS,
+    hybrid_inputs,
     networks_arm,
+    training_tips,
 )
 from optikin.problems import ProblemContext
-from optikin.problems.fairness import ArmSize, Given, Manifest, cbha_name, cbha_size, recorded_arm
+from optikin.problems.fairness import ArmSize, Given, Manifest, cbha_name, cbha_size, coverage, recorded_arm
 from optikin.problems.ph_ik.options import PHIkOptions
 from optikin.problems.ph_ik.run import IkOutcome
 from optikin.problems.ph_shared import MM, method_rows, summary_of
@@ -206,6 +208,11 @@ def report(ctx: ProblemContext, outcome: IkOutcome) -> Result:
     errors = np.abs(outcome.tubes[outcome.solver] - outcome.reference) * MM
     rows, comparator_arrays, comparator_notes = comparator_rows(outcome)
     given = manifest(ctx, outcome.reference)
+    if options.coverage:
+        tips = hybrid_inputs(outcome.recording)
+        for name in (n for n in outcome.comparators if n in HYBRID_STORES):
+            label = "tested outside its training range: the recording's tips lie beyond its database's"
+            given = given.with_coverage(name, coverage(training_tips(HYBRID_STORES[name]), tips), label)
     metrics = ik_metrics(outcome) | given.metrics()
     notes = [
         f"{len(outcome.recording)} postures from {outcome.recording.source or spec.data.source}; tubes carried "
