@@ -11,6 +11,7 @@ import numpy as np
 from optikin.algebra import matrix_from_quat
 from optikin.arms.constant_curvature import ConstantCurvatureArm
 from optikin.calibration.calibrate import (
+    SCREENING_ITERATIONS,
     Calibration,
     HeldOut,
     calibrate,
@@ -123,14 +124,16 @@ down and straight up in optikin's z-up frame (each with its position on that axi
 
 
 PRUNE = 2.0
-"""A start whose in-sample error (median largest-marker error, least squares) exceeds this many times the best
-start's is reported without a held-out test: it cannot win (a held-out error is not below the in-sample one
-of the same geometry by that much)."""
+"""Several starts are first run for the screening fit's steps alone (:data:`SCREENING_ITERATIONS`); one whose
+in-sample error (median largest-marker error, least squares) then exceeds this many times the best start's is
+not run on, and one whose converged in-sample error does is reported without a held-out test: it cannot win
+(a held-out error is not below the in-sample one of the same geometry by that much)."""
 
 
 @dataclass(eq=False)
 class Candidate:
-    """One start of the base and where it led (``held_out`` None: pruned, :data:`PRUNE`)."""
+    """One start of the base and where it led (``held_out`` None: pruned, :data:`PRUNE`; a start that reached
+    the geometry of an earlier one, :func:`same_geometry`, shares its held-out test)."""
 
     name: str
     calibration: Calibration
@@ -237,43 +240,52 @@ def solve(ctx: ProblemContext) -> CalibrateOutcome:
     bounds = length_bounds_of(ctx) if options.lengths == "estimate" else None
     h = options.holdout
     fold = folds_of(len(measured), h.method, h.folds, h.test_fraction, ctx.rng(1))
+
+    def run_start(axis: tuple[float, float, float] | None, iterations: int) -> tuple[Calibration, float]:
+        start_position, start_rotation = position, rotation
+        if axis is not None:
+            start_position = initial_base(measured, sections, float(arm.section_lengths[0]), np.array(axis))[0]
+            start_rotation = reference_orientation(np.array(axis))
+        started = time.perf_counter()
+        calibration = calibrate(
+            measured,
+            arm.section_lengths.tolist(),
+            sections,
+            names,
+            base_position=start_position,
+            base_rotation=start_rotation,
+            position_sigma=base.position_sigma,
+            orientation_sigma=None if sigma_deg is None else float(np.radians(sigma_deg)),
+            fix=base.fix,
+            plane=plane,
+            direction=direction,
+            estimate_yaw=base.estimate_yaw,
+            fix_lengths=options.lengths == "fixed",
+            length_bounds=bounds,
+            offsets=options.offsets == "per_marker",
+            offset_sigma=options.offset_sigma,
+            extensible=options.lengths == "extensible",
+            actuators=readings,
+            loss=options.loss,
+            loss_scale=options.loss_scale,
+            marker_noise=options.marker_noise,
+            outlier_threshold=options.outlier_threshold,
+            max_iterations=iterations,
+            tolerance=options.tolerance,
+            max_std=options.identifiability.max_std * 1e-3,
+        )
+        return calibration, time.perf_counter() - started
+
     calibrations: list[tuple[str, Calibration, float]] = []
     task = f"calibrate: {len(measured)} postures x {len(names)} markers, {len(starts)} start(s)"
     with ctx.progress.task(task, total=2 * len(starts)) as advance:
-        for label, axis in starts:
-            start_position, start_rotation = position, rotation
-            if axis is not None:
-                start_position = initial_base(measured, sections, float(arm.section_lengths[0]), np.array(axis))[0]
-                start_rotation = reference_orientation(np.array(axis))
-            started = time.perf_counter()
-            calibration = calibrate(
-                measured,
-                arm.section_lengths.tolist(),
-                sections,
-                names,
-                base_position=start_position,
-                base_rotation=start_rotation,
-                position_sigma=base.position_sigma,
-                orientation_sigma=None if sigma_deg is None else float(np.radians(sigma_deg)),
-                fix=base.fix,
-                plane=plane,
-                direction=direction,
-                estimate_yaw=base.estimate_yaw,
-                fix_lengths=options.lengths == "fixed",
-                length_bounds=bounds,
-                offsets=options.offsets == "per_marker",
-                offset_sigma=options.offset_sigma,
-                extensible=options.lengths == "extensible",
-                actuators=readings,
-                loss=options.loss,
-                loss_scale=options.loss_scale,
-                marker_noise=options.marker_noise,
-                outlier_threshold=options.outlier_threshold,
-                max_iterations=options.max_iterations,
-                tolerance=options.tolerance,
-                max_std=options.identifiability.max_std * 1e-3,
-            )
-            calibrations.append((label, calibration, time.perf_counter() - started))
+        short = [run_start(axis, min(SCREENING_ITERATIONS, options.max_iterations)) for _, axis in starts]
+        best_short = min(in_sample_median(c) for c, _ in short) if len(starts) > 1 else np.inf
+        for (label, axis), (quick, quick_seconds) in zip(starts, short):
+            if in_sample_median(quick) <= PRUNE * best_short:
+                calibrations.append((label, *run_start(axis, options.max_iterations)))
+            else:
+                calibrations.append((label, quick, quick_seconds))
             advance()
         best_in_sample = min(in_sample_median(c) for _, c, _ in calibrations)
         candidates: list[Candidate] = []
@@ -359,9 +371,15 @@ def in_sample_median(calibration: Calibration) -> float:
 
 
 def same_geometry(a: Calibration, b: Calibration) -> bool:
-    """Two starts that reached the same shared parameters (to 1e-7 m or rad) and kept the same postures."""
-    return bool(
-        np.array_equal(a.kept, b.kept)
-        and a.fit.beta.shape == b.fit.beta.shape
-        and np.max(np.abs(a.fit.beta - b.fit.beta), initial=0.0) <= 1e-7
-    )
+    """Two starts that reached the same geometry (section lengths, base position, base axis, offsets: to 1e-6 m
+    or rad; the rotation about the base axis, held at each start's reference, is not compared) and kept the
+    same postures."""
+    if not np.array_equal(a.kept, b.kept) or a.layout != b.layout:
+        return False
+    pairs = [
+        (a.lengths, b.lengths),
+        (a.base_position, b.base_position),
+        (a.base_rotation[:, 2], b.base_rotation[:, 2]),
+        (a.offsets, b.offsets),
+    ]
+    return all(np.max(np.abs(x - y), initial=0.0) <= 1e-6 for x, y in pairs)
