@@ -140,17 +140,28 @@ def point_set(points: Mapping[str, Mapping[str, Any]] | PointSet) -> PointSet:
     (sections from 1, as in problem files), or the set itself."""
     if isinstance(points, PointSet):
         return points
+    if not isinstance(points, Mapping):
+        raise TypeError(
+            f"points: expected a mapping {{name: {{section, at, offset, measure, weight}}}}, got {points!r}"
+        )
     made = []
     for name, p in points.items():
+        if not isinstance(p, Mapping) or "section" not in p:
+            raise ValueError(f"points.{name}: expected a mapping with a section (from 1), got {p!r}")
         measure = tuple(p.get("measure", ("position",)))
+        offset = check_finite(
+            check_numbers(p.get("offset", (0.0, 0.0, 0.0)), f"points.{name}.offset"), f"points.{name}.offset"
+        )
+        if offset.shape != (3,):
+            raise ValueError(f"points.{name}.offset: expected 3 numbers [m], got {offset.tolist()}")
         made.append(
             MeasuredPoint(
                 name=name,
-                section=int(p["section"]) - 1,
-                fraction=float(p.get("at", 1.0)),
-                offset=tuple(float(v) for v in p.get("offset", (0.0, 0.0, 0.0))),  # type: ignore[arg-type]
+                section=_count(p["section"], f"points.{name}.section", 1) - 1,
+                fraction=_number(p.get("at", 1.0), f"points.{name}.at", positive=True),
+                offset=(float(offset[0]), float(offset[1]), float(offset[2])),
                 components=tuple(c for c in COMPONENTS if c in measure),
-                weight=float(p.get("weight", 1.0)),
+                weight=_number(p.get("weight", 1.0), f"points.{name}.weight", positive=True),
             )
         )
     return PointSet(tuple(made))

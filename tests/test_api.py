@@ -218,3 +218,17 @@ def test_help_of_an_arm_function_is_optikin_s_docstring():
 def test_entry_points_name_the_bad_argument(call, error, match):
     with pytest.raises(error, match=match):
         call(ConstantCurvatureArm())
+
+
+@pytest.mark.parametrize(
+    "points, error, match",
+    [
+        ({"d1": {"section": "1"}}, TypeError, r"points\.d1\.section: expected an integer"),
+        ({"d1": {"section": 1, "offset": [0.0, np.nan, 0.0]}}, ValueError, r"points\.d1\.offset\[1\]: nan"),
+        ({"d1": {"section": 1, "at": 0.0}}, ValueError, r"points\.d1\.at: must be positive"),
+        ({"d1": {"at": 0.5}}, ValueError, r"points\.d1: expected a mapping with a section"),
+    ],
+)
+def test_point_set_names_the_bad_field(points, error, match):
+    with pytest.raises(error, match=match):
+        optikin.api.point_set(points)
