@@ -291,8 +291,9 @@ def remedies(report: Identifiability) -> list[str]:
     if any(n.startswith("base_") for n in weak):
         out.append(
             "hold the base: set options.base.plane and options.base.direction (the mount plane and the "
-            "direction the backbone leaves it, in the recording's frame), or options.base.body (a tracked "
-            "base rigid body), or a fixed pose (options.base.position, orientation and fix: [x, y, z, tilt])"
+            "direction the backbone leaves it, in the recording's frame), or options.base.body with fix: "
+            "[x, y, z, tilt] (a tracked base rigid body), or a fixed pose (options.base.position, orientation "
+            "and fix: [x, y, z, tilt])"
         )
     if any(n.startswith("L") and n[1:].isdigit() for n in weak):
         out.append(
