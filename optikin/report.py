@@ -171,10 +171,13 @@ def short_names(methods: Sequence[str], length: int = SHORT_NAME_LENGTH) -> dict
     A name that fits is kept; a longer one becomes the part before its parenthesis
     (``qp (daqp-active-set)`` -> ``qp``) when that fits and is free, else its initials, the
     parenthesis's initials joined with a dash (``mrac (seed gains)`` -> ``mrac-sg`` beside ``mrac``,
-    ``damped least squares`` -> ``dls``), numbered when still taken.
+    ``damped least squares`` -> ``dls``, ``pseudo-inverse (saturated)`` -> ``pi-s`` beside
+    ``pseudo-inverse``), numbered when still taken.
 
     >>> short_names(["mrac", "mrac (seed gains)", "damped least squares"])
     {'mrac': 'mrac', 'mrac (seed gains)': 'mrac-sg', 'damped least squares': 'dls'}
+    >>> short_names(["pseudo-inverse", "pseudo-inverse (saturated)"])["pseudo-inverse (saturated)"]
+    'pi-s'
     """
     taken = {m for m in methods if len(m) <= length}
     names: dict[str, str] = {}
@@ -188,7 +191,9 @@ def short_names(methods: Sequence[str], length: int = SHORT_NAME_LENGTH) -> dict
         base, inside = base.strip(), rest.rstrip(")").strip()
         candidates = [base] if len(base) <= length else []
         stem = base if len(base) <= length else _initials(base)
-        candidates += [f"{stem}-{_initials(inside)}" if inside else stem, _initials(method)]
+        if inside:
+            candidates += [f"{stem}-{_initials(inside)}", f"{_initials(base)}-{_initials(inside)}"]
+        candidates += [stem, _initials(method)]
         short = next((c for c in candidates if c and len(c) <= length and c not in taken), None)
         if short is None:
             root = candidates[-1][: length - 2]
@@ -199,7 +204,7 @@ def short_names(methods: Sequence[str], length: int = SHORT_NAME_LENGTH) -> dict
 
 
 def _initials(text: str) -> str:
-    return "".join(word[0] for word in re.split(r"[\s\-_/]+", text) if word).lower()
+    return "".join(word[0] for word in re.findall(r"[A-Za-z0-9]+", text)).lower()
 
 
 def headline_of(kind: str) -> tuple[str, ...]:

@@ -119,6 +119,12 @@ def test_short_names_are_unique_and_short():
     assert len(set(names.values())) == len(methods)
     assert all(len(n) <= 14 for n in names.values())
     assert names["mrac"] == "mrac" and names["pseudo-inverse"] == "pseudo-inverse"
+    saturated = short_names(["pseudo-inverse", "pseudo-inverse (saturated)", "damped least squares (saturated)"])
+    assert saturated == {
+        "pseudo-inverse": "pseudo-inverse",
+        "pseudo-inverse (saturated)": "pi-s",
+        "damped least squares (saturated)": "dls-s",
+    }
 
 
 def test_metrics_are_cut_at_twelve_lines_unless_verbose():

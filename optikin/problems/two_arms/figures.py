@@ -17,7 +17,11 @@ import numpy as np
 from optikin.results import Drawer
 
 MM = 1e3
-NAMES = {"no_collision_rows": "joint QP without collision rows", "pseudo_inverse": "pseudo-inverse"}
+NAMES = {
+    "no_collision_rows": "joint QP without collision rows",
+    "pseudo_inverse": "pseudo-inverse",
+    "pseudo_inverse_saturated": "pseudo-inverse (saturated)",
+}
 """Labels of the baselines' curves (the joint QP's comes from its comparison row)."""
 
 
