@@ -21,8 +21,9 @@ controllers and baselines call (one model, many uses):
 configurations outside the bounds, naming the sample and the variable.
 
 Checked inputs (``docs/conventions.md``): a numeric call of a Function (``arm.fk_dq(q)``)
-refuses ``q`` that is not numbers (:class:`TypeError`), not one configuration, not finite
-or outside the arm's bounds (:class:`ValueError`), naming ``q`` and the variable;
+refuses ``q`` that is not numbers (:class:`TypeError`), not one configuration, not finite,
+more than a range (:data:`optikin.checks.NEAR_SPANS`) outside the arm's bounds or with a
+length not positive (:class:`ValueError`), naming ``q`` and the variable;
 :meth:`ArmModel.evaluate` and the numeric paths of :meth:`ArmModel.section_frames` refuse
 non-finite and implausible configurations (:data:`optikin.checks.PLAUSIBLE_SPANS`). Symbolic
 calls, ``map``, buffers, code generation and :attr:`ArmFunction.unchecked` are the raw
@@ -54,10 +55,11 @@ CALLING = """
 ``f(q)``, with one configuration ``q`` (numpy ``(n_config,)``, a list, or a CasADi column
 ``n_config x 1``), returns a ``casadi.DM`` (``numpy.asarray(f(q))`` or ``f(q).full()`` convert it); a
 symbolic ``q`` (``SX``/``MX``) gives the expression. A numeric ``q`` is checked: numbers
-(else :class:`TypeError`), one configuration, finite and inside the arm's bounds, periodic angles
-excepted (else :class:`ValueError` naming the variable). It is a :class:`casadi.Function`: ``map``,
-code generation, buffers and ``f.unchecked`` (the raw Function) work as usual and are not checked,
-for speed. For a batch ``Q (N, n_config)`` use ``arm.evaluate(name, Q)``, one call for all rows.
+(else :class:`TypeError`), one configuration, finite, within one range of the arm's bounds with
+lengths positive, periodic angles excepted (else :class:`ValueError` naming the variable). It
+is a :class:`casadi.Function`: ``map``, code generation, buffers and ``f.unchecked`` (the raw
+Function) work as usual and are not checked, for speed. For a batch ``Q (N, n_config)`` use
+``arm.evaluate(name, Q)``, one call for all rows.
 """
 """How to call an arm Function; ends the docstring of every :class:`ArmFunction`."""
 
@@ -67,11 +69,12 @@ class ArmFunction(ca.Function):
 
     It is a :class:`casadi.Function` (symbolic calls, ``map``, code generation and buffers work
     as usual and are not checked). A numeric call ``f(q)`` (numpy, list, tuple, number or
-    ``casadi.DM``) checks ``q`` first (:func:`optikin.checks.check_configuration` against the
-    arm's bounds): a string, ``None`` or a complex value is a :class:`TypeError` naming ``q``
-    (instead of CasADi's "Wrong number or type of arguments"); a batch ``(N, n_config)`` or
-    ``(n_config, N)``, a wrong length, a non-finite value or a value outside the bounds is a
-    :class:`ValueError` naming ``q`` and the variable (batches go through :meth:`ArmModel.evaluate`).
+    ``casadi.DM``) checks ``q`` first (:func:`optikin.checks.check_configuration` with ``within``):
+    a string, ``None`` or a complex value is a :class:`TypeError` naming ``q`` (instead of
+    CasADi's "Wrong number or type of arguments"); a batch ``(N, n_config)`` or ``(n_config, N)``,
+    a wrong length, a non-finite value, a value more than a range outside the bounds or a length
+    that is not positive is a :class:`ValueError` naming ``q`` and the variable (batches go through
+    :meth:`ArmModel.evaluate`).
     :attr:`unchecked` is the raw Function, for inner loops.
 
     ``help(arm.fk_dq)`` shows ``doc`` (what the Function computes: shapes, units, frame), not the
@@ -143,8 +146,10 @@ class ArmFunction(ca.Function):
                 args = (self._checked(args[0]),)
             elif not args and set(kwargs) == {"q"}:
                 kwargs = {"q": self._checked(kwargs["q"])}
-        except (TypeError, ValueError) as exc:
-            raise type(exc)(f"{self.arm_name}.{self.short_name}: {exc}") from None
+        except TypeError as exc:
+            raise TypeError(f"{self.arm_name}.{self.short_name}: {exc}") from None
+        except ValueError as exc:
+            raise ValueError(f"{self.arm_name}.{self.short_name}: {exc}") from None
         return super().__call__(*args, **kwargs)
 
 
