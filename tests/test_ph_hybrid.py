@@ -8,6 +8,8 @@ exact forward kinematics for the predicted configurations; the database settings
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import shutil
 
 import numpy as np
@@ -108,3 +110,16 @@ def test_bad_positions_are_refused(arm, models, tips, ends, source, field):
     with pytest.raises(InputDataError) as err:
         hybrid_tube_lengths(arm, tips, models, ends)
     assert err.value.field == field and err.value.source == source
+
+
+def test_implausible_predictions_still_give_the_networks_own_lengths(arm, models, tips):
+    """NN2 (every Z_k) shifted by -20 mm predicts negative lengths: a checked arm Function refuses them, the
+    hybrid row reports the networks' own tube lengths (scored, not refused)."""
+    shifted = [replace(m, y_offset=m.y_offset - 0.02) if m.task.key == "ikm_nn2" else m for m in models]
+    Q = hybrid_inverse_configurations(shifted, tips)
+    assert np.min(Q[:, 0::3]) < 0
+    with pytest.raises(ValueError, match="not positive"):
+        arm.evaluate("leg_lengths", Q)
+    lengths, _ = hybrid_tube_lengths(arm, tips, shifted)
+    assert np.all(np.isfinite(lengths))
+    np.testing.assert_allclose(lengths, arm.evaluate("leg_lengths", Q, check=False).reshape(-1, 16, 3).sum(axis=1))

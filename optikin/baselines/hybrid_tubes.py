@@ -124,7 +124,8 @@ def hybrid_tube_lengths(
     def tubes(i: int) -> np.ndarray:
         end = None if ends is None else ends[i : i + 1]
         Q = hybrid_inverse_configurations(models, tips[i : i + 1], end)
-        return arm.evaluate("leg_lengths", Q).reshape(n_platforms, 3).sum(axis=0)
+        # the networks' own configurations, however far they extrapolate: not checked for plausibility
+        return arm.evaluate("leg_lengths", Q, check=False).reshape(n_platforms, 3).sum(axis=0)
 
     if len(tips):
         tubes(0)  # the first call builds CasADi's buffers: not part of a sample's time

@@ -141,10 +141,10 @@ def run_network(
     arm = prep.arm
 
     def hybrid(L: np.ndarray) -> np.ndarray:
-        return arm.evaluate("fk_position", hybrid_forward_configurations(models, L))
+        return arm.evaluate("fk_position", hybrid_forward_configurations(models, L), check=False)
 
     Q = hybrid_forward_configurations(models, given.legs)
-    tip = arm.evaluate("fk_position", Q)
+    tip = arm.evaluate("fk_position", Q, check=False)  # the networks' configurations, however far they extrapolate
     batch, one = time_network(hybrid, given.legs, prep.options.latency_repeats)
     label = f"{setting.name}{given.suffix}"
     return NetworkRun(
