@@ -182,3 +182,18 @@ def test_cbha_platforms_through_the_c_match(monkeypatch):
     assert ours.batched and ours.status == ["ok"] * 30
     monkeypatch.setenv(optikin.native.ENVIRONMENT, "0")
     assert_same(ours, solve_platforms(adapter, problems, legs, rest))
+
+
+def test_threads_share_the_library(trajectory):
+    """Each C call owns its work arrays: batches in two threads at once give the answers of one."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    P = trajectory.targets[:200]
+    alone = native_solve_many(trajectory.adapter, trajectory.problem, trajectory.start, P, True)
+    def run(_):
+        return native_solve_many(trajectory.adapter, trajectory.problem, trajectory.start, P, True)
+
+    with ThreadPoolExecutor(2) as pool:
+        runs = list(pool.map(run, [0, 1]))
+    for batch in runs:
+        assert_same(batch, alone)
