@@ -125,3 +125,22 @@ def test_the_kind_ends_not_identifiable_with_rc_1_semantics(tmp_path: Path):
     assert "ok" not in result.status
     assert any(n.startswith("not identifiable") and "L1" in n for n in result.notes)
     assert any("options.base.plane" in n for n in result.notes)
+
+
+def test_the_identifiability_figure_marks_the_weak_combinations(tmp_path: Path):
+    from optikin.problems.calibrate.figures import figures
+
+    summary = {
+        "problem": "p",
+        "metrics": {
+            "identifiability": {
+                "verdict": "not_identifiable",
+                "noise level per coordinate [mm]": 0.3,
+                "std threshold [mm or deg]": 1.0,
+            }
+        },
+    }
+    drawers = figures({"singular_values": np.array([20.0, 5.0, 0.2])}, summary)
+    drawers["identifiability"](tmp_path / "identifiability.png")
+    assert (tmp_path / "identifiability.png").stat().st_size > 1000
+    assert "identifiability" not in figures({"singular_values": np.zeros(0)}, summary)

@@ -5,7 +5,11 @@
     postures marked;
 ``markers``
     in 3-D [mm], the measured markers over the calibrated arm's backbone for a few postures,
-    coloured by posture.
+    coloured by posture;
+``identifiability``
+    the singular values of the whitened geometry Jacobian at the solution (largest first) against the
+    level below which a combination is weakly determined (noise level / largest standard deviation,
+    :mod:`optikin.calibration.identifiability`), with the verdict.
 """
 
 from __future__ import annotations
@@ -49,7 +53,34 @@ def figures(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -> dic
             outlier=arrays["outlier"],
             title=f"{name}: measured markers and the calibrated arm",
         )
+    identifiability = summary.get("metrics", {}).get("identifiability", {})
+    if "singular_values" in arrays and len(arrays["singular_values"]) and identifiability:
+        level = identifiability["noise level per coordinate [mm]"] / identifiability["std threshold [mm or deg]"]
+        drawers["identifiability"] = partial(
+            draw_singular_values,
+            singular=arrays["singular_values"],
+            level=level,
+            title=f"{name}: {identifiability['verdict']}",
+        )
     return drawers
+
+
+def draw_singular_values(path: Path, singular: np.ndarray, level: float, title: str) -> None:
+    """The singular values ``(n,)`` (largest first) on a log scale against the weak-determination ``level``."""
+    fig, axes = plots.subplots(1, 1, figsize=(7.0, 3.4))
+    ax = axes[0, 0]
+    k = np.arange(1, len(singular) + 1)
+    weak = singular < level
+    ax.semilogy(k[~weak], np.maximum(singular[~weak], FLOOR), "o", color="tab:blue", label="determined")
+    ax.semilogy(k[weak], np.maximum(singular[weak], FLOOR), "x", color="tab:red", ms=8, label="weakly determined")
+    ax.axhline(level, color="0.4", ls="--", lw=1.0, label="noise / largest std")
+    ax.set_xlabel("combination of the geometry (largest singular value first)")
+    ax.set_ylabel("singular value\n[mm of markers per mm or deg]", fontsize=8)
+    ax.set_xticks(k)
+    ax.grid(alpha=0.3)
+    plots.legend_outside(fig)
+    ax.set_title(title)
+    plots.save(fig, path)
 
 
 def draw_residuals(
