@@ -382,3 +382,15 @@ def test_a_motive_rotation_cell_of_1e300_is_refused_without_a_warning(tmp_path, 
         warnings.simplefilter("error")
         err = solve_refused(capsys, motive_problem(tmp_path, "\n".join(lines) + "\n"), tmp_path)
     assert "sample 1: disk1 Rotation: norm inf: not a unit quaternion" in err
+
+
+def test_a_motive_file_declaring_millimetres_for_metres_says_so(tmp_path, capsys):
+    lines = (RECORDINGS / "trunk_motive_faults.csv").read_text().splitlines()
+    kinds = lines[6].split(",")
+    for i in range(8, len(lines)):
+        cells = lines[i].split(",")
+        lines[i] = ",".join(
+            repr(float(c) / 1e3) if k >= 2 and kinds[k] == "Position" and c else c for k, c in enumerate(cells)
+        )
+    err = solve_refused(capsys, motive_problem(tmp_path, "\n".join(lines) + "\n"), tmp_path)
+    assert "values look like metres, though the file declares 'Millimeters'" in err

@@ -141,7 +141,39 @@ def finish(raw: Recording, frame: FrameOptions, units: Units, numbered: bool, de
             return i, field, f" (frame {i})"
 
         check_coordinates(positions, recording.source, units, where, "data.params.units", declared)
+    check_not_metres(tracks, recording.source, units, declared)
     return inspect_frames(recording, numbered)
+
+
+MIN_LARGEST_COORDINATE = 0.01
+"""Smallest largest-magnitude position [m] of a recording read in millimetres or centimetres: a continuum arm's
+markers lie centimetres from the origin at least, so a recording all within 1 cm of it holds metres."""
+
+
+def check_not_metres(tracks: list[tuple[str, np.ndarray]], source: str, units: Units, declared: str | None) -> None:
+    """Refuse a recording read in ``mm`` or ``cm`` whose every position lies within
+    :data:`MIN_LARGEST_COORDINATE` of the origin: its values look like metres.
+
+    Raises
+    ------
+    InputDataError
+        Naming the file and the unit (the file's declaration, ``declared``, or ``data.params.units``).
+    """
+    values = [np.abs(p[np.isfinite(p)]) for _, p in tracks]
+    found = [v for v in values if v.size]
+    if units == "m" or not found:
+        return
+    largest = max(float(v.max()) for v in found)
+    if largest >= MIN_LARGEST_COORDINATE:
+        return
+    hint = (
+        f"though the file declares {declared.strip()[:20]!r}" if declared else f"set data.params.units: m, not {units}"
+    )
+    raise InputDataError(
+        f"every position lies within {largest:.3g} m of the origin, read in {units}: values look like metres, {hint}",
+        source=source,
+        field="units",
+    )
 
 
 def select(recording: Recording, params: RecordingParams) -> Recording:
