@@ -2,7 +2,7 @@
 
 ``tip``        the tip position against time [mm] (array ``tip_position``, ``t``).
 ``energy``     kinetic, elastic, gravitational and total energy against time [J] (``energy``).
-``backbones``  up to 12 backbones in 3-D at the kept frames (``backbone``, ``frame_t``).
+``backbones``  up to 12 backbones in 3-D, coloured by time (``backbone``, ``t``).
 ``actuation``  the applied actuation and, where the chamber pressures lag it, the command (``actuation``,
                ``command``).
 ``step_time``  wall time per step [us] (``step_time``).
@@ -31,7 +31,7 @@ def figures(arrays: Mapping[str, np.ndarray], summary: Mapping[str, Any]) -> dic
         drawers["energy"] = partial(draw_energy, t=arrays["t"], energy=arrays["energy"], title=f"{name}: energy")
     if "backbone" in arrays:
         drawers["backbones"] = partial(
-            draw_backbones, backbone=arrays["backbone"], t=arrays.get("frame_t"), title=f"{name}: backbones"
+            draw_backbones, backbone=arrays["backbone"], t=arrays.get("t"), title=f"{name}: backbones"
         )
     if "actuation" in arrays and arrays["actuation"].ndim == 2 and arrays["actuation"].shape[1]:
         drawers["actuation"] = partial(

@@ -38,7 +38,6 @@ class DynamicsKindOptions(Options):
         None,
         description="first-order lag of the chamber pressures [s], one for all or one per chamber; None: none",
     )
-    frame_every: StrictInt = Field(10, ge=1, description="keep the backbone of every n-th step (array backbone)")
 
     @field_validator("pressure_time_constant")
     @classmethod

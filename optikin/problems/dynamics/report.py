@@ -8,8 +8,8 @@ residual: the arrays then hold the partial trajectory up to the last converged s
 Arrays: ``t (n,)`` [s], ``tip_position (n, 3)``, ``tip_orientation (n, 4)``, ``energy (n, 3)``
 (kinetic, elastic, gravitational [J]), ``actuation (n, n_act)`` (applied), ``command (n, n_act)``
 (commanded: the chamber pressures lag it with ``options.pressure_time_constant``), ``tip_force (n, 3)``,
-``residual (n,)``, ``iterations (n,)``, ``step_time (n - 1,)`` [s], ``backbone (F, K, 3)`` at
-``frame_t (F,)``, ``s (K,)``, ``static_backbone (K, 3)`` (the static equilibrium under the last
+``residual (n,)``, ``iterations (n,)``, ``step_time (n - 1,)`` [s], ``backbone (n, K, 3)`` (every
+step, so ``optikin view`` animates it), ``s (K,)``, ``static_backbone (K, 3)`` (the static equilibrium under the last
 loads, when the run completed).
 """
 
@@ -67,8 +67,7 @@ def result_of(ctx: ProblemContext, outcome: DynamicsOutcome) -> Result:
         "residual": residual,
         "iterations": iterations,
         "step_time": outcome.step_seconds,
-        "backbone": np.array([states[i].positions for i in outcome.frames]),
-        "frame_t": t[outcome.frames],
+        "backbone": np.array([s.positions for s in states]),
         "s": outcome.s,
     }
     if outcome.static_positions is not None:

@@ -10,7 +10,7 @@ there: the trajectory is partial and says so, never a silent jump). Its outcome,
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -42,9 +42,7 @@ class DynamicsOutcome:
         ``(T + 1, n_act)`` the commanded and the applied actuation (the chamber pressures lagging their
         commands with ``options.pressure_time_constant``), ``(T + 1, 3)`` the tip force, at those times.
     states : list of DynamicState
-        The start and every converged step.
-    frames : list of int
-        Indices into ``states`` whose backbones are kept.
+        The start and every converged step, without their stage arrays (``history``, ``rates``: empty).
     step_seconds : numpy.ndarray
         Wall time of every converged step [s].
     build_seconds : float
@@ -64,7 +62,6 @@ class DynamicsOutcome:
     actuation: np.ndarray
     tip_force: np.ndarray
     states: list[DynamicState]
-    frames: list[int]
     step_seconds: np.ndarray
     build_seconds: float
     failure: StepError | None
@@ -170,7 +167,8 @@ def solve(ctx: ProblemContext) -> DynamicsOutcome:
     dyn = stepper(ctx, arm, options)
     build = time.perf_counter() - start
     state = dyn.rest(loads[0])
-    states, frames, seconds, failure = [state], [0], [], None
+    light = np.empty((0, 0))
+    states, seconds, failure = [replace(state, history=light, rates=light)], [], None
     chunk = max(1, steps // 100)
     with ctx.progress.task(f"dynamics: {steps} time steps", total=steps) as advance:
         for i in range(1, steps + 1):
@@ -181,15 +179,13 @@ def solve(ctx: ProblemContext) -> DynamicsOutcome:
                 failure = exc
                 break
             seconds.append(time.perf_counter() - begin)
-            states.append(state)
-            if i % options.frame_every == 0 or i == steps:
-                frames.append(i)
+            states.append(replace(state, history=light, rates=light))
             if i % chunk == 0:
                 advance(chunk)
     static = None
     if failure is None:
         solution = ShootingSolver(arm.rod_arm, ShootingOptions(steps_per_segment=arm.steps_per_segment)).solve(
-            loads[-1], states[-1].wrench
+            loads[-1], state.wrench
         )
         static = solution.positions if solution.ok else None
     return DynamicsOutcome(
@@ -198,7 +194,6 @@ def solve(ctx: ProblemContext) -> DynamicsOutcome:
         actuation=actuation,
         tip_force=tip,
         states=states,
-        frames=frames,
         step_seconds=np.array(seconds),
         build_seconds=build,
         failure=failure,
