@@ -26,8 +26,10 @@ import functools
 import hashlib
 import json
 import os
+import re
 import shutil
 import signal
+import socket
 import stat
 import subprocess
 import tempfile
@@ -291,9 +293,11 @@ def _build(
 
     The compiler runs in a process group of its own; when the build is interrupted (Ctrl-C, SIGTERM, any
     exception) the whole group (the driver, ``cc1``, ``as``, ``ld``) is killed and waited for before the
-    temporary folder is removed, so nothing keeps running and nothing half-built reaches the cache.
+    temporary folder ``.NAME-build-HOST-PID-RANDOM`` is removed, so nothing keeps running and nothing
+    half-built reaches the cache. The folders that killed builds left behind are removed first.
     """
-    with tempfile.TemporaryDirectory(dir=library.parent, prefix=f".{name}-") as work:
+    _remove_dead_builds(library.parent)
+    with tempfile.TemporaryDirectory(dir=library.parent, prefix=f".{name}-build-{_host()}-{os.getpid()}-") as work:
         c_file = Path(work) / f"{name}.c"
         c_file.write_text(source)
         partial = Path(work) / library.name
@@ -317,6 +321,34 @@ def _build(
         os.chmod(partial_record, 0o600)
         os.replace(partial, library)
         os.replace(partial_record, sidecar)
+
+
+_BUILD = re.compile(r"\.[A-Za-z_][A-Za-z0-9_]*-build-(?P<host>[A-Za-z0-9.]+)-(?P<pid>\d+)-[A-Za-z0-9_]+")
+"""A build folder in the cache: ``.NAME-build-HOST-PID-RANDOM``."""
+
+
+def _host() -> str:
+    """This machine's name as build folders carry it (a cache on a shared home may serve several)."""
+    return re.sub(r"[^A-Za-z0-9.]", "_", socket.gethostname()) or "host"
+
+
+def _remove_dead_builds(cache: Path) -> None:
+    """Remove the build folders in ``cache`` of this host's processes that are gone (killed mid-build, even by
+    SIGKILL, which no clean-up survives); they are never loaded, but would pile up."""
+    try:
+        entries = list(cache.iterdir())
+    except OSError:
+        return
+    for entry in entries:
+        match = _BUILD.fullmatch(entry.name)
+        if match is None or match["host"] != _host() or not entry.is_dir() or entry.is_symlink():
+            continue
+        try:
+            os.kill(int(match["pid"]), 0)
+        except ProcessLookupError:
+            shutil.rmtree(entry, ignore_errors=True)
+        except PermissionError:
+            continue
 
 
 def _kill_group(process: subprocess.Popen) -> None:

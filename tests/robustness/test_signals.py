@@ -203,3 +203,26 @@ def test_a_signal_after_the_result_is_written_says_so(tmp_path, capsys, monkeypa
         f"optikin: interrupted; the result was written to {tmp_path / 'cc-ik-position'}"
     )
     assert (tmp_path / "cc-ik-position" / "result.json").is_file()
+
+
+def test_a_build_killed_midway_leaves_nothing_the_next_build_keeps(tmp_path, monkeypatch):
+    import casadi as ca
+
+    from optikin import codegen
+
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    cache = codegen.cache_dir()
+    gone = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
+    dead = cache / f".sec_f-build-{codegen._host()}-{int(gone.stdout)}-abc123"
+    live = cache / f".sec_f-build-{codegen._host()}-{os.getpid()}-abc123"
+    other = cache / f".sec_f-build-elsewhere-{int(gone.stdout)}-abc123"
+    for folder in (dead, live, other):
+        folder.mkdir()
+        (folder / "sec_f.c").write_text("half")
+    x = ca.SX.sym("x", 2)
+    compiled = codegen.CompiledFunction(ca.Function("sec_f", [x], [x * 2]))
+    assert compiled.library.is_file()
+    assert not dead.exists() and live.is_dir() and other.is_dir()
+    assert sorted(p.name for p in cache.iterdir() if not p.name.startswith(".")) == sorted(
+        [compiled.library.name, compiled.library.with_suffix(".json").name]
+    )
