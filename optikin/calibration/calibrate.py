@@ -496,9 +496,7 @@ def calibrate(
     X_all[screened.kept] = screened.fit.X
     least_squares = least_squares_fit(problem, screened.fit.beta, X_all, screened.kept)
     sigma = screened.fit.sigma if np.isfinite(screened.fit.sigma) else 0.0
-    report = analyse(
-        screened.problem, screened.fit.X, screened.fit.beta, names, max(sigma, marker_noise), max_std
-    )
+    report = analyse(screened.problem, screened.fit.X, screened.fit.beta, names, max(sigma, marker_noise), max_std)
     return Calibration(
         screened.fit,
         screened.robust,
@@ -523,7 +521,9 @@ def calibrate(
 
 def least_squares_fit(problem: Problem, beta: np.ndarray, X0: np.ndarray, kept: np.ndarray) -> Fit:
     """Every posture fitted by least squares with ``beta`` held (step 6), the kept and the rejected postures in
-    two batches (a rejected posture, far from the model, converges slowly: it does not hold the others back).
+    two batches (a rejected posture, far from the model, converges slowly: it does not hold the others back;
+    each posture's solve is its own, with its own damping and stop, so the batches change the time and not the
+    answers, but where a batch ends at the iteration limit).
 
     Returns
     -------
@@ -842,7 +842,10 @@ def held_out(
         betas.append(trained.fit.beta)
         limits.append(trained.limit)
         rejected.append([int(train[o.posture]) for o in trained.outliers])
-        errors[test] = fit_postures(problem.subset(test), trained.fit.beta, X_all[test], loss="linear").errors
+        kept = np.isin(test, calibration.kept)
+        errors[test] = least_squares_fit(
+            problem.subset(test), trained.fit.beta, X_all[test], np.flatnonzero(kept)
+        ).errors
         largest = np.nanmax(np.where(np.isfinite(errors[test]), errors[test], 0.0), axis=1)
         screened[test] = largest > trained.limit
     return HeldOut(
