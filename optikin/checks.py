@@ -547,9 +547,9 @@ def check_configuration(
             f"({', '.join(arm.config_names)}), got shape {values.shape}{hint}"
         )
     low, high = configuration_limits(arm, within, tolerance)
-    if (values >= low).all() and (values <= high).all():  # NaN fails both comparisons
-        return values
     rows = values.reshape(-1, n)
+    if _within(rows, low, high):
+        return values
 
     def where(i: int) -> str:
         return _where(name, values.shape[:-1], i)
@@ -574,6 +574,15 @@ def check_configuration(
         f"{where(i)}: {value} is far outside its bounds {bounds} (more than {PLAUSIBLE_SPANS:g} ranges away: "
         "a unit mistake, millimetres or degrees for metres or radians?)"
     )
+
+
+def _within(rows: np.ndarray, low: np.ndarray, high: np.ndarray) -> bool:
+    """Whether every row lies in ``[low, high]`` (NaN does not); a large batch by the extremes of contiguous
+    columns, several times faster than comparing ``(N, n)`` against ``(n,)``."""
+    if len(rows) <= 16:
+        return bool((rows >= low).all() and (rows <= high).all())
+    columns = np.ascontiguousarray(rows.T)
+    return bool((columns.min(axis=1) >= low).all() and (columns.max(axis=1) <= high).all())
 
 
 def check_parameter(
