@@ -113,8 +113,8 @@ class Damping(Options):
             raise ValueError(f"viscosity: {viscosity} Pa s is negative (non-physical)")
         ratio = viscosity / rod.youngs_modulus
         return cls(
-            B_se=tuple(float(x) for x in ratio * rod.K_se),  # type: ignore[arg-type]
-            B_bt=tuple(float(x) for x in ratio * rod.K_bt),  # type: ignore[arg-type]
+            B_se=tuple(float(x) for x in ratio * rod.K_se),
+            B_bt=tuple(float(x) for x in ratio * rod.K_bt),
             drag=drag,
         )
 

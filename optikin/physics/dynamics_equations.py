@@ -46,6 +46,7 @@ the actuator terms, started from tangents along ``d3`` (a chamber's tangent is
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import casadi as ca
 
@@ -129,7 +130,9 @@ class DynamicEquations:
         self.statics = ArmEquations(arm)
         self.n_loads = self.statics.n_loads
 
-    def strains(self, k: int, s: ca.SX, R: ca.SX, N: ca.SX, M: ca.SX, vh: ca.SX, uh: ca.SX, P: ca.SX):
+    def strains(
+        self, k: int, s: ca.SX, R: ca.SX, N: ca.SX, M: ca.SX, vh: ca.SX, uh: ca.SX, P: ca.SX
+    ) -> tuple[ca.SX, ca.SX]:
         """``v, u`` (material frame) of segment ``k`` from the section wrench and the strain history."""
         rod, damp, c0 = self.arm.segments[k].rod, self.damping[k], self.coefficients.c0
         kse, kbt = ca.DM(rod.K_se), ca.DM(rod.K_bt)
@@ -204,8 +207,8 @@ class DynamicEquations:
             ["x_next", "Y", "energy"],
         )
 
-    def tip_residual(self, x: ca.SX, P: ca.SX) -> ca.SX:
-        """``N(L) - F_tip``, ``M(L) - C_tip`` (6, global frame)."""
+    def tip_residual(self, x: Any, P: Any) -> Any:
+        """``N(L) - F_tip``, ``M(L) - C_tip`` (6, global frame) at the tip state ``x`` (SX or MX)."""
         R = matrix_from_quat(x[3:7], check=False)
         force = R @ P[0:3] if self.arm.tip_force_frame == "follower" else P[0:3]
         couple = R @ P[3:6] if self.arm.tip_couple_frame == "follower" else P[3:6]
