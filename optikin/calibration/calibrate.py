@@ -753,11 +753,6 @@ class HeldOut:
         return {"median": float(np.median(e)), "p95": float(np.percentile(e, 95)), "max": float(np.max(e))}
 
     @property
-    def median(self) -> float:
-        """Median held-out marker error [m] (per marker, over the tested postures)."""
-        return float(np.nanmedian(self.errors[self.tested]))
-
-    @property
     def rms(self) -> float:
         """Root-mean-square held-out marker error [m]."""
         return float(np.sqrt(np.nanmean(self.errors[self.tested] ** 2)))
