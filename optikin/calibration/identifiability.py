@@ -306,7 +306,6 @@ def remedies(report: Identifiability) -> list[str]:
         out.append("more varied postures")
     if report.at_bounds:
         out.append(
-            "check the nominal section lengths and arm.params.length_range: a length on its bound is "
-            "not an estimate"
+            "check the nominal section lengths and arm.params.length_range: a length on its bound is not an estimate"
         )
     return out

@@ -105,13 +105,6 @@ class IkOptions(FormulationOptions):
         "problem's arm: includes (what the calibration leaves on 95 % of its held-out postures); null: targets "
         "are exact (noise-free)",
     )
-
-    @field_validator("noise")
-    @classmethod
-    def _positive_noise(cls, value: float | str | None) -> float | str | None:
-        if isinstance(value, float) and not value > 0:
-            raise ValueError(f"noise must be positive, got {value}")
-        return value
     start: Literal["rest"] | list[StrictFloat] = Field(
         "rest",
         description="start configuration of independent targets and of a trajectory's first one: "
@@ -128,6 +121,13 @@ class IkOptions(FormulationOptions):
         description="label -> formulation options over these: the problem's solver on "
         "other formulations of the same targets",
     )
+
+    @field_validator("noise")
+    @classmethod
+    def _positive_noise(cls, value: float | str | None) -> float | str | None:
+        if isinstance(value, float) and not value > 0:
+            raise ValueError(f"noise must be positive, got {value}")
+        return value
 
     @field_validator("start", mode="wrap")
     @classmethod
