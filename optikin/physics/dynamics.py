@@ -27,9 +27,10 @@ flexible segment) no longer resolves the motion and is refused. A step so short 
 spatial exponents of the step's BVP, ``L sqrt(c0) (rho A / E I)^(1/4)`` (bending) and
 ``c0 L sqrt(rho / G)`` (shear waves), exceed :data:`MAX_SHOOTING_EXPONENT` makes shooting
 ill-conditioned (its Jacobian grows like ``exp`` of the exponent) and is refused too. The
-RK4 stage histories add modes that the less dissipative alphas (and coarse grids at short
-steps) can leave growing; ``docs/guide/dynamics.md`` tabulates the spectral radii of the
-linearised step: BDF2 (the default) is the robust choice.
+less dissipative alphas, and coarse grids at short steps, can leave modes of the
+time-discretised BVP growing (Till et al.'s Euler-in-``s`` scheme more so);
+``docs/guide/dynamics.md`` tabulates the spectral radii of the linearised step: BDF2 (the
+default) is the robust choice.
 """
 
 from __future__ import annotations
