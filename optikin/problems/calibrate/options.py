@@ -38,8 +38,8 @@ class BaseOptions(Options):
     )
     plane: dict[Axis, StrictFloat] | None = Field(
         None,
-        description="the mount plane as one coordinate of the recording's frame and units, e.g. {y: 0.0}: the "
-        "base stays on it (its position in the plane is estimated)",
+        description="the mount plane as one coordinate along an axis of the recording's frame, in metres, e.g. "
+        "{y: 0.0}: the base stays on it (its position in the plane is estimated)",
     )
     direction: list[StrictFloat] | None = Field(
         None,
