@@ -137,3 +137,15 @@ def test_chamber_pressures_lag_their_commands_by_the_first_order_closed_form(tmp
     path.write_text(yaml.safe_dump(spec, sort_keys=False))
     with pytest.raises(SpecError, match="options.pressure_time_constant"):
         solve(str(path))
+
+
+def test_a_recorded_command_file_is_interpolated_linearly(tmp_path):
+    (tmp_path / "commands.csv").write_text("t,tendons.0\n0.0,0.0\n0.05,0.2\n0.1,0.1\n")
+    data = {"source": "csv", "samples": 15, "params": {"file": "commands.csv"}}
+    result, _ = solve(str(problem(tmp_path, data=data)))
+    assert result.succeeded
+    t = result.arrays["t"]
+    np.testing.assert_allclose(result.arrays["actuation"][:, 0], np.interp(t, [0.0, 0.05, 0.1], [0.0, 0.2, 0.1]))
+    (tmp_path / "commands.csv").write_text("tendons.0\n0.0\n")
+    with pytest.raises(InputDataError, match="t column"):
+        solve(str(problem(tmp_path, data=data)))

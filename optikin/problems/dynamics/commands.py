@@ -9,6 +9,10 @@ at the time of every step. Actuation vectors have one entry per actuator of the 
           ``tip_force_initial`` is set and ``tip_force_final`` is zero.
 ``ramp``  linear from ``initial`` at ``at`` to ``final`` at ``at + duration``.
 ``sine``  ``mean + amplitude sin(2 pi f t + phase)``, the tip force constant.
+``csv``   a recorded command file: a ``t`` column [s] (strictly increasing) and one column per
+          actuator named like the arm's configuration (``tendons.0``, ``chambers.1``), linear
+          between its rows, its first row before them (and at rest), its last after them; the
+          tip force constant.
 """
 
 from __future__ import annotations
@@ -20,6 +24,8 @@ from typing import Any
 import numpy as np
 from pydantic import Field, StrictFloat
 
+from optikin.data.configurations import read_configuration_csv
+from optikin.data.files import data_file
 from optikin.data.sources import register_source
 from optikin.errors import InputDataError
 from optikin.options import Options
@@ -41,18 +47,25 @@ class Commands:
         At rest before the run, ``(n_act,)`` and ``(3,)``.
     params : Options
         The source's parameters.
+    table : tuple of numpy.ndarray, optional
+        ``csv``: the file's times ``(R,)`` and actuation ``(R, n_act)``.
     """
 
     kind: str
     initial_actuation: np.ndarray
     initial_tip_force: np.ndarray
     params: Any
+    table: tuple[np.ndarray, np.ndarray] | None = None
 
     def at(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(actuation (T, n_act), tip force (T, 3))`` at the times ``t (T,)`` [s]."""
         t = np.asarray(t, dtype=float)[:, None]
         p = self.params
         a0, f0 = self.initial_actuation[None, :], self.initial_tip_force[None, :]
+        if self.table is not None:
+            times, values = self.table
+            actuation = np.column_stack([np.interp(t[:, 0], times, values[:, j]) for j in range(values.shape[1])])
+            return actuation.reshape(t.shape[0], values.shape[1]), np.repeat(f0, t.shape[0], axis=0)
         if self.kind == "sine":
             wave = np.sin(2 * np.pi * p.frequency * t + p.phase)
             return a0 + np.asarray(p.amplitude, dtype=float)[None, :] * wave, np.repeat(f0, t.shape[0], axis=0)
@@ -89,6 +102,15 @@ class SineParams(Options):
     frequency: StrictFloat = Field(gt=0, description="frequency [Hz]")
     phase: StrictFloat = Field(0.0, description="phase [rad]")
     tip_force_initial: Vector3 = Field((0.0, 0.0, 0.0), description="constant tip force [N]")
+
+
+class CsvCommandParams(Options):
+    """``data.params`` of source ``csv``."""
+
+    file: str = Field(
+        min_length=1, description="CSV file with a t column and one per actuator, relative to the problem"
+    )
+    tip_force: Vector3 = Field((0.0, 0.0, 0.0), description="constant tip force, base frame [N]")
 
 
 def _vector(values: list[float] | None, n: int, field: str, path: Path) -> np.ndarray:
@@ -143,3 +165,25 @@ def sine_commands(arm: Any, data: Any, params: SineParams, path: Path) -> Comman
         np.asarray(params.tip_force_initial, dtype=float),
         params,
     )
+
+
+@register_source(
+    FAMILY,
+    "csv",
+    "recorded actuation commands (a t column and one per actuator), linear between rows",
+    params=CsvCommandParams,
+)
+def csv_commands(arm: Any, data: Any, params: CsvCommandParams, path: Path) -> Commands:
+    """Source ``csv``: the file's commands, interpolated linearly in time (module docstring).
+
+    Raises
+    ------
+    InputDataError
+        Naming the file: no ``t`` column (the format and the checks of every value:
+        :func:`optikin.data.configurations.read_configuration_csv`).
+    """
+    file = data_file(path, params.file)
+    values, t = read_configuration_csv(file, tuple(arm.config_names))
+    if t is None:
+        raise InputDataError("a command file needs a t column [s]", source=str(file), field="t")
+    return Commands("csv", values[0].copy(), np.asarray(params.tip_force, dtype=float), params, (t, values))
