@@ -253,7 +253,7 @@ class Trajectory:
     tip : numpy.ndarray
         ``(T, 3)`` tip positions [m].
     positions : numpy.ndarray
-        ``(T, K, 3)`` centre lines [m].
+        ``(T, K, 3)`` centre lines [m]; ``(2, K, 3)``, the start's and the last's, without ``keep_shapes``.
     energy : numpy.ndarray
         ``(T, 3)`` kinetic, elastic, gravitational [J].
     residual : numpy.ndarray
