@@ -46,6 +46,18 @@ def manifest_of(path: Path, overrides: dict | None = None) -> Manifest:
     return nn_manifest(spec, ctx.arm, o, ctx.data_params, method_names(spec.kind, spec, o))
 
 
+def test_the_network_rows_are_named_as_a_run_names_them():
+    """The static names are the rows' (NetworkRun.label, the exact solvers, Table IV's), so each gets its entry."""
+    found = manifest_of(PROBLEMS / "cbha-nn-ikm-cosserat.yaml")
+    names = [g.method for g in found.given]
+    assert names[:3] == ["mlp-seed", "mlp-seed-raw", "mlp-adam"] and "ipopt" in names and "true-lengths" in names
+    network = found.of("mlp-adam")
+    assert network.geometry == "measured" and "Adam" in network.training and network.arm.tube_range is not None
+    assert found.of("direct-mlp").training == "the Cosserat training postures"
+    fkm = manifest_of(PROBLEMS / "cbha-nn-fkm-cosserat.yaml")
+    assert [g.method for g in fkm.given][:2] == ["mlp-seed-fig9", "mlp-seed-raw-fig9"]
+
+
 def test_every_kind_has_a_shipped_comparison():
     kinds = {yaml.safe_load(p.read_text())["kind"] for p in comparison_files()}
     assert kinds == set(KINDS)

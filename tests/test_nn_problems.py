@@ -107,6 +107,12 @@ def test_fkm_tip_errors_go_through_the_exact_chain(fkm, database):
         np.testing.assert_allclose(a[f"tip_{solver}"], a["tip"][:3], atol=1e-12)
     assert rows["newton"]["batched"] and not rows["lm"]["batched"]
     assert fkm.succeeded
+    # the fairness manifest: every row says what it was given; the networks their database and its coverage
+    assert all("given" in r for r in rows.values()) and fkm.metrics["fairness"]["unlabelled"] == []
+    given = rows["mlp-adam"]["given"]
+    assert given["geometry"] == "generator's own" and "training rows" in given["training"]
+    assert given["test input to nearest training input, median [mm]"] > 0
+    assert rows["newton"]["given"]["limits"] == "Table I" and rows["newton"]["given"]["training"] == "none"
 
 
 def test_fkm_reports_the_test_split_mse(fkm, database):

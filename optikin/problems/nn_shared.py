@@ -377,7 +377,7 @@ class NetworkRun:
     @property
     def label(self) -> str:
         """The variant's method name, ``mlp-<setting><suffix>`` (``-fig9``: from the six tube lengths)."""
-        return f"mlp-{self.setting.name}{self.suffix}"
+        return f"{NETWORK_PREFIX}{self.setting.name}{self.suffix}"
 
 
 def time_network(hybrid: Callable[[np.ndarray], Any], inputs: np.ndarray, repeats: int) -> tuple[float, float]:
@@ -519,6 +519,8 @@ def comparison_result(
 # ---------------------------------------------------------------------------------------- fairness
 FIG9_SUFFIX = "-fig9"
 """Suffix of a row whose legs are split from the six tube lengths (Fig. 9)."""
+NETWORK_PREFIX = "mlp-"
+"""Prefix of a network variant's row (:attr:`NetworkRun.label`)."""
 TABLE_IV_ROWS = ("constant-curvature", "direct-mlp", "goal-babbling", "true-lengths")
 
 
@@ -529,7 +531,7 @@ def method_names(kind: str, spec: ProblemSpec, o: NNOptions) -> list[str]:
         suffixes = [FIG9_SUFFIX] if cosserat else [""] + ([FIG9_SUFFIX] if o.tube_sensors else [])
     else:
         suffixes = [""]
-    names = [f"{s.name}{x}" for s in o.settings() for x in suffixes]
+    names = [f"{NETWORK_PREFIX}{s.name}{x}" for s in o.settings() for x in suffixes]
     names += [f"{b}{x}" for b in spec.baselines for x in suffixes]
     if kind == "nn_fkm" and (cosserat or o.tube_sensors):
         names.append("constant-curvature")
@@ -558,14 +560,15 @@ def nn_manifest(
     entries = []
     for name in methods:
         base = name.removesuffix(FIG9_SUFFIX)
+        variant = base.removeprefix(NETWORK_PREFIX)
         split = "the six tube lengths split over the legs (Fig. 6)" if name.endswith(FIG9_SUFFIX) else ""
-        if base in variants:
+        if base.startswith(NETWORK_PREFIX) and variant in variants:
             entries.append(
                 Given(
                     name,
                     source,
                     model,
-                    training=f"{trained_on}, setting {variants[base].description}",
+                    training=f"{trained_on}, setting {variants[variant].description}",
                     budget="one forward pass per sample",
                     limits="Table I (lengths clipped)" if spec.kind == "nn_ikm" else "none",
                     information=split,
@@ -634,7 +637,7 @@ def annotate_fairness(prep: Prepared, comparison: list[MethodRow], metrics: dict
     found = coverage(train, test)
     label = f"tested outside its training range: its test {what} lie beyond the database's (coverage columns)"
     for g in manifest.given:
-        if g.method.removesuffix(FIG9_SUFFIX) in {s.name for s in prep.options.settings()}:
+        if g.method.removesuffix(FIG9_SUFFIX) in {f"{NETWORK_PREFIX}{s.name}" for s in prep.options.settings()}:
             manifest = manifest.with_coverage(g.method, found, label)
         elif g.method == "direct-mlp":
             manifest = manifest.with_coverage(g.method, coverage(*direct_inputs(prep, kind)), label)
