@@ -7,6 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pytest
 import yaml
 
 from optikin.arms.constant_curvature import ConstantCurvatureArm
@@ -144,3 +145,17 @@ def test_the_identifiability_figure_marks_the_weak_combinations(tmp_path: Path):
     drawers["identifiability"](tmp_path / "identifiability.png")
     assert (tmp_path / "identifiability.png").stat().st_size > 1000
     assert "identifiability" not in figures({"singular_values": np.zeros(0)}, summary)
+
+
+def test_the_base_axis_is_given_once(tmp_path: Path):
+    from optikin.errors import SpecError
+
+    source = Path(__file__).resolve().parent.parent / "problems" / "trunk-calibrate.yaml"
+    data = yaml.safe_load(source.read_text())
+    data["name"] = "twice"
+    data["data"]["samples"] = 20
+    data["options"]["base"] = {"direction": [0.0, 0.0, -1.0], "orientation": [0.0, 1.0, 0.0, 0.0]}
+    problem = tmp_path / "twice.yaml"
+    problem.write_text(yaml.safe_dump(data))
+    with pytest.raises(SpecError, match="options.base.direction"):
+        solve(str(problem), figures=False)

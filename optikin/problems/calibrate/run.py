@@ -226,6 +226,10 @@ def solve(ctx: ProblemContext) -> CalibrateOutcome:
             raise ctx.error("options.base.orientation", "expected a unit quaternion (w, x, y, z)")
         rotation = matrix_from_quat(q / np.linalg.norm(q))
     plane, direction = mount_of(ctx, base)
+    if direction is not None and (base.body is not None or base.orientation is not None):
+        raise ctx.error(
+            "options.base.direction", "give the base axis once: as the exit direction, or by a body or orientation"
+        )
     estimated = (
         base.starts == "several"
         and base.body is None
