@@ -91,6 +91,7 @@ def test_the_lab_is_a_source_the_calibration_reads(tmp_path: Path):
     m = result.metrics
     assert m["verdict"] in ("ok", "not_identifiable")
     assert m["postures"] == 64 and "max section length error [mm]" in m
+    assert len(m["max marker offset error, axial and radial [mm]"]) == 2
     headline = m["held-out largest-marker error per posture, 64 of 64 postures (kfold) [mm]"]
     assert headline["median"] > 0.3  # the rod is not a constant-curvature arm: more than the noise
 

@@ -100,7 +100,12 @@ def truth_metrics(outcome: CalibrateOutcome) -> dict[str, Any]:
     out["base tilt error [deg]"] = float(np.degrees(np.arccos(cosine)))
     if cal.problem.free[lay.offsets].any():
         sections = np.array(lay.marker_sections) - 1
-        out["max marker offset error [mm]"] = float(np.max(np.abs(cal.offsets - truth.marker_offsets[sections])) * 1e3)
+        # the disks' frames turn with the rotation about the base axis, held at a reference: compare what that
+        # rotation keeps, each offset's component along its disk's axis and its distance from that axis
+        true = truth.marker_offsets[sections]
+        axial = np.abs(cal.offsets[:, 2] - true[:, 2])
+        radial = np.abs(np.hypot(cal.offsets[:, 0], cal.offsets[:, 1]) - np.hypot(true[:, 0], true[:, 1]))
+        out["max marker offset error, axial and radial [mm]"] = [float(axial.max() * 1e3), float(radial.max() * 1e3)]
     rejected = np.zeros(len(outcome.measured), dtype=bool)
     rejected[[o.posture for o in cal.outliers]] = True
     out["corrupted postures rejected"] = f"{int((rejected & truth.corrupted).sum())}/{int(truth.corrupted.sum())}"
