@@ -149,3 +149,19 @@ def test_a_recorded_command_file_is_interpolated_linearly(tmp_path):
     (tmp_path / "commands.csv").write_text("tendons.0\n0.0\n")
     with pytest.raises(InputDataError, match="t column"):
         solve(str(problem(tmp_path, data=data)))
+
+
+def test_a_payload_weighs_on_the_rest_shape(tmp_path):
+    """50 g at the tip under a weak transverse gravity (0.01 m/s^2, linear range): the tip moves by the
+    cantilever's m g L^3 / (3 E I) more than without it, within 3 % (shear, 13 points)."""
+    spec = {"source": "step", "samples": 3, "params": {"initial": [0.0]}}
+    tips = []
+    for payload in (0.0, 0.05):
+        path = problem(tmp_path, data=spec, gravity=True, payload=payload)
+        doc = yaml.safe_load(path.read_text())
+        doc["arm"]["params"]["gravity"] = [-0.01, 0.0, 0.0]
+        path.write_text(yaml.safe_dump(doc, sort_keys=False))
+        result, _ = solve(str(path))
+        assert result.succeeded
+        tips.append(result.arrays["tip_position"][0, 0])
+    assert tips[0] - tips[1] == pytest.approx(0.05 * 0.01 * L**3 / (3 * EI), rel=0.03)

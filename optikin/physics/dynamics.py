@@ -134,6 +134,7 @@ class DynamicsOptions(Options):
     steps_per_segment: StrictInt = Field(39, ge=1, description="RK4 steps per segment (points - 1)")
     tolerance: StrictFloat = Field(1e-9, gt=0, description="largest accepted tip residual per step [N, N m]")
     max_iterations: StrictInt = Field(25, ge=1, description="Newton iterations per time step")
+    tip_mass: StrictFloat = Field(0.0, ge=0, description="payload at the tip, a point mass [kg]")
     actuator_iterations: StrictInt = Field(4, ge=0, description="fixed-point iterations on the tendon tangents")
     compiled: bool = Field(True, description="Newton on the C-compiled shape (else CasADi's rootfinder in the VM)")
     flags: tuple[CompilerFlag, ...] = Field(("-O3",), description="compiler flags when compiled")
@@ -161,9 +162,10 @@ class DynamicState:
     step : int
         Steps taken since the start.
     history : numpy.ndarray
-        ``(48, S)`` the next step's history ``H`` at every stage of the ``S`` grid steps.
+        ``(48, S + 1)`` the next step's history ``H`` at every stage of the ``S`` grid steps, then (rows
+        0-11 of the last column) at the tip.
     rates : numpy.ndarray
-        ``(48, S)`` the stage values ``y = (v, u, q, w)`` of this step.
+        ``(48, S + 1)`` the stage (and tip) values ``y = (v, u, q, w)`` of this step.
     unknowns, previous_unknowns, older_unknowns : numpy.ndarray
         The shooting unknowns of this step and of the two before (the warm start): the base wrench
         ``(N(0), M(0))`` then the full state (19) at the start of every further shooting interval.
@@ -216,7 +218,7 @@ class DynamicState:
 
     @property
     def vector(self) -> np.ndarray:
-        """``(96 S,)`` the discrete state ``(vec H, vec y)`` that :meth:`RodDynamics.derivatives` differentiates."""
+        """``(96 (S + 1),)`` the discrete state ``(vec H, vec y)``, what :meth:`RodDynamics.derivatives` takes."""
         return np.concatenate([self.history.ravel(order="F"), self.rates.ravel(order="F")])
 
 
@@ -227,11 +229,11 @@ class StepDerivatives:
     Attributes
     ----------
     wrt_state : numpy.ndarray or None
-        ``(96 S, 96 S)`` d next :attr:`DynamicState.vector` / d state vector (None unless asked for).
+        ``(n_x, n_x)`` d next :attr:`DynamicState.vector` / d state vector (None unless asked for).
     wrt_loads : numpy.ndarray
-        ``(96 S, n_P)`` d next state vector / d ``P``.
+        ``(n_x, n_P)`` d next state vector / d ``P``.
     tip_wrt_state : numpy.ndarray
-        ``(3, 96 S)`` d next tip position / d state vector.
+        ``(3, n_x)`` d next tip position / d state vector.
     tip_wrt_loads : numpy.ndarray
         ``(3, n_P)`` d next tip position / d ``P``.
     """
@@ -382,6 +384,7 @@ class RodDynamics:
         self.n_loads = self.equations.n_loads
         n = options.steps_per_segment
         self.n_steps = n * len(arm.segments)
+        self.columns = self.n_steps + 1  # of H and Y: every grid step's stages, then the tip
         bounds = arm.boundaries
         self.s = np.concatenate(
             [[0.0]]
@@ -398,7 +401,7 @@ class RodDynamics:
         self.residual = ca.Function(
             "rod_dynamics_residual", [z, P, H], [self.shape(z, P, H)[1]], ["z", "P", "H"], ["residual"]
         )
-        zero = ca.DM.zeros(HISTORY_ROWS, self.n_steps)
+        zero = ca.DM.zeros(HISTORY_ROWS, self.columns)
         self._static_residual = ca.Function("rod_rest_residual", [z, P], [self.static_shape(z, P, zero)[1]])
         self._compiled: CompiledFunction | None = None
         if options.compiled:
@@ -411,7 +414,7 @@ class RodDynamics:
         return (
             ca.MX.sym("z", self.n_unknowns),
             ca.MX.sym("P", self.n_loads),
-            ca.MX.sym("H", HISTORY_ROWS, self.n_steps),
+            ca.MX.sym("H", HISTORY_ROWS, self.columns),
         )
 
     def _shape(self, equations: DynamicEquations, name: str) -> ca.Function:
@@ -440,7 +443,10 @@ class RodDynamics:
                 a = end
             if j < self.intervals - 1:
                 residual.append(x - starts[j + 1])
-        residual.append(equations.tip_residual(x, P))
+        r_tip, y_tip, e_tip = equations.tip_function(self.options.tip_mass)(x, H[0:RATE_SIZE, self.n_steps], P)
+        residual.append(r_tip)
+        rates.append(ca.vertcat(y_tip, ca.MX.zeros(HISTORY_ROWS - RATE_SIZE)))
+        energy += e_tip
         return ca.Function(
             name,
             [z, P, H],
@@ -452,12 +458,12 @@ class RodDynamics:
     def _split(self, packed: ca.MX) -> tuple[ca.MX, ca.MX, ca.MX]:
         m = self.n_unknowns
         z, P = packed[:m], packed[m : m + self.n_loads]
-        H = ca.reshape(packed[m + self.n_loads :], HISTORY_ROWS, self.n_steps)
+        H = ca.reshape(packed[m + self.n_loads :], HISTORY_ROWS, self.columns)
         return z, P, H
 
     @property
     def _packed_size(self) -> int:
-        return self.n_unknowns + self.n_loads + HISTORY_ROWS * self.n_steps
+        return self.n_unknowns + self.n_loads + HISTORY_ROWS * self.columns
 
     def _packed_shape(self) -> ca.Function:
         """``(z, P, vec H) -> (residual, energy, vec Y, vec states)``, one vector."""
@@ -475,11 +481,11 @@ class RodDynamics:
             return (np.asarray(r).ravel(), np.asarray(E).ravel(), np.asarray(Y), np.asarray(states))
         packed = np.concatenate([z, P, H.ravel(order="F")])
         out = self._compiled.raw(packed[None, :])[0]
-        m, nz = HISTORY_ROWS * self.n_steps, self.n_unknowns
+        m, nz = HISTORY_ROWS * self.columns, self.n_unknowns
         return (
             out[:nz],
             out[nz : nz + 3],
-            out[nz + 3 : nz + 3 + m].reshape(HISTORY_ROWS, self.n_steps, order="F"),
+            out[nz + 3 : nz + 3 + m].reshape(HISTORY_ROWS, self.columns, order="F"),
             out[nz + 3 + m :].reshape(STATE_SIZE, self.s.size, order="F"),
         )
 
@@ -608,7 +614,7 @@ class RodDynamics:
             When no equilibrium is found.
         """
         P = self.load_vector(loads)
-        zero = np.zeros((HISTORY_ROWS, self.n_steps))
+        zero = np.zeros((HISTORY_ROWS, self.columns))
         rf = self._rootfinder_of(self._static_residual, "rod_rest_newton")
         steps, r = 1, np.inf
         while steps <= max_ramp_steps:
@@ -732,9 +738,9 @@ class RodDynamics:
         The shooting unknowns are CasADi's rootfinder of the residual, so derivatives follow the
         implicit function theorem.
         """
-        m = HISTORY_ROWS * self.n_steps
+        m = HISTORY_ROWS * self.columns
         guess, x, P = ca.MX.sym("z0", self.n_unknowns), ca.MX.sym("x", 2 * m), ca.MX.sym("P", self.n_loads)
-        H, Yp = ca.reshape(x[:m], HISTORY_ROWS, self.n_steps), ca.reshape(x[m:], HISTORY_ROWS, self.n_steps)
+        H, Yp = ca.reshape(x[:m], HISTORY_ROWS, self.columns), ca.reshape(x[m:], HISTORY_ROWS, self.columns)
         w = self._rootfinder(guess, P, H)
         states, _, Y, _ = self.shape(w, P, H)
         c = self.coefficients
@@ -770,7 +776,7 @@ class RodDynamics:
         loads : Loads or numpy.ndarray
             The step's loads.
         wrt_state : bool
-            Also the dense ``(96 S, 96 S)`` Jacobian of the next state (large: 3744 x 3744 at 40 points).
+            Also the dense ``(n_x, n_x)`` Jacobian of the next state (large: 3840 x 3840 at 40 points).
 
         Returns
         -------

@@ -46,7 +46,6 @@ the actuator terms, started from tangents along ``d3`` (a chamber's tangent is
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 import casadi as ca
 
@@ -207,12 +206,32 @@ class DynamicEquations:
             ["x_next", "Y", "energy"],
         )
 
-    def tip_residual(self, x: Any, P: Any) -> Any:
-        """``N(L) - F_tip``, ``M(L) - C_tip`` (6, global frame) at the tip state ``x`` (SX or MX)."""
+    def tip_function(self, tip_mass: float) -> ca.Function:
+        """``(x_tip, h (12), P) -> (residual (6), y (12), energy (3))`` at the tip, a point mass ``tip_mass`` there.
+
+        The residual is ``N(L) - F_tip - m g + m a``, ``M(L) - C_tip`` (global frame), with the tip's
+        acceleration ``a = R (q_t + w x q)`` and ``q_t = c0 q + h_q``; ``y`` are the tip's ``(v, u, q, w)``
+        (their history ``h`` kept like a stage's), the energy the mass's kinetic and gravitational.
+        """
+        k = len(self.arm.segments) - 1
+        x, h, P = ca.SX.sym("x", STATE_SIZE), ca.SX.sym("h", RATE_SIZE), ca.SX.sym("P", self.n_loads)
         R = matrix_from_quat(x[3:7], check=False)
+        s = ca.SX(float(self.arm.boundaries[-1]))
+        v, u = self.strains(k, s, R, x[7:10], x[10:13], h[0:3], h[3:6], P)
+        q, w = x[13:16], x[16:19]
         force = R @ P[0:3] if self.arm.tip_force_frame == "follower" else P[0:3]
         couple = R @ P[3:6] if self.arm.tip_couple_frame == "follower" else P[3:6]
-        return ca.vertcat(x[7:10] - force, x[10:13] - couple)
+        g = P[9:12]
+        acceleration = R @ (self.coefficients.c0 * q + h[6:9] + ca.cross(w, q))
+        residual = ca.vertcat(x[7:10] - force - tip_mass * g + tip_mass * acceleration, x[10:13] - couple)
+        energy = ca.vertcat(0.5 * tip_mass * ca.dot(q, q), 0, -tip_mass * ca.dot(g, x[0:3]))
+        return ca.Function(
+            "rod_dynamics_tip",
+            [x, h, P],
+            [residual, ca.vertcat(v, u, q, w), energy],
+            ["x", "h", "P"],
+            ["residual", "y", "energy"],
+        )
 
     def base_state(self, wrench: ca.MX) -> ca.MX:
         """``x(0)``: the clamped pose, the unknown wrench ``(N(0), M(0))``, zero velocities."""

@@ -28,6 +28,9 @@ class DynamicsKindOptions(Options):
     )
     damping: DampingOptions = Field(default_factory=DampingOptions, description="damping and drag")
     gravity: StrictBool = Field(True, description="the arm's gravity acts")
+    payload: StrictFloat = Field(
+        0.0, ge=0, description="mass at the tip, a point mass with its weight and inertia [kg]"
+    )
     distributed_force: Vector3 = Field((0.0, 0.0, 0.0), description="uniform distributed force [N/m], base frame")
     tip_couple: Vector3 = Field((0.0, 0.0, 0.0), description="couple at the tip, base frame [N m]")
     tolerance: StrictFloat = Field(1e-9, gt=0, description="largest residual of a time step's BVP")

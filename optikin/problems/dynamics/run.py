@@ -91,6 +91,7 @@ def stepper(ctx: ProblemContext, arm: CosseratArm, options: DynamicsKindOptions)
         steps_per_segment=arm.steps_per_segment,
         tolerance=options.tolerance,
         max_iterations=options.max_iterations,
+        tip_mass=options.payload,
         compiled=options.compiled,
         flags=options.flags,
     )
