@@ -267,7 +267,7 @@ def _configuration_backbones(arrays: Mapping[str, np.ndarray], summary: Mapping[
         if q.shape[1] != arm.n_config:
             continue
         try:
-            shown = np.transpose(arm.evaluate("backbone", q[frames]), (0, 2, 1))
+            shown = np.transpose(arm.evaluate("backbone", q[frames], check=False), (0, 2, 1))
         except (OptikinError, ValueError, RuntimeError, NotImplementedError):
             continue
         backbone = np.full((n, *shown.shape[1:]), np.nan)

@@ -32,7 +32,7 @@ import math
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Sequence
 
 import numpy as np
 import yaml
@@ -174,7 +174,7 @@ class MethodRun:
 
     name: str
     role: str
-    solutions: list[ShapeSolution]
+    solutions: Sequence[ShapeSolution]
     build_seconds: float
     adapter: PHAdapter
     model: ShapeEnergyModel

@@ -331,6 +331,24 @@ class GaussNewton(NonlinearAdapter):
         return Solution(x, status, calls, rn, elapsed, message)
 
     # ------------------------------------------------------------------ many independent samples at once
+    def solve_many(
+        self,
+        problem: LeastSquaresProblem,
+        X0: np.ndarray,
+        P: np.ndarray,
+        warm_start: bool = False,
+        x_ref: np.ndarray | None = None,
+    ) -> SolutionBatch:
+        """:meth:`NonlinearAdapter.solve_many` as one call of generated C where it applies
+        (:mod:`optikin.native.ik`: bit-identical answers), else the Python path."""
+        if x_ref is None:
+            from optikin.native.ik import native_solve_many
+
+            batch = native_solve_many(self, problem, X0, P, warm_start)
+            if batch is not None:
+                return batch
+        return super().solve_many(problem, X0, P, warm_start, x_ref)
+
     def solve_many_free(
         self,
         problem: LeastSquaresProblem,

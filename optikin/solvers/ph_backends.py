@@ -101,7 +101,7 @@ class PHAdapter:
     def solve_one(self, model: ShapeEnergyModel, data: ShapeData, previous: np.ndarray | None) -> ShapeSolution:
         raise NotImplementedError
 
-    def solve(self, model: ShapeEnergyModel, samples: Sequence[ShapeData]) -> list[ShapeSolution]:
+    def solve(self, model: ShapeEnergyModel, samples: Sequence[ShapeData]) -> Sequence[ShapeSolution]:
         """Solve ``samples`` in order, each from the previous ``ok`` solution when warm-starting."""
         out: list[ShapeSolution] = []
         previous = None
@@ -124,6 +124,14 @@ class NewtonAdapter(PHAdapter):
 
     def model(self, settings: EnergySettings, free_speeds: bool) -> ShapeEnergyModel:
         return shared_model(settings, free_speeds, self.options.compile, self.options.coarse_grid)
+
+    def solve(self, model: ShapeEnergyModel, samples: Sequence[ShapeData]) -> Sequence[ShapeSolution]:
+        """:meth:`PHAdapter.solve` as one call of generated C where it applies (:mod:`optikin.native.ph`:
+        the same answers to rounding), else sample by sample in Python."""
+        from optikin.native.ph import native_solve
+
+        batch = native_solve(self, model, samples)
+        return batch if batch is not None else super().solve(model, samples)
 
     def solve_one(self, model: ShapeEnergyModel, data: ShapeData, previous: np.ndarray | None) -> ShapeSolution:
         limits = self.preset.limits
