@@ -6,15 +6,17 @@ replaced by BDF-alpha (Till, Aloi and Rucker, IJRR 38(6), 2019;
 :mod:`optikin.physics.dynamics`). It starts at rest in the equilibrium of the initial
 commands and takes ``data.samples`` steps of ``options.dt``; the actuation (tendon
 tensions [N], chamber pressures [Pa]) and the tip force follow the commands of
-``data.source`` (family ``actuation_commands``: ``step``, ``ramp``, ``sine``;
-:mod:`optikin.problems.dynamics.commands`).
+``data.source`` (family ``actuation_commands``: ``step``, ``ramp``, ``sine``, ``csv``;
+:mod:`optikin.problems.dynamics.commands`). The chamber pressures can lag their commands
+(``options.pressure_time_constant``, first order); a payload (``options.payload``) is a
+point mass at the tip, with its weight and inertia.
 
 Problem file::
 
     kind: dynamics
     arm: {type: cosserat, params: {youngs_modulus: 1.0e+6, density: 1000.0, segments: [...], tendons: [...]}}
     data:
-      source: step          # step | ramp | sine
+      source: step          # step | ramp | sine | csv
       samples: 500          # time steps
       params: {initial: [0.0], final: [0.5], tip_force_initial: [0.0, 0.0, 0.0]}
     options: {dt: 0.002, alpha: 0.0, damping: {viscosity: 1000.0}, gravity: true}
