@@ -164,7 +164,9 @@ def realise(
     finite = np.all(np.isfinite(configurations), axis=1)
     commanded = np.full((len(configurations), 3 * arm.geometry.n_platforms), np.nan)
     if finite.any():
-        commanded[finite] = arm.evaluate("leg_lengths", configurations[finite]).reshape(int(finite.sum()), -1)
+        commanded[finite] = arm.evaluate("leg_lengths", configurations[finite], check=False).reshape(
+            int(finite.sum()), -1
+        )
     lo, hi = arm.leg_limits()
     applied = np.where(finite[:, None], np.clip(commanded, lo, hi), 0.5 * (lo + hi))
     report = solve_platforms(adapter, problems, applied, linearised_start(arm, applied))

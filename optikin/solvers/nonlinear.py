@@ -326,7 +326,8 @@ class LeastSquaresProblem:
         worst = int(np.argmax(bounds))
         message = f"{self.variable_names[worst]} = {x[worst]:.6g} outside its bounds"
         if self.constraints is not None:
-            c = np.asarray(self.constraints(x)).ravel()
+            constraints = getattr(self.constraints, "unchecked", self.constraints)  # x may be far outside
+            c = np.asarray(constraints(x)).ravel()
             lower, upper = self.constraint_bounds
             violation = np.maximum(lower - c, c - upper) / np.maximum(upper - lower, 1e-300)
             j = int(np.argmax(violation))
