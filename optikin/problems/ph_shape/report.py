@@ -311,7 +311,7 @@ def manifest(ctx: ProblemContext) -> Manifest:
     marker at the end of section 1; ``cosserat-wrench`` a rod (:func:`wrench_given`).
     """
     options: PHShapeOptions = ctx.options
-    truth, shared = recorded_arm(ctx.spec.data.source, ctx.data_params, ctx.arm)
+    truth, shared = recorded_arm(ctx.spec.data.source, ctx.data_params, ctx.arm_model)
     solver = ctx.solver.name if ctx.solver is not None else ""
     ends = "the base and tip rigid bodies"
     joint = "; the marker at the end of section 1 (an extra joint pose)"
