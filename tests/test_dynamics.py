@@ -284,7 +284,8 @@ def test_linearised_bdf2_step_does_not_amplify():
 
 def test_tip_mass_lowers_the_first_frequency_to_the_closed_form():
     """A payload of the rod's own mass at the tip: the first root of
-    ``1 + cos b cosh b + mu b (cos b sinh b - sin b cosh b) = 0`` (Euler-Bernoulli, mu = 1: b = 1.2479), within 1 % (-2e-4 when written, 20 points, dt = 2 ms)."""
+    ``1 + cos b cosh b + mu b (cos b sinh b - sin b cosh b) = 0`` (Euler-Bernoulli, mu = 1: b = 1.2479),
+    within 1 % (-2e-4 when written, 20 points, dt = 2 ms)."""
     from scipy.optimize import brentq
 
     rod = steel_rod()
