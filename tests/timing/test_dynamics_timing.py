@@ -16,11 +16,18 @@ tests/test_dynamics_till.py), whose readable C++ takes about 60-70 us per step a
 points (Euler in ``s``: 0.6 mm of grid error at the tip, 0.04 mm at 640 points and 1 ms per step).
 ``extra_info`` holds the time per step [us] and the real-time factor (of the last round), the
 shape evaluations and Newton iterations per step, and the shooting intervals.
+``test_pyelastica_real_time_factor`` runs the PyElastica comparison of
+tests/test_dynamics_pyelastica.py (the soft rod, a 5 mN tip-force step, 1 s simulated):
+PyElastica at 50 elements (PositionVerlet, dt = 0.01 L / n) and optikin at 40 points and
+2 ms BDF2 steps in the same process, one round each, their real-time factors and tip
+distance from PyElastica's Richardson extrapolation in ``extra_info``.
 """
 
 from __future__ import annotations
 
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -89,3 +96,27 @@ def test_till_cantilever_step(benchmark):
     free = dyn.load_vector(Loads())
     state = dyn.simulate(start, np.tile(free, (50, 1)), keep_shapes=False).final
     timed(benchmark, dyn, state, free)
+
+
+def test_pyelastica_real_time_factor(benchmark):
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from test_dynamics_pyelastica import DURATION, FORCE, RAMP, SAMPLE, pyelastica_tip, rms
+
+    pyelastica_tip(10)  # numba compiles here, outside the timing
+    began = time.perf_counter()
+    coarse = pyelastica_tip(50)
+    pyelastica_seconds = time.perf_counter() - began
+    reference = 2 * pyelastica_tip(100) - coarse
+    rod = Rod(length=0.3, radius=0.01, youngs_modulus=1e6, shear_modulus=1e6 / 3, density=1000.0, gravity=(0, 0, 0))
+    dyn = RodDynamics(RodArm.single(rod), DynamicsOptions(dt=DT, steps_per_segment=39))
+    n = int(round(DURATION / DT))
+    loads = np.zeros((n, dyn.n_loads))
+    loads[:, 0:3] = FORCE[None, :] * np.clip(DT * np.arange(1, n + 1) / RAMP, 0.0, 1.0)[:, None]
+    start = dyn.rest(Loads())
+    trajectory = benchmark.pedantic(lambda: dyn.simulate(start, loads, keep_shapes=False), rounds=3, iterations=1)
+    times = SAMPLE * np.arange(reference.shape[0])
+    tip = np.array([np.interp(times, trajectory.t, trajectory.tip[:, k]) for k in range(3)]).T
+    benchmark.extra_info["pyelastica_50_real_time_factor"] = DURATION / pyelastica_seconds
+    benchmark.extra_info["pyelastica_50_rms_mm"] = rms(coarse, reference) * 1e3
+    benchmark.extra_info["optikin_real_time_factor"] = DURATION / benchmark.stats.stats.min
+    benchmark.extra_info["optikin_rms_mm"] = rms(tip, reference) * 1e3
