@@ -131,6 +131,10 @@ def _cmd_show(args: argparse.Namespace) -> int:
         data = ctx.spec.model_dump(mode="json")
         data["options"] = ctx.options.model_dump(mode="json")
         data["data"]["params"] = ctx.data_params.model_dump(mode="json")
+        if getattr(ctx.data_params, "file", None) is not None:
+            for field in ("samples", "seed"):  # defaults that mean nothing for a file read whole
+                if field not in ctx.spec.data.model_fields_set:
+                    data["data"].pop(field, None)
     print(f"# {path}")
     print(json.dumps(data, indent=2) if args.json else yaml.safe_dump(data, sort_keys=False), end="")
     if not args.json:
