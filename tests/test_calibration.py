@@ -188,14 +188,16 @@ def test_the_kind_writes_an_arm_section_other_problems_can_use(tmp_path: Path):
     targets = np.loadtxt(tmp_path / "targets.csv", delimiter=",", skiprows=1)
     assert len(targets) == kept.sum()
     distance = np.linalg.norm(rec["measured"][kept, 2] - base, axis=1)
-    assert np.abs(np.linalg.norm(targets[:, 1:], axis=1) - distance).max() < 1e-6
+    assert np.array_equal(targets[:, 0], np.flatnonzero(kept))  # the recording row of every target
+    assert np.abs(np.linalg.norm(targets[:, 2:], axis=1) - distance).max() < 1e-6
     # the fold of every posture, in the arrays and in the CSV; the split tests a quarter, the rest never
     folds = np.loadtxt(tmp_path / "folds.csv", delimiter=",", skiprows=1, dtype=int)
     assert np.array_equal(folds[:, 0], np.arange(120)) and np.array_equal(folds[:, 1], rec["fold"])
     assert (rec["fold"] == 0).sum() == 30 and (rec["fold"] == -1).sum() == 90
     assert np.isnan(rec["held_out_posture_errors"][rec["fold"] == -1]).all()
     points = np.loadtxt(tmp_path / "points.csv", delimiter=",", skiprows=1)
-    assert np.array_equal(points.reshape(-1, 3, 3), rec["measured"][kept])
+    assert np.array_equal(points[:, 0], np.flatnonzero(kept))
+    assert np.array_equal(points[:, 1:].reshape(-1, 3, 3), rec["measured"][kept])
     # end poses of the calibrated arm, readable by the ph_shape kind's csv source
     markers = read_marker_csv(tmp_path / "markers.csv")
     assert len(markers) == kept.sum()

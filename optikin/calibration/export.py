@@ -9,9 +9,10 @@ of other problem files. :func:`write_arm_file` writes it as YAML under the key
 the base pose in the recording frame, the marker offsets, the standard deviations
 and the held-out error. :func:`write_folds_csv` writes the held-out test's fold of every posture.
 
-:func:`write_points_csv` writes the measured points of every marker in the recording frame,
-in the columns of the point targets of the ``ik`` kind (:mod:`optikin.ik.points`), to be
-read with the calibrated base pose as ``data.params.base``.
+:func:`write_points_csv` writes the measured points of every marker in optikin's frame (the
+recording after its source's ``frame:`` and ``units:``), with the recording row of each posture,
+in the columns of the point targets of the ``ik`` kind (:mod:`optikin.ik.points`), to be read with
+the calibrated base pose as ``data.params.base``.
 :func:`write_target_csv` writes the measured points of one marker in the calibrated
 arm's base frame, in the columns of the ``csv`` source of family ``targets``
 (:mod:`optikin.data.targets`: ``t, x, y, z``): tip-position targets of the ``ik`` kind
@@ -122,21 +123,27 @@ def base_frame_points(calibration: Calibration, points: np.ndarray) -> np.ndarra
     return (np.asarray(points, dtype=float) - calibration.base_position) @ calibration.base_rotation
 
 
-def write_target_csv(path: Path, t: np.ndarray, points: np.ndarray) -> Path:
-    """Write tip-position targets ``points (N, 3)`` [m] at times ``t (N,)`` [s] as columns ``t, x, y, z``."""
-    table = np.column_stack([t, points])
-    lines = ["t,x,y,z"] + [",".join(repr(float(v)) for v in row) for row in table]
+def write_target_csv(path: Path, t: np.ndarray, points: np.ndarray, postures: np.ndarray) -> Path:
+    """Write tip-position targets ``points (N, 3)`` [m] at times ``t (N,)`` [s] as columns ``posture, t, x, y, z``
+    (``posture``: the row of the recording each target comes from)."""
+    lines = ["posture,t,x,y,z"] + [
+        ",".join([str(int(i)), *(repr(float(v)) for v in (ti, *p))]) for i, ti, p in zip(postures, t, points)
+    ]
     Path(path).write_text("\n".join(lines) + "\n")
     return Path(path)
 
 
-def write_points_csv(path: Path, names: list[str], points: np.ndarray) -> Path:
-    """Write measured points ``(N, M, 3)`` [m] named ``names`` as columns ``<name>_x, <name>_y, <name>_z, ...``:
-    the point targets of the ``ik`` kind (:mod:`optikin.ik.points`), independent postures (no time column)."""
+def write_points_csv(path: Path, names: list[str], points: np.ndarray, postures: np.ndarray) -> Path:
+    """Write measured points ``(N, M, 3)`` [m] named ``names`` as columns ``posture, <name>_x, <name>_y, ...``:
+    the point targets of the ``ik`` kind (:mod:`optikin.ik.points`), independent postures (no time column), in
+    optikin's frame (z up, metres: the recording after its source's ``frame:`` and ``units:``); ``posture`` is the
+    row of the recording each one comes from."""
     n = len(points)
     table = np.asarray(points, dtype=float).reshape(n, -1)
-    header = [f"{name}_{a}" for name in names for a in "xyz"]
-    lines = [",".join(header)] + [",".join(repr(float(v)) for v in row) for row in table]
+    header = ["posture", *(f"{name}_{a}" for name in names for a in "xyz")]
+    lines = [",".join(header)] + [
+        ",".join([str(int(i)), *(repr(float(v)) for v in row)]) for i, row in zip(postures, table)
+    ]
     Path(path).write_text("\n".join(lines) + "\n")
     return Path(path)
 

@@ -326,10 +326,12 @@ def solve(ctx: ProblemContext) -> CalibrateOutcome:
         if options.targets_file is not None:
             written["targets_file"] = (ctx.path.parent / options.targets_file).resolve()
             points = base_frame_points(calibration, measured[calibration.kept, int(np.argmax(sections))])
-            write_target_csv(written["targets_file"], recording.time[calibration.kept], points)
+            postures = np.arange(len(measured))[calibration.kept]
+            write_target_csv(written["targets_file"], recording.time[calibration.kept], points, postures)
         if options.points_file is not None:
             written["points_file"] = (ctx.path.parent / options.points_file).resolve()
-            write_points_csv(written["points_file"], names, measured[calibration.kept])
+            postures = np.arange(len(measured))[calibration.kept]
+            write_points_csv(written["points_file"], names, measured[calibration.kept], postures)
         if options.folds_file is not None:
             written["folds_file"] = (ctx.path.parent / options.folds_file).resolve()
             write_folds_csv(written["folds_file"], test.fold)
