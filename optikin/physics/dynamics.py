@@ -479,9 +479,23 @@ class RodDynamics:
             f = self.static_shape if rest else self.shape
             states, r, Y, E = f(z, P, H)
             return (np.asarray(r).ravel(), np.asarray(E).ravel(), np.asarray(Y), np.asarray(states))
-        packed = np.concatenate([z, P, H.ravel(order="F")])
-        out = self._compiled.raw(packed[None, :])[0]
-        m, nz = HISTORY_ROWS * self.columns, self.n_unknowns
+        return self._evaluate_packed(self._pack(P, H), z)
+
+    def _pack(self, P: np.ndarray, H: np.ndarray) -> np.ndarray:
+        """``(1, n)`` the compiled shape's input with the loads and the history in place (the unknowns to fill)."""
+        nz = self.n_unknowns
+        packed = np.empty((1, self._packed_size))
+        packed[0, nz : nz + self.n_loads] = P
+        packed[0, nz + self.n_loads :] = H.ravel(order="F")
+        return packed
+
+    def _evaluate_packed(self, packed: np.ndarray, z: np.ndarray):
+        """``(residual, energy, Y, states)`` at ``z``, written into ``packed`` (from :meth:`_pack`)."""
+        assert self._compiled is not None
+        nz = self.n_unknowns
+        packed[0, :nz] = z
+        out = self._compiled.raw(packed)[0]
+        m = HISTORY_ROWS * self.columns
         return (
             out[:nz],
             out[nz : nz + 3],
@@ -489,18 +503,19 @@ class RodDynamics:
             out[nz + 3 + m :].reshape(STATE_SIZE, self.s.size, order="F"),
         )
 
-    def _fresh_jacobian_inverse(self, z: np.ndarray, P: np.ndarray, H: np.ndarray) -> np.ndarray | None:
+    def _fresh_jacobian_inverse(self, packed: np.ndarray, z: np.ndarray) -> np.ndarray | None:
         """The inverse of the residual's Jacobian at ``z`` by forward differences, all columns in one C call.
 
-        The steps ``1e-7 (1 + |z_j|)`` leave a relative error near ``1e-6``, which only slows Newton
-        by that factor per iteration.
+        ``packed`` is the step's input (:meth:`_pack`). The steps ``1e-7 (1 + |z_j|)`` leave a relative
+        error near ``1e-6``, which only slows Newton by that factor per iteration.
         """
         assert self._compiled is not None
         nz = self.n_unknowns
         steps = FD_STEP * (1.0 + np.abs(z))
-        packed = np.tile(np.concatenate([z, P, H.ravel(order="F")]), (nz + 1, 1))
-        packed[np.arange(1, nz + 1), np.arange(nz)] += steps
-        r = self._compiled.raw(packed)[:, :nz]
+        batch = np.repeat(packed, nz + 1, axis=0)
+        batch[:, :nz] = z
+        batch[np.arange(1, nz + 1), np.arange(nz)] += steps
+        r = self._compiled.raw(batch)[:, :nz]
         J = ((r[1:] - r[0]) / steps[:, None]).T
         try:
             inverse = np.linalg.inv(J)
@@ -511,13 +526,14 @@ class RodDynamics:
     def _newton(self, z0: np.ndarray, P: np.ndarray, H: np.ndarray):
         """``(z, (residual, energy, Y, states), iterations, converged)`` from ``z0`` (compiled path).
 
-        Newton with the Jacobian kept while the residual falls at least tenfold per iteration,
+        Newton with the Jacobian kept while the residual falls at least twofold per iteration,
         refreshed when it does not, and a backtracking line search (halving the step) when a
         step with a fresh Jacobian does not lower the residual.
         """
         tol = self.options.tolerance
         z = np.array(z0, dtype=float)
-        out = self._evaluate(z, P, H)
+        packed = self._pack(P, H)
+        out = self._evaluate_packed(packed, z)
         norm = float(np.linalg.norm(out[0]))
         if norm <= tol:
             return z, out, 0, True
@@ -526,18 +542,18 @@ class RodDynamics:
         fresh = False
         for it in range(1, self.options.max_iterations + 1):
             if self._jacobian_inverse is None:
-                self._jacobian_inverse, fresh = self._fresh_jacobian_inverse(z, P, H), True
+                self._jacobian_inverse, fresh = self._fresh_jacobian_inverse(packed, z), True
                 if self._jacobian_inverse is None:
                     return z, out, it, False
             dz, lam = self._jacobian_inverse @ out[0], 1.0
             while True:
                 trial = z - lam * dz
-                trial_out = self._evaluate(trial, P, H)
+                trial_out = self._evaluate_packed(packed, trial)
                 trial_norm = float(np.linalg.norm(trial_out[0]))
                 if trial_norm < norm:
                     break
                 if not fresh:
-                    self._jacobian_inverse, fresh = self._fresh_jacobian_inverse(z, P, H), True
+                    self._jacobian_inverse, fresh = self._fresh_jacobian_inverse(packed, z), True
                     if self._jacobian_inverse is None:
                         return z, out, it, False
                     dz, lam = self._jacobian_inverse @ out[0], 1.0
