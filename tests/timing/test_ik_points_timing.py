@@ -10,6 +10,11 @@ Target: at most 50 us per warm-started solve from Python, against scipy ``lm`` (
 fixed section lengths (6 bending variables, 9 rows): every solve is a least-squares fit.
 ``extra_info`` holds the median time per solve (round median / targets), the number of
 fits and the speed-up over ``lm``.
+
+:func:`test_trunk_ik_problem` runs the shipped ``trunk-ik`` problem (``optikin solve trunk-ik``: the
+calibrated arm, its recording's three disks, fits within the noise) cold from rest and warm-started along
+the recording (``data.params.trajectory``), and holds the kind's own time per posture to
+:data:`POSTURE_BUDGET`.
 """
 
 from __future__ import annotations
@@ -21,6 +26,7 @@ from optikin.arms import ConstantCurvatureArm
 from optikin.data.configurations import TrajectoryParams, smooth_motion
 from optikin.ik.formulation import Formulation, build_problem
 from optikin.ik.points import MeasuredPoint, PointSet
+from optikin.runner import solve
 from optikin.solvers import load_backends, preset_of
 from optikin.spec import load_solver
 
@@ -28,6 +34,8 @@ load_backends()
 SAMPLES = 1000
 PRESETS = ("lm", "gauss-newton", "gauss-newton-compiled")
 _lm_per_solve: dict[str, float] = {}
+POSTURE_BUDGET = 0.5e-3
+"""Largest median time per posture [s] of ``trunk-ik`` (the kind's per-posture solve time, retries included)."""
 
 
 @pytest.fixture(scope="module")
@@ -65,3 +73,18 @@ def test_points_warm_started(benchmark, trunk, preset):
     if "lm" in _lm_per_solve:
         benchmark.extra_info["speed-up over lm"] = _lm_per_solve["lm"] / per_solve
     assert sum(s == "ok" for s in report.status) >= 0.99 * SAMPLES
+
+
+@pytest.mark.parametrize("trajectory", [False, True])
+def test_trunk_ik_problem(benchmark, trajectory):
+    overrides = [("data.params.trajectory", trajectory)]
+    solve("trunk-ik", figures=False, overrides=overrides)  # build outside the timing
+    result, _ = benchmark.pedantic(
+        lambda: solve("trunk-ik", figures=False, overrides=overrides), rounds=3, iterations=1
+    )
+    seconds = np.asarray(result.arrays["time_gauss-newton"])
+    iterations = np.asarray(result.arrays["iterations_gauss-newton"])
+    benchmark.extra_info["median per posture [us]"] = float(np.median(seconds) * 1e6)
+    benchmark.extra_info["median / max iterations"] = [float(np.median(iterations)), int(iterations.max())]
+    benchmark.extra_info["statuses"] = result.status_counts()
+    assert np.median(seconds) <= POSTURE_BUDGET

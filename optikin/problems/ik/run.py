@@ -256,17 +256,42 @@ def solver_of(adapter: NonlinearAdapter, problem: Problem) -> Solve:
     return lambda X0, P, warm, x_ref: adapter.solve_many(problem, X0, P, warm_start=warm, x_ref=x_ref)
 
 
+def reference_of(formulation: Formulation, problem: Problem) -> np.ndarray | None:
+    """The ``x_ref`` the backends are given: the rest configuration for ``redundancy: rest``, else None (each
+    start).
+
+    None too where no backend's answer depends on it: a fit (not :attr:`~optikin.ik.formulation.Formulation.exact`)
+    with at least as many residual rows as free variables is ``min ||r||`` whatever the reference (``newton``
+    solves ``J^T r = 0``, ``ipopt`` and ``sqpmethod`` minimise ``||r||^2``, ``lm`` and ``trf`` add their pull
+    rows only to a redundant problem, ``gauss_newton`` never reads it). Passing it would only keep
+    ``gauss_newton`` off its generated-C path (:mod:`optikin.native.ik`), ten times slower per posture.
+    """
+    if formulation.redundancy != "rest":
+        return None
+    if isinstance(problem, LeastSquaresProblem) and not formulation.exact:
+        if problem.m >= int(np.count_nonzero(~problem.fixed)):
+            return None
+    return formulation.rest
+
+
 def solve_targets(
-    solve: Solve, targets: Targets, setup: IkSetup, formulation: Formulation, ctx: ProblemContext
+    solve: Solve,
+    targets: Targets,
+    setup: IkSetup,
+    formulation: Formulation,
+    ctx: ProblemContext,
+    x_ref: np.ndarray | None = None,
 ) -> SolutionBatch:
     """Solve every target: warm-started along a trajectory; else batched, then the samples not solved retried
     ``setup.restarts`` times, first from the solution of the nearest solved target, then from random
     admissible configurations (seeded), keeping the better point; a sample's time and iterations include
-    its retries. With ``setup.noise``, minima within the noise are fits (:func:`mark_fits`)."""
-    x_ref = formulation.rest if formulation.redundancy == "rest" else None
+    its retries. With ``setup.noise``, minima within the noise are fits (:func:`mark_fits`). ``x_ref``: the
+    reference of every solve (:func:`reference_of`); the first batch from a start equal to it is given None
+    (each start, the same reference)."""
     if targets.trajectory:
         return mark_fits(solve(setup.start, targets.values, True, x_ref), ctx.arm, targets, formulation, setup.noise)
-    report = mark_fits(solve(setup.start, targets.values, False, x_ref), ctx.arm, targets, formulation, setup.noise)
+    first = None if x_ref is not None and np.array_equal(setup.start, x_ref) else x_ref
+    report = mark_fits(solve(setup.start, targets.values, False, first), ctx.arm, targets, formulation, setup.noise)
     for attempt in range(setup.restarts):
         status = np.array(report.status)
         solved = np.isin(status, SOLVED)
@@ -476,7 +501,8 @@ def solve(ctx: ProblemContext, split: Callable[[int, Solve], Solve] | None = Non
             if split is not None:
                 solve_batch = split(index, solve_batch)
             started = time.perf_counter()
-            report = solve_targets(solve_batch, targets, setup, method.formulation, ctx)
+            x_ref = reference_of(method.formulation, method.problem)
+            report = solve_targets(solve_batch, targets, setup, method.formulation, ctx, x_ref)
             wall = time.perf_counter() - started
             runs.append(MethodRun(method, report, answer_checks(ctx.arm, targets, method.formulation, report.x), wall))
             advance()
