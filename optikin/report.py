@@ -43,7 +43,8 @@ def result_console(wide: bool = False) -> Console:
 
 
 def print_result(result: Result, console: Console | None = None, wide: bool = False, verbose: bool = False) -> None:
-    """Headline, the run's criteria (a missed one first), metrics, the comparison of methods, notes.
+    """Headline (with the size setting of a kind that has one), each missed criterion with its reason, the
+    criteria met, whether the verdict is the one the problem file expects, metrics, the comparison, notes.
 
     Parameters
     ----------
@@ -62,22 +63,57 @@ def print_result(result: Result, console: Console | None = None, wide: bool = Fa
     """
     console = console or result_console(wide)
     counts = ", ".join(f"{k}: {v}" for k, v in result.status_counts().items())
+    setting = f", setting {escape(result.setting)}" if result.setting is not None else ""
     console.print(
-        f"[bold]{escape(result.problem)}[/bold] ({escape(result.kind)}, solver {escape(str(result.solver))}): "
+        f"[bold]{escape(result.problem)}[/bold] ({escape(result.kind)}, solver {escape(str(result.solver))}{setting}): "
         f"{result.samples} samples, {escape(counts)}"
     )
-    if result.criteria:
-        ordered = sorted(result.criteria.items(), key=lambda item: item[1])
-        met = ", ".join(
-            f"{escape(name)} " + ("[green]met[/green]" if ok else "[red]not met[/red]") for name, ok in ordered
-        )
-        console.print(f"criteria: {met}")
+    reasons = missed_reasons(result)
+    for name in [name for name, ok in result.criteria.items() if not ok]:
+        reason = f": {escape(reasons[name])}" if name in reasons else ""
+        console.print(f"criterion {escape(name)} [red]not met[/red]{reason}")
+    met = [escape(name) for name, ok in result.criteria.items() if ok]
+    if met:
+        console.print(f"criteria met: {', '.join(met)}")
+    if result.expect is not None:
+        console.print(escape(expected_line(result)))
     if result.metrics:
         _print_metrics(result, console, wide or verbose)
     if result.comparison:
         (_print_wide_comparison if wide else _print_compact_comparison)(result, console)
+    shown = {f"{CRITERION_NOTE.format(name)}{reason}" for name, reason in reasons.items()}
     for note in result.notes:
-        console.print(f"note: {escape(note)}")
+        if note not in shown:
+            console.print(f"note: {escape(note)}")
+
+
+CRITERION_NOTE = "criterion {} not met: "
+"""How a kind's note on a missed criterion begins (the reason follows); :func:`print_result` shows the reason
+beside the criterion rather than among the notes."""
+
+
+def missed_reasons(result: Result) -> dict[str, str]:
+    """The reason of every missed criterion of ``result`` that a note gives (:data:`CRITERION_NOTE`), by name."""
+    reasons = {}
+    for name, ok in result.criteria.items():
+        prefix = CRITERION_NOTE.format(name)
+        reason = next((note[len(prefix) :] for note in result.notes if note.startswith(prefix)), None)
+        if not ok and reason is not None:
+            reasons[name] = reason
+    return reasons
+
+
+def expected_line(result: Result) -> str:
+    """One line saying whether the run's exit status is the one the problem file's ``expect`` states, and why.
+
+    ``expected: exit 1 because ...`` when it is (the exit status stays 1: a missed criterion is still missed);
+    ``unexpected: exit 0, the problem file expects exit 1 because ...`` when it is not.
+    """
+    expect = result.expect or {}
+    because = f" because {expect['because']}" if expect.get("because") else ""
+    if result.as_expected:
+        return f"expected: exit {result.exit_status}{because}"
+    return f"unexpected: exit {result.exit_status}, the problem file expects exit {expect.get('exit')}{because}"
 
 
 def _print_metrics(result: Result, console: Console, every: bool) -> None:

@@ -96,6 +96,13 @@ class Result:
     met or not; a note says by how much one was missed."""
     provenance: dict[str, Any] = field(default_factory=dict)
     """What the run solved and where (:func:`optikin.provenance.provenance_of`), set by the runner."""
+    setting: str | None = None
+    """The size setting the run used (``options.setting`` of a kind that has one, e.g. ``small`` or ``full``),
+    set by the runner; None for a kind without settings. A number quoted from one setting is not comparable
+    with a run of another."""
+    expect: dict[str, Any] | None = None
+    """The verdict the problem file expects (``expect: {exit, because}``, :class:`optikin.spec.ExpectSpec`),
+    set by the runner; None when the file states none."""
 
     def __post_init__(self) -> None:
         unknown = sorted(set(self.status) - set(STATUSES))
@@ -114,6 +121,16 @@ class Result:
         """Every sample solved (:data:`SOLVED`) and every criterion met."""
         return all(s in SOLVED for s in self.status) and all(self.criteria.values())
 
+    @property
+    def exit_status(self) -> int:
+        """The exit status of ``optikin solve`` for this result: 0 when it :attr:`succeeded`, else 1."""
+        return 0 if self.succeeded else 1
+
+    @property
+    def as_expected(self) -> bool | None:
+        """Whether :attr:`exit_status` is the problem file's ``expect.exit`` (None when it expects nothing)."""
+        return None if self.expect is None else self.exit_status == self.expect.get("exit")
+
     def summary(self) -> dict[str, Any]:
         """Everything but the arrays and figures, as JSON-ready data."""
         failed = [i for i, s in enumerate(self.status) if s not in SOLVED]
@@ -124,12 +141,15 @@ class Result:
             "title": self.title,
             "kind": self.kind,
             "solver": self.solver,
+            "setting": self.setting,
             "arm": self.arm,
             "samples": self.samples,
             "status_counts": self.status_counts(),
             "failed_samples": failed[:100],
             "criteria": self.criteria,
             "succeeded": self.succeeded,
+            "expect": self.expect,
+            "as_expected": self.as_expected,
             "timings": self.timings,
             "metrics": self.metrics,
             "comparison": [row.__dict__ for row in self.comparison],

@@ -6,7 +6,8 @@ kind's default), checks that the kind accepts that backend, resolves every liste
 baseline to the one the kind runs (:func:`resolve_baselines`), validates ``options``
 and ``data.params`` against the kind's and the data source's models, builds the
 arm, refuses a run whose estimated memory passes the limit (:mod:`optikin.resources`),
-runs the kind, and optionally writes the result. Every error found before the run names the file and the dotted field;
+runs the kind, records on the result its size setting and the verdict the file expects
+(:func:`label`), and optionally writes the result. Every error found before the run names the file and the dotted field;
 a run that runs out of memory all the same is a :class:`~optikin.errors.SpecError`
 on ``data.samples`` too (exit 2), not a traceback.
 """
@@ -185,6 +186,15 @@ def prepare_spec(
     return kind, ctx
 
 
+def label(result: Result, ctx: ProblemContext) -> None:
+    """Record on ``result`` the size setting the run used (``options.setting`` of a kind that has one) and
+    the verdict the problem file expects (``expect:``), so that both are printed and written with it."""
+    setting = getattr(ctx.options, "setting", None)
+    result.setting = None if setting is None else str(setting)
+    expect = ctx.spec.expect
+    result.expect = None if expect is None else expect.model_dump(mode="json")
+
+
 def _tell(notify: Callable[[str], None] | None, line: str | None) -> None:
     if notify is not None and line is not None:
         notify(line)
@@ -235,6 +245,7 @@ def solve(
         started, clock = now(), time.perf_counter()
         result = kind.run(ctx) if chunks is None else chunks.run(kind, ctx, overrides)
         result.provenance = provenance_of(ctx, started, time.perf_counter() - clock)
+        label(result, ctx)
         logger.debug("%s: ran in %.3g s", ctx.spec.name, time.perf_counter() - clock)
         _check_arrays(ctx.spec, ctx.path, result)
         written = None

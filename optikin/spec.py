@@ -27,6 +27,13 @@ A problem file::
     baselines: [numpy]               # compared in the same run
     outputs: {figures: true, arrays: [tip_dq]}
     options: {}                      # kind-specific settings
+    expect: {exit: 1, because: ...}  # optional: the exit status the run is expected to end with, and why
+
+``expect`` states a verdict the problem reaches by design (a reference that leaves the workspace,
+targets outside it): ``exit`` is 0 or 1 and ``because`` (required when ``exit`` is 1) says why. The exit
+status of ``optikin solve`` stays truthful (1 still means a sample failed or a criterion was missed);
+the output adds one line saying whether the verdict was the expected one
+(:func:`optikin.report.print_result`), and ``result.json`` records ``expect``.
 
 A solver preset::
 
@@ -48,7 +55,7 @@ from pathlib import Path
 from typing import Any, ClassVar, Literal, Sequence, cast
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from optikin.errors import SpecError, UnknownNameError
 from optikin.options import StrictNumbers, spec_error
@@ -81,6 +88,21 @@ class OutputSpec(_Strict):
     arrays: list[str] | None = Field(None, description="arrays to keep in the NPZ file; all when omitted")
 
 
+class ExpectSpec(_Strict):
+    """The verdict a problem file expects its run to reach (``expect:``): ``optikin solve`` keeps its truthful exit
+    status (1 for a failed sample or a missed criterion, expected or not) and prints one line saying whether the
+    status is the expected one."""
+
+    exit: Literal[0, 1] = Field(description="the exit status the run should end with: 0 solved, 1 by design not")
+    because: str = Field("", description="why the run ends with that status; required when exit is 1")
+
+    @model_validator(mode="after")
+    def _because_given(self) -> ExpectSpec:
+        if self.exit == 1 and not self.because.strip():
+            raise ValueError("because is required when exit is 1: say why the run is expected to fail")
+        return self
+
+
 class ProblemSpec(_Strict):
     """A problem file (``problems/*.yaml``)."""
 
@@ -98,6 +120,9 @@ class ProblemSpec(_Strict):
     outputs: OutputSpec = Field(default_factory=OutputSpec, description="what is written into the result folder")
     options: dict[str, Any] = Field(default_factory=dict, description="the kind's options (its own model)")
     description: str = Field("", description="what the problem shows and why, in prose")
+    expect: ExpectSpec | None = Field(
+        None, description="the exit status the run is expected to end with (0 or 1) and, for 1, why"
+    )
 
 
 class LimitsSpec(_Strict):
