@@ -21,7 +21,7 @@ hints fill in what a kind does not store as positions: without any backbone arra
 into backbones by the arm's forward kinematics (:meth:`optikin.arms.base.ArmModel.backbone`, the arm rebuilt
 from the provenance's problem spec); and ``(N, 8)`` unit dual quaternion ``targets`` give their translation.
 
-plotly is an optional dependency (extra ``view``), imported only here.
+plotly is a core dependency, imported only here (the page embeds its plotly.js).
 """
 
 from __future__ import annotations
@@ -519,7 +519,7 @@ def _plotly_io() -> Any:
     try:
         import plotly.io as pio
     except ImportError:
-        raise ViewError("optikin view needs plotly: pip install 'optikin[view]' (or pip install 'plotly>=5')") from None
+        raise ViewError("optikin view needs plotly, a dependency of optikin: pip install 'plotly>=5'") from None
     return pio
 
 

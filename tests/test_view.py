@@ -11,14 +11,12 @@ from html.parser import HTMLParser
 from pathlib import Path
 
 import numpy as np
+import plotly.graph_objects as go
 import pytest
 
 from optikin.results import MethodRow, Result, write_result
-
-plotly = pytest.importorskip("plotly", reason="optikin view needs plotly (extra 'view')")
-go = pytest.importorskip("plotly.graph_objects")
-
-from optikin.view import MAX_FRAMES, ViewError, build_figure, page_html, write_view  # noqa: E402
+from optikin.spec import project_root
+from optikin.view import MAX_FRAMES, ViewError, build_figure, page_html, write_view
 
 N, K = 12, 30
 CC_ARM = {"type": "constant_curvature", "params": {"section_lengths": [0.1, 0.1], "theta_max": 3.0}}
@@ -236,9 +234,18 @@ def test_page_is_self_contained_with_the_comparison_table(tmp_path):
     assert other.read_text() == text
 
 
-def test_missing_plotly_names_the_extra(monkeypatch):
+def test_plotly_is_a_core_dependency():
+    """A plain ``pip install optikin`` has plotly (optikin view needs no extra); the extra ``view`` stays, empty,
+    so that ``pip install 'optikin[view]'`` still works."""
+    tomllib = pytest.importorskip("tomllib", reason="tomllib is in the standard library from Python 3.11")
+    project = tomllib.loads((project_root() / "pyproject.toml").read_text())["project"]
+    assert any(re.match(r"plotly\b", requirement) for requirement in project["dependencies"])
+    assert project["optional-dependencies"]["view"] == []
+
+
+def test_a_broken_install_without_plotly_names_the_fix(monkeypatch):
     monkeypatch.setitem(sys.modules, "plotly.io", None)
-    with pytest.raises(ViewError, match=r"optikin\[view\]"):
+    with pytest.raises(ViewError, match=r"pip install 'plotly>=5'"):
         page_html({"tip_position": np.zeros((2, 3))}, {"samples": 2})
 
 
