@@ -287,7 +287,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("result", help="a result folder (holding result.json and arrays.npz)")
     p.set_defaults(run=_cmd_plot)
 
-    p = sub.add_parser("view", help="an interactive 3-D HTML page of a written result (needs plotly: extra view)")
+    p = sub.add_parser("view", help="an interactive 3-D HTML page of a written result (self-contained)")
     p.add_argument("result", help="a result folder (holding result.json and arrays.npz)")
     p.add_argument("--out", help="the HTML file to write (default: RESULT/view.html)")
     p.add_argument("--open", action="store_true", help="open the page in the web browser")
