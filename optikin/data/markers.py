@@ -35,8 +35,12 @@ give the tube lengths (section V.B, Table II).
 and the rope they hold, hanging as an exact catenary.
 
 Problem files name a source of family ``markers`` in ``data.source`` (registered with
-:func:`optikin.data.sources.register_source`, params models :class:`SyntheticMarkerParams`
-and :class:`CsvMarkerParams`): ``synthetic`` or ``csv``. The rope chain has family
+:func:`optikin.data.sources.register_source`, params models :class:`SyntheticMarkerParams`,
+:class:`CsvMarkerParams` and :class:`DiskParams`): ``synthetic``, ``csv`` or ``disks``. Source
+``disks`` reads positions-only disk centres (columns ``<disk>_x, <disk>_y, <disk>_z``, e.g. the
+``points_file`` of kind ``calibrate``) with a base pose given or read from the calibrated arm file,
+and estimates the tip pose from the disks alone (:func:`disk_recording`, :func:`estimated_tip`: the
+tangent at the last disk of the circle through the last three points). The rope chain has family
 ``rope_chains``, source ``synthetic`` (:class:`RopeChainParams`).
 
 CSV files (:func:`read_marker_csv`, :func:`write_marker_csv`) have a header row and
@@ -73,6 +77,7 @@ from typing import Any, Literal
 
 import casadi as ca
 import numpy as np
+import yaml
 from pydantic import Field, field_validator
 
 from optikin.algebra import quat_from_axis_angle, quat_from_matrix, quat_multiply, quat_normalize, quat_rotate
@@ -80,10 +85,11 @@ from optikin.arms.base import ArmModel
 from optikin.arms.cbha import LEG_DIRECTIONS, PLATFORM_LEG_LENGTHS, CBHAArm
 from optikin.curves.catenary import Catenary, catenary
 from optikin.data.configurations import first_rows
-from optikin.data.csvread import UNIT_METRES, missing_columns, read_table
+from optikin.data.csvread import UNIT_METRES, columns_of, missing_columns, read_table
 from optikin.data.files import data_file
 from optikin.data.recording import FrameOptions, convert_body_orientations, convert_vectors, frame_matrix
 from optikin.data.sources import register_source
+from optikin.data.targets import BasePose
 from optikin.errors import SpecError
 from optikin.options import Options
 from optikin.spec import DataSpec
@@ -121,7 +127,10 @@ class MarkerRecording:
     the backbone). ``tube_lengths`` are whole tubes ``(N, 3)``, ``section_tube_lengths``
     section 1 ``(N, 3)``. ``marker_vertebrae``: the 1-based vertebra of each intermediate
     marker, when known (empty otherwise). ``skipped_rows``: rows of a file source left out
-    because ``data.samples`` asked for fewer.
+    because ``data.samples`` asked for fewer. A tip pose estimated from the markers (source ``disks``):
+    ``tip_estimate`` says how, ``tip_markers`` are the intermediate markers it used (indices from 0), and
+    ``held_out_tip_directions`` ``(N, K, 3)`` the unit tip tangent estimated without marker ``k``, for
+    scoring each marker on a curve that did not use it (None: the tip pose is recorded).
     """
 
     t: np.ndarray
@@ -136,6 +145,9 @@ class MarkerRecording:
     truth: CBHATruth | None = field(default=None, repr=False)
     marker_vertebrae: tuple[int, ...] = ()
     skipped_rows: int = 0
+    held_out_tip_directions: np.ndarray | None = None
+    tip_estimate: str = ""
+    tip_markers: tuple[int, ...] = ()
 
     def __post_init__(self):
         if self.marker_vertebrae and len(self.marker_vertebrae) != self.markers.shape[1]:
@@ -190,6 +202,7 @@ class MarkerRecording:
             tube_lengths=pick(self.tube_lengths),
             section_tube_lengths=pick(self.section_tube_lengths),
             truth=truth,
+            held_out_tip_directions=pick(self.held_out_tip_directions),
         )
 
 
@@ -547,6 +560,213 @@ def csv_source(arm: ArmModel | None, data: DataSpec, params: CsvMarkerParams, pa
             raise SpecError(
                 path, "data.params.intermediate", f"{exc} (the file has {recording.markers.shape[1]} marker columns)"
             ) from None
+    keep, skipped = first_rows(data, len(recording))
+    return replace(recording.take(slice(0, keep)), skipped_rows=skipped)
+
+
+# ------------------------------------------------------------------------------ positions-only disks
+def circle_tangent(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Unit tangent at ``c`` of the circle through ``a``, ``b``, ``c``, travelled from ``a`` through ``b`` to ``c``.
+
+    The inversion about ``c`` maps that circle to the straight line through ``(a - c) / |a - c|^2`` and
+    ``(b - c) / |b - c|^2``, parallel to the circle's tangent at ``c``; so the tangent is the unit vector of
+    their difference, in closed form, and three collinear points give their line's direction.
+
+    Parameters
+    ----------
+    a, b, c:
+        Three distinct points on the curve, in order, ``(N, 3)`` [m].
+
+    Returns
+    -------
+    np.ndarray
+        ``(N, 3)`` unit vectors, pointing onwards from ``c`` (NaN where two points coincide).
+    """
+    u, v = b - c, a - c
+    with np.errstate(divide="ignore", invalid="ignore"):
+        w = v / np.sum(v * v, axis=-1, keepdims=True) - u / np.sum(u * u, axis=-1, keepdims=True)
+        return w / np.linalg.norm(w, axis=-1, keepdims=True)
+
+
+def rotation_onto(q: np.ndarray, direction: np.ndarray) -> np.ndarray:
+    """The orientations ``(N, 4)`` whose z axis is ``direction`` ``(N, 3)`` (unit), each the smallest rotation of
+    orientation ``q`` ``(N, 4)`` that turns its z axis onto it (about the base x axis for a half turn)."""
+    z = quat_rotate(q, np.array([0.0, 0.0, 1.0]), check=False)
+    x = quat_rotate(q, np.array([1.0, 0.0, 0.0]), check=False)
+    half = np.concatenate([1.0 + np.sum(z * direction, axis=1, keepdims=True), np.cross(z, direction)], axis=1)
+    flip = half[:, 0] <= 1e-12
+    half[flip] = np.concatenate([np.zeros((int(flip.sum()), 1)), x[flip]], axis=1)
+    return quat_normalize(quat_multiply(quat_normalize(half, check=False), q), check=False)
+
+
+def tip_tangents(chain: np.ndarray) -> np.ndarray:
+    """The tip tangent of every posture from its last three points: ``chain`` ``(N, P, 3)`` (base point first,
+    tip last, ``P >= 3``) -> ``(N, 3)`` (:func:`circle_tangent`)."""
+    return circle_tangent(chain[:, -3], chain[:, -2], chain[:, -1])
+
+
+def estimated_tip(recording: MarkerRecording) -> MarkerRecording:
+    """``recording`` with its tip orientation estimated from its points alone (the tip position kept).
+
+    The chain of each posture is the base point, the intermediate markers and the tip point, in order; the
+    tip tangent is that of the circle through its last three points (:func:`tip_tangents`), the orientation
+    the smallest rotation of the base orientation onto it (the tip's twist is not measured). Intermediate
+    marker ``k`` is also given the tip tangent of the chain without it (``held_out_tip_directions``), so that
+    every marker can be scored on a backbone that did not use it.
+
+    Raises
+    ------
+    ValueError
+        Fewer than two intermediate markers (three points after the base, the tip included), or two
+        consecutive points of a chain that coincide (naming the posture).
+    """
+    K = recording.markers.shape[1]
+    if K < 2:
+        raise ValueError(
+            f"a tip tangent from the circle through the last three disks, without each scored one, needs three "
+            f"disks (two intermediate markers and the tip), got {K + 1}"
+        )
+    chain = np.concatenate(
+        [recording.base_position[:, None], recording.markers, recording.tip_position[:, None]], axis=1
+    )  # (N, K + 2, 3)
+    for k in range(-1, K):  # the whole chain, then the chain without each marker
+        points = chain if k < 0 else np.delete(chain, k + 1, axis=1)
+        gaps = np.linalg.norm(np.diff(points, axis=1), axis=2)
+        close = np.argwhere(gaps <= COINCIDENT)
+        if close.size:
+            i, j = (int(v) for v in close[0])
+            labels = ["the base point"] + [f"disk {m + 1}" for m in range(K + 1) if m != k]
+            raise ValueError(f"posture {i}: {labels[j]} and {labels[j + 1]} coincide ({gaps[i, j]:.3g} m apart)")
+    held = np.stack([tip_tangents(np.delete(chain, k + 1, axis=1)) for k in range(K)], axis=1)
+    return replace(
+        recording,
+        tip_orientation=rotation_onto(recording.base_orientation, tip_tangents(chain)),
+        held_out_tip_directions=held,
+        tip_estimate="tangent of the circle through the last three points of (base, disks)",
+        tip_markers=tuple(k for k in range(K) if k >= K - 2),  # the markers among the last three points
+    )
+
+
+def disk_recording(
+    disks: np.ndarray,
+    base_position: np.ndarray,
+    base_orientation: np.ndarray,
+    t: np.ndarray | None = None,
+    source: str = "",
+) -> MarkerRecording:
+    """End poses and intermediate markers of positions-only disks, the tip pose estimated from them alone.
+
+    The tip position is the last disk, its orientation that of :func:`estimated_tip`; the other disks are
+    the intermediate markers.
+
+    Parameters
+    ----------
+    disks:
+        ``(N, D, 3)`` disk centres from base to tip [m], ``D >= 3``.
+    base_position, base_orientation:
+        The base pose, ``(3,)`` [m] and a unit quaternion ``(4,)`` ``(w, x, y, z)`` (z along the backbone).
+    t:
+        Time or posture index of each row ``(N,)`` (default ``0, 1, ...``).
+    source:
+        Names the data.
+
+    Raises
+    ------
+    ValueError
+        As :func:`estimated_tip`.
+    """
+    N = disks.shape[0]
+    p0 = np.tile(np.asarray(base_position, dtype=float), (N, 1))
+    q0 = np.tile(quat_normalize(np.asarray(base_orientation, dtype=float), check=False), (N, 1))
+    recording = MarkerRecording(
+        t=np.arange(N, dtype=float) if t is None else np.asarray(t, dtype=float),
+        base_position=p0,
+        base_orientation=q0,
+        tip_position=disks[:, -1].copy(),
+        tip_orientation=q0.copy(),
+        markers=disks[:, :-1].copy(),
+        source=source,
+    )
+    return estimated_tip(recording)
+
+
+class DiskParams(Options):
+    """``data.params`` of source ``disks`` (family ``markers``): positions-only disks and the base pose."""
+
+    file: str = Field(
+        description="CSV file of disk centres, columns <disk>_x, <disk>_y, <disk>_z (e.g. the points_file of kind "
+        "calibrate), relative to the problem file"
+    )
+    disks: tuple[str, ...] = Field(
+        min_length=3, description="the disks' column prefixes from base to tip; the last is the tip"
+    )
+    units: Literal["m", "cm", "mm"] = Field("m", description="length unit of the file's positions")
+    frame: FrameOptions = Field(
+        default_factory=FrameOptions,
+        description="axes of the file's frame, converted to optikin's z-up frame as a recording's",
+    )
+    base: BasePose | Literal["arm"] = Field(
+        "arm",
+        description="the base pose after the frame conversion: arm (calibration.base_position and base_quaternion "
+        "of the calibrated arm file the problem's arm: includes) or {position, quaternion}",
+    )
+
+
+def calibrated_base(path: Path, field: str) -> tuple[np.ndarray, np.ndarray]:
+    """``calibration.base_position`` [m] and ``base_quaternion`` of the arm file that problem file ``path`` includes
+    (``arm: <file>``, written by kind ``calibrate``); a :class:`SpecError` on ``field`` otherwise."""
+    try:
+        arm = yaml.safe_load(Path(path).read_text()).get("arm")
+    except (OSError, yaml.YAMLError, AttributeError) as exc:
+        raise SpecError(path, field, f"cannot read the problem file again: {exc}") from None
+    if not isinstance(arm, str):
+        raise SpecError(path, field, "base: arm needs arm: <file> naming a calibrated arm file (kind calibrate)")
+    included = (Path(path).parent / arm).resolve()
+    try:
+        facts = yaml.safe_load(included.read_text()).get("calibration") or {}
+    except (OSError, yaml.YAMLError, AttributeError) as exc:
+        raise SpecError(path, field, f"cannot read {included}: {exc}") from None
+    try:
+        position = np.asarray(facts["base_position"], dtype=float)
+        quaternion = np.asarray(facts["base_quaternion"], dtype=float)
+    except (KeyError, TypeError, ValueError):
+        position = quaternion = np.zeros(0)
+    if position.shape != (3,) or quaternion.shape != (4,) or not np.all(np.isfinite(np.r_[position, quaternion])):
+        raise SpecError(
+            path, field, f"{included} has no calibration.base_position (3 numbers) and base_quaternion (4 numbers)"
+        )
+    if abs(float(np.linalg.norm(quaternion)) - 1.0) > QUATERNION_TOLERANCE:
+        raise SpecError(path, field, f"{included}: calibration.base_quaternion is not a unit quaternion")
+    return position, quaternion
+
+
+@register_source(
+    "markers",
+    "disks",
+    "positions-only disk centres (a CSV file) with a given or calibrated base pose; the tip pose from the disks",
+    params=DiskParams,
+)
+def disks_source(arm: ArmModel | None, data: DataSpec, params: DiskParams, path: Path) -> MarkerRecording:
+    """:func:`disk_recording` of the disks of ``params.file``: every row, or the first ``data.samples``."""
+    file = data_file(path, params.file)
+    names = [f"{d}_{c}" for d in params.disks for c in "xyz"]
+    table = read_table(file, columns_of(str(file), names, finite=names))
+    scale = UNIT_METRES[params.units]
+    table.check_coordinates(names, scale, params.units, "data.params.units")
+    try:
+        matrix = frame_matrix(params.frame)
+    except ValueError as exc:
+        raise SpecError(path, "data.params.frame", str(exc)) from None
+    n = len(table)
+    disks = convert_vectors(table.stacked(names).reshape(n * len(params.disks), 3) * scale, matrix)
+    if params.base == "arm":
+        position, quaternion = calibrated_base(path, "data.params.base")
+    else:
+        position, quaternion = np.asarray(params.base.position), np.asarray(params.base.quaternion)
+    try:
+        recording = disk_recording(disks.reshape(n, len(params.disks), 3), position, quaternion, source=str(file))
+    except ValueError as exc:
+        raise SpecError(path, "data.params.disks", f"{file}: {exc}") from None
     keep, skipped = first_rows(data, len(recording))
     return replace(recording.take(slice(0, keep)), skipped_rows=skipped)
 

@@ -23,7 +23,7 @@ Problem file::
     kind: ph_shape
     arm: {type: cbha}
     data:
-      source: synthetic     # synthetic | cosserat | csv (family markers, optikin.data.markers)
+      source: synthetic     # synthetic | cosserat | csv | disks (family markers, optikin.data.markers)
       seed: 2018
       samples: 100
       params: {noise: 0.0003, rate: 240.0, stride: 24}
@@ -31,9 +31,19 @@ Problem file::
     baselines: [ph-ipopt, ph-ipopt-cold, ph-grid, cosserat-wrench, cc-arc, cc-two-arcs]
 
 Options: :class:`~optikin.problems.ph_shared.PHOptions` (``twist_weight``, ``nodes``,
-``free_speeds``, ``length``, ``fixed_base``), ``c1_joint`` and ``cosserat_wrench`` (the rod of
+``free_speeds``, ``length``, ``fixed_base``), ``tip``, ``c1_joint`` and ``cosserat_wrench`` (the rod of
 that baseline: ``EA``, ``EI``, ``GA``, ``GJ``, ``mass_per_length``, ``gravity``, ``steps``;
 defaults those of the ``cosserat`` source).
+
+A recording with positions only (a trunk's disks: no tip orientation) gets its tip tangent from the
+points alone, the tangent at the tip of the circle through the last three points of (base, markers,
+tip) (:func:`optikin.data.markers.estimated_tip`): source ``disks`` (a CSV of disk centres, the base
+pose from the calibrated arm file the problem includes, or given), or ``tip: circle`` on any
+recording. Those points are used by the tip estimate, so each intermediate marker is also scored on
+the solver's backbone whose tip tangent did not use it (the circle through the chain without that
+marker): the ``held-out`` metrics (median, 95th percentile and largest distance per marker and over all
+of them) and the solver row's ``held-out m<k> median`` columns. The seed's own figures (1.2, 3.7 and
+3.1 mm) are printed only for a problem whose arm is the seed's CBHA.
 
 With ``c1_joint: true`` (:mod:`optikin.problems.ph_shape.c1`, seed 002 Fig. 2, eqs. 15-18)
 every method also rebuilds each backbone as two PH quintics, section 1 and section 2,

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Literal
+
 from pydantic import Field
 
 from optikin.data.cosserat_markers import CosseratMarkerParams
@@ -34,8 +36,15 @@ class CosseratWrenchOptions(Options):
 
 
 class PHShapeOptions(PHOptions):
-    """Options of ``ph_shape`` (:class:`~optikin.problems.ph_shared.PHOptions`, ``c1_joint`` and
+    """Options of ``ph_shape`` (:class:`~optikin.problems.ph_shared.PHOptions`, ``tip``, ``c1_joint`` and
     ``cosserat_wrench``)."""
+
+    tip: Literal["recorded", "circle"] = Field(
+        "recorded",
+        description="the tip orientation: recorded (the data's), or circle: the tangent of the circle through "
+        "the last three points of (base, markers, tip), each marker also scored on the backbone whose tangent "
+        "did not use it (optikin.data.markers.estimated_tip)",
+    )
 
     c1_joint: bool = Field(
         False,

@@ -6,11 +6,12 @@ from typing import Any
 
 import numpy as np
 
+from optikin.arms.cbha import CBHAArm
 from optikin.data.configurations import skipped_rows_notes
 from optikin.data.cosserat_markers import CosseratMarkerParams, CosseratRecording, CosseratTruth
 from optikin.problems import ProblemContext
 from optikin.problems.ph_shape import cc
-from optikin.problems.fairness import Given, Manifest, recorded_arm
+from optikin.problems.fairness import ArmSize, Given, Manifest, recorded_arm
 from optikin.problems.ph_shape.c1 import SECTIONS
 from optikin.problems.ph_shape.options import PHShapeOptions
 from optikin.problems.ph_shape.run import ShapeOutcome
@@ -311,9 +312,14 @@ def manifest(ctx: ProblemContext) -> Manifest:
     marker at the end of section 1; ``cosserat-wrench`` a rod (:func:`wrench_given`).
     """
     options: PHShapeOptions = ctx.options
-    truth, shared = recorded_arm(ctx.spec.data.source, ctx.data_params, ctx.arm_model)
+    if ctx.spec.data.source == "disks":  # a recorded file, whatever arm the problem names
+        truth, shared = ArmSize("the recorded arm (disks)"), False
+    else:
+        truth, shared = recorded_arm(ctx.spec.data.source, ctx.data_params, ctx.arm_model)
     solver = ctx.solver.name if ctx.solver is not None else ""
     ends = "the base and tip rigid bodies"
+    if ctx.spec.data.source == "disks" or options.tip == "circle":
+        ends = "the base pose, the tip point and the tangent of the circle through the last three points"
     joint = "; the marker at the end of section 1 (an extra joint pose)"
     entries = []
     for name in [solver] + [b for b in ctx.spec.baselines if b != solver]:
@@ -328,6 +334,34 @@ def manifest(ctx: ProblemContext) -> Manifest:
     return Manifest(truth, shared, tuple(entries))
 
 
+def held_out_metrics(outcome: ShapeOutcome) -> tuple[dict[str, Any], dict[str, float]]:
+    """Metrics and the solver's per-disk table entries of the held-out check (:func:`~optikin.problems.ph_shape.run.
+    held_out_distances`); empty for a recording whose tip pose is recorded.
+
+    Each intermediate marker is scored on the backbone whose tip tangent did not use it: median, 95th
+    percentile and largest distance per marker and over all of them [mm]; the markers the main backbone's tip
+    estimate used are named (its own marker distances are not a held-out check of those).
+    """
+    held, recording = outcome.held_out, outcome.recording
+    if held is None:
+        return {}, {}
+    mm = held * MM  # (N, K)
+    metrics: dict[str, Any] = {
+        "tip pose": f"estimated from the markers: {recording.tip_estimate}",
+        "markers the tip estimate used": [k + 1 for k in recording.tip_markers],
+        "held-out marker distance median / p95 / max [mm]": [
+            float(np.nanmedian(mm)),
+            float(np.nanpercentile(mm, 95)),
+            float(np.nanmax(mm)),
+        ],
+        "held-out distance per marker, median [mm]": np.nanmedian(mm, axis=0),
+        "held-out distance per marker, p95 [mm]": np.nanpercentile(mm, 95, axis=0),
+        "held-out distance per marker, max [mm]": np.nanmax(mm, axis=0),
+    }
+    row = {f"held-out m{k + 1} median [mm]": float(np.nanmedian(mm[:, k])) for k in range(mm.shape[1])}
+    return metrics, row
+
+
 def report(ctx: ProblemContext, outcome: ShapeOutcome) -> Result:
     """The Result of a ``ph_shape`` run."""
     spec, main, options = ctx.spec, outcome.main, outcome.options
@@ -335,12 +369,16 @@ def report(ctx: ProblemContext, outcome: ShapeOutcome) -> Result:
     metrics: dict[str, Any] = {
         "mean distance per marker [mm]": np.nanmean(distance, axis=0),
         "max distance per marker [mm]": np.nanmax(distance, axis=0),
-        "seed 002 V.A mean distance per marker [mm]": list(SEED_MEAN_DISTANCES_MM),
-        "median time per sample [us]": float(np.median(main.seconds) * 1e6),
     }
+    if isinstance(ctx.arm_model, CBHAArm):  # the seed's figures are those of its CBHA
+        metrics["seed 002 V.A mean distance per marker [mm]"] = list(SEED_MEAN_DISTANCES_MM)
+    metrics["median time per sample [us]"] = float(np.median(main.seconds) * 1e6)
+    held_metrics, held_row = held_out_metrics(outcome)
+    metrics.update(held_metrics)
     truth, truth_arrays = truth_metrics(outcome)
     metrics.update(truth)
     extra = {name: {"mean marker distance [mm]": float(np.nanmean(d) * MM)} for name, d in outcome.distances.items()}
+    extra[outcome.solver].update(held_row)
     if outcome.recording.truth is not None:
         for name, method in outcome.runs.items():
             extra[name].update(
@@ -378,7 +416,14 @@ def report(ctx: ProblemContext, outcome: ShapeOutcome) -> Result:
         },
         metrics=metrics,
         comparison=given.annotate(comparison),
-        arrays={**shape_arrays(outcome), **truth_arrays, **wrench_arrays, **cc_arrays, **chain_arrays},
+        arrays={
+            **shape_arrays(outcome),
+            **truth_arrays,
+            **wrench_arrays,
+            **cc_arrays,
+            **chain_arrays,
+            **({} if outcome.held_out is None else {"held_out_marker_distance": outcome.held_out}),
+        },
         notes=skipped_rows_notes(outcome.recording.skipped_rows, ctx.data_params)
         + [
             f"{len(outcome.recording)} postures from {outcome.recording.source or spec.data.source}; residual = "

@@ -2,18 +2,27 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from optikin.curves import ShapeData
-from optikin.data.markers import MarkerRecording
+from optikin.data.markers import MarkerRecording, estimated_tip, rotation_onto
 from optikin.problems import ProblemContext
 from optikin.problems.ph_shape import cc
 from optikin.problems.ph_shape.c1 import SECTIONS, C1Chain, c1_chain_data, joint_poses, joint_tangents
 from optikin.problems.ph_shape.options import PHShapeOptions
 from optikin.problems.ph_shape.wrench import NAME, WrenchRun, distances_to_polylines, run_wrench
-from optikin.problems.ph_shared import MethodRun, distances_to_curves, shape_samples, solve_methods, solver_name
+from optikin.problems.ph_shared import (
+    MethodRun,
+    backbone_lengths,
+    distances_to_curves,
+    end_data,
+    shape_samples,
+    solve_methods,
+    solver_name,
+)
+from optikin.solvers.ph_backends import PHAdapter
 
 OTHERS = (NAME, cc.NAME, cc.TWO_ARCS)
 """The baselines the kind runs itself (not ``ph`` presets)."""
@@ -48,6 +57,9 @@ class ShapeOutcome:
         The ``cc-arc`` arcs, when listed.
     two_arcs:
         The ``cc-two-arcs`` arcs, when listed.
+    held_out:
+        Distance of each intermediate marker to the solver's backbone whose tip tangent did not use it
+        ``(N, K)`` [m] (:func:`held_out_distances`), for a recording whose tip pose is estimated from its markers.
     """
 
     recording: MarkerRecording
@@ -61,6 +73,7 @@ class ShapeOutcome:
     chain: C1Chain | None = None
     arcs: cc.CCRun | None = None
     two_arcs: cc.TwoArcs | None = None
+    held_out: np.ndarray | None = None
 
     @property
     def main(self) -> MethodRun:
@@ -72,7 +85,7 @@ def run(ctx: ProblemContext) -> ShapeOutcome:
     """Rebuild every posture's backbone with each method; marker distances per method."""
     options: PHShapeOptions = ctx.options
     source = f"{ctx.path.name}: data"
-    recording, lengths, samples = shape_samples(ctx.load_data(), options, source)
+    recording, lengths, samples = shape_samples(tip_of(ctx, ctx.load_data(), options), options, source)
     runs = solve_methods(ctx, options.energy, options.free_speeds, samples, others=OTHERS)
     distances = {name: distances_to_curves(method.curves, recording.markers) for name, method in runs.items()}
     wrench = None
@@ -91,9 +104,49 @@ def run(ctx: ProblemContext) -> ShapeOutcome:
         two_arcs = cc.run_two_arcs(recording, source)
         distances[cc.TWO_ARCS] = two_arcs.distances(recording.markers)
     chain = c1_chain(ctx, recording, options, source) if options.c1_joint else None
+    held_out = held_out_distances(ctx, recording, options, source)
     return ShapeOutcome(
-        recording, lengths, samples, runs, distances, solver_name(ctx), options, wrench, chain, arcs, two_arcs
+        recording, lengths, samples, runs, distances, solver_name(ctx), options, wrench, chain, arcs, two_arcs, held_out
     )
+
+
+def tip_of(ctx: ProblemContext, recording: MarkerRecording, options: PHShapeOptions) -> MarkerRecording:
+    """``recording`` with ``options.tip``'s tip orientation: its own, or that of
+    :func:`~optikin.data.markers.estimated_tip` (from the base point averaged with ``fixed_base``)."""
+    if options.tip == "recorded":
+        return recording
+    try:
+        return estimated_tip(recording.with_fixed_base() if options.fixed_base else recording)
+    except ValueError as exc:
+        raise ctx.error("options.tip", str(exc)) from None
+
+
+def held_out_distances(
+    ctx: ProblemContext, recording: MarkerRecording, options: PHShapeOptions, source: str
+) -> np.ndarray | None:
+    """Each intermediate marker's distance to the solver's backbone built without it ``(N, K)`` [m].
+
+    For a recording whose tip tangent was estimated from its markers
+    (:attr:`~optikin.data.markers.MarkerRecording.held_out_tip_directions`; None otherwise): marker ``k`` is
+    scored on the minimum-energy PH quintic from the base pose to the tip point along the tangent estimated
+    without it, its backbone length by ``options.length`` from the other markers.
+    """
+    directions = recording.held_out_tip_directions
+    if directions is None:
+        return None
+    adapter = ctx.backend(PHAdapter)
+    model = adapter.model(options.energy, options.free_speeds)
+    n, K = recording.markers.shape[0], recording.markers.shape[1]
+    out = np.empty((n, K))
+    for k in range(K):
+        tip = rotation_onto(recording.base_orientation, directions[:, k])
+        others = replace(
+            recording, tip_orientation=tip, markers=np.delete(recording.markers, k, axis=1), marker_vertebrae=()
+        )
+        samples = end_data(others, backbone_lengths(others, options.length, source), source)
+        curves = model.curves(adapter.solve(model, samples), samples)
+        out[:, k] = distances_to_curves(curves, recording.markers[:, k : k + 1])[:, 0]
+    return out
 
 
 def c1_chain(ctx: ProblemContext, recording: MarkerRecording, options: PHShapeOptions, source: str) -> C1Chain:
