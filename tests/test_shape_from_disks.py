@@ -149,6 +149,7 @@ def test_ph_shape_on_disks_scores_each_disk_on_a_backbone_that_did_not_use_it(tm
     assert metrics["fairness"]["methods sharing the truth's model"] is False
     row = result.comparison[0].metrics
     assert row["held-out m1 median [mm]"] == pytest.approx(np.median(held[:, 0]) * 1e3)
+    assert row["held-out marker distance median [mm]"] == pytest.approx(np.median(held) * 1e3)
 
 
 def test_disks_source_needs_a_calibrated_base(tmp_path):

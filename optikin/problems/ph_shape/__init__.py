@@ -107,6 +107,7 @@ register_kind(
         figures=figures_of("optikin.problems.ph_shape.figures"),
         headline=(
             "mean marker distance [mm]",
+            "held-out marker distance median [mm]",
             "truth backbone: mean of the largest node distance [mm]",
             "median time per sample [us]",
         ),

@@ -358,7 +358,8 @@ def held_out_metrics(outcome: ShapeOutcome) -> tuple[dict[str, Any], dict[str, f
         "held-out distance per marker, p95 [mm]": np.nanpercentile(mm, 95, axis=0),
         "held-out distance per marker, max [mm]": np.nanmax(mm, axis=0),
     }
-    row = {f"held-out m{k + 1} median [mm]": float(np.nanmedian(mm[:, k])) for k in range(mm.shape[1])}
+    row = {"held-out marker distance median [mm]": float(np.nanmedian(mm))}
+    row.update({f"held-out m{k + 1} median [mm]": float(np.nanmedian(mm[:, k])) for k in range(mm.shape[1])})
     return metrics, row
 
 
