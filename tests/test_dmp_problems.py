@@ -83,6 +83,13 @@ def test_imu_dual_quaternion_problem(tmp_path):
     assert seed["vs true motion position max [mm]"] > 3 * sound["vs true motion position max [mm]"]
     assert sound["unit-norm error"] < 1e-12
     assert table["dmp seed (lstsq)"]["fit residual"] == pytest.approx(seed["fit residual"], rel=1e-6)
+    start = table["dmp seed-qd-start (cvxpy)"]
+    for row in (seed, start):  # labelled structural, the error not below the bound that |Q_d| fixed implies
+        assert row["limitation"].startswith("structural")
+        assert row["reproduction position max [mm]"] >= row["structural bound position max [mm]"] - 0.05
+        assert row["reproduction position rms [mm]"] >= row["structural bound position rms [mm]"] - 0.05
+    assert "structural bound position max [mm]" not in sound and "limitation" not in sound
+    assert start["reproduction position at t = 0 [mm]"] < 1.0 < seed["reproduction position at t = 0 [mm]"]
     for term in ("Q_r", "Q_d"):  # the seed's two quaternion DMPs (Figs. 5a, 5b), on one budget of evaluations
         ipopt, multistart = table[f"tuning {term} (ipopt)"], table[f"tuning {term} (multistart)"]
         genetic = table[f"tuning {term} (genetic)"]

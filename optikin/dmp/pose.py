@@ -19,6 +19,24 @@
        not a translation: the spring has no geometric meaning.
 
     It is provided so Seleem et al.'s figures can be reproduced and compared.
+    Which ``|Q_d|`` it keeps is the learned start's: the demonstration's
+    first sample, or, with ``smoothing`` (the low-pass maps every sample
+    through ``advance`` from the last one, :mod:`optikin.dmp.smoothing`), the
+    goal's, so the smoothed roll-out is off by ``| |p(0)| - |p_goal| |`` at
+    ``t = 0`` already. Whatever the recording, its position error is bounded
+    below by :func:`radial_bound` (a property of the variant, not of the data;
+    where the tip is nearer the origin than the radius kept, up to the scalar
+    part the lost rigidity adds), and the bound moves with the world origin,
+    since ``|p|`` is a distance from it.
+
+``seed_start_dual_quaternion_dmp`` (label ``seed-qd-start``)
+    The same DMPs on ``Q_r`` and ``Q_d`` (still unsound), rolled out from
+    the learned start with ``|Q_d|`` rescaled to the demonstration's first
+    sample ``|Q_d(0)|``, unsmoothed: the roll-out starts at the demonstration's
+    distance from the origin and keeps it. The gap ``2 log(Q_dg conj(Q_d))``
+    does not see ``|Q_d|`` and ``exp(v/2) Q_d`` scales with it, so this is the
+    ``seed`` roll-out with ``Q_d`` scaled by ``|Q_d(0)| / |Q_d(start)|``;
+    without smoothing the two coincide.
 
 ``dual_quaternion_dmp`` (label ``dual-quaternion``, sound)
     One DMP on the group of unit dual quaternions: the gap is the screw
@@ -39,10 +57,11 @@ from typing import Literal, get_args
 import numpy as np
 
 from optikin.algebra import dq_rotation, dq_translation
-from optikin.dmp.model import DMP
+from optikin.dmp.model import DMP, RolloutPlan
+from optikin.dmp.regression import Fit
 from optikin.dmp.spaces import Euclidean, Product, UnitDualQuaternion, UnitQuaternion
 
-PoseVariant = Literal["seed", "dual-quaternion", "cartesian"]
+PoseVariant = Literal["seed", "seed-qd-start", "dual-quaternion", "cartesian"]
 """The label of a pose DMP (the module docstring)."""
 POSE_VARIANTS: tuple[PoseVariant, ...] = get_args(PoseVariant)
 
@@ -65,6 +84,71 @@ def seed_dual_quaternion_dmp(n_basis: int = 50, **options) -> DMP:
     return DMP(Product(UnitQuaternion(), UnitQuaternion()), n_basis, **options)
 
 
+class SeedStartDMP(DMP):
+    """Seleem et al.'s variant rolled out with ``|Q_d|`` at the demonstration's first sample (the module doc).
+
+    Parameters as :class:`~optikin.dmp.DMP`; the space is ``S^3 x S^3`` on ``(Q_r, Q_d)``.
+
+    Attributes
+    ----------
+    start_dual_norm:
+        ``|Q_d(0)|`` of the demonstration as given to :meth:`imitate` (before any smoothing); ``None`` before.
+    """
+
+    def __init__(self, n_basis: int = 50, **options) -> None:
+        super().__init__(Product(UnitQuaternion(), UnitQuaternion()), n_basis, **options)
+        self.start_dual_norm: float | None = None
+
+    def imitate(self, t: np.ndarray, Y: np.ndarray, *args, **kwargs) -> Fit:
+        """:meth:`DMP.imitate`, keeping ``|Q_d|`` of the first sample ``Y[0, 4:]``."""
+        fit = super().imitate(t, Y, *args, **kwargs)
+        self.start_dual_norm = float(np.linalg.norm(np.asarray(Y, dtype=float)[0, 4:]))
+        return fit
+
+    def plan(self, duration: float | None = None, *, start: np.ndarray | None = None, **kwargs) -> RolloutPlan:
+        """:meth:`DMP.plan`; the default start is the learned one with ``|Q_d|`` set to :attr:`start_dual_norm`."""
+        if start is None:
+            y0 = np.array(self._learned().start, dtype=float)
+            assert self.start_dual_norm is not None  # set by imitate with the learned demonstration
+            y0[4:] *= self.start_dual_norm / np.linalg.norm(y0[4:])
+            start = y0
+        return super().plan(duration, start=start, **kwargs)
+
+
+def seed_start_dual_quaternion_dmp(n_basis: int = 50, **options) -> DMP:
+    """Seleem et al.'s variant with ``|Q_d|`` taken from the demonstration's start (:class:`SeedStartDMP`).
+
+    Parameters as :func:`seed_dual_quaternion_dmp`: states ``(8,)`` ``(Q_r, Q_d)``, gaps ``(6,)``.
+    """
+    return SeedStartDMP(n_basis, **options)
+
+
+def radial_bound(position: np.ndarray, radius: float | np.ndarray) -> np.ndarray:
+    """The least distance from ``position`` to a point at distance ``radius`` from the origin: ``| |p| - r |``.
+
+    A roll-out of the ``seed`` variants keeps ``|Q_d| = r / 2``; its translation
+    quaternion ``2 Q_d conj(Q_r)`` then has norm ``r``, so its distance to
+    ``(0, p)`` is at least this bound, and so is its position error wherever
+    ``|p| >= r`` (the vector part has norm at most ``r``). Where ``|p| < r``
+    the vector part may fall short of ``r`` by the scalar part ``s`` the
+    variant's lost rigidity gives it, and the error is at least
+    ``sqrt(r^2 - s^2) - |p|``.
+
+    Parameters
+    ----------
+    position:
+        ``(..., 3)`` positions [m] in the world frame the variant is learned in.
+    radius:
+        The distance from the origin the roll-out keeps [m], ``2 |Q_d|`` (broadcast).
+
+    Returns
+    -------
+    ndarray
+        ``(...)`` bounds [m].
+    """
+    return np.abs(np.linalg.norm(np.asarray(position, dtype=float), axis=-1) - np.asarray(radius, dtype=float))
+
+
 def dual_quaternion_dmp(n_basis: int = 50, **options) -> DMP:
     """A DMP on unit dual quaternions through ``dq_log``/``dq_exp`` (sound): states ``(8,)``, gaps ``(6,)``.
 
@@ -85,7 +169,7 @@ def pose_dmp(variant: str, **options) -> DMP:
     Parameters
     ----------
     variant:
-        ``seed``, ``dual-quaternion`` or ``cartesian`` (:data:`POSE_VARIANTS`).
+        ``seed``, ``seed-qd-start``, ``dual-quaternion`` or ``cartesian`` (:data:`POSE_VARIANTS`).
     **options:
         ``n_basis`` and the keyword arguments of :class:`~optikin.dmp.DMP`.
 
@@ -94,7 +178,12 @@ def pose_dmp(variant: str, **options) -> DMP:
     ValueError
         An unknown label.
     """
-    makers = {"seed": seed_dual_quaternion_dmp, "dual-quaternion": dual_quaternion_dmp, "cartesian": cartesian_dmp}
+    makers = {
+        "seed": seed_dual_quaternion_dmp,
+        "seed-qd-start": seed_start_dual_quaternion_dmp,
+        "dual-quaternion": dual_quaternion_dmp,
+        "cartesian": cartesian_dmp,
+    }
     if variant not in makers:
         raise ValueError(f"unknown pose DMP variant {variant!r}; choose from {POSE_VARIANTS}")
     return makers[variant](**options)

@@ -22,7 +22,8 @@ Demonstrations (``data.source``, the ``demonstrations`` family of
 
 Options (all optional; :class:`~optikin.problems.dmp.options.DmpOptions`)::
 
-    variants: [cartesian]   # seed | dual-quaternion | cartesian | quaternion | koutras-doulgeri | rpy | position
+    variants: [cartesian]   # seed | seed-qd-start | dual-quaternion | cartesian | quaternion | koutras-doulgeri
+                            # | rpy | position
     n_basis: 50
     smoothing: null         # cutoff [Hz] of the low-pass applied to the demonstration before learning
                             # (optikin.dmp.smoothing; sensor data), null: learn the samples as given
@@ -47,6 +48,14 @@ Options (all optional; :class:`~optikin.problems.dmp.options.DmpOptions`)::
              reference: {}}                   # {target: {gain: value}} evaluated on the same eq. (29)
     settle: 5.0     # goal-switch roll-outs last settle x tau; the final errors measure convergence
     tolerance: {position_mm: 0.01, orientation_mrad: 0.01}
+    origin_shift: [0, 0, 0]   # the world origin moved to this point of the recording's frame [m]: the
+                              # DMPs learn p - origin_shift (a sweep of it: sweeps/dmp-qd-origin.yaml)
+
+The ``seed`` variants (Seleem et al.'s quaternion DMPs on ``Q_r`` and ``Q_d``)
+keep ``|Q_d|``, so the tip keeps its distance ``r = 2 |Q_d|`` from the world
+origin; their rows carry the structural bound ``| |p(t)| - r |`` over the
+demonstration (max and RMS), the least position error the variant can reach on
+any recording, labelled a limitation of the variant, not of the data.
 
 Per-roll-out status (one per variant and scenario): ``ok``; ``failed`` for a
 non-finite roll-out or a unit quaternion / dual quaternion off by more than
@@ -63,6 +72,7 @@ Modules: :mod:`~optikin.problems.dmp.options` (the options model),
 from __future__ import annotations
 
 from optikin.data import demonstrations as _demonstrations  # noqa: F401  (registers the data sources)
+from optikin.data import cosserat_sensors as _cosserat_sensors  # noqa: F401  (registers cosserat-imu)
 from optikin.problems import Baseline, ProblemContext, ProblemKind, baselines_of, figures_of, register_kind
 from optikin.problems.dmp import report, run
 from optikin.problems.dmp.options import DmpOptions
@@ -85,6 +95,11 @@ register_kind(
         options=DmpOptions,
         data_family="demonstrations",
         figures=figures_of("optikin.problems.dmp.figures"),
-        headline=("reproduction position max [mm]", "reproduction orientation max [mrad]", "fit time [ms]"),
+        headline=(
+            "reproduction position max [mm]",
+            "structural bound position max [mm]",
+            "reproduction orientation max [mrad]",
+            "fit time [ms]",
+        ),
     )
 )

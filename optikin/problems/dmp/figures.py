@@ -19,7 +19,7 @@ import numpy as np
 
 from optikin.algebra import dq_from_rotation_translation
 from optikin.problems.dmp.report import rollout_key
-from optikin.problems.dmp.variants import pose_errors, unit_of, variant_pose
+from optikin.problems.dmp.variants import DUAL, pose_errors, unit_of, variant_pose
 from optikin.results import Drawer
 
 QUATERNION_SCENARIOS = ("reproduction", "goal switch", "perturbation coupled")
@@ -72,7 +72,7 @@ def _errors_figure(arrays: Mapping[str, np.ndarray], variants: list[str], name: 
 def _quaternion_figure(arrays: Mapping[str, np.ndarray], variant: str, name: str, scenario: str) -> Drawer:
     demo_t, demo_q = arrays["t"], arrays["demo_quaternion"]
     y = arrays[rollout_key(variant, scenario)]
-    dual = variant in ("seed", "dual-quaternion")
+    dual = variant in DUAL
 
     def draw(path: Path) -> None:
         from optikin import plots

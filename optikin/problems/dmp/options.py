@@ -22,8 +22,11 @@ from optikin.dmp.regression import Method
 from optikin.dmp.tuning import Scenario
 from optikin.options import Options
 
-Variant = Literal["seed", "dual-quaternion", "cartesian", "quaternion", "koutras-doulgeri", "rpy", "position"]
-"""A DMP representation: the pose DMPs of :mod:`optikin.dmp.pose`, a unit-quaternion DMP on the orientation
+Variant = Literal[
+    "seed", "seed-qd-start", "dual-quaternion", "cartesian", "quaternion", "koutras-doulgeri", "rpy", "position"
+]
+"""A DMP representation: the pose DMPs of :mod:`optikin.dmp.pose` (``seed-qd-start``: the seed's with ``|Q_d|``
+from the demonstration's start rather than its goal), a unit-quaternion DMP on the orientation
 (Seleem et al. 2020, eqs. 17-23, Ude et al.'s form), Koutras & Doulgeri's orientation DMP in the logarithm of the
 rotation to the goal (:class:`optikin.dmp.GoalLogQuaternion`), per-angle DMPs on roll-pitch-yaw (eqs. 11-16) or a
 translation DMP on the position."""
@@ -210,4 +213,9 @@ class DmpOptions(Options):
     )
     tuning: Tuning | None = Field(None, description="gain tuning; null: none")
     settle: float = Field(5.0, gt=0, description="goal-switch roll-outs last settle x tau")
+    origin_shift: tuple[float, float, float] = Field(
+        (0.0, 0.0, 0.0),
+        description="where the world origin is moved, in the recording's frame [m]: every variant learns the "
+        "positions p - origin_shift (the seed variants' error moves with it, the others' does not)",
+    )
     tolerance: Tolerance = Field(default_factory=Tolerance)

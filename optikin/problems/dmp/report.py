@@ -1,7 +1,7 @@
 """The ``dmp`` kind's outcome as a :class:`~optikin.results.Result`: metrics, comparison rows, arrays, notes.
 
 Arrays: ``t``, ``demo_position``, ``demo_quaternion`` (the demonstration
-learned), one ``<variant>__<scenario>`` per roll-out (``reproduction``,
+learned, positions from ``options.origin_shift``), one ``<variant>__<scenario>`` per roll-out (``reproduction``,
 ``goal_switch``, ``perturbation_<label>``; states in the variant's layout), and
 the recording's own signals (``imu``, ``relative``, ``section_angles`` of the
 IMU interface; ``kinect_position``, ``kinect_rpy``, ``kinect_filtered_rpy``).
@@ -14,7 +14,7 @@ import numpy as np
 from optikin.data import demonstrations as sources
 from optikin.dmp.tuning import TuningResult
 from optikin.problems.dmp.run import DmpOutcome, PerturbationRun, Reproduction, TuningOutcome
-from optikin.problems.dmp.variants import rollout_status, unit_of
+from optikin.problems.dmp.variants import MM, rollout_status, unit_of
 from optikin.results import MethodRow, Result
 from optikin.spec import ProblemSpec
 
@@ -77,11 +77,34 @@ def _reproduction_row(r: Reproduction, method: str) -> MethodRow:
         "roll-out time [ms]": r.rollout.seconds * 1e3,
         **error_summary(r.errors, "reproduction"),
     }
+    if "position" in r.errors:
+        row["reproduction position rms [mm]"] = _rms(r.errors["position"]) * MM
     if r.truth_errors is not None:  # the recording's noise-free motion
         row |= error_summary(r.truth_errors, "vs true motion")
     if r.unit_error is not None:
         row["unit-norm error"] = r.unit_error
+    if r.bound is not None:
+        row |= _bound_metrics(r, *r.bound)
     return MethodRow(f"dmp {r.variant} ({r.method})", r.role, row)
+
+
+LIMITATION = "structural: |Q_d| is fixed, so |p| cannot change (a limitation of the variant, not of the truth)"
+"""The label of a ``seed`` variant's row."""
+
+
+def _rms(x: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(np.square(x))))
+
+
+def _bound_metrics(r: Reproduction, radius: float, bound: np.ndarray) -> dict[str, float | str]:
+    """A ``seed`` variant's structural bound (max and RMS [mm]), the radius it keeps and its position error at 0."""
+    return {
+        "structural bound position max [mm]": float(bound.max() * MM),
+        "structural bound position rms [mm]": _rms(bound) * MM,
+        "distance kept from the origin [mm]": radius * MM,
+        "reproduction position at t = 0 [mm]": float(r.errors["position"][0] * MM),
+        "limitation": LIMITATION,
+    }
 
 
 def _perturbation_metrics(push: PerturbationRun) -> dict[str, float]:
@@ -154,16 +177,23 @@ def arrays(outcome: DmpOutcome) -> dict[str, np.ndarray]:
 
 
 def notes(outcome: DmpOutcome, labels: list[str]) -> list[str]:
-    """The seed variant's fixed ``|Q_d|``, and the labels of the per-roll-out status."""
+    """The structural limitation of each ``seed`` variant (its fixed ``|Q_d|``), and the labels of the per-roll-out
+    status."""
     out = []
-    seed = next((r for r in outcome.reproductions if r.variant == "seed" and r.role == "solver"), None)
-    if seed is not None:
-        qd = seed.rollout.y[:, 4:]
+    radius = np.linalg.norm(outcome.demo.position, axis=1) * MM
+    for r in outcome.reproductions:
+        if r.bound is None or r.role != "solver":
+            continue
+        kept, bound = r.bound
+        error = r.errors["position"] * MM
         out.append(
-            "seed variant: |Q_d| stays at its initial value "
-            f"({np.linalg.norm(qd[0]):.4f}; demonstration ends at "
-            f"{np.linalg.norm(outcome.demo.dual_quaternion[-1, 4:]):.4f}), so the tip cannot change its "
-            "distance from the origin (optikin.dmp.pose)"
+            f"{r.variant} variant, a structural limitation of the variant, not of the truth: the roll-out keeps "
+            f"|Q_d| = {kept / 2:.4f} m, so the tip stays {kept * MM:.1f} mm from the world origin, while the "
+            f"demonstration goes from {radius[0]:.1f} to {radius[-1]:.1f} mm (range {radius.min():.1f} .. "
+            f"{radius.max():.1f}); no roll-out of it is closer than | |p(t)| - {kept * MM:.1f} mm | = "
+            f"{bound.max() * MM:.2f} mm (max), {_rms(bound) * MM:.2f} mm (RMS); its error {error.max():.2f} mm "
+            f"(max), {_rms(error):.2f} mm (RMS), {error[0]:.2f} mm at t = 0; the bound moves with the "
+            "world origin (options.origin_shift; optikin.dmp.pose)"
         )
     out.append(f"labels of the per-roll-out status: {labels}")
     return out

@@ -6,7 +6,7 @@ turns it into the result.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Callable
 
@@ -25,6 +25,7 @@ from optikin.problems.dmp.variants import (
     make_dmp,
     pose_errors,
     rollout_status,
+    structural_bound,
     unit_error,
     variant_data,
     variant_pose,
@@ -41,7 +42,8 @@ class Reproduction:
     ``errors``: per-sample errors against the demonstration (``position`` [m],
     ``orientation`` [rad]); ``truth_errors``: against the recording's noise-free
     motion (IMU recordings, solver rows only); ``unit_error``: largest departure
-    from unit norm (solver rows only).
+    from unit norm (solver rows only); ``bound``: the radius a ``seed`` variant keeps [m] and the least
+    position error it implies per sample [m] (:func:`~optikin.problems.dmp.variants.structural_bound`).
     """
 
     variant: str
@@ -52,6 +54,7 @@ class Reproduction:
     errors: dict[str, np.ndarray]
     truth_errors: dict[str, np.ndarray] | None = None
     unit_error: float | None = None
+    bound: tuple[float, np.ndarray] | None = None
 
 
 @dataclass(frozen=True)
@@ -148,21 +151,28 @@ class Learner:
         fit = self.fit(dmp, variant, method)
         out = dmp.rollout()
         errors = pose_errors(variant, out.y, self.demo.position, self.demo.quaternion)
+        bound = structural_bound(variant, out.y, self.demo.position)
         if role == "baseline":
-            return dmp, Reproduction(variant, method, role, fit, out, errors)
+            return dmp, Reproduction(variant, method, role, fit, out, errors, bound=bound)
         truth_errors = None if truth is None else pose_errors(variant, out.y, *truth)
-        return dmp, Reproduction(variant, method, role, fit, out, errors, truth_errors, unit_error(variant, out.y))
+        unit = unit_error(variant, out.y)
+        return dmp, Reproduction(variant, method, role, fit, out, errors, truth_errors, unit, bound)
 
 
 def solve(ctx: ProblemContext) -> DmpOutcome:
-    """Load the demonstration, learn it with every variant and run every scenario the options ask for."""
+    """Load the demonstration (positions from ``options.origin_shift``), learn it with every variant and run every
+    scenario the options ask for."""
     options: DmpOptions = ctx.options
     recording = ctx.load_data()
+    shift = np.asarray(options.origin_shift, dtype=float)
     demo = sources.pose_demonstration(recording)
+    demo = replace(demo, position=demo.position - shift)
     learner = Learner(demo, options, options.gains.gains(), f"{ctx.path.name}: data ({ctx.spec.data.source})", ctx.path)
     method = options.regression.method
     outcome = DmpOutcome(demo, recording, method)
     truth = true_motion(ctx, recording)
+    if truth is not None:
+        truth = (truth[0] - shift, truth[1])
     models: dict[str, DMP] = {}
     with ctx.progress.task(f"dmp: {len(options.variants)} variants", total=len(options.variants)) as advance:
         for variant in options.variants:

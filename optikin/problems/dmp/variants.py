@@ -1,8 +1,8 @@
 """The DMP variants of the ``dmp`` kind: their models, state layouts, and errors against poses.
 
 A variant (:data:`~optikin.problems.dmp.options.Variant`) is a DMP on one
-representation of the tip pose: ``seed``, ``dual-quaternion`` and
-``cartesian`` are the pose DMPs of :mod:`optikin.dmp.pose`; ``quaternion`` a
+representation of the tip pose: ``seed``, ``seed-qd-start``, ``dual-quaternion``
+and ``cartesian`` are the pose DMPs of :mod:`optikin.dmp.pose`; ``quaternion`` a
 unit-quaternion DMP on the orientation (Seleem et al. 2020, eqs. 17-23, the form of
 Ude et al. 2014); ``koutras-doulgeri`` the orientation DMP of Koutras & Doulgeri
 (CoRL 2020) in the logarithm of the rotation to the goal; ``rpy`` three
@@ -28,13 +28,19 @@ from optikin.algebra import (
     rpy_from_quat,
 )
 from optikin.dmp import DMP, Euclidean, Gains, GoalLogQuaternion, Space, UnitQuaternion
-from optikin.dmp.pose import POSE_VARIANTS, pose_dmp
+from optikin.dmp.pose import POSE_VARIANTS, pose_dmp, radial_bound
 
 MM, MRAD = 1e3, 1e3
 """Metres and radians to the millimetres and milliradians of the reported metrics."""
 
 ORIENTATION = ("quaternion", "koutras-doulgeri")
 """The variants whose state is the tip's unit quaternion alone."""
+
+SEED = ("seed", "seed-qd-start")
+"""Seleem et al.'s quaternion DMPs on ``Q_r`` and ``Q_d``: states ``(Q_r, Q_d)``, ``|Q_d|`` fixed by the roll-out."""
+
+DUAL = (*SEED, "dual-quaternion")
+"""The variants whose state is a dual quaternion ``(Q_r, Q_d)``."""
 
 UNIT_TOLERANCE = 1e-9
 """Largest departure from unit norm of a roll-out's unit quaternions (or dual quaternion) counted ``ok``."""
@@ -54,7 +60,7 @@ def variant_data(
     """Poses ``(..., size)`` in the state layout of a variant from positions ``(..., 3)`` [m] and unit
     quaternions ``(..., 4)``; ``rpy`` angles [rad] are unwrapped along a sequence, or taken nearest to
     ``rpy_reference`` for a single pose."""
-    if variant in ("seed", "dual-quaternion"):
+    if variant in DUAL:
         return dq_from_rotation_translation(quaternion, position, check=False)
     if variant == "cartesian":
         return np.concatenate([position, quaternion], axis=-1)
@@ -71,7 +77,7 @@ def variant_data(
 
 def variant_pose(variant: str, y: np.ndarray) -> tuple[np.ndarray | None, np.ndarray | None]:
     """``(positions (..., 3), quaternions (..., 4))`` of states of a variant (``None`` where it has none)."""
-    if variant in ("seed", "dual-quaternion"):
+    if variant in DUAL:
         return dq_translation(y), dq_rotation(y)
     if variant == "cartesian":
         return y[..., :3], y[..., 3:]
@@ -95,12 +101,36 @@ def pose_errors(
     return errors
 
 
+def structural_bound(variant: str, y: np.ndarray, position: np.ndarray) -> tuple[float, np.ndarray] | None:
+    """The radius a ``seed`` variant's roll-out keeps and the least position error it implies per sample.
+
+    Parameters
+    ----------
+    variant:
+        A variant label; only those of :data:`SEED` have the bound.
+    y:
+        ``(K, 8)`` roll-out states ``(Q_r, Q_d)``.
+    position:
+        ``(K, 3)`` positions [m] the roll-out is compared with.
+
+    Returns
+    -------
+    tuple or None
+        ``(2 |Q_d(0)| [m], | |p| - 2 |Q_d(0)| | (K,) [m])`` (:func:`optikin.dmp.pose.radial_bound`); ``None``
+        for the other variants, whose ``|p|`` is free.
+    """
+    if variant not in SEED:
+        return None
+    radius = 2.0 * float(np.linalg.norm(y[0, 4:]))
+    return radius, radial_bound(position, radius)
+
+
 def unit_error(variant: str, y: np.ndarray) -> float:
     """Largest departure from unit norm of the quaternion parts the variant should keep unit."""
     if variant == "dual-quaternion":
         n, d = dq_norm_residual(y)
         return float(max(np.abs(n).max(), np.abs(d).max()))
-    if variant == "seed" or variant in ORIENTATION:
+    if variant in SEED or variant in ORIENTATION:
         return float(np.abs(np.linalg.norm(y[..., :4], axis=-1) - 1).max())
     if variant == "cartesian":
         return float(np.abs(np.linalg.norm(y[..., 3:], axis=-1) - 1).max())
