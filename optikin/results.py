@@ -48,14 +48,11 @@ import numpy as np
 from optikin import __version__
 from optikin.errors import OptikinError
 from optikin.interrupt import removed_on_hard_stop
+from optikin.status import SAMPLE_STATUSES, SOLVED
 from optikin.tables import write_comparison
 
-STATUSES = ("ok", "fit", "unreachable", "failed", "not_converged", "timeout")
-"""Per-sample statuses a problem kind may report: ``ok`` (solved exactly, to the tolerance), ``fit`` (a
-least-squares minimum whose residual lies within the stated measurement noise), ``unreachable`` (a
-minimum beyond it), ``failed``, ``not_converged``, ``timeout``."""
-SOLVED = ("ok", "fit")
-"""The statuses that count as solved."""
+STATUSES = SAMPLE_STATUSES
+"""Per-sample statuses a problem kind may report (:data:`optikin.status.SAMPLE_STATUSES`)."""
 KIND_NAME = re.compile(r"[a-z][a-z0-9_]{0,63}")
 """What a problem kind's name looks like (checked before a result's kind is looked up)."""
 
@@ -107,7 +104,7 @@ class Result:
     def __post_init__(self) -> None:
         unknown = sorted(set(self.status) - set(STATUSES))
         if unknown:
-            raise ValueError(f"unknown sample status {unknown}; allowed: {STATUSES}")
+            raise ValueError(f"unknown sample status {unknown}; allowed: {tuple(map(str, STATUSES))}")
 
     @property
     def samples(self) -> int:

@@ -23,6 +23,7 @@ import numpy as np
 from optikin.arms.base import ArmModel
 from optikin.control.limits import RateBounds
 from optikin.control.task import Task, TaskModel, task_dimension
+from optikin.status import Status
 
 
 def gain_vector(gain, m: int, what: str = "gain") -> np.ndarray:
@@ -51,11 +52,11 @@ class Controller(ABC):
         self.model = TaskModel(arm, task, compiled=compiled)
         self.gain = gain_vector(gain, task_dimension(task))
         self.model.set_gains(self.gain)
-        self.status = "ok"
+        self.status: str = Status.OK
 
     def reset(self, q: np.ndarray, x: np.ndarray) -> None:
         """Start a new run from measured configuration ``q`` and task value ``x``."""
-        self.status = "ok"
+        self.status = Status.OK
 
     def saturate_at(self, limits: RateBounds) -> None:
         """Clip every later command into ``limits``' box at the configuration the command was computed at;

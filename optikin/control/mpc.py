@@ -83,6 +83,7 @@ from optikin.control.obstacles import BarrierRows
 from optikin.control.reference import Reference
 from optikin.control.task import TASK_FUNCTIONS, Task
 from optikin.fastcall import BufferedFunction
+from optikin.status import Status
 
 _INFINITY = 1e30
 """OSQP's ``OSQP_INFTY``: a bound at or beyond it is no bound."""
@@ -471,7 +472,7 @@ class MPCController(HorizonController):
             solver.warm_start(x=self._zeros, y=self._no_duals)
         failure = self._solve()
         if failure is None:
-            self.status = "ok"
+            self.status = Status.OK
             return self._accept()
         # The first step alone: the later steps' limits and barrier rows dropped (module docstring).
         qp.l[qp.row_limits : qp.row_barrier] = -_INFINITY

@@ -29,6 +29,7 @@ from optikin.arms.base import ArmModel
 from optikin.control.mpc import HorizonController, shifted_blocks
 from optikin.control.task import TASK_FUNCTIONS, Task
 from optikin.interrupt import calls_casadi
+from optikin.status import Status
 
 
 class NonlinearMPCController(HorizonController):
@@ -154,7 +155,7 @@ class NonlinearMPCController(HorizonController):
         if not stats["success"] or not np.all(np.isfinite(U)):
             self.status = f"fallback (hold): ipopt {stats['return_status']}"
             return self.hold()
-        self.status = "ok"
+        self.status = Status.OK
         self._lam_x[:] = np.asarray(result["lam_x"]).ravel()
         self._lam_g[:] = np.asarray(result["lam_g"]).ravel()
         self.plan[:] = U.reshape(N, n)

@@ -72,6 +72,7 @@ from optikin.interrupt import calls_casadi
 from optikin.solvers.base import QPStepSolver, Solution
 from optikin.solvers.qp.common import QPData
 from optikin.solvers.qp.qp_daqp import ActiveSetStepSolver
+from optikin.status import Status
 
 Fallback = Literal["hold", "damped_least_squares"]
 FALLBACKS = ("hold", "damped_least_squares")
@@ -182,14 +183,14 @@ class QPController(Controller):
             self.barrier.update(q)
         try:
             solution = self.solution = self.solver.solve(self.data)
-            failure = None if solution.status == "ok" else f"no solution ({solution.message})"
+            failure = None if solution.status == Status.OK else f"no solution ({solution.message})"
         except Exception as exc:  # noqa: BLE001 - a solver crash must stop neither the loop nor the arm
             self.solution, failure = None, f"solver raised {type(exc).__name__}: {exc}"
         if failure is None:
             slip, removed = self._projection(solution.x)  # writes self.qdot
             if math.isfinite(removed):  # NaN or inf anywhere in the solution makes the sum non-finite
                 self.slip = slip
-                self.status = "ok"
+                self.status = Status.OK
                 return self.qdot
             failure = "non-finite solution"
         self.slip = 0.0

@@ -48,6 +48,7 @@ from optikin.control.limits import limit_excess, periodic_mask, wrap_periodic
 from optikin.control.reference import Reference
 from optikin.control.rod_plant import RodPlantSimulator
 from optikin.control.task import TASK_FUNCTIONS
+from optikin.status import Status
 
 MM, DEG = 1e3, 180.0 / np.pi
 
@@ -105,7 +106,7 @@ class TrackingRun:
     x: np.ndarray  # (N, m) true tip (position or dual quaternion)
     excess_after_command: np.ndarray  # (N, n) limit excess of q_k + dt qdot_k (disturbance held)
     step_time: np.ndarray  # (N,) wall time of each command [s]
-    status: list[str]  # per step: "ok" or "fallback ...: reason"
+    status: list[str]  # per step: Status.OK or "fallback ...: reason"
     slip: np.ndarray  # (N,) bound violation removed from the QP solution (0 for others)
     gains: np.ndarray | None = None  # (N, m) MRAC gains
     saturated: np.ndarray | None = None  # (N, m) MRAC gain saturated
@@ -232,7 +233,7 @@ class TrackingRun:
             "step time p95 [us]": float(np.percentile(us, 95)),
             "step time max [us]": float(us.max()),
         }
-        fallbacks = [i for i, s in enumerate(self.status) if s != "ok"]
+        fallbacks = [i for i, s in enumerate(self.status) if s != Status.OK]
         out["fallback steps"] = len(fallbacks)
         if fallbacks:
             out["first fallback"] = f"t = {self.t[fallbacks[0]]:.4g} s: {self.status[fallbacks[0]]}"

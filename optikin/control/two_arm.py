@@ -45,6 +45,7 @@ from optikin.errors import InputDataError
 from optikin.interrupt import check_interrupted
 from optikin.solvers.base import QPStepSolver
 from optikin.solvers.qp.common import QPData, StepSolverFactory, upper_triangle_csc_indices
+from optikin.status import Status
 
 TwoArmTask = Literal["rope", "tips"]
 
@@ -227,7 +228,7 @@ class TwoArmController:
         if not gain >= 0:
             raise ValueError(f"gain must be non-negative, got {gain}")
         self.model, self.dt, self.gain = model, float(dt), float(gain)
-        self.status = "ok"
+        self.status: str = Status.OK
         self.v = np.zeros(model.m)
 
     def task_velocity(self, x_ref: np.ndarray, xdot_ref: np.ndarray) -> np.ndarray:
@@ -239,7 +240,7 @@ class TwoArmController:
 
     def reset(self) -> None:
         """Start a run (the simulator calls it before the first step)."""
-        self.status = "ok"
+        self.status = Status.OK
 
     def command(self, q: np.ndarray, x_ref: np.ndarray, xdot_ref: np.ndarray) -> np.ndarray:
         raise NotImplementedError
@@ -374,7 +375,7 @@ class TwoArmQP(TwoArmController):
 
     def reset(self, posture: np.ndarray | None = None) -> None:
         """Start a run at ``t = 0`` (``posture``: a new ``q_nom``)."""
-        self.status = "ok"
+        self.status = Status.OK
         if posture is not None:
             self.posture[:] = posture
         if self.obstacle_rows is not None:
@@ -416,12 +417,12 @@ class TwoArmQP(TwoArmController):
             self._rope_rows(d.A[start:], d.b[start:])
         try:
             solution = self.solver.solve(d)
-            failure = None if solution.status == "ok" else f"no solution ({solution.message})"
+            failure = None if solution.status == Status.OK else f"no solution ({solution.message})"
         except Exception as exc:  # noqa: BLE001 - a solver crash must stop neither the loop nor the arms
             failure = f"solver raised {type(exc).__name__}: {exc}"
         if failure is None and np.all(np.isfinite(solution.x)):
             np.clip(solution.x, d.lb, d.ub, out=self.qdot)
-            self.status = "ok"
+            self.status = Status.OK
             return self.qdot
         np.clip(0.0, d.lb, d.ub, out=self.qdot)  # hold: the smallest rate inside the box
         self.status = f"fallback (hold): {failure or 'non-finite solution'}"

@@ -51,6 +51,7 @@ from optikin.curves.newton import kkt_newton, kkt_newton_function, modified_newt
 from optikin.curves.ph_quintic import PHQuintic, hermite_family
 from optikin.errors import InputDataError
 from optikin.solvers.base import Solution
+from optikin.status import Status
 
 SPEED_BOUNDS = (0.2, 5.0)
 """Bounds of free end speeds, as multiples of the backbone length."""
@@ -231,7 +232,7 @@ class ShapeSolution(Solution):
 
     def __post_init__(self) -> None:
         self.residual = self.energy
-        if self.status != "ok" and not self.message:
+        if self.status != Status.OK and not self.message:
             self.message = "; ".join(self.notes)
 
     @property
@@ -407,14 +408,14 @@ class ShapeEnergyModel:
                 best = (energy, np.asarray(sol["x"]).ravel(), multiplier)
         seconds = time.perf_counter() - tic
         if best is None:
-            return ShapeSolution(X0[:, 0], "failed", iterations, seconds=seconds, method="ipopt", notes=statuses)
+            return ShapeSolution(X0[:, 0], Status.FAILED, iterations, seconds=seconds, method="ipopt", notes=statuses)
         x = best[1].copy()
         x[:2] = wrap_angle(x[:2])
         E, S = self.energy_function(x, P)
         E_fine, _ = self._fine_energy_function(x, P)
         return ShapeSolution(
             x,
-            "ok",
+            Status.OK,
             iterations,
             seconds=seconds,
             method="ipopt",
@@ -454,7 +455,7 @@ class ShapeEnergyModel:
         E = np.where(np.isfinite(E), E, np.inf)
         k = int(np.argmin(E))
         seconds = time.perf_counter() - tic
-        status = "ok" if np.isfinite(E[k]) else "failed"
+        status = Status.OK if np.isfinite(E[k]) else Status.FAILED
         return ShapeSolution(
             X[:, k].copy(),
             status,
@@ -543,7 +544,7 @@ class ShapeEnergyModel:
         x[0], x[1] = _wrap(x[0]), _wrap(x[1])
         return ShapeSolution(
             x,
-            "ok" if ok else "not_converged",
+            Status.OK if ok else Status.NOT_CONVERGED,
             iterations,
             seconds=time.perf_counter() - tic,
             method="newton",

@@ -31,6 +31,8 @@ from typing import TYPE_CHECKING, Any, Protocol, Sequence, runtime_checkable
 
 import numpy as np
 
+from optikin.status import Status
+
 if TYPE_CHECKING:
     from optikin.arms.base import ArmModel
     from optikin.solvers.nonlinear import LeastSquaresProblem
@@ -70,7 +72,7 @@ class Solution:
 
     @property
     def ok(self) -> bool:
-        return self.status == "ok"
+        return self.status == Status.OK
 
 
 @dataclass

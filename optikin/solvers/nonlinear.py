@@ -61,6 +61,7 @@ from optikin.interrupt import check_interrupted
 from optikin.options import Options
 from optikin.solvers.base import Solution, SolutionBatch
 from optikin.spec import SolverSpec
+from optikin.status import Status
 
 FAMILY = "nonlinear"
 BOUND_TOLERANCE = 1e-9
@@ -309,15 +310,15 @@ class LeastSquaresProblem:
     ) -> tuple[str, float, str]:
         """``(status, ||r||, message)`` of a returned point ``x`` (module docstring)."""
         if error:
-            return "failed", float("nan"), error
+            return Status.FAILED, float("nan"), error
         x = self.wrap(x)
         if not np.all(np.isfinite(x)):
-            return "failed", float("nan"), "non-finite solution"
+            return Status.FAILED, float("nan"), "non-finite solution"
         rn, stationarity, outside = self.fast("check")(x, p)[0]
         if not np.isfinite(rn):
-            return "failed", float("nan"), "non-finite residual"
+            return Status.FAILED, float("nan"), "non-finite residual"
         if outside > BOUND_TOLERANCE:
-            return "failed", float(rn), self.violation_message(x)
+            return Status.FAILED, float(rn), self.violation_message(x)
         return self.status_of(float(rn), float(stationarity), elapsed, time_limit)
 
     def violation_message(self, x: np.ndarray) -> str:
@@ -338,14 +339,14 @@ class LeastSquaresProblem:
     def status_of(self, rn: float, stationarity: float, elapsed: float, time_limit: float) -> tuple[str, float, str]:
         """:meth:`classify` of a finite point inside the bounds whose ``||r||`` and stationarity are known."""
         if rn <= self.tolerance:
-            return "ok", rn, ""
+            return Status.OK, rn, ""
         if elapsed > time_limit:
-            return "timeout", rn, f"time limit {time_limit:g} s exceeded"
+            return Status.TIMEOUT, rn, f"time limit {time_limit:g} s exceeded"
         if stationarity <= self.stationarity_tolerance:
             if not self.exact:
-                return "ok", rn, ""
-            return "unreachable", rn, "stationary point of the residual: closest reachable configuration"
-        return "not_converged", rn, ""
+                return Status.OK, rn, ""
+            return Status.UNREACHABLE, rn, "stationary point of the residual: closest reachable configuration"
+        return Status.NOT_CONVERGED, rn, ""
 
     def classify_many(
         self, X: np.ndarray, P: np.ndarray, limited: np.ndarray | None = None
@@ -367,16 +368,16 @@ class LeastSquaresProblem:
     def verdict(self, rn: float, stationarity: float, outside: float, x: np.ndarray, limited: bool) -> tuple[str, str]:
         """``(status, message)`` of one sample of :meth:`classify_many` from its checks."""
         if not np.isfinite(rn):
-            return "failed", "non-finite solution"
+            return Status.FAILED, "non-finite solution"
         if outside > BOUND_TOLERANCE:
-            return "failed", self.violation_message(x)
+            return Status.FAILED, self.violation_message(x)
         if rn <= self.tolerance:
-            return "ok", ""
+            return Status.OK, ""
         if limited:
-            return "timeout", ""
+            return Status.TIMEOUT, ""
         if stationarity <= self.stationarity_tolerance:
-            return ("ok", "") if not self.exact else ("unreachable", "closest reachable configuration")
-        return "not_converged", ""
+            return (Status.OK, "") if not self.exact else (Status.UNREACHABLE, "closest reachable configuration")
+        return Status.NOT_CONVERGED, ""
 
 
 class NonlinearAdapter:
@@ -463,7 +464,7 @@ class NonlinearAdapter:
             start = X0[k] if previous is None else previous
             report = self.solve_free(problem, start, P[k], x_ref)
             reports.append(report)
-            if warm_start and (report.status != "failed" or np.all(np.isfinite(report.x))):
+            if warm_start and (report.status != Status.FAILED or np.all(np.isfinite(report.x))):
                 previous = report.x
         return SolutionBatch.of(reports, problem.n)
 

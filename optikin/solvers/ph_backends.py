@@ -39,6 +39,7 @@ from optikin.interrupt import check_interrupted
 from optikin.options import Options
 from optikin.solvers import register_backend
 from optikin.spec import SolverSpec
+from optikin.status import Status
 
 FAMILY = "ph"
 
@@ -109,7 +110,7 @@ class PHAdapter:
             check_interrupted()
             sol = self.solve_one(model, data, previous)
             out.append(sol)
-            previous = sol.x if (self.warm_start and sol.status == "ok") else None
+            previous = sol.x if (self.warm_start and sol.status == Status.OK) else None
         return out
 
 

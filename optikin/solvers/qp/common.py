@@ -30,6 +30,7 @@ import numpy as np
 
 from optikin.options import Options
 from optikin.solvers.base import QPStepSolver, Solution
+from optikin.status import Status
 
 OptionsT = TypeVar("OptionsT", bound=Options)
 
@@ -80,7 +81,9 @@ def failed(
     n: int, message: str, seconds: float = 0.0, iterations: int = -1, extras: dict[str, Any] | None = None
 ) -> Solution:
     """A failed step: ``x`` all NaN, ``message`` the solver's reason."""
-    return Solution(np.full(n, np.nan), "failed", iterations, seconds=seconds, message=message, extras=extras or {})
+    return Solution(
+        np.full(n, np.nan), Status.FAILED, iterations, seconds=seconds, message=message, extras=extras or {}
+    )
 
 
 class StepSolverFactory(Generic[OptionsT]):

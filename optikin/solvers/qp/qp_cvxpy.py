@@ -23,6 +23,7 @@ from optikin.solvers import register_backend
 from optikin.solvers.base import Solution
 from optikin.solvers.qp.common import QPData, StepSolverFactory, failed
 from optikin.spec import SolverSpec
+from optikin.status import Status
 
 
 def installed_solvers() -> list[str]:
@@ -84,7 +85,7 @@ class CvxpyStepSolver:
         seconds = time.perf_counter() - start
         if self.problem.status != self.cp.OPTIMAL or self.x.value is None:
             return failed(self.n, str(self.problem.status), seconds)
-        return Solution(self.x.value, "ok", seconds=seconds)
+        return Solution(self.x.value, Status.OK, seconds=seconds)
 
 
 @register_backend("qp_cvxpy", "qp", "cvxpy Problem with Parameters (DPP), re-solved every step", options=CvxpyOptions)

@@ -22,6 +22,7 @@ from optikin.solvers.base import Solution
 from optikin.solvers.qp.common import QPData, StepSolverFactory, failed
 from optikin.solvers.qp.qp_cvxpy import CvxpyOptions
 from optikin.spec import SolverSpec
+from optikin.status import Status
 
 
 class CvxpyRebuildStepSolver:
@@ -48,7 +49,7 @@ class CvxpyRebuildStepSolver:
         seconds = time.perf_counter() - start
         if problem.status != cp.OPTIMAL or x.value is None:
             return failed(self.n, str(problem.status), seconds)
-        return Solution(x.value, "ok", seconds=seconds)
+        return Solution(x.value, Status.OK, seconds=seconds)
 
 
 @register_backend("qp_cvxpy_rebuild", "qp", "cvxpy Problem rebuilt every step (slow reference)", options=CvxpyOptions)

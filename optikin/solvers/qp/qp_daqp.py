@@ -41,6 +41,7 @@ from optikin.solvers import register_backend
 from optikin.solvers.base import Solution
 from optikin.solvers.qp.common import QPData, StepSolverFactory
 from optikin.spec import SolverSpec
+from optikin.status import Status
 
 _DAQP_INFINITY = 1e30
 """daqp's ``DAQP_INF``: a bound at or beyond it is no bound."""
@@ -283,7 +284,7 @@ class ActiveSetStepSolver:
         self._data: QPData | None = None
         self._sense = np.zeros(n + rows, dtype=np.intc)
         self._x = np.full(n, np.nan)
-        self.solution = Solution(self._x, "ok")
+        self.solution = Solution(self._x, Status.OK)
         if rows:
             self._lower, self._upper = np.empty(n + rows), np.full(n + rows, _DAQP_INFINITY)
             self._lower_box, self._lower_rows, self._upper_box = self._lower[:n], self._lower[n:], self._upper[:n]
@@ -329,11 +330,11 @@ class ActiveSetStepSolver:
         if flag >= 0:  # set up or refreshed (the factorisation of H succeeded)
             flag, iterations = self._run()
         if flag == 1:
-            if solution.status != "ok":
-                solution.status, solution.message = "ok", ""
+            if solution.status != Status.OK:
+                solution.status, solution.message = Status.OK, ""
         else:
             self._x.fill(np.nan)
-            solution.status, solution.message = "failed", f"daqp exit flag {flag}"
+            solution.status, solution.message = Status.FAILED, f"daqp exit flag {flag}"
             self._data = None  # the next step sets daqp up afresh: empty active set, new factorisation
         solution.iterations, solution.seconds = iterations, time.perf_counter() - start
         return solution

@@ -33,6 +33,7 @@ from optikin.solvers import register_backend
 from optikin.solvers.base import Solution
 from optikin.solvers.qp.common import QPData, StepSolverFactory, upper_triangle_csc_indices
 from optikin.spec import SolverSpec
+from optikin.status import Status
 
 
 _INFINITY = 1e30
@@ -133,11 +134,11 @@ class OSQPStepSolver:
     def _answer(self, info: Any, x: np.ndarray) -> Solution:
         extras = {"primal_residual": info.prim_res, "dual_residual": info.dual_res}
         if info.status_val == self._solved:
-            return Solution(x, "ok", info.iter, seconds=info.run_time, extras=extras)
+            return Solution(x, Status.OK, info.iter, seconds=info.run_time, extras=extras)
         if info.status_val == self._interrupted:
             raise KeyboardInterrupt  # OSQP catches SIGINT itself during a solve; honour it once it returned
         return Solution(
-            np.full(self.n, np.nan), "failed", info.iter, seconds=info.run_time, message=info.status, extras=extras
+            np.full(self.n, np.nan), Status.FAILED, info.iter, seconds=info.run_time, message=info.status, extras=extras
         )
 
 

@@ -31,6 +31,7 @@ from optikin.solvers import register_backend
 from optikin.solvers.base import Solution
 from optikin.solvers.qp.common import QPData, StepSolverFactory, failed
 from optikin.spec import SolverSpec
+from optikin.status import Status
 
 TIGHT: dict[str, dict[str, Any]] = {
     "osqp": {"eps_abs": 1e-7, "eps_rel": 1e-7, "rho": 1.0, "polishing": False, "max_iter": 4000, "raise_error": False},
@@ -98,7 +99,7 @@ class QpsolversStepSolver:
         seconds = time.perf_counter() - start
         if x is None:
             return failed(self.n, "no solution returned", seconds)
-        return Solution(x, "ok", seconds=seconds)
+        return Solution(x, Status.OK, seconds=seconds)
 
     def _solve_daqp(self, data: QPData) -> Solution:
         """``daqp.solve(H, g, A, bupper, blower, sense)``, the box as daqp's simple bounds (its first rows)."""
@@ -111,7 +112,7 @@ class QpsolversStepSolver:
         seconds = time.perf_counter() - start
         if exitflag != 1:
             return failed(self.n, f"daqp exit flag {exitflag}", seconds)
-        return Solution(np.asarray(x), "ok", seconds=seconds)
+        return Solution(np.asarray(x), Status.OK, seconds=seconds)
 
 
 _DAQP_INFINITY = 1e30
