@@ -2,7 +2,8 @@
 
 ``reproduction_error``
     the position [mm] and orientation [mrad] error of every variant's
-    reproduction against the demonstration, one panel each;
+    reproduction against the demonstration, one panel each; the ``seed`` variants'
+    position panels also draw the structural bound ``| |p(t)| - 2 |Q_d| |``;
 ``<variant>_<scenario>``
     the unit quaternion ``Q_r`` [-] (and ``Q_d`` [m] of the dual-quaternion variants)
     of the reproduction, the goal-switch roll-out and the roll-out coupled to
@@ -19,7 +20,7 @@ import numpy as np
 
 from optikin.algebra import dq_from_rotation_translation
 from optikin.problems.dmp.report import rollout_key
-from optikin.problems.dmp.variants import DUAL, pose_errors, unit_of, variant_pose
+from optikin.problems.dmp.variants import DUAL, pose_errors, structural_bound, unit_of, variant_pose
 from optikin.results import Drawer
 
 QUATERNION_SCENARIOS = ("reproduction", "goal switch", "perturbation coupled")
@@ -60,11 +61,14 @@ def _errors_figure(arrays: Mapping[str, np.ndarray], variants: list[str], name: 
         for variant in variants:
             y = arrays[rollout_key(variant, scenario)]
             n = min(len(y), len(t))
+            bound = structural_bound(variant, y[:n], position[:n])
             for k, v in pose_errors(variant, y[:n], position[:n], quaternion[:n]).items():
                 unit, factor = unit_of(k)
                 label = f"{k} error" if variant == k else f"{variant}\n{k} error"
-                series[label], units[label] = v[:, None] * factor, f"[{unit}]"
-        plots.time_series(path, t[:n], series, units, f"{name}: {scenario} error", labels=("error",))
+                lines = [v] if k != "position" or bound is None else [v, bound[1]]  # beside |Q_d| fixed's bound
+                series[label], units[label] = np.stack(lines, axis=1) * factor, f"[{unit}]"
+        labels = ("error", "structural bound (|Q_d| fixed)")
+        plots.time_series(path, t[:n], series, units, f"{name}: {scenario} error", labels=labels)
 
     return draw
 
