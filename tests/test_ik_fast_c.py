@@ -190,6 +190,7 @@ def test_threads_share_the_library(trajectory):
 
     P = trajectory.targets[:200]
     alone = native_solve_many(trajectory.adapter, trajectory.problem, trajectory.start, P, True)
+
     def run(_):
         return native_solve_many(trajectory.adapter, trajectory.problem, trajectory.start, P, True)
 
