@@ -15,7 +15,7 @@ from scipy.integrate import quad
 from optikin.curves import ph_quintic_hermite
 from optikin.curves.energy import DEFAULT_NODES, bending_energy, twist_energy
 from optikin.curves import EnergySettings, ShapeData, ShapeEnergyModel
-from optikin.curves.min_energy import wrap_angle
+from optikin.algebra import wrap_periodic
 from optikin.errors import InputDataError
 from optikin.solvers import preset_of
 from optikin.spec import SolverSpec
@@ -165,7 +165,7 @@ def test_nlp_is_never_worse_than_the_grid_and_newton_agrees(model):
         assert nlp.status == "ok" and newton.status == "ok"
         assert nlp.energy <= grid.energy + 1e-12 * grid.energy
         assert newton.energy == pytest.approx(nlp.energy, rel=1e-10)
-        np.testing.assert_allclose(wrap_angle(newton.angles - nlp.angles), 0.0, atol=1e-6)
+        np.testing.assert_allclose(wrap_periodic(newton.angles - nlp.angles), 0.0, atol=1e-6)
         assert nlp.quadrature_error < 1e-9 * nlp.energy
 
 

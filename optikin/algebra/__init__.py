@@ -4,9 +4,10 @@ Every function takes numpy arrays with the components on the last axis (batch
 first) or CasADi matrices with the components on the rows, and returns the same
 kind (:mod:`optikin.algebra.backend`). Quaternions are Hamilton ``(w, x, y, z)``;
 dual quaternions are ``(Q_r, Q_d)`` with ``Q_d = 0.5 (0, p) Q_r`` (Seleem et al.
-2020, eqs. 9-10). See ``docs/conventions.md``.
+2020, eqs. 9-10). See ``docs/conventions.md``. :func:`wrap_periodic` brings angles back into their range.
 """
 
+from optikin.algebra.angles import wrap_periodic
 from optikin.algebra.dual_quaternion import (
     dq_combined_conjugate,
     dq_conjugate,
@@ -89,4 +90,5 @@ __all__ = [
     "quat_vector",
     "rpy_from_quat",
     "transform_from_dq",
+    "wrap_periodic",
 ]

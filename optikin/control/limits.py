@@ -31,6 +31,7 @@ from typing import Any, Mapping, Sequence, cast
 import casadi as ca
 import numpy as np
 
+from optikin.algebra import angles
 from optikin.arms.base import ArmModel
 from optikin.interrupt import calls_casadi
 
@@ -173,6 +174,7 @@ def limit_excess(arm: ArmModel, Q: np.ndarray, periodic: Sequence[str] | None = 
 
 
 def wrap_periodic(q: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """``q`` with the periodic variables wrapped into ``(-pi, pi]`` (in place; returned)."""
-    q[mask] = np.pi - np.mod(np.pi - q[mask], 2.0 * np.pi)
+    """``q`` with the variables of ``mask`` wrapped into ``(-pi, pi]`` (in place; returned;
+    :func:`optikin.algebra.wrap_periodic`)."""
+    q[mask] = angles.wrap_periodic(q[mask], closed="upper")
     return q

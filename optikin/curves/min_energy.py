@@ -45,6 +45,7 @@ from typing import Any, NamedTuple, Sequence
 import casadi as ca
 import numpy as np
 
+from optikin.algebra.angles import wrap_periodic
 from optikin.fastcall import BufferedFunction
 from optikin.curves.energy import DEFAULT_CURVATURE_FLOOR, DEFAULT_NODES, shape_energy
 from optikin.curves.newton import kkt_newton, kkt_newton_function, modified_newton, modified_newton_function
@@ -241,15 +242,6 @@ class ShapeSolution(Solution):
         return self.x[:2]
 
 
-def wrap_angle(a: np.ndarray | float) -> np.ndarray | float:
-    """Angle in ``[-pi, pi)``."""
-    return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
-
-
-def _wrap(a: float) -> float:
-    return (a + math.pi) % (2 * math.pi) - math.pi
-
-
 class ShapeEnergyModel:
     """The minimum-energy backbone problem, built once as CasADi expressions and reused for every sample.
 
@@ -410,7 +402,7 @@ class ShapeEnergyModel:
         if best is None:
             return ShapeSolution(X0[:, 0], Status.FAILED, iterations, seconds=seconds, method="ipopt", notes=statuses)
         x = best[1].copy()
-        x[:2] = wrap_angle(x[:2])
+        x[:2] = wrap_periodic(x[:2])
         E, S = self.energy_function(x, P)
         E_fine, _ = self._fine_energy_function(x, P)
         return ShapeSolution(
@@ -541,7 +533,7 @@ class ShapeEnergyModel:
             notes.append("Newton failed; IPOPT fallback")
             ref = self.solve_nlp(data, starts=3)
             return replace(ref, method="newton", seconds=time.perf_counter() - tic, notes=notes + ref.notes, message="")
-        x[0], x[1] = _wrap(x[0]), _wrap(x[1])
+        x[0], x[1] = wrap_periodic(x[0]), wrap_periodic(x[1])
         return ShapeSolution(
             x,
             Status.OK if ok else Status.NOT_CONVERGED,

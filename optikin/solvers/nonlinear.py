@@ -55,6 +55,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
+from optikin.algebra.angles import wrap_periodic
 from optikin.batch import batched
 from optikin.fastcall import BufferedFunction
 from optikin.interrupt import check_interrupted
@@ -293,7 +294,7 @@ class LeastSquaresProblem:
         if x.ndim == 1 and ((x >= self.lower) & (x <= self.upper)).all():
             return x  # the common case, a warm start: nothing to do
         with np.errstate(invalid="ignore"):  # a fixed periodic variable is clipped
-            wrapped = self.lower + np.mod(x - self.lower, self.upper - self.lower)
+            wrapped = wrap_periodic(x, self.lower, self.upper)
         return np.where(self.periodic & ~self.fixed, wrapped, np.clip(x, self.lower, self.upper))
 
     def wrap(self, x: np.ndarray) -> np.ndarray:
@@ -302,7 +303,7 @@ class LeastSquaresProblem:
         if not self.periodic.any():
             return x
         with np.errstate(invalid="ignore"):
-            wrapped = self.lower + np.mod(x - self.lower, self.upper - self.lower)
+            wrapped = wrap_periodic(x, self.lower, self.upper)
         return np.where(self.periodic & ~self.fixed, wrapped, x)
 
     def classify(
