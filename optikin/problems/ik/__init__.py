@@ -64,7 +64,11 @@ Backends that minimise a distance (``newton`` through the optimality system,
 ``ipopt``, ``sqpmethod``) do so exactly, with ``q_ref`` the rest configuration or
 the start point; ``gauss_newton``, ``lm`` and ``trf`` take minimum-norm steps
 from the start point, which is the rest configuration for independent targets
-under ``rest``.
+under ``rest``. A fit to noisy targets (``noise`` given) with at least as many rows as free
+variables has the same minimiser whatever ``q_ref``, so no reference is passed there
+(:func:`optikin.problems.ik.run.reference_of`): ``gauss_newton`` then solves the batch, or the
+recording warm-started in order (``data.params.trajectory`` of the ``csv`` source), in generated
+C (:mod:`optikin.native.ik`), about fifteen times faster per posture than its Python loop.
 
 Problem file
 ------------
