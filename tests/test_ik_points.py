@@ -14,8 +14,11 @@ import yaml
 from optikin.algebra import quat_from_axis_angle, quat_multiply, quat_rotate
 from optikin.arms.constant_curvature import ConstantCurvatureArm
 from optikin.errors import SpecError
+from optikin.ik.formulation import Formulation, build_problem
 from optikin.ik.points import MeasuredPoint, PointSet
+from optikin.problems.ik.run import reference_of
 from optikin.runner import solve
+from optikin.solvers import build_preset, load_backends
 from optikin.solvers.nonlinear import LeastSquaresProblem
 
 TRUNK = {"section_lengths": [0.1058, 0.0949, 0.1144], "length_range": [1.0, 1.0], "theta_max": 1.5}
@@ -244,3 +247,42 @@ def test_calibrated_noise_needs_a_calibrated_arm_file(tmp_path: Path):
     path = write_problem(tmp_path, options={"noise": "calibrated"})
     with pytest.raises(SpecError, match="options.noise"):
         solve(str(path), figures=False)
+
+
+def test_a_points_fit_passes_no_reference_and_its_minimiser_does_not_depend_on_one():
+    """``reference_of``: a fit to noisy points (9 rows, 6 free variables) is given no ``x_ref``, an exact
+    problem the rest configuration; the minimisers of gauss-newton (Python loop with the reference, generated
+    C without) and of newton (J^T r = 0) are the same with and without it."""
+    load_backends()
+    arm = ConstantCurvatureArm(**TRUNK)
+    points = PointSet(tuple(MeasuredPoint(f"d{k + 1}", k) for k in range(3)))
+    rng = np.random.default_rng(5)
+    X = arm.sample_configurations(20, rng)
+    targets = points.forward(arm, X) + rng.normal(0.0, 5e-4, (20, 9))
+    span = arm.upper - arm.lower
+    common: dict[str, Any] = dict(
+        target="points",
+        redundancy="rest",
+        rest=arm.straight_configuration(),
+        weights=1.0 / np.where(span > 0, span, 1.0),
+        tolerance=1e-10,
+        orientation_length=0.3,
+        points=points,
+    )
+    fit = Formulation(**common, noise=1e-3)
+    problem = build_problem(arm, fit)
+    assert reference_of(fit, problem) is None
+    exact = Formulation(**common)
+    np.testing.assert_array_equal(reference_of(exact, build_problem(arm, exact)), exact.rest)
+    gauss_newton = build_preset("gauss-newton")
+    with_reference = gauss_newton.solve_many(problem, X[0], targets, warm_start=True, x_ref=fit.rest)
+    without = gauss_newton.solve_many(problem, X[0], targets, warm_start=True)
+    np.testing.assert_allclose(without.x, with_reference.x, rtol=0, atol=1e-12)
+    assert without.status == with_reference.status
+    newton = build_preset("newton")
+    starts = X + rng.normal(0.0, 0.02, X.shape) * (span > 0)
+    far = np.where(span > 0, arm.lower + 0.3 * span, arm.lower)
+    for i in range(3):
+        a = newton.solve(problem, starts[i], targets[i], x_ref=far)
+        b = newton.solve(problem, starts[i], targets[i])
+        np.testing.assert_allclose(a.x, b.x, rtol=0, atol=1e-12)
