@@ -201,3 +201,10 @@ def test_the_seed_figures_are_printed_for_the_seed_cbha_only(tmp_path):
     assert cbha.metrics["seed 002 V.A mean distance per marker [mm]"] == [1.2, 3.7, 3.1]
     other, _ = solve(str(write_case(tmp_path, samples=2)), figures=False)
     assert "seed 002 V.A mean distance per marker [mm]" not in other.metrics
+
+
+def test_option_tip_circle_needs_two_intermediate_markers():
+    overrides = [("data.samples", 2), ("baselines", []), ("options.tip", "circle"), ("data.params.intermediate", [9])]
+    with pytest.raises(SpecError) as info:
+        solve("cbha-ph-shape", figures=False, overrides=overrides)
+    assert info.value.field == "options.tip" and "needs three disks" in str(info.value)
