@@ -37,21 +37,17 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
+from optikin.algebra import matrix_from_quat
 from optikin.arms.base import ArmModel
 from optikin.control.obstacles import max_section_length
 from optikin.fastcall import BufferedFunction
 
 
 def rotation_from_quaternion(quaternion) -> np.ndarray:
-    """The rotation matrix ``(3, 3)`` of a unit quaternion ``(w, x, y, z)`` (normalised here)."""
-    w, x, y, z = np.asarray(quaternion, dtype=float) / np.linalg.norm(quaternion)
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )
+    """The rotation matrix ``(3, 3)`` of a quaternion ``(w, x, y, z)``, normalised here
+    (:func:`optikin.algebra.matrix_from_quat`)."""
+    q = np.asarray(quaternion, dtype=float)
+    return matrix_from_quat(q / np.linalg.norm(q), check=False)
 
 
 def collision_density(arm: ArmModel, margin: float) -> int:
