@@ -60,6 +60,7 @@ from pydantic import Field, field_validator, model_validator
 from optikin.algebra import quat_exp, quat_multiply, quat_normalize, quat_rotate
 from optikin.arms.base import ArmModel
 from optikin.arms.cbha import LEG_DIRECTIONS
+from optikin.checks import check_quaternion
 from optikin.curves.tubes import CBHA_TUBE_ANGLES
 from optikin.data.markers import FRAME_RATE, MARKER_NOISE, CBHATruth, MarkerRecording, tube_fractions
 from optikin.data.sources import register_source
@@ -184,8 +185,7 @@ class CosseratMarkerParams(Options):
     @field_validator("base_orientation")
     @classmethod
     def _unit(cls, value: tuple[float, float, float, float]) -> tuple[float, float, float, float]:
-        if abs(float(np.linalg.norm(value)) - 1.0) > 1e-9:
-            raise ValueError("not a unit quaternion")
+        check_quaternion(value, name="base_orientation")
         return value
 
     @model_validator(mode="after")

@@ -41,6 +41,7 @@ from optikin.algebra import (
 )
 from optikin.arms.base import ArmModel
 from optikin.arms.constant_curvature import ConstantCurvatureArm
+from optikin.checks import UNIT_TOLERANCE, check_quaternion
 from optikin.data.configurations import TrajectoryParams, first_rows, smooth_motion
 from optikin.data.csvread import UNIT_METRES, columns_of, read_table
 from optikin.data.files import data_file
@@ -193,8 +194,7 @@ class BasePose(Options):
     @field_validator("quaternion")
     @classmethod
     def _unit(cls, q: tuple[float, float, float, float]) -> tuple[float, float, float, float]:
-        if abs(float(np.linalg.norm(q)) - 1.0) > QUATERNION_TOLERANCE:
-            raise ValueError(f"not a unit quaternion (norm {float(np.linalg.norm(q)):.9g})")
+        check_quaternion(q, name="quaternion")
         return q
 
 
@@ -356,8 +356,8 @@ def to_base_frame(values: np.ndarray, kind: str, points: PointSet | None, base: 
     return out
 
 
-QUATERNION_TOLERANCE = 1e-6
-"""| |q| - 1 | accepted for a pose target read from a file."""
+QUATERNION_TOLERANCE = UNIT_TOLERANCE
+"""| |q| - 1 | accepted for a pose target read from a file (:data:`optikin.checks.UNIT_TOLERANCE`)."""
 
 
 def read_target_csv(

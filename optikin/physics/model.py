@@ -32,6 +32,7 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from optikin.algebra import matrix_from_quat, quat_from_pure, quat_multiply
+from optikin.checks import check_quaternion
 from optikin.errors import InputDataError
 from optikin.options import Options
 from optikin.physics.pneumatic import Chamber, chamber_offset
@@ -99,8 +100,7 @@ class RodArm(Options):
 
     @model_validator(mode="after")
     def _consistent(self) -> RodArm:
-        if abs(float(np.linalg.norm(self.base_orientation)) - 1.0) > 1e-9:
-            raise ValueError("base_orientation: not a unit quaternion")
+        check_quaternion(self.base_orientation, name="base_orientation")
         if any(s.rod.gravity != self.segments[0].rod.gravity for s in self.segments):
             raise ValueError("segments: every segment's rod must have the same gravity")
         for k, seg in enumerate(self.segments):
