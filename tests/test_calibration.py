@@ -12,7 +12,8 @@ import yaml
 from optikin.arms import build_arm
 from optikin.arms.constant_curvature import ConstantCurvatureArm
 from optikin.calibration.calibrate import calibrate, fit_postures, held_out
-from optikin.calibration.model import Layout, MarkerModel, vector_from_rotation_np
+from optikin.algebra import matrix_from_rotation_vector, rotation_vector_from_matrix
+from optikin.calibration.model import Layout, MarkerModel
 from optikin.calibration.synthetic import rpy_matrix, synthetic_recording
 from optikin.data.markers import read_marker_csv
 from optikin.runner import solve
@@ -45,7 +46,7 @@ def true_beta(cal) -> np.ndarray:
     beta = np.zeros(cal.layout.n_beta)
     beta[cal.layout.lengths] = TRUE_LENGTHS
     beta[cal.layout.position] = BASE
-    beta[cal.layout.rotation] = vector_from_rotation_np(cal.problem.ref.T @ ROTATION)
+    beta[cal.layout.rotation] = rotation_vector_from_matrix(cal.problem.ref.T @ ROTATION)
     return beta
 
 
@@ -66,9 +67,8 @@ def test_marker_model_matches_the_arm_and_finite_differences():
     beta[layout.rotation] = [0.2, -0.1, 0.4]
     ref = rpy_matrix(np.pi, 0.1, 0.3)
     markers, Jx, Jb = model.evaluate(X, beta, ref)
-    from optikin.calibration.model import rotation_from_vector_np
 
-    R0 = ref @ rotation_from_vector_np(beta[layout.rotation])
+    R0 = ref @ matrix_from_rotation_vector(beta[layout.rotation])
     expected = beta[layout.position] + ends @ R0.T
     assert np.abs(markers.reshape(N, 3, 3) - expected).max() < 1e-14
     h = 1e-6

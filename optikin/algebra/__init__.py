@@ -50,6 +50,7 @@ from optikin.algebra.quaternion import (
     quat_vector,
     rpy_from_quat,
 )
+from optikin.algebra.rotation_vector import matrix_from_rotation_vector, rotation_vector_from_matrix
 
 __all__ = [
     "check_unit_quaternions",
@@ -71,6 +72,7 @@ __all__ = [
     "dq_transform_point",
     "dq_translation",
     "matrix_from_quat",
+    "matrix_from_rotation_vector",
     "quat_angle",
     "quat_conjugate",
     "quat_exp",
@@ -88,6 +90,7 @@ __all__ = [
     "quat_rotate",
     "quat_slerp",
     "quat_vector",
+    "rotation_vector_from_matrix",
     "rpy_from_quat",
     "transform_from_dq",
     "wrap_periodic",

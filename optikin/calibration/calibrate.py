@@ -47,8 +47,9 @@ from typing import Sequence
 
 import numpy as np
 
+from optikin.algebra import matrix_from_rotation_vector
 from optikin.calibration.identifiability import MAX_STD, Identifiability, analyse
-from optikin.calibration.model import Layout, MarkerModel, rotation_from_vector_np
+from optikin.calibration.model import Layout, MarkerModel
 from optikin.calibration.solver import Fit, Loss, Problem, solve
 
 SCREENING_ITERATIONS = 10
@@ -173,7 +174,7 @@ class Calibration:
     @property
     def base_rotation(self) -> np.ndarray:
         """``(3, 3)`` base orientation in the measurement frame."""
-        return self.problem.ref @ rotation_from_vector_np(self.fit.beta[self.layout.rotation])
+        return self.problem.ref @ matrix_from_rotation_vector(self.fit.beta[self.layout.rotation])
 
     @property
     def offsets(self) -> np.ndarray:
@@ -301,7 +302,7 @@ def chord_configurations(
         half = 0.5 * np.sinc(theta / (2.0 * np.pi)) ** 2  # (1 - cos theta) / theta^2
         local = S[:, None] * np.stack([u * half, v * half, np.sinc(theta / np.pi)], axis=1)
         p = p + np.einsum("nij,nj->ni", R, local)
-        R = R @ rotation_from_vector_np(np.stack([-v, u, np.zeros(N)], axis=1))
+        R = R @ matrix_from_rotation_vector(np.stack([-v, u, np.zeros(N)], axis=1))
     return X
 
 
@@ -657,7 +658,7 @@ def explaining_swaps(
         None if problem.actuators is None else np.repeat(problem.actuators[postures], len(pairs), axis=0),
     )
     lay = problem.model.layout
-    R0 = problem.ref @ rotation_from_vector_np(fit.beta[lay.rotation])
+    R0 = problem.ref @ matrix_from_rotation_vector(fit.beta[lay.rotation])
     lengths = fit.beta[lay.lengths] if not lay.extensible else np.median(fit.X[:, -lay.n_sections :], axis=0)
     X0 = per_posture(lay, chord_configurations(trials, lay, lengths, fit.beta[lay.position], R0))
     worst = np.nanmax(solve(held, X0, fit.beta, 50, 1e-12).errors, axis=1).reshape(len(postures), len(pairs))
@@ -679,7 +680,7 @@ def fit_postures(problem: Problem, beta: np.ndarray, X0: np.ndarray | None = Non
     if X0 is None:
         if lay.extensible:
             raise ValueError("fit_postures on an extensible arm needs starting configurations")
-        R0 = problem.ref @ rotation_from_vector_np(beta[lay.rotation])
+        R0 = problem.ref @ matrix_from_rotation_vector(beta[lay.rotation])
         X0 = per_posture(lay, chord_configurations(problem.measured, lay, beta[lay.lengths], beta[lay.position], R0))
     return solve(held, X0, beta)
 

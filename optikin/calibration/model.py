@@ -47,58 +47,8 @@ import casadi as ca
 import numpy as np
 
 from optikin.algebra import backend as B
+from optikin.algebra.rotation_vector import matrix_from_rotation_vector
 from optikin.batch import batch_evaluate
-
-
-def skew(w: ca.SX) -> ca.SX:
-    """The cross-product matrix ``[w]x`` of a CasADi 3-vector."""
-    return ca.vertcat(
-        ca.horzcat(0, -w[2], w[1]),
-        ca.horzcat(w[2], 0, -w[0]),
-        ca.horzcat(-w[1], w[0], 0),
-    )
-
-
-def rotation_from_vector(w: ca.SX) -> ca.SX:
-    """Rodrigues' ``exp([w]x)`` of a rotation vector [rad], exact and smooth at ``w = 0``.
-
-    Parameters
-    ----------
-    w : casadi.SX
-        ``3 x 1`` rotation vector (axis times angle).
-
-    Returns
-    -------
-    casadi.SX
-        ``3 x 3`` rotation matrix.
-    """
-    a2 = ca.sumsqr(w)
-    K = skew(w)
-    half = B.sinc_of_square(a2 / 4.0)
-    return ca.SX.eye(3) + B.sinc_of_square(a2) * K + 0.5 * half * half * (K @ K)
-
-
-def rotation_from_vector_np(w: np.ndarray) -> np.ndarray:
-    """Numeric :func:`rotation_from_vector` of ``(..., 3)`` rotation vectors: ``(..., 3, 3)``."""
-    w = np.asarray(w, dtype=float)
-    a = np.linalg.norm(w, axis=-1)[..., None, None]
-    K = np.zeros(w.shape[:-1] + (3, 3))
-    K[..., 0, 1], K[..., 0, 2], K[..., 1, 2] = -w[..., 2], w[..., 1], -w[..., 0]
-    K = K - np.swapaxes(K, -1, -2)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        s = np.where(a > 1e-8, np.sin(a) / np.where(a > 0, a, 1.0), 1.0)
-        c = np.where(a > 1e-8, (1.0 - np.cos(a)) / np.where(a > 0, a * a, 1.0), 0.5)
-    return np.eye(3) + s * K + c * (K @ K)
-
-
-def vector_from_rotation_np(R: np.ndarray) -> np.ndarray:
-    """The rotation vector ``(3,)`` [rad] of a rotation matrix (angle below pi)."""
-    R = np.asarray(R, dtype=float)
-    angle = np.arccos(np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0))
-    axis = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
-    if angle < 1e-8:
-        return 0.5 * axis
-    return angle / (2.0 * np.sin(angle)) * axis
 
 
 def section_pose(S: ca.SX, u: ca.SX, v: ca.SX) -> tuple[ca.SX, ca.SX]:
@@ -120,7 +70,7 @@ def section_pose(S: ca.SX, u: ca.SX, v: ca.SX) -> tuple[ca.SX, ca.SX]:
     half = B.sinc_of_square(t2 / 4.0)
     c = 0.5 * half * half
     p = S * ca.vertcat(u * c, v * c, B.sinc_of_square(t2))
-    return rotation_from_vector(ca.vertcat(-v, u, 0)), p
+    return matrix_from_rotation_vector(ca.vertcat(-v, u, 0)), p
 
 
 @dataclass(frozen=True)
@@ -236,7 +186,7 @@ class MarkerModel:
         else:
             bending = x[0 : 2 * m]
             lengths = x[2 * m : 3 * m] if lay.extensible else beta[lay.lengths]
-        R = ref @ rotation_from_vector(beta[lay.rotation])
+        R = ref @ matrix_from_rotation_vector(beta[lay.rotation])
         p = beta[lay.position]
         ends = []
         for i in range(m):

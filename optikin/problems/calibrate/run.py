@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from optikin.algebra import matrix_from_quat
+from optikin.algebra import matrix_from_quat, rotation_vector_from_matrix
 from optikin.arms.constant_curvature import ConstantCurvatureArm
 from optikin.calibration.calibrate import (
     SCREENING_ITERATIONS,
@@ -31,7 +31,6 @@ from optikin.calibration.export import (
     write_points_csv,
     write_target_csv,
 )
-from optikin.calibration.model import vector_from_rotation_np
 from optikin.calibration.synthetic import CalibrationTruth
 from optikin.data.markers import write_marker_csv
 from optikin.data.recording import FrameOptions, Recording, frame_matrix
@@ -102,7 +101,7 @@ def truth_beta(calibration: Calibration, truth: CalibrationTruth) -> np.ndarray:
     beta = np.zeros(lay.n_beta)
     beta[lay.lengths] = truth.section_lengths[lay.lengths]
     beta[lay.position] = truth.base_position
-    beta[lay.rotation] = vector_from_rotation_np(calibration.problem.ref.T @ truth.base_rotation)
+    beta[lay.rotation] = rotation_vector_from_matrix(calibration.problem.ref.T @ truth.base_rotation)
     sections = np.array(lay.marker_sections) - 1
     beta[lay.offsets] = truth.marker_offsets[sections].ravel()
     return beta
