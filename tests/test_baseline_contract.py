@@ -122,6 +122,14 @@ CASES: dict[str, list[tuple[str, list[tuple[str, Any]], list[str], Labels]]] = {
             one,
         )
     ],
+    "actuation": [
+        (
+            "trunk-lab-actuation",
+            [("options.postures", 40), ("options.fractions", [1.0]), ("options.max_evaluations", 4)],
+            ["knn", "mlp", "gp"],
+            one,
+        )
+    ],
 }
 """Per kind that runs baselines: ``(problem, overrides making it small, baselines listed, the labels of a
 baseline's rows)``."""
