@@ -51,6 +51,7 @@ from optikin.algebra import matrix_from_rotation_vector
 from optikin.calibration.identifiability import MAX_STD, Identifiability, analyse
 from optikin.calibration.model import Layout, MarkerModel
 from optikin.calibration.solver import Fit, Loss, Problem, solve
+from optikin.status import Status
 
 SCREENING_ITERATIONS = 10
 """Steps of the robust fit on every posture that screens for outliers (it need not converge to the last digit:
@@ -137,7 +138,7 @@ class Calibration:
     @property
     def verdict(self) -> str:
         """``ok``, or ``not_identifiable`` when the identifiability report at the solution finds a reason."""
-        return "ok" if self.identifiability is None else self.identifiability.verdict
+        return Status.OK if self.identifiability is None else self.identifiability.verdict
 
     @property
     def X_all(self) -> np.ndarray:

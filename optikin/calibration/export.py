@@ -94,7 +94,7 @@ def calibration_facts(calibration: Calibration, test: HeldOut | None = None) -> 
         "postures_rejected": len(calibration.outliers),
         "median_marker_error": float(f"{np.nanmedian(least_squares_errors(calibration)):.4g}"),
     }
-    facts["verdict"] = calibration.verdict
+    facts["verdict"] = str(calibration.verdict)
     if test is not None:
         headline = test.headline()
         facts["held_out_largest_marker_error"] = {k: float(f"{v:.4g}") for k, v in headline.items()}

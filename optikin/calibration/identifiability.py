@@ -35,6 +35,7 @@ from typing import Any, Literal
 import numpy as np
 
 from optikin.calibration.solver import Problem, information
+from optikin.status import Status
 
 MAX_STD = 1e-3
 """The standard deviation [m] above which a parameter or combination is weakly determined: 1 mm for lengths,
@@ -50,7 +51,7 @@ NAMED_WEIGHT = 0.2
 BOUND_TOLERANCE = 1e-9
 """A parameter within this [m, rad] of a bound is on it."""
 
-Verdict = Literal["ok", "not_identifiable"]
+Verdict = Literal[Status.OK, Status.NOT_IDENTIFIABLE]
 
 
 @dataclass(frozen=True)
@@ -115,7 +116,7 @@ class Identifiability:
 
     @property
     def verdict(self) -> Verdict:
-        return "not_identifiable" if self.reasons else "ok"
+        return Status.NOT_IDENTIFIABLE if self.reasons else Status.OK
 
     @property
     def weak_parameters(self) -> list[str]:
@@ -282,7 +283,7 @@ def analyse(
 
 def remedies(report: Identifiability) -> list[str]:
     """The options that would determine the weak parameters of ``report``, most specific first."""
-    if report.verdict == "ok":
+    if report.verdict == Status.OK:
         return []
     weak = report.weak_parameters
     out = []

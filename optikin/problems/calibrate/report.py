@@ -39,6 +39,7 @@ from optikin.arms.constant_curvature import ConstantCurvatureArm
 from optikin.problems import ProblemContext
 from optikin.problems.calibrate.run import PRUNE, CalibrateOutcome, in_sample_median
 from optikin.results import MethodRow, Result
+from optikin.status import Status
 
 MAX_OUTLIER_NOTES = 20
 """Rejected postures listed one by one in the notes (the rest are counted)."""
@@ -201,7 +202,7 @@ def result_of(ctx: ProblemContext, outcome: CalibrateOutcome) -> Result:
     for option, file in outcome.written.items():
         metrics[option.replace("_", " ")] = str(file)
     notes = []
-    if report is not None and verdict != "ok":
+    if report is not None and verdict != Status.OK:
         notes.append("not identifiable: " + "; ".join(report.reasons))
         notes += [f"to determine it: {r}" for r in identifiability.get("remedies", [])]
     reader = outcome.recording.notes
@@ -217,7 +218,7 @@ def result_of(ctx: ProblemContext, outcome: CalibrateOutcome) -> Result:
             "torsion-free arm: it is held at the reference orientation (options.base.orientation, else the "
             "recording's x axis across the base axis)"
         )
-    status = "failed" if verdict != "ok" else "ok" if cal.fit.converged else "not_converged"
+    status = Status.FAILED if verdict != Status.OK else Status.OK if cal.fit.converged else Status.NOT_CONVERGED
     comparison = [
         MethodRow(
             f"start: {c.name}" if len(outcome.candidates) > 1 else "levenberg-marquardt-schur",
@@ -272,5 +273,5 @@ def result_of(ctx: ProblemContext, outcome: CalibrateOutcome) -> Result:
         comparison=comparison,
         arrays=arrays,
         notes=notes,
-        criteria={"converged": bool(cal.fit.converged), "identifiable": verdict == "ok"},
+        criteria={"converged": bool(cal.fit.converged), "identifiable": verdict == Status.OK},
     )
