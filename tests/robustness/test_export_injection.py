@@ -144,6 +144,8 @@ def test_fk_from_a_hostile_folder_builds_with_make_and_writes_nowhere_else(tmp_p
         "main.c",
         "Makefile",
         "CMakeLists.txt",
+        "README.md",
+        "configurations.txt",
         "optikin_fk.o",
         "liboptikin_fk.a",
         "example",
