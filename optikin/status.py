@@ -32,6 +32,8 @@ class Status(StrEnum):
     ``not_converged`` out of iterations; ``timeout`` out of time; ``failed`` no usable answer (non-finite,
     outside the bounds, the solver gave up); ``not_identifiable`` a calibration whose parameters the data
     cannot tell apart (a calibration's verdict, not a sample's status).
+
+    Its ``repr`` is the text's too (``'ok'``), so a message or a printed tuple reads as before.
     """
 
     OK = "ok"
@@ -41,6 +43,9 @@ class Status(StrEnum):
     NOT_CONVERGED = "not_converged"
     TIMEOUT = "timeout"
     NOT_IDENTIFIABLE = "not_identifiable"
+
+    def __repr__(self) -> str:
+        return repr(self.value)
 
 
 SAMPLE_STATUSES = (

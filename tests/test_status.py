@@ -17,6 +17,7 @@ def test_a_status_is_its_text_in_json_arrays_and_messages():
     assert array.dtype == np.dtype("<U11") and array.tobytes() == np.array(["ok", "unreachable"]).tobytes()
     assert f"{Status.TIMEOUT}" == str(Status.TIMEOUT) == "timeout" and f"{Status.FIT:>4}" == " fit"
     assert Status("failed") is Status.FAILED and {"ok": 1}[Status.OK] == 1
+    assert repr((Status.OK, [Status.FIT])) == "('ok', ['fit'])"
 
 
 def test_the_sample_statuses_are_the_results_ones_and_the_verdict_is_not_among_them():
