@@ -72,6 +72,7 @@ from optikin.options import validate_options
 from optikin.problems.ik.run import mark_fits, rms_distances
 from optikin.solvers import load_preset
 from optikin.solvers.nonlinear import LeastSquaresProblem, NonlinearAdapter
+from optikin.status import Status
 
 logger = logging.getLogger(__name__)
 
@@ -504,7 +505,7 @@ def track(
     if start is None:
         if first is None:
             solution = solve_ik(arm, ref.value[0])
-            if solution.status != "ok":
+            if solution.status != Status.OK:
                 raise ValueError(f"the first reference sample is not reachable ({solution.message})")
             first = solution.configuration
         start = first

@@ -66,6 +66,7 @@ from optikin.ik.cbha import distribution_coefficients, section_slices
 from optikin.ik.formulation import rest_configuration
 from optikin.interrupt import calls_casadi
 from optikin.solvers.nonlinear import BOUND_TOLERANCE
+from optikin.status import Status
 
 ROOT_TOLERANCE = 1e-12
 """``max |r|`` [m] at which the iteration stops (the ``newton`` preset's ``abstol``)."""
@@ -351,7 +352,7 @@ class ExactTubeLengths:
         else:
             start = self._track[-1] if self._track else None
         posture = self.solve(ends, start)
-        if posture.status == "ok":
+        if posture.status == Status.OK:
             self._track = [*self._track[-1:], posture.x]
         return posture
 
@@ -365,14 +366,14 @@ class ExactTubeLengths:
         rn, outside = float(info[1]), float(info[3])
         lengths = info[4:7].copy()
         if not math.isfinite(rn):
-            return Posture(x, np.full(3, np.nan), "failed", "non-finite solution", iterations, rn)
+            return Posture(x, np.full(3, np.nan), Status.FAILED, "non-finite solution", iterations, rn)
         if outside > BOUND_TOLERANCE:
             message = self.problem.violation_message(x)
-            return Posture(x, np.full(3, np.nan), "failed", message, iterations, rn)
+            return Posture(x, np.full(3, np.nan), Status.FAILED, message, iterations, rn)
         if rn <= self.problem.tolerance:
-            return Posture(x, lengths, "ok", "", iterations, rn)
+            return Posture(x, lengths, Status.OK, "", iterations, rn)
         status, rn, message = self.problem.classify(x, self._ends.copy(), 0.0, np.inf)
-        return Posture(x, lengths if status == "ok" else np.full(3, np.nan), status, message, iterations, rn)
+        return Posture(x, lengths if status == Status.OK else np.full(3, np.nan), status, message, iterations, rn)
 
     def run(self, targets: np.ndarray) -> ComparatorRun:
         """The postures ``targets`` ``(N, 3 S)`` in order by :meth:`track` (a new trajectory), timed one by one:

@@ -83,6 +83,7 @@ from optikin.baselines.nn_store import read_metadata
 from optikin.solvers import build_preset
 from optikin.solvers.nonlinear import LeastSquaresProblem, NonlinearAdapter
 from optikin.solvers.base import Solution
+from optikin.status import Status
 
 NEWTON_RAPHSON = "newton-raphson"
 NEWTON_RAPHSON_POSE = "newton-raphson-pose"
@@ -181,7 +182,7 @@ def newton_raphson_step(
     """One posture: the Newton report, the whole tube lengths ``(3,)`` (NaN unless ``ok``) and the seconds
     of the solve plus the tube lengths."""
     report = newton.solve(problem, start, target)
-    if report.status != "ok":
+    if report.status != Status.OK:
         return report, np.full(3, np.nan), report.seconds
     tic = time.perf_counter()
     lengths = np.asarray(arm.tube_lengths(report.x)).sum(axis=0)  # (section, tube) -> whole tubes
@@ -210,7 +211,7 @@ def newton_raphson_tube_lengths(
         seconds[i] += extra
         status.append(report.status)
         messages.append(report.message)
-        if report.status == "ok":
+        if report.status == Status.OK:
             start = report.x
     return ComparatorRun(lengths, seconds, status, messages)
 
@@ -254,7 +255,7 @@ def hybrid_run(store: Path, recording: MarkerRecording) -> ComparatorRun:
     return ComparatorRun(
         np.where(finite[:, None], lengths, np.nan),
         seconds,
-        ["ok" if f else "failed" for f in finite],
+        [Status.OK if f else Status.FAILED for f in finite],
         ["" if f else "non-finite prediction" for f in finite],
     )
 

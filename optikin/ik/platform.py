@@ -30,11 +30,12 @@ from optikin.arms.cbha import PLATFORM_LEG_LENGTHS, CBHAArm
 from optikin.native.ik import solve_many
 from optikin.solvers.nonlinear import LeastSquaresProblem, NonlinearAdapter
 from optikin.solvers.base import SolutionBatch
+from optikin.status import Status
 
 CLIP_TOLERANCE = 1e-9
 """A commanded length counts as clipped when it leaves Table I by more than this [m] (a solver's
 constraint tolerance is not a clip)."""
-STATUS_PRIORITY = ("failed", "timeout", "not_converged", "unreachable", "ok")
+STATUS_PRIORITY = (Status.FAILED, Status.TIMEOUT, Status.NOT_CONVERGED, Status.UNREACHABLE, Status.OK)
 """A sample takes the first of these statuses that any of its platforms has."""
 
 
@@ -109,7 +110,7 @@ def solve_platforms(
         for k, problem in enumerate(problems)
     ]
     statuses = np.array([r.status for r in reports])  # (platform, sample)
-    status = [next(s for s in STATUS_PRIORITY if s in column) for column in statuses.T]
+    status: list[str] = [next(s for s in STATUS_PRIORITY if s in column) for column in statuses.T]
     messages = []
     for i in range(len(legs)):
         bad = [f"platform {k + 1}: {r.messages[i]}" for k, r in enumerate(reports) if r.messages[i]]
@@ -170,7 +171,7 @@ def realise(
     lo, hi = arm.leg_limits()
     applied = np.where(finite[:, None], np.clip(commanded, lo, hi), 0.5 * (lo + hi))
     report = solve_platforms(adapter, problems, applied, linearised_start(arm, applied))
-    solved = finite & (np.array(report.status) == "ok")
+    solved = finite & (np.array(report.status) == Status.OK)
     Q = np.where(solved[:, None], report.x, np.nan)
     tip = np.full((len(Q), 3), np.nan)
     if solved.any():

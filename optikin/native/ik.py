@@ -42,6 +42,7 @@ from optikin.interrupt import check_interrupted
 from optikin.native import CHUNK, compiler_found, load_library, native_enabled, pointer, report_fallback
 from optikin.solvers.base import SolutionBatch
 from optikin.solvers.nonlinear import BOUND_TOLERANCE
+from optikin.status import Status
 
 STEM = "optikin_native_ik"
 
@@ -224,7 +225,7 @@ long long optikin_native_ik_many(const double* X0, long long stride, const doubl
 """
 
 
-STATUSES = ("ok", "unreachable", "not_converged", "failed")
+STATUSES = (Status.OK, Status.UNREACHABLE, Status.NOT_CONVERGED, Status.FAILED)
 """Statuses by code: :data:`OK`, :data:`UNREACHABLE`, :data:`NOT_CONVERGED`, :data:`FAILED` (and
 :data:`OUTSIDE`, ``failed`` with the bound violated named)."""
 OK, UNREACHABLE, NOT_CONVERGED, FAILED, OUTSIDE = range(5)
@@ -434,7 +435,7 @@ def _batch_verdicts(adapter, problem, X: np.ndarray, info: np.ndarray, P: np.nda
         [FAILED, OUTSIDE, OK, UNREACHABLE if problem.exact else OK],
         NOT_CONVERGED,
     )
-    status = np.array(STATUSES + ("failed",), dtype=object)[code].tolist()
+    status = np.array(STATUSES + (Status.FAILED,), dtype=object)[code].tolist()
     messages = np.array(["", "closest reachable configuration", "", "non-finite solution", ""], dtype=object)[
         code
     ].tolist()

@@ -32,6 +32,7 @@ import numpy as np
 from optikin.curves.min_energy import ShapeSolution
 from optikin.interrupt import check_interrupted
 from optikin.native import CHUNK, compiler_found, load_library, native_enabled, pointer, report_fallback
+from optikin.status import Status
 
 STEM = "optikin_native_ph"
 
@@ -248,11 +249,11 @@ def native_solve(adapter, model, samples: Sequence) -> ShapeBatch | None:
             X[last] = np.asarray(solution.x)[:2]
             EL[last] = solution.energy, solution.arc_length
             iterations[last] = solution.iterations
-            status[last] = OK if solution.status == "ok" else NOT_CONVERGED
+            status[last] = OK if solution.status == Status.OK else NOT_CONVERGED
         previous = X[last].copy() if warm and status[last] == OK else None
         k = last + 1
     elapsed = time.perf_counter() - started
-    names = np.where(status == OK, "ok", "not_converged").tolist()
+    names = np.where(status == OK, Status.OK, Status.NOT_CONVERGED).tolist()
     for i, solution in solved.items():
         names[i] = solution.status
     return ShapeBatch(X, names, iterations, EL[:, 0], EL[:, 1], np.full(N, elapsed / max(N, 1)), notes, solved)

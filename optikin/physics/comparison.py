@@ -55,6 +55,7 @@ from optikin.curves import PHQuintic, ShapeData, ShapeEnergyModel
 from optikin.physics.model import RodArm
 from optikin.physics.reconstruction import Reconstruction, ReconstructionOptions, ShapeReconstructor
 from optikin.physics.rod import Rod
+from optikin.status import Status
 
 METHODS = ("ph-speeds", "ph-length", "cc-arc", "physics", "physics-distributed", "physics-weight")
 """The compared methods (module docstring), in table order."""
@@ -356,7 +357,7 @@ class Comparison:
         cells = [self.rod.name]
         for name in METHODS:
             r = self.results[name]
-            mark = "" if r.status == "ok" else f" ({r.status})"
+            mark = "" if r.status == Status.OK else f" ({r.status})"
             cells.append(f"{1e3 * r.max_error:.3g} / {1e3 * r.rms_error:.3g}{mark}")
         return cells
 
@@ -395,7 +396,9 @@ class Comparator:
             )
         tic = time.perf_counter()
         points, S = cc_arc_points(p0, t0, p1, fractions)
-        results["cc-arc"] = self._measured(rod, points, arc_length=S, status="ok", seconds=time.perf_counter() - tic)
+        results["cc-arc"] = self._measured(
+            rod, points, arc_length=S, status=Status.OK, seconds=time.perf_counter() - tic
+        )
         weightless = physics_fit(rod)
         fits = {
             "physics": weightless,

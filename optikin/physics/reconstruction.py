@@ -64,6 +64,7 @@ from optikin.algebra import matrix_from_quat, quat_conjugate, quat_multiply, qua
 from optikin.options import Options
 from optikin.physics.model import STATE_SIZE, ArmEquations, Loads, RodArm, load_vector
 from optikin.physics.solution import RodSolution
+from optikin.status import Status
 
 Pose = tuple[np.ndarray, np.ndarray]
 """``(position (3,) [m], unit quaternion (4,) (w, x, y, z))``."""
@@ -128,7 +129,7 @@ class Reconstruction:
     solution: RodSolution
     wrench: np.ndarray
     residual: np.ndarray
-    status: Literal["ok", "not_converged"]
+    status: Literal[Status.OK, Status.NOT_CONVERGED]
     iterations: int
     seconds: float
     energy: float = float("nan")
@@ -360,7 +361,7 @@ class ShapeReconstructor:
             kept = min(shapes, key=lambda f: f[2] if np.isfinite(f[2]) else np.inf)
         z, r, cost, iterations, states, loads, energy = kept
         solution = RodSolution.from_states(self.s * float(args[2]), states, 0.0, np.inf, iterations)
-        status: Literal["ok", "not_converged"] = "ok" if np.sqrt(cost) <= tol else "not_converged"
+        status: Literal[Status.OK, Status.NOT_CONVERGED] = Status.OK if np.sqrt(cost) <= tol else Status.NOT_CONVERGED
         result = Reconstruction(
             solution,
             loads.ravel(),

@@ -7,6 +7,8 @@ from typing import Literal
 
 import numpy as np
 
+from optikin.status import Status
+
 
 @dataclass(frozen=True)
 class RodSolution:
@@ -45,14 +47,14 @@ class RodSolution:
     m: np.ndarray
     base_wrench: np.ndarray
     residual_norm: float
-    status: Literal["ok", "failed"]
+    status: Literal[Status.OK, Status.FAILED]
     iterations: int = 0
     message: str = ""
 
     @property
     def ok(self) -> bool:
         """``status == "ok"``."""
-        return self.status == "ok"
+        return self.status == Status.OK
 
     @property
     def tip_position(self) -> np.ndarray:
@@ -82,7 +84,7 @@ class RodSolution:
             m=X[:, 10:13].copy(),
             base_wrench=X[0, 7:13].copy(),
             residual_norm=float(residual_norm),
-            status="ok" if ok else "failed",
+            status=Status.OK if ok else Status.FAILED,
             iterations=iterations,
             message="" if ok else message,
         )

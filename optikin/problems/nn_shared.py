@@ -59,6 +59,7 @@ from optikin.progress import Progress
 from optikin.results import Drawer, MethodRow, Result
 from optikin.solvers.base import SolutionBatch
 from optikin.spec import ProblemSpec
+from optikin.status import Status
 
 MM = 1e3
 BATCH_REPEATS = 5
@@ -461,7 +462,7 @@ def solver_row(run: SolverRun, extra: dict[str, Any]) -> MethodRow:
         "baseline",
         {
             "samples": len(report),
-            "ok [%]": float(100 * np.mean(np.array(report.status) == "ok")),
+            "ok [%]": float(100 * np.mean(np.array(report.status) == Status.OK)),
             **error_stats(run.errors),
             **extra,
             "batched": report.batched,
@@ -506,7 +507,7 @@ def comparison_result(
         solver=main,
         title=spec.title,
         arm=prep.arm.describe(),
-        status=["ok" if np.isfinite(e) else "failed" for e in errors[main]],
+        status=[Status.OK if np.isfinite(e) else Status.FAILED for e in errors[main]],
         residuals=errors[main],
         timings={"database [s]": prep.seconds},
         metrics=metrics,

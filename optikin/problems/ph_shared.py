@@ -54,6 +54,7 @@ from optikin.results import MethodRow
 from optikin.solvers import build_preset
 from optikin.solvers.ph_backends import PHAdapter
 from optikin.spec import load_problem
+from optikin.status import Status
 
 LENGTH_MODES = ("arc", "markers", "model")
 MM = 1e3
@@ -252,7 +253,7 @@ def solve_methods(
 
 def energy_gaps(runs: dict[str, MethodRun]) -> dict[str, np.ndarray]:
     """Per method, ``E - E_best`` per sample (``E_best``: the lowest energy any method found), NaN where failed."""
-    E = np.array([[e if s == "ok" else np.nan for e, s in zip(r.energies, r.status)] for r in runs.values()])
+    E = np.array([[e if s == Status.OK else np.nan for e, s in zip(r.energies, r.status)] for r in runs.values()])
     with np.errstate(all="ignore"):
         best = np.nanmin(np.where(np.isfinite(E), E, np.nan), axis=0)
     return {name: E[k] - best for k, name in enumerate(runs)}

@@ -9,6 +9,7 @@ from optikin.data.configurations import skipped_rows_notes
 from optikin.problems import ProblemContext
 from optikin.problems.fk.run import FkOutcome
 from optikin.results import MethodRow, Result
+from optikin.status import Status
 
 MM = 1e3
 
@@ -21,7 +22,7 @@ DIFFERENCE = "max |tip - numpy| [mm]"
 def sample_status(outcome: FkOutcome) -> list[str]:
     """``ok`` for a finite tip and backbone with a unit tip dual quaternion, else ``failed``."""
     finite = np.isfinite(outcome.tip_dq).all(axis=1) & np.isfinite(outcome.backbone).all(axis=(1, 2))
-    return ["ok" if ok and e < UNIT_TOLERANCE else "failed" for ok, e in zip(finite, outcome.unit_error)]
+    return [Status.OK if ok and e < UNIT_TOLERANCE else Status.FAILED for ok, e in zip(finite, outcome.unit_error)]
 
 
 def comparison(ctx: ProblemContext, outcome: FkOutcome) -> list[MethodRow]:

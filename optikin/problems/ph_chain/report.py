@@ -10,6 +10,7 @@ from optikin.problems import ProblemContext
 from optikin.problems.ph_chain.run import LINKS, ChainOutcome
 from optikin.problems.ph_shared import MM, distances_to_curves, method_rows
 from optikin.results import MethodRow, Result
+from optikin.status import Status
 
 SEED_MEAN_ERRORS_MM = (2.8, 8.0, 3.1)
 """Singh et al. 2018, section V.C: average error from the tracked markers for CBHA 1, the rope and CBHA 2."""
@@ -69,9 +70,9 @@ def sample_status(outcome: ChainOutcome) -> list[str]:
     """``ok`` where the solver solved all three links, else the first link's status that is not."""
     main = outcome.main
     return [
-        "ok"
-        if all(main[name].status[i] == "ok" for name in LINKS)
-        else next(main[name].status[i] for name in LINKS if main[name].status[i] != "ok")
+        Status.OK
+        if all(main[name].status[i] == Status.OK for name in LINKS)
+        else next(main[name].status[i] for name in LINKS if main[name].status[i] != Status.OK)
         for i in range(len(outcome.chain))
     ]
 

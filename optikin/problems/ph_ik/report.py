@@ -25,6 +25,7 @@ from optikin.problems.ph_ik.options import PHIkOptions
 from optikin.problems.ph_ik.run import IkOutcome
 from optikin.problems.ph_shared import MM, method_rows, summary_of
 from optikin.results import MethodRow, Result
+from optikin.status import Status
 
 SEED_TABLE_II_MM = {
     "PH": {"L1": (0.0112, 4.4020, 2.8239), "L2": (0.0032, 5.2327, 2.2020), "L3": (0.0012, 3.5959, 0.9768)},
@@ -69,7 +70,7 @@ def comparator_rows(outcome: IkOutcome) -> tuple[list[MethodRow], dict[str, np.n
     for name, found in outcome.comparators.items():
         errors = np.abs(found.lengths - outcome.reference) * MM
         status = np.array(found.status)
-        failed = np.flatnonzero(status != "ok")
+        failed = np.flatnonzero(status != Status.OK)
         seed_time = SEED_TABLE_III_S.get(name)
         metrics: dict[str, Any] = {
             "ok": f"{len(status) - failed.size}/{len(status)}",

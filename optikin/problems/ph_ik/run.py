@@ -19,6 +19,7 @@ from optikin.fastcall import BufferedFunction
 from optikin.problems import ProblemContext
 from optikin.problems.ph_ik.options import PHIkOptions
 from optikin.problems.ph_shared import MethodRun, shape_samples, solve_methods, solver_name
+from optikin.status import Status
 
 
 @dataclass
@@ -83,7 +84,7 @@ def timed_tube_lengths(
     out = f.outputs[0]
     lengths, seconds = np.full((len(samples), out.size), np.nan), np.zeros(len(samples))
     for i, (sol, data) in enumerate(zip(run.solutions, samples)):
-        if sol.status != "ok":
+        if sol.status != Status.OK:
             continue
         tic = time.perf_counter()
         x_in[:] = sol.x

@@ -27,6 +27,7 @@ import numpy as np
 from optikin.problems import ProblemContext
 from optikin.problems.statics.run import ForwardOutcome, ForwardRun, InverseOutcome
 from optikin.results import MethodRow, Result
+from optikin.status import Status
 
 MM = 1e3
 MS = 1e3
@@ -84,7 +85,7 @@ def forward_result(ctx: ProblemContext, outcome: ForwardOutcome) -> Result:
     }
     if outcome.t is not None:
         arrays["t"] = outcome.t
-    ok = np.array(status) == "ok"
+    ok = np.array(status) == Status.OK
     rows = [
         MethodRow(
             run.name,
@@ -166,7 +167,7 @@ def inverse_result(ctx: ProblemContext, outcome: InverseOutcome) -> Result:
         arrays[f"status_{key}"] = status
         arrays[f"time_{key}"] = report.seconds
         metrics = {
-            "success rate": float(np.mean(status == "ok")) if len(status) else float("nan"),
+            "success rate": float(np.mean(status == Status.OK)) if len(status) else float("nan"),
             "median tip error [m]": _finite(np.median, run.tip_error),
             "max tip error [m]": _finite(np.max, run.tip_error),
             "median time per target [ms]": _finite(np.median, report.seconds) * MS,
@@ -187,7 +188,7 @@ def inverse_result(ctx: ProblemContext, outcome: InverseOutcome) -> Result:
         notes.append(f"{outcome.dropped} targets dropped: the equilibrium of their actuation did not converge")
     if outcome.skipped_rows:
         notes.append(f"{outcome.skipped_rows} rows of {ctx.data_params.file} skipped (data.samples)")
-    bad = [i for i, s in enumerate(main.report.status) if s != "ok"]
+    bad = [i for i, s in enumerate(main.report.status) if s != Status.OK]
     if bad:
         notes.append(f"{len(bad)} targets not solved by {main.name}; first: {bad[0]}: {main.report.messages[bad[0]]}")
     return ctx.result(

@@ -30,6 +30,7 @@ from optikin.problems.statics.options import LoadOptions, StaticsOptions
 from optikin.solvers import build_preset
 from optikin.solvers.base import SolutionBatch
 from optikin.solvers.nonlinear import LeastSquaresProblem, NonlinearAdapter
+from optikin.status import Status
 
 COLLOCATION = "collocation"
 """The kind's own baseline: the same equilibria by Gauss-Legendre collocation and IPOPT (forward mode)."""
@@ -297,15 +298,15 @@ def recheck(
             continue
         solution = solver.solve(np.concatenate([fixed, x]))
         if not solution.ok:
-            if report.status[i] == "ok":
-                report.status[i], report.messages[i] = "failed", f"recomputed equilibrium: {solution.message}"
+            if report.status[i] == Status.OK:
+                report.status[i], report.messages[i] = Status.FAILED, f"recomputed equilibrium: {solution.message}"
             continue
         pose = tip_pose(solution)
         position_error[i] = float(np.linalg.norm(pose[:3] - targets[i, :3]))
         if targets.shape[1] == 7:
             angle_error[i] = float(quat_angle(quat_multiply(quat_conjugate(targets[i, 3:7]), pose[3:7])))
-        if report.status[i] == "ok" and not position_error[i] <= RECHECK_FACTOR * tolerance:
-            report.status[i] = "failed"
+        if report.status[i] == Status.OK and not position_error[i] <= RECHECK_FACTOR * tolerance:
+            report.status[i] = Status.FAILED
             report.messages[i] = f"recomputed tip error {position_error[i]:.3g} m"
     return position_error, (angle_error if targets.shape[1] == 7 else None)
 

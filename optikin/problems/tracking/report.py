@@ -12,6 +12,7 @@ from optikin.problems import ProblemContext
 from optikin.problems.tracking.options import ToleranceOptions
 from optikin.problems.tracking.run import BASELINES, MPC_NAMES, ObstacleOutcome, TrackingOutcome
 from optikin.results import MethodRow, Result
+from optikin.status import Status
 
 COMPARED = {
     "rms [mm]": "position error rms [mm]",
@@ -62,7 +63,7 @@ def result(ctx: ProblemContext, outcome: TrackingOutcome) -> Result:
                     f"{summaries[name]['backbone clearance bound [mm]']:.3g} mm of an obstacle (bound between samples)"
                 )
     return ctx.result(
-        status=["ok" if s == "ok" else "failed" for s in qp_run.status],
+        status=[Status.OK if s == Status.OK else Status.FAILED for s in qp_run.status],
         residuals=qp_run.position_error,
         timings=timings,
         metrics=metrics,
@@ -249,7 +250,7 @@ def notes(
     """QP failures, rod-plant notes, excursions outside the limits, MRAC gain saturation, settling, in words."""
     out = []
     qp_run = runs["qp"]
-    failed = [(t, s) for t, s in zip(qp_run.t, qp_run.status) if s != "ok"]
+    failed = [(t, s) for t, s in zip(qp_run.t, qp_run.status) if s != Status.OK]
     if failed:
         out.append(f"QP solver failed on {len(failed)} steps; first at t = {failed[0][0]:.4g} s: {failed[0][1]}")
     for name, tracking in runs.items():

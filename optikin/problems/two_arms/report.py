@@ -12,6 +12,7 @@ from optikin.errors import InputDataError
 from optikin.problems import ProblemContext
 from optikin.problems.two_arms.run import TwoArmOutcome
 from optikin.results import MethodRow, Result
+from optikin.status import Status
 
 MM, DEG = 1e3, 180.0 / np.pi
 
@@ -149,7 +150,7 @@ def result(ctx: ProblemContext, outcome: TwoArmOutcome) -> Result:
         "qp step p95 [us]": qp["step time p95 [us]"],
     }
     return ctx.result(
-        status=["ok" if s == "ok" else "failed" for s in outcome.runs["qp"].status],
+        status=[Status.OK if s == Status.OK else Status.FAILED for s in outcome.runs["qp"].status],
         residuals=outcome.runs["qp"].error,
         timings=timings,
         metrics=qp | {"samples per section": outcome.model.arms[0].points_per_section},
