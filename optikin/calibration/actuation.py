@@ -54,6 +54,8 @@ LINE_SEARCH = 6
 """Step reductions (by 4) of a Newton step that does not reduce the tip moment, at most."""
 FIT_ITERATIONS = 8
 """Newton steps at most of a warm-started solve inside the fit."""
+HOMOTOPY = 4
+"""Equal steps of the tensions from the nearest solved posture in :func:`predict`."""
 REWEIGHTS = 5
 """Solves of the reweighted linear least squares of the base position and the marker offsets."""
 NEAR = 1e-5
@@ -216,8 +218,8 @@ class Shapes:
     base_moment:
         ``(R, 3)`` the base moment solved [N m] (a warm start for the next solve).
     converged:
-        ``(R,)`` bool: the tip moment is below :data:`NEWTON_TOLERANCE` and the tip hangs below the base (by
-        more than half the length along gravity, where there is gravity: not an equilibrium of another branch).
+        ``(R,)`` bool: the tip moment is below :data:`NEWTON_TOLERANCE` (an equilibrium, on the branch reached
+        from the start).
     """
 
     positions: np.ndarray
@@ -296,9 +298,7 @@ def _newton(
                 break
             lam[pending] /= 4
     positions, rotations, tip = _integrate(M0, stiffness, lengths, moments, g_base, payload, density, steps)
-    g = np.linalg.norm(g_base, axis=1)
-    hanging = (np.einsum("ni,ni->n", positions[:, -1], g_base) > 0.5 * lengths.sum(axis=1) * g) | (g == 0)
-    converged = (np.linalg.norm(tip, axis=1) < 10 * NEWTON_TOLERANCE) & hanging
+    converged = np.linalg.norm(tip, axis=1) < 10 * NEWTON_TOLERANCE
     return Shapes(positions, rotations, M0, converged)
 
 
@@ -382,7 +382,9 @@ def predict(
 ) -> np.ndarray:
     """``(N, 3, 3)`` marker positions [m] predicted for motor inputs ``(N, 6)`` [N]; NaN for a posture without an
     equilibrium on the hanging branch. ``known``: inputs ``(K, 6)`` [N] and the base moments ``(K, 3)`` [N m] of
-    solved postures (a fit's training postures, :class:`Fit`); each posture then starts from the nearest one's.
+    solved postures (a fit's training postures, :class:`Fit`); each posture is then reached from the nearest one by
+    :data:`HOMOTOPY` equal steps of the tensions, from its base moment (a posture not reached so, and every posture
+    without ``known``, by :func:`solve_shapes` from the straight rod).
 
     Raises
     ------
@@ -393,21 +395,29 @@ def predict(
     if inputs.ndim != 2 or inputs.shape[1] != MOTORS:
         raise ValueError(f"inputs: expected (N, {MOTORS}) motor inputs, got shape {inputs.shape}")
     n = len(inputs)
-    start = None
-    if known is not None and len(known[0]):
-        nearest = np.argmin(((inputs[:, None, :] - known[0][None]) ** 2).sum(axis=2), axis=1)
-        start = known[1][nearest]
-    shapes = solve_shapes(
+    tension = tensions(inputs, params.motor_offsets)
+    args = (
         np.tile(params.stiffness, (n, 1)),
         np.tile(params.section_lengths, (n, 1)),
-        tensions(inputs, params.motor_offsets),
+        tension,
         np.tile(params.base_rotation.T @ GRAVITY, (n, 1)),
         np.full(n, params.payload),
-        params.tendon_offset,
-        params.linear_density,
-        steps,
-        start,
     )
+    if known is None or not len(known[0]):
+        shapes = solve_shapes(*args, params.tendon_offset, params.linear_density, steps)
+    else:
+        nearest = np.argmin(((inputs[:, None, :] - known[0][None]) ** 2).sum(axis=2), axis=1)
+        origin = tensions(known[0][nearest], params.motor_offsets)
+        M = known[1][nearest].copy()
+        for fraction in np.arange(1, HOMOTOPY + 1) / HOMOTOPY:
+            step = (*args[:2], origin + fraction * (tension - origin), *args[3:])
+            shapes = _newton(*step, params.tendon_offset, params.linear_density, steps, M)
+            M = shapes.base_moment
+        redo = np.flatnonzero(~shapes.converged)
+        if len(redo):
+            again = solve_shapes(*(x[redo] for x in args), params.tendon_offset, params.linear_density, steps)
+            for name in ("positions", "rotations", "base_moment", "converged"):
+                getattr(shapes, name)[redo] = getattr(again, name)
     markers = markers_of(params, shapes)
     markers[~shapes.converged] = np.nan
     return markers
