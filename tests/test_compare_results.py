@@ -97,3 +97,20 @@ def test_a_missing_result_is_a_difference(tool, reference, tmp_path):
     other = _copy(reference, tmp_path)
     shutil.rmtree(other / "cc-ik-pose")
     assert tool.compare(reference, other, CHEAP)["cc-ik-pose"] == [f"{other / 'cc-ik-pose'}: no result"]
+
+
+def test_the_checkouts_folder_in_a_note_is_no_difference_and_another_file_is(tool, reference, tmp_path):
+    other = _copy(reference, tmp_path)
+    path = other / "cc-ik-pose" / "result.json"
+    data = json.loads(path.read_text())
+    data["notes"] = [*data["notes"], "read /somewhere/else/problems/cc-ik-pose.yaml"]
+    path.write_text(json.dumps(data))
+    mine = tmp_path / "mine"
+    shutil.copytree(reference, mine)
+    want = json.loads((mine / "cc-ik-pose" / "result.json").read_text())
+    want["notes"] = [*want["notes"], f"read {ROOT}/problems/cc-ik-pose.yaml"]
+    (mine / "cc-ik-pose" / "result.json").write_text(json.dumps(want))
+    assert tool.compare(mine, other, ["cc-ik-pose"])["cc-ik-pose"] == []
+    data["notes"][-1] = "read /somewhere/else/problems/cc-ik-position.yaml"
+    path.write_text(json.dumps(data))
+    assert len(tool.compare(mine, other, ["cc-ik-pose"])["cc-ik-pose"]) == 1

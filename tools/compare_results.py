@@ -7,8 +7,9 @@ the same to the bit and 1 with one line per differing key otherwise (``--problem
 ``--against FOLDER`` compares a folder written earlier instead of solving).
 
 Compared are ``result.json`` without the fields that hold wall times or where and when the run was
-(:data:`UNTIMED`, and every key naming a time: :func:`is_timing`) and every array of ``arrays.npz`` but the
-wall times (their bytes, shape and dtype). Left out of :data:`PROBLEMS`, and why: the neural-network kinds
+(:data:`UNTIMED`, and every key naming a time: :func:`is_timing`), the checkout's folder taken out of the
+texts (:data:`CHECKOUT`), and every array of ``arrays.npz`` but the wall times (their bytes, shape and
+dtype). Left out of :data:`PROBLEMS`, and why: the neural-network kinds
 (``cbha-nn-*``: a training set of a few samples is refused, and the model fits take minutes), the dynamics
 kinds (``cosserat-tendon-step``, ``cosserat-cantilever-vibration``, ``cbha-pneumatic-dynamics``: seconds of
 simulated time each), ``cosserat-tendon-fk`` (40 s for five samples), ``cbha-ik`` and ``cbha-ph-ik-cosserat``
@@ -71,6 +72,10 @@ TIMING = re.compile(r"time|seconds|speed|\[(s|ms|us)\]|_(s|ms|us)$", re.IGNORECA
 """What a key or an array's name holding a wall time (or a rate measured from one) contains."""
 
 
+CHECKOUT = re.compile(r"/[^\s'\"]*/(?=problems/)")
+"""The folder of the checkout a shipped file's path names (a note may give it): left out, so two checkouts compare."""
+
+
 def is_timing(key: str) -> bool:
     """Whether a ``result.json`` key or an array's name holds a wall time (``time_lm``, ``solve [ms]``, ...)."""
     return TIMING.search(key) is not None
@@ -98,6 +103,16 @@ def _flatten(data: Any, path: str = "") -> Iterator[tuple[str, Any]]:
         yield path, data
 
 
+def _without_checkout(data: Any) -> Any:
+    """``data`` with the checkout's folder taken out of every text (``/home/x/optikin/problems/a.yaml`` ->
+    ``problems/a.yaml``)."""
+    if isinstance(data, str):
+        return CHECKOUT.sub("", data)
+    if isinstance(data, list):
+        return [_without_checkout(v) for v in data]
+    return data
+
+
 def _same_leaf(a: Any, b: Any) -> bool:
     if isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b):
         return True
@@ -111,7 +126,8 @@ def compare_json(reference: Path, other: Path) -> list[str]:
     for key in UNTIMED:
         want.pop(key, None)
         got.pop(key, None)
-    left, right = dict(_flatten(want)), dict(_flatten(got))
+    left = {key: _without_checkout(value) for key, value in _flatten(want)}
+    right = {key: _without_checkout(value) for key, value in _flatten(got)}
     lines = []
     for key in sorted(set(left) | set(right)):
         if key not in right:
