@@ -381,7 +381,7 @@ def predict(
     params: ActuationParams, inputs: np.ndarray, steps: int = 8, known: tuple[np.ndarray, np.ndarray] | None = None
 ) -> np.ndarray:
     """``(N, 3, 3)`` marker positions [m] predicted for motor inputs ``(N, 6)`` [N]; NaN for a posture without an
-    equilibrium on the hanging branch. ``known``: inputs ``(K, 6)`` [N] and the base moments ``(K, 3)`` [N m] of
+    equilibrium converged. ``known``: inputs ``(K, 6)`` [N] and the base moments ``(K, 3)`` [N m] of
     solved postures (a fit's training postures, :class:`Fit`); each posture is then reached from the nearest one by
     :data:`HOMOTOPY` equal steps of the tensions, from its base moment (a posture not reached so, and every posture
     without ``known``, by :func:`solve_shapes` from the straight rod).

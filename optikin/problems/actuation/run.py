@@ -236,7 +236,7 @@ def solve(ctx: ProblemContext) -> ActuationOutcome:
     notes = []
     unreached = int(np.isinf(errors[PHYSICS][-1]).sum())
     if unreached:
-        notes.append(f"physics: {unreached} held-out postures without an equilibrium on the hanging branch (inf)")
+        notes.append(f"physics: {unreached} held-out postures without a converged equilibrium (inf)")
     return ActuationOutcome(
         methods,
         titles,
