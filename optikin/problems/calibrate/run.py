@@ -247,7 +247,7 @@ def solve(ctx: ProblemContext) -> CalibrateOutcome:
     def run_start(axis: tuple[float, float, float] | None, iterations: int) -> tuple[Calibration, float]:
         start_position, start_rotation = position, rotation
         if axis is not None:
-            start_position = initial_base(measured, sections, float(arm.section_lengths[0]), np.array(axis))[0]
+            start_position = initial_base(measured, sections, float(arm.section_lengths[0]), np.array(axis))[0].tolist()
             start_rotation = reference_orientation(np.array(axis))
         started = time.perf_counter()
         calibration = calibrate(
@@ -261,7 +261,7 @@ def solve(ctx: ProblemContext) -> CalibrateOutcome:
             orientation_sigma=None if sigma_deg is None else float(np.radians(sigma_deg)),
             fix=base.fix,
             plane=plane,
-            direction=direction,
+            direction=None if direction is None else direction.tolist(),
             estimate_yaw=base.estimate_yaw,
             fix_lengths=options.lengths == "fixed",
             length_bounds=bounds,
@@ -310,11 +310,11 @@ def solve(ctx: ProblemContext) -> CalibrateOutcome:
     lay = calibration.layout
     if isinstance(truth, CalibrationTruth) and not lay.extensible and not lay.actuated:
         assert calibration.full is not None
-        tested = np.flatnonzero(test.tested)
+        rows = np.flatnonzero(test.tested)
         truth_errors = np.full(test.errors.shape, np.nan)
-        X0 = calibration.X_all[tested]
-        subset = calibration.full.subset(tested)
-        truth_errors[tested] = fit_postures(subset, truth_beta(calibration, truth), X0, loss="linear").errors
+        X0 = calibration.X_all[rows]
+        subset = calibration.full.subset(rows)
+        truth_errors[rows] = fit_postures(subset, truth_beta(calibration, truth), X0, loss="linear").errors
     section = arm_section(calibration, arm)
     facts = calibration_facts(calibration, test)
     written: dict[str, Path] = {}
