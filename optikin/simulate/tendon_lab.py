@@ -24,7 +24,9 @@ The truth travels with the recording (:class:`LabRecording`): the section length
 backbone and the bodies' offsets as a :class:`~optikin.calibration.synthetic.CalibrationTruth` (its
 ``configurations`` the constant-curvature angles of each section's end rotation), the tensions and the disk
 frames. The equilibria are cached on disk (the per-user cache, :func:`optikin.codegen.cache_dir`), keyed by
-everything they depend on; noise, occlusions and offsets are drawn on each load.
+everything they depend on; those of the shipped problem's grid and of the tests' corner grid come with the
+package (``optikin/simulate/equilibria/``, found under the same key, so a change of the lab's physics falls
+back to solving); noise, occlusions and offsets are drawn on each load.
 """
 
 from __future__ import annotations
@@ -34,6 +36,7 @@ import itertools
 import json
 import os
 from dataclasses import dataclass, field
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -175,10 +178,13 @@ def equilibria(params: TendonLabParams, tensions: np.ndarray) -> tuple[np.ndarra
         },
         sort_keys=True,
     )
-    path = cache_dir() / "tendon_lab" / f"{hashlib.sha256(key.encode()).hexdigest()[:32]}.npz"
-    if path.is_file():
-        with np.load(path) as stored:
-            return stored["positions"], stored["rotations"]
+    name = f"{hashlib.sha256(key.encode()).hexdigest()[:32]}.npz"
+    shipped = resources.files("optikin.simulate").joinpath("equilibria", name)
+    path = cache_dir() / "tendon_lab" / name
+    for stored_at in (shipped, path):
+        if stored_at.is_file():
+            with stored_at.open("rb") as handle, np.load(handle, allow_pickle=False) as stored:
+                return stored["positions"], stored["rotations"]
     from optikin.physics.model import Loads, RodArm, Segment
     from optikin.physics.rod import Rod
     from optikin.physics.shooting import ShootingOptions, ShootingSolver
