@@ -251,9 +251,10 @@ class Manifest:
             parts += [f"{k} {v}" for k, v in (("training", g.training), ("budget", g.budget), ("limits", g.limits))]
             if g.information:
                 parts.append(f"information: {g.information}")
-            why = self.problems(g)
+            why = "; ".join(self.problems(g))
             if why:
-                parts.append(f"{'; '.join(why)}: {g.label or 'UNLABELLED'}")
+                label = g.label or "UNLABELLED"
+                parts.append(label if label.startswith(why) else f"{why}: {label}")
             lines.append(f"given to {g.method}: " + ", ".join(parts))
         return lines
 
