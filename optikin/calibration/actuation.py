@@ -164,6 +164,16 @@ def tendon_moments(tension: np.ndarray, tendon_offset: float) -> np.ndarray:
     return np.stack([per_motor[:, section_of >= k].sum(axis=1) for k in range(SECTIONS)], axis=1)
 
 
+Batch = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+"""Per-row arrays of a batch of rods: stiffness, lengths, tensions or moments, base-frame gravity, payload."""
+
+
+def _take(batch: Batch, index: np.ndarray | slice) -> Batch:
+    """The rows ``index`` of every array of ``batch``."""
+    stiffness, lengths, actuation, g_base, payload = batch
+    return stiffness[index], lengths[index], actuation[index], g_base[index], payload[index]
+
+
 def _integrate(
     M0: np.ndarray,
     stiffness: np.ndarray,
@@ -245,8 +255,10 @@ def _tip_jacobian(
     stacked = np.repeat(M0, 4, axis=0).reshape(n, 4, 3)
     for i in range(3):
         stacked[:, i + 1, i] += d
-    args = [np.repeat(x, 4, axis=0) for x in (stiffness, lengths, moments, g_base, payload)]
-    _, _, tip = _integrate(stacked.reshape(-1, 3), *args, density, steps)
+    repeated = np.repeat(np.arange(n), 4)
+    _, _, tip = _integrate(
+        stacked.reshape(-1, 3), *_take((stiffness, lengths, moments, g_base, payload), repeated), density, steps
+    )
     tip = tip.reshape(n, 4, 3)
     return tip[:, 0], (tip[:, 1:] - tip[:, :1]).transpose(0, 2, 1) / d[:, None, None]
 
@@ -272,8 +284,8 @@ def _newton(
         rows = np.flatnonzero(active)
         if not len(rows):
             break
-        args = (stiffness, lengths, moments, g_base, payload)
-        tip, J = _tip_jacobian(M0[rows], *(x[rows] for x in args), density, steps)
+        batch: Batch = (stiffness, lengths, moments, g_base, payload)
+        tip, J = _tip_jacobian(M0[rows], *_take(batch, rows), density, steps)
         norm = np.linalg.norm(tip, axis=1)
         done = norm < NEWTON_TOLERANCE
         active[rows[done]] = False
@@ -287,10 +299,7 @@ def _newton(
         pending = np.flatnonzero(~near)
         for _ in range(LINE_SEARCH if len(pending) else 0):
             trial = M0[rows[pending]] + lam[pending, None] * step[pending]
-            args = (stiffness, lengths, moments, g_base)
-            _, _, tip_trial = _integrate(
-                trial, *(x[rows[pending]] for x in args), payload[rows[pending]], density, steps
-            )
+            _, _, tip_trial = _integrate(trial, *_take(batch, rows[pending]), density, steps)
             better = np.linalg.norm(tip_trial, axis=1) < norm[pending]
             M0[rows[pending[better]]] = trial[better]
             pending = pending[~better]
@@ -336,7 +345,7 @@ def solve_shapes(
     start:
         ``(R, 3)`` base moments to start Newton from [N m].
     """
-    args = (stiffness, lengths, tension, g_base, payload)
+    args: Batch = (stiffness, lengths, tension, g_base, payload)
     if start is not None:
         shapes = _newton(*args, tendon_offset, density, steps, start)
         if shapes.converged.all():
@@ -350,11 +359,9 @@ def solve_shapes(
             break
         M = np.zeros((len(redo), 3))
         for fraction in np.arange(1, stages + 1) / stages:
-            sub = [x[redo] for x in args]
-            sub[2] = sub[2] * fraction
-            step = _newton(
-                *sub, tendon_offset, density, steps, M, NEWTON_ITERATIONS if fraction == 1 else STAGE_ITERATIONS
-            )
+            k, L, t, g, w = _take(args, redo)
+            iterations = NEWTON_ITERATIONS if fraction == 1 else STAGE_ITERATIONS
+            step = _newton(k, L, t * fraction, g, w, tendon_offset, density, steps, M, iterations)
             M = step.base_moment
         if again is None:
             again, rows = step, redo
@@ -364,7 +371,9 @@ def solve_shapes(
                 getattr(again, name)[put] = getattr(step, name)
         redo = redo[~step.converged]
     if shapes is None or again is None:
-        return shapes if again is None else again
+        result = shapes if again is None else again
+        assert result is not None  # the loop ran: a start with every row converged returned above
+        return result
     for name in ("positions", "rotations", "base_moment", "converged"):
         getattr(shapes, name)[rows] = getattr(again, name)
     return shapes
@@ -396,7 +405,7 @@ def predict(
         raise ValueError(f"inputs: expected (N, {MOTORS}) motor inputs, got shape {inputs.shape}")
     n = len(inputs)
     tension = tensions(inputs, params.motor_offsets)
-    args = (
+    args: Batch = (
         np.tile(params.stiffness, (n, 1)),
         np.tile(params.section_lengths, (n, 1)),
         tension,
@@ -415,7 +424,7 @@ def predict(
             M = shapes.base_moment
         redo = np.flatnonzero(~shapes.converged)
         if len(redo):
-            again = solve_shapes(*(x[redo] for x in args), params.tendon_offset, params.linear_density, steps)
+            again = solve_shapes(*_take(args, redo), params.tendon_offset, params.linear_density, steps)
             for name in ("positions", "rotations", "base_moment", "converged"):
                 getattr(shapes, name)[redo] = getattr(again, name)
     markers = markers_of(params, shapes)
@@ -486,7 +495,7 @@ class _Problem:
         stiffness, offsets, payload, lengths, w = _unpack(thetas)
         R0 = np.einsum("ij,gjk->gik", self.R_start, rotvec_matrix(w))
         g_base = np.einsum("gji,j->gi", R0, GRAVITY)
-        rows = (
+        rows: Batch = (
             np.repeat(stiffness, n, axis=0),
             np.repeat(lengths, n, axis=0),
             tensions(np.tile(self.inputs, (G, 1)), np.repeat(offsets, n, axis=0)),
@@ -494,11 +503,11 @@ class _Problem:
             np.repeat(payload, n),
         )
         if self.warm is None:
-            base = solve_shapes(*(x[:n] for x in rows), self.tendon_offset, self.density, self.steps)
+            base = solve_shapes(*_take(rows, slice(None, n)), self.tendon_offset, self.density, self.steps)
             self.warm = base.base_moment.copy()
         else:
             base = _newton(
-                *(x[:n] for x in rows), self.tendon_offset, self.density, self.steps, self.warm, FIT_ITERATIONS
+                *_take(rows, slice(None, n)), self.tendon_offset, self.density, self.steps, self.warm, FIT_ITERATIONS
             )
             self.warm[base.converged] = base.base_moment[base.converged]
         groups = [base]

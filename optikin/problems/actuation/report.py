@@ -61,14 +61,14 @@ def result_of(ctx: ProblemContext, outcome: ActuationOutcome) -> Result:
     rows = []
     curve: dict[str, Any] = {}
     for method, title in zip(outcome.methods, outcome.titles):
-        metrics: dict[str, Any] = {}
+        row: dict[str, Any] = {}
         for i, share in enumerate(outcome.fractions):
             s = summary_of(outcome.errors[method][i])
             for key, value in s.items():
-                metrics[f"{share:g}: {key} [mm]"] = round(value, 3)
+                row[f"{share:g}: {key} [mm]"] = round(value, 3)
             curve.setdefault(title, {})[f"{share:g}"] = {k: round(v, 3) for k, v in s.items()}
-        metrics["time [s]"] = round(outcome.fit_time[method], 2)
-        rows.append(MethodRow(title, "solver" if method == PHYSICS else "baseline", metrics))
+        row["time [s]"] = round(outcome.fit_time[method], 2)
+        rows.append(MethodRow(title, "solver" if method == PHYSICS else "baseline", row))
     full = [fits[-1] for fits in outcome.physics_fits]
     estimates = {
         "EI [N m^2] per section": np.mean([f.params.stiffness for f in full], axis=0).round(5).tolist(),

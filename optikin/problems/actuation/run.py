@@ -192,7 +192,11 @@ def solve(ctx: ProblemContext) -> ActuationOutcome:
     training = np.zeros((options.folds, F), dtype=int)
     fits: list[list[physics.Fit]] = []
     nominal = physics.start_params(
-        options.section_lengths, options.stiffness, options.payload, options.tendon_offset, options.linear_density
+        np.asarray(options.section_lengths, dtype=float),
+        options.stiffness,
+        options.payload,
+        options.tendon_offset,
+        options.linear_density,
     )
     with ctx.progress.task(f"actuation: {options.folds} folds x {F} shares", total=options.folds * F) as advance:
         for f in range(options.folds):
@@ -207,7 +211,7 @@ def solve(ctx: ProblemContext) -> ActuationOutcome:
                     inputs[train],
                     measured[train],
                     nominal,
-                    tuple(options.length_range),
+                    (float(options.length_range[0]), float(options.length_range[1])),
                     options.steps,
                     options.max_evaluations,
                     options.loss_scale,
