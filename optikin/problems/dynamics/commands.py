@@ -126,17 +126,19 @@ def _actuators(arm: Any) -> int:
     return len(arm.rod_arm.actuator_names)
 
 
+def _analytic(name: str, arm: Any, params: Any, path: Path, start: str, other: str) -> Commands:
+    """The commands of an analytic source: the actuation at rest is ``params.<start>``, and both it and
+    ``params.<other>`` hold one value per actuator of ``arm`` (else an error naming the field)."""
+    n = _actuators(arm)
+    _vector(getattr(params, other), n, f"data.params.{other}", path)
+    at_rest = _vector(getattr(params, start), n, f"data.params.{start}", path)
+    return Commands(name, at_rest, np.asarray(params.tip_force_initial, dtype=float), params)
+
+
 @register_source(FAMILY, "step", "actuation and tip force stepping from their values at rest", params=StepParams)
 def step_commands(arm: Any, data: Any, params: StepParams, path: Path) -> Commands:
     """Source ``step``: ``initial`` until ``at``, then ``final`` (the tip force likewise)."""
-    n = _actuators(arm)
-    _vector(params.final, n, "data.params.final", path)
-    return Commands(
-        "step",
-        _vector(params.initial, n, "data.params.initial", path),
-        np.asarray(params.tip_force_initial, dtype=float),
-        params,
-    )
+    return _analytic("step", arm, params, path, start="initial", other="final")
 
 
 @register_source(
@@ -144,27 +146,13 @@ def step_commands(arm: Any, data: Any, params: StepParams, path: Path) -> Comman
 )
 def ramp_commands(arm: Any, data: Any, params: RampParams, path: Path) -> Commands:
     """Source ``ramp``: linear from ``initial`` at ``at`` to ``final`` at ``at + duration``."""
-    n = _actuators(arm)
-    _vector(params.final, n, "data.params.final", path)
-    return Commands(
-        "ramp",
-        _vector(params.initial, n, "data.params.initial", path),
-        np.asarray(params.tip_force_initial, dtype=float),
-        params,
-    )
+    return _analytic("ramp", arm, params, path, start="initial", other="final")
 
 
 @register_source(FAMILY, "sine", "a sinusoidal actuation about its mean", params=SineParams)
 def sine_commands(arm: Any, data: Any, params: SineParams, path: Path) -> Commands:
     """Source ``sine``: ``mean + amplitude sin(2 pi frequency t + phase)``, the tip force constant."""
-    n = _actuators(arm)
-    _vector(params.amplitude, n, "data.params.amplitude", path)
-    return Commands(
-        "sine",
-        _vector(params.mean, n, "data.params.mean", path),
-        np.asarray(params.tip_force_initial, dtype=float),
-        params,
-    )
+    return _analytic("sine", arm, params, path, start="mean", other="amplitude")
 
 
 @register_source(
